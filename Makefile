@@ -1,0 +1,45 @@
+# Two commands on a fresh machine with Python 3.11+: `make sim` and `make test`.
+PYTHON ?= python3
+VENV   := .venv
+BIN    := $(VENV)/bin
+STAMP  := $(VENV)/.installed-stamp
+TRACK  ?= models/tracks/s_bend.yaml
+SPEED  ?= 10
+OUT    ?= out
+
+.PHONY: all install test lint typecheck pytest sim bench clean
+
+all: test
+
+$(STAMP): pyproject.toml
+	@$(PYTHON) -c 'import sys; assert sys.version_info >= (3, 11), "umlbot needs Python 3.11+, found " + sys.version.split()[0]'
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet -e '.[test]'
+	@touch $@
+
+install: $(STAMP)
+
+lint: $(STAMP)
+	$(BIN)/ruff check .
+
+typecheck: $(STAMP)
+	$(BIN)/mypy umlbot compiler services tests bench
+
+pytest: $(STAMP)
+	$(BIN)/pytest
+
+test: lint typecheck pytest
+
+sim: $(STAMP)
+	@mkdir -p $(OUT)
+	$(BIN)/umlbot sim models/robot_car --track $(TRACK) --speed $(SPEED) --plot $(OUT)/sim.png
+
+bench: $(STAMP)
+	$(BIN)/python bench/rpc.py
+	$(BIN)/python bench/compile.py
+	$(BIN)/python bench/orchestrator.py
+	$(BIN)/python bench/sim.py
+
+clean:
+	rm -rf $(VENV) $(OUT) .mypy_cache .ruff_cache .pytest_cache build *.egg-info

@@ -1,0 +1,89 @@
+"""The `umlbot` command line: a thin face over the compiler, the services and the simulator.
+
+Each command lives in its own module `umlbot/commands/<name>.py` exposing `command`, loaded only
+when it is used so that `umlbot call` starts fast on a Raspberry Pi.
+"""
+
+from __future__ import annotations
+
+import importlib
+import sys
+
+import click
+
+from umlbot import __version__
+from umlbot.errors import UmlbotError
+from umlbot.logs import configure_logging
+
+#: command name -> one-line help; the module `umlbot.commands.<name>` defines `command`.
+COMMANDS: dict[str, str] = {
+    "check": "Validate a model; print every problem as file:line:col.",
+    "compile": "Compile a model into a compiled model file.",
+    "render": "Draw the model's diagrams as Mermaid, PlantUML, DOT and SVG.",
+    "broker": "Run the embedded MQTT broker (amqtt).",
+    "service": "Run one hardware service (motor, sonar, servo, gpio).",
+    "run": "Run the orchestrator on a compiled model.",
+    "sim": "Run the whole robot in the 2D simulator.",
+    "call": "Call one component feature over MQTT and print the reply.",
+    "monitor": "Watch the robot's traffic live.",
+}
+
+
+class LazyGroup(click.Group):
+    """A group whose subcommands are imported on first use."""
+
+    def list_commands(self, ctx: click.Context) -> list[str]:
+        return sorted(COMMANDS)
+
+    def get_command(self, ctx: click.Context, cmd_name: str) -> click.Command | None:
+        if cmd_name not in COMMANDS:
+            return None
+        try:
+            module = importlib.import_module(f"umlbot.commands.{cmd_name}")
+        except ModuleNotFoundError as exc:
+            if exc.name != f"umlbot.commands.{cmd_name}":
+                raise
+            return _not_yet(cmd_name)
+        command: click.Command = module.command
+        return command
+
+    def format_commands(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
+        with formatter.section("Commands"):
+            formatter.write_dl([(name, COMMANDS[name]) for name in self.list_commands(ctx)])
+
+
+def _not_yet(name: str) -> click.Command:
+    @click.command(name=name, help=COMMANDS[name], context_settings={"ignore_unknown_options": True})
+    @click.argument("args", nargs=-1, type=click.UNPROCESSED)
+    def missing(args: tuple[str, ...]) -> None:
+        raise click.ClickException(f"'umlbot {name}' is not available in this version yet")
+
+    return missing
+
+
+@click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(__version__, prog_name="umlbot")
+@click.option("--log-level", default=None, help="DEBUG, INFO, WARNING or ERROR (env UMLBOT_LOG_LEVEL).")
+@click.option("--log-json/--no-log-json", default=None, help="JSON log lines (default: when not a terminal).")
+def cli(log_level: str | None, log_json: bool | None) -> None:
+    """umlbot: build a robot from UML models."""
+    configure_logging(log_level, log_json)
+
+
+def main() -> None:
+    """Console entry point: run the CLI; an UmlbotError becomes a one-line message and exit 1."""
+    try:
+        cli.main(standalone_mode=False)
+    except click.exceptions.Abort:
+        click.echo("aborted", err=True)
+        sys.exit(130)
+    except click.ClickException as exc:
+        exc.show()
+        sys.exit(exc.exit_code)
+    except click.exceptions.Exit as exc:
+        sys.exit(exc.exit_code)
+    except UmlbotError as exc:
+        click.echo(f"error: {exc}", err=True)
+        sys.exit(1)
+    except KeyboardInterrupt:
+        sys.exit(130)

@@ -1,0 +1,77 @@
+"""The one exception hierarchy of umlbot.
+
+Every error the project raises derives from `UmlbotError`; each subclass also inherits the builtin
+exception it resembles, so `except TimeoutError` still catches a `CallTimeout`. Errors carry their
+details as fields, not only in the message.
+"""
+
+from __future__ import annotations
+
+
+class UmlbotError(Exception):
+    """Root of every error raised by umlbot."""
+
+
+class ConfigError(UmlbotError, ValueError):
+    """A setting, argument or file given by the user is wrong (bad broker URL, bad deployment)."""
+
+
+class ModelError(UmlbotError, ValueError):
+    """A problem in a model source file, with its position (1-based line and column)."""
+
+    def __init__(self, message: str, file: str = "<model>", line: int = 1, column: int = 1) -> None:
+        super().__init__(f"{file}:{line}:{column}: {message}")
+        self.message = message
+        self.file = file
+        self.line = line
+        self.column = column
+
+
+class CompiledModelError(UmlbotError, ValueError):
+    """A compiled model file cannot be loaded (corrupt, or written by a newer format version)."""
+
+
+class BusError(UmlbotError):
+    """Root of the MQTT bus errors."""
+
+
+class NotConnected(BusError, ConnectionError):
+    """The bus has no connection to the broker right now."""
+
+
+class CallTimeout(BusError, TimeoutError):
+    """No reply arrived within the call's time-out."""
+
+    def __init__(self, component: str, feature: str, timeout_s: float) -> None:
+        super().__init__(f"no reply from {component}.{feature} within {timeout_s:g} s")
+        self.component = component
+        self.feature = feature
+        self.timeout_s = timeout_s
+
+
+class RemoteError(BusError):
+    """The service answered a call with an error reply; `code` is the stable slug."""
+
+    def __init__(self, code: str, message: str, component: str = "", feature: str = "") -> None:
+        where = f"{component}.{feature}: " if component else ""
+        super().__init__(f"{where}{code}: {message}")
+        self.code = code
+        self.message = message
+        self.component = component
+        self.feature = feature
+
+
+class DriverError(UmlbotError, RuntimeError):
+    """A hardware driver failed (pigpio daemon unreachable, pin refused, no echo)."""
+
+
+class UnknownDriver(ConfigError):
+    """A driver name that no registry entry knows."""
+
+
+class OrchestratorError(UmlbotError, RuntimeError):
+    """The orchestrator stopped the robot because of a fault (time-out, error reply, offline)."""
+
+
+class SimError(UmlbotError, RuntimeError):
+    """The simulator could not start or run (bad track file, world unreachable)."""
