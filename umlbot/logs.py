@@ -62,4 +62,4 @@ def configure_logging(level: str | None = None, json: bool | None = None) -> Non
 
 def get_logger(name: str) -> structlog.stdlib.BoundLogger:
     """A named structlog logger; works before and after `configure_logging`."""
-    return structlog.stdlib.get_logger(name)  # type: ignore[no-any-return]
+    return structlog.stdlib.get_logger(name)
