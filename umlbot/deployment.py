@@ -1,0 +1,125 @@
+"""The deployment: which implementation realises each component, with which driver and settings.
+
+Two formats are read. The seed's plain format, one `<component>=<implementation id>` a line
+(`#` comments and blank lines allowed), and the rich YAML format::
+
+    robot: car                 # optional robot id
+    driver: pigpio             # default driver for every component: pigpio, sim or mock
+    components:
+      LeftActuator:
+        impl: l298n
+        settings: {in1: 22, in2: 23}
+      DistanceRead:
+        impl: hcsr04
+        driver: mock           # per-component override
+        settings: {trigger: 8, echo: 7}
+
+Implementation-specific settings are validated by the driver that uses them; this module only
+checks the shape and resolves implementation ids (seed aliases included).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
+from umlbot.errors import ConfigError
+from umlbot.library import Implementation, ServiceKind, resolve_implementation
+
+
+class ComponentDeployment(BaseModel):
+    """One component's binding: implementation id, optional driver override, driver settings."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    impl: str
+    driver: str | None = None
+    settings: dict[str, Any] = Field(default_factory=dict)
+
+    @property
+    def implementation(self) -> Implementation:
+        impl = resolve_implementation(self.impl)
+        if impl is None:
+            raise ConfigError(f"unknown implementation id {self.impl!r}")
+        return impl
+
+
+class Deployment(BaseModel):
+    """Every component of the robot with its implementation; `driver` is the default driver."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    robot: str | None = None
+    driver: str = "pigpio"
+    components: dict[str, ComponentDeployment] = Field(default_factory=dict)
+
+    def driver_for(self, component: str) -> str:
+        """The driver name for a component: its own override or the deployment's default."""
+        return self.components[component].driver or self.driver
+
+    def components_of_service(self, service: ServiceKind) -> dict[str, ComponentDeployment]:
+        """The components a service kind serves, by name, in a stable order."""
+        return {
+            name: comp
+            for name, comp in sorted(self.components.items())
+            if (impl := resolve_implementation(comp.impl)) is not None and impl.service == service
+        }
+
+
+def parse_plain(text: str, source: str = "<deployment>") -> Deployment:
+    """Parse the seed's `<component>=<implementation id>` format."""
+    components: dict[str, ComponentDeployment] = {}
+    for lineno, raw in enumerate(text.splitlines(), start=1):
+        line = raw.split("#", 1)[0].strip()
+        if not line:
+            continue
+        name, sep, impl = (part.strip() for part in line.partition("="))
+        if not sep or not name or not impl:
+            raise ConfigError(f"{source}:{lineno}: expected '<component>=<implementation id>', got {raw!r}")
+        if name in components:
+            raise ConfigError(f"{source}:{lineno}: component {name!r} deployed twice")
+        components[name] = ComponentDeployment(impl=impl)
+    return Deployment(components=components)
+
+
+def is_plain_format(text: str) -> bool:
+    """True when the text looks like the seed's plain format (every content line `a=b`)."""
+    lines = [ln.split("#", 1)[0].strip() for ln in text.splitlines()]
+    content = [ln for ln in lines if ln]
+    return bool(content) and all("=" in ln and ":" not in ln for ln in content)
+
+
+def parse_deployment(text: str, source: str = "<deployment>") -> Deployment:
+    """Parse either format; errors name the source and say what is wrong."""
+    if is_plain_format(text):
+        return parse_plain(text, source)
+    from ruamel.yaml import YAML
+    from ruamel.yaml.error import YAMLError
+
+    try:
+        data = YAML(typ="safe").load(text)
+    except YAMLError as exc:
+        raise ConfigError(f"{source}: not valid YAML: {exc}") from exc
+    if not isinstance(data, dict):
+        raise ConfigError(f"{source}: a deployment is a mapping with 'components'")
+    if "deployment" in data and isinstance(data["deployment"], dict):
+        data = data["deployment"]
+    try:
+        return Deployment.model_validate(data)
+    except ValidationError as exc:
+        problems = "; ".join(
+            f"{'.'.join(str(p) for p in err['loc'])}: {err['msg']}" for err in exc.errors()
+        )
+        raise ConfigError(f"{source}: invalid deployment: {problems}") from exc
+
+
+def load_deployment(path: str | Path) -> Deployment:
+    """Read a deployment file in either format."""
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise ConfigError(f"cannot read deployment {p}: {exc.strerror}") from exc
+    return parse_deployment(text, str(p))
