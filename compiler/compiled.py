@@ -1,0 +1,250 @@
+"""The compiled model: everything the orchestrator needs to run a robot, without the source files.
+
+`umlbot compile` writes it with `dump_compiled` (deterministic JSON: same model, same bytes; no
+timestamps), the orchestrator reads it with `load_compiled`, which refuses a file written by a
+newer format version with a clear message. Graphs are resolved (every edge names an existing node
+id), expressions are parsed trees (`compiler.expr`), every name is lane-resolved, and every
+component carries its implementation, service, driver and settings from the deployment.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
+from compiler.expr import Call, Expr
+from umlbot.errors import CompiledModelError
+from umlbot.library import ComponentKind, ServiceKind
+
+#: The version of the compiled file's shape; bumped on any incompatible change.
+FORMAT_VERSION = 1
+
+
+class _Frozen(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class CompiledComponent(_Frozen):
+    """A component bound to its implementation (canonical id) by the deployment."""
+
+    kind: ComponentKind
+    impl: str
+    service: ServiceKind
+    driver: str
+    settings: dict[str, Any] = Field(default_factory=dict)
+    #: the features the implementation offers (sorted).
+    features: list[str] = Field(default_factory=list)
+    #: the component diagram's ports: port name -> feature name.
+    ports: dict[str, str] = Field(default_factory=dict)
+
+
+class Link(_Frozen):
+    """A link between two ports of the component diagram (informational: relations of data)."""
+
+    id: str
+    source_component: str
+    source_port: str
+    target_component: str
+    target_port: str
+
+
+# --- activity nodes -------------------------------------------------------------------------------
+
+
+class _NodeBase(_Frozen):
+    id: str
+    #: 1-based line of the node in its lane's file (for traces and error messages).
+    line: int = 0
+    #: the node as the modeller wrote it (e.g. "LeftActuator.enabled(true)"), for traces and pictures.
+    label: str = ""
+
+
+class StartNode(_NodeBase):
+    """The swimlane's entry point."""
+
+    kind: Literal["start"] = "start"
+    next: str
+
+
+class EndNode(_NodeBase):
+    """Ends the swimlane run (a virtual lane returns to its caller)."""
+
+    kind: Literal["end"] = "end"
+
+
+class ActionNode(_NodeBase):
+    """Calls a component feature, a virtual swimlane or a builtin; the value is discarded."""
+
+    kind: Literal["action"] = "action"
+    call: Call
+    next: str
+
+
+class DatastoreNode(_NodeBase):
+    """Evaluates `value` and stores it in the lane's datastore `name`."""
+
+    kind: Literal["datastore"] = "datastore"
+    name: str
+    value: Expr
+    next: str
+
+
+class Branch(_Frozen):
+    """One output of a decision; `guard` None is the `else` output."""
+
+    guard: Expr | None = None
+    target: str
+    line: int = 0
+    label: str = ""
+
+
+class DecisionNode(_NodeBase):
+    """Follows the first branch whose guard holds, else the `else` branch (always last, if any);
+    when none holds and there is no `else`, this flow stops."""
+
+    kind: Literal["decision"] = "decision"
+    branches: list[Branch]
+
+
+class ForkNode(_NodeBase):
+    """Starts every target concurrently; `join` is the matching join that waits for all of them."""
+
+    kind: Literal["fork"] = "fork"
+    targets: list[str]
+    join: str
+
+
+class JoinNode(_NodeBase):
+    """Waits until a flow arrived from each node in `incoming`, then continues once with `next`."""
+
+    kind: Literal["join"] = "join"
+    next: str
+    incoming: list[str]
+
+
+class SendNode(_NodeBase):
+    """Publishes signal `signal` with the value of `payload` (None when absent)."""
+
+    kind: Literal["send"] = "send"
+    signal: str
+    payload: Expr | None = None
+    next: str
+
+
+class AcceptNode(_NodeBase):
+    """Waits for signal `signal`; stores its payload in datastore `store` when given."""
+
+    kind: Literal["accept"] = "accept"
+    signal: str
+    store: str | None = None
+    next: str
+
+
+Node = Annotated[
+    StartNode | EndNode | ActionNode | DatastoreNode | DecisionNode | ForkNode | JoinNode | SendNode
+    | AcceptNode,
+    Field(discriminator="kind"),
+]
+
+
+class Lane(_Frozen):
+    """A swimlane: a component's lane (starts at start-up) or a virtual lane (runs when called)."""
+
+    name: str
+    virtual: bool
+    component: str | None = None
+    start: str
+    nodes: dict[str, Node]
+    #: the datastores this lane writes (sorted).
+    datastores: list[str] = Field(default_factory=list)
+    file: str = ""
+    line: int = 0
+
+
+class CompiledModel(_Frozen):
+    """The whole compiled model."""
+
+    format_version: int = FORMAT_VERSION
+    #: the model's name; the default robot id (the deployment's `robot` wins when given).
+    name: str
+    source_hash: str
+    #: time-out of one feature call, seconds.
+    call_timeout_s: float = 2.0
+    components: dict[str, CompiledComponent] = Field(default_factory=dict)
+    links: list[Link] = Field(default_factory=list)
+    signals: list[str] = Field(default_factory=list)
+    lanes: dict[str, Lane] = Field(default_factory=dict)
+
+
+def dump_compiled(model: CompiledModel) -> bytes:
+    """The compiled file's bytes: JSON with sorted keys, UTF-8, newline at the end; deterministic."""
+    data = model.model_dump(mode="json")
+    text = json.dumps(data, sort_keys=True, indent=1, ensure_ascii=False, allow_nan=False)
+    return (text + "\n").encode("utf-8")
+
+
+def load_compiled(source: str | Path | bytes) -> CompiledModel:
+    """Read a compiled model from a path or from the file's bytes.
+
+    Raises `CompiledModelError` when the file cannot be read, is corrupt, or was written by a newer
+    format version than this umlbot understands.
+    """
+    where = "<bytes>"
+    if isinstance(source, bytes):
+        raw = source
+    else:
+        where = str(source)
+        try:
+            raw = Path(source).read_bytes()
+        except OSError as exc:
+            raise CompiledModelError(f"cannot read compiled model {where}: {exc.strerror}") from exc
+    try:
+        data = json.loads(raw.decode("utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
+        raise CompiledModelError(f"{where}: not a compiled model (not JSON: {exc})") from exc
+    if not isinstance(data, dict) or "format_version" not in data:
+        raise CompiledModelError(f"{where}: not a compiled model (no format_version)")
+    version = data["format_version"]
+    if not isinstance(version, int) or isinstance(version, bool):
+        raise CompiledModelError(f"{where}: not a compiled model (format_version {version!r})")
+    if version > FORMAT_VERSION:
+        raise CompiledModelError(
+            f"{where}: compiled model format version {version} is newer than this umlbot reads "
+            f"(up to {FORMAT_VERSION}); upgrade umlbot or compile the model with this version"
+        )
+    try:
+        return CompiledModel.model_validate(data)
+    except RecursionError as exc:
+        raise CompiledModelError(f"{where}: corrupt compiled model (nested too deeply)") from exc
+    except ValidationError as exc:
+        first = exc.errors()[0]
+        loc = ".".join(str(p) for p in first["loc"])
+        raise CompiledModelError(
+            f"{where}: corrupt compiled model ({exc.error_count()} problem(s); first at {loc}: "
+            f"{first['msg']})"
+        ) from exc
+
+
+__all__ = [
+    "FORMAT_VERSION",
+    "AcceptNode",
+    "ActionNode",
+    "Branch",
+    "CompiledComponent",
+    "CompiledModel",
+    "DatastoreNode",
+    "DecisionNode",
+    "EndNode",
+    "ForkNode",
+    "JoinNode",
+    "Lane",
+    "Link",
+    "Node",
+    "SendNode",
+    "StartNode",
+    "dump_compiled",
+    "load_compiled",
+]
