@@ -1,0 +1,131 @@
+"""The one place that maps (service kind, driver name) to a driver factory.
+
+A service host asks `create_driver(kind, driver, component, settings)` for the driver of one
+component; the driver name comes from `--driver` or the deployment (component override, then the
+deployment's default). Each entry is a lazy reference `"module:ATTRIBUTE"` to a `DriverFactory`, so
+`pigpio` is imported only by the pigpio drivers and a simulator only by the sim drivers.
+
+Adding a driver backend (e.g. the simulator's): write `services/<kind>/sim.py` exposing
+``FACTORY = DriverFactory(SimSonarSettings, create)`` where ``create(component, settings)``
+returns an object satisfying the kind's Protocol (`services/<kind>/driver.py`), then add one line
+per kind to `DRIVERS` below, e.g. ``("sonar", "sim"): "services.sonar.sim:FACTORY"``. Code that
+must bind a driver to live objects (a simulated world) can instead call `register_driver()` at
+run time with a factory closure; that entry overrides the table for this process.
+
+Settings: the component's deployment `settings` mapping is validated by the factory's pydantic
+model. Keys prefixed with another driver's name (`mock_…`, `sim_…`) are dropped first, so one
+deployment can carry the settings of every backend and `--driver` switches between them.
+"""
+
+from __future__ import annotations
+
+import importlib
+import threading
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import Any, Generic, TypeVar
+
+from pydantic import BaseModel, ValidationError
+
+from umlbot.errors import ConfigError, UnknownDriver
+from umlbot.library import ServiceKind
+
+S = TypeVar("S", bound=BaseModel)
+
+SERVICE_KINDS: tuple[ServiceKind, ...] = ("motor", "sonar", "servo", "gpio")
+
+#: (service kind, driver name) -> "module:attribute" of a `DriverFactory`. One line per backend.
+DRIVERS: dict[tuple[ServiceKind, str], str] = {
+    ("motor", "pigpio"): "services.motor.pigpio:FACTORY",
+    ("motor", "mock"): "services.motor.mock:FACTORY",
+    ("sonar", "pigpio"): "services.sonar.pigpio:FACTORY",
+    ("sonar", "mock"): "services.sonar.mock:FACTORY",
+    ("servo", "pigpio"): "services.servo.pigpio:FACTORY",
+    ("servo", "mock"): "services.servo.mock:FACTORY",
+    ("gpio", "pigpio"): "services.gpio.pigpio:FACTORY",
+    ("gpio", "mock"): "services.gpio.mock:FACTORY",
+}
+
+#: Driver names whose settings live under a `<name>_` key prefix in a shared settings mapping.
+PREFIXED_DRIVERS: tuple[str, ...] = ("mock", "sim")
+
+
+@dataclass(frozen=True)
+class DriverFactory(Generic[S]):
+    """How to build one driver: the pydantic model of its settings and a constructor.
+
+    `create(component, settings)` receives the component's name (for logs and errors) and its
+    validated settings, and returns an object satisfying the kind's driver Protocol.
+    """
+
+    settings_model: type[S]
+    create: Callable[[str, S], Any]
+
+    def build(self, component: str, raw_settings: Mapping[str, Any]) -> Any:
+        """Validate `raw_settings` and build the driver; a bad setting raises `ConfigError`."""
+        try:
+            settings = self.settings_model.model_validate(dict(raw_settings))
+        except ValidationError as exc:
+            problems = "; ".join(
+                f"{'.'.join(str(p) for p in err['loc']) or 'settings'}: {err['msg']}"
+                for err in exc.errors()
+            )
+            raise ConfigError(f"{component}: invalid settings: {problems}") from exc
+        return self.create(component, settings)
+
+
+_runtime: dict[tuple[ServiceKind, str], DriverFactory[Any]] = {}
+_lock = threading.Lock()
+
+
+def register_driver(kind: ServiceKind, name: str, factory: DriverFactory[Any]) -> None:
+    """Add or replace a driver for this process (e.g. sim drivers bound to a running world)."""
+    with _lock:
+        _runtime[(kind, name)] = factory
+
+
+def unregister_driver(kind: ServiceKind, name: str) -> None:
+    """Remove a driver added with `register_driver`; unknown names are ignored."""
+    with _lock:
+        _runtime.pop((kind, name), None)
+
+
+def known_drivers(kind: ServiceKind) -> list[str]:
+    """Every driver name available for a service kind, sorted."""
+    with _lock:
+        runtime = {name for (k, name) in _runtime if k == kind}
+    return sorted(runtime | {name for (k, name) in DRIVERS if k == kind})
+
+
+def get_factory(kind: ServiceKind, driver: str) -> DriverFactory[Any]:
+    """The factory of a driver; `UnknownDriver` (listing the known names) when there is none."""
+    if kind not in SERVICE_KINDS:
+        raise UnknownDriver(f"unknown service kind {kind!r}; known kinds: {', '.join(SERVICE_KINDS)}")
+    with _lock:
+        runtime = _runtime.get((kind, driver))
+    if runtime is not None:
+        return runtime
+    target = DRIVERS.get((kind, driver))
+    if target is None:
+        raise UnknownDriver(
+            f"unknown {kind} driver {driver!r}; known drivers: {', '.join(known_drivers(kind))}"
+        )
+    module_name, _, attribute = target.partition(":")
+    module = importlib.import_module(module_name)
+    factory: DriverFactory[Any] = getattr(module, attribute)
+    return factory
+
+
+def driver_settings(driver: str, settings: Mapping[str, Any]) -> dict[str, Any]:
+    """The settings a driver sees: keys prefixed for *another* driver (`mock_`, `sim_`) removed."""
+    foreign = tuple(f"{name}_" for name in PREFIXED_DRIVERS if name != driver)
+    return {key: value for key, value in settings.items() if not key.startswith(foreign)}
+
+
+def create_driver(kind: ServiceKind, driver: str, component: str, settings: Mapping[str, Any]) -> Any:
+    """Build the driver of one component from its deployment settings.
+
+    Raises `UnknownDriver` for an unknown name, `ConfigError` for invalid settings and
+    `DriverError` when the hardware cannot be reached (e.g. pigpiod not running).
+    """
+    return get_factory(kind, driver).build(component, driver_settings(driver, settings))
