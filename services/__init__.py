@@ -1,0 +1,1 @@
+"""The robot's MQTT side: the shared bus (`services.bus`), the hardware services and the orchestrator."""
