@@ -1,0 +1,196 @@
+#!/usr/bin/env bash
+# Install umlbot on a robot: a virtual environment under /opt, the compiled model and the
+# deployment, /etc/umlbot/umlbot.env, the unprivileged `umlbot` user and the systemd units,
+# enabled so the car drives on boot. Run as root on the Raspberry Pi:
+#
+#   sudo deploy/install.sh --model out/robot_car.json --deployment models/robot_car/deployment.yaml
+#
+# With --root DIR everything goes under DIR (an SD-card image, a test tree): the host's systemd is
+# not touched, units are enabled by creating the same symlinks `systemctl enable` would.
+set -euo pipefail
+
+usage() {
+    cat <<'EOF'
+usage: install.sh [options]
+  --root DIR          install under DIR instead of / (no systemctl, no user creation on the host)
+  --prefix DIR        installation directory (default /opt/umlbot)
+  --source DIR        umlbot source checkout to install (default: the one holding this script)
+  --model FILE        compiled model (`umlbot compile MODEL -o FILE`); enables the orchestrator
+  --deployment FILE   deployment file (plain or YAML)
+  --robot ID          robot id written to umlbot.env (default: car)
+  --broker URL        default broker URL written to umlbot.env (default: mqtt://127.0.0.1:1883)
+  --driver NAME       driver for the services: pigpio (default), mock or sim
+  --services "K..."   service kinds to enable (default: "motor sonar servo gpio")
+  --embedded-broker   also enable umlbot-broker.service (the embedded amqtt broker)
+  --no-venv           do not create the virtual environment (one exists, or a test)
+  --no-enable         install the units but do not enable them
+  --start             start umlbot.target at the end (not with --root)
+  --python EXE        Python 3.11+ used to create the venv (default: python3)
+  -h, --help          this help
+EOF
+}
+
+ROOT=""
+PREFIX=/opt/umlbot
+SOURCE="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+MODEL=""
+DEPLOYMENT=""
+ROBOT=car
+BROKER=mqtt://127.0.0.1:1883
+DRIVER=pigpio
+SERVICES="motor sonar servo gpio"
+EMBEDDED_BROKER=0
+VENV=1
+ENABLE=1
+START=0
+PYTHON=python3
+
+while [ $# -gt 0 ]; do
+    case "$1" in
+        --root) ROOT="${2%/}"; shift 2 ;;
+        --prefix) PREFIX="${2%/}"; shift 2 ;;
+        --source) SOURCE="$2"; shift 2 ;;
+        --model) MODEL="$2"; shift 2 ;;
+        --deployment) DEPLOYMENT="$2"; shift 2 ;;
+        --robot) ROBOT="$2"; shift 2 ;;
+        --broker) BROKER="$2"; shift 2 ;;
+        --driver) DRIVER="$2"; shift 2 ;;
+        --services) SERVICES="$2"; shift 2 ;;
+        --embedded-broker) EMBEDDED_BROKER=1; shift ;;
+        --no-venv) VENV=0; shift ;;
+        --no-enable) ENABLE=0; shift ;;
+        --start) START=1; shift ;;
+        --python) PYTHON="$2"; shift 2 ;;
+        -h|--help) usage; exit 0 ;;
+        *) echo "install.sh: unknown option $1" >&2; usage >&2; exit 2 ;;
+    esac
+done
+
+die() { echo "install.sh: $*" >&2; exit 1; }
+say() { echo "install.sh: $*"; }
+
+case "$PREFIX" in /*) ;; *) die "--prefix must be an absolute path" ;; esac
+for kind in $SERVICES; do
+    case "$kind" in motor|sonar|servo|gpio) ;; *) die "unknown service kind '$kind'" ;; esac
+done
+case "$DRIVER" in pigpio|mock|sim) ;; *) die "unknown driver '$DRIVER' (pigpio, mock or sim)" ;; esac
+[ -z "$MODEL" ] || [ -f "$MODEL" ] || die "compiled model $MODEL not found"
+[ -z "$DEPLOYMENT" ] || [ -f "$DEPLOYMENT" ] || die "deployment $DEPLOYMENT not found"
+[ -f "$SOURCE/pyproject.toml" ] || die "$SOURCE is not an umlbot checkout (no pyproject.toml)"
+
+LIVE=0
+if [ -z "$ROOT" ] && [ -d /run/systemd/system ]; then LIVE=1; fi
+if [ -z "$ROOT" ] && [ "$(id -u)" -ne 0 ]; then die "run as root (or give --root DIR)"; fi
+
+DEST="$ROOT$PREFIX"
+UNITDIR="$ROOT/etc/systemd/system"
+ETC="$ROOT/etc/umlbot"
+
+install -d -m 0755 "$DEST" "$DEST/robot" "$DEST/share/docs" "$DEST/share/mosquitto" \
+    "$DEST/share/amqtt" "$UNITDIR" "$ROOT/etc/sysusers.d"
+install -d -m 0750 "$ETC"
+
+# 1. The unprivileged user (systemd-sysusers reads the same file at boot).
+install -m 0644 "$SOURCE/deploy/sysusers.d/umlbot.conf" "$ROOT/etc/sysusers.d/umlbot.conf"
+if [ -z "$ROOT" ] && ! id umlbot >/dev/null 2>&1; then
+    if command -v systemd-sysusers >/dev/null 2>&1; then
+        systemd-sysusers /etc/sysusers.d/umlbot.conf
+    else
+        useradd --system --home-dir /var/lib/umlbot --shell /usr/sbin/nologin umlbot
+    fi
+fi
+
+# 2. The virtual environment with umlbot installed from the source checkout.
+if [ "$VENV" -eq 1 ]; then
+    "$PYTHON" -c 'import sys; assert sys.version_info >= (3, 11), "umlbot needs Python 3.11+"'
+    say "creating $DEST/venv and installing umlbot from $SOURCE"
+    "$PYTHON" -m venv "$DEST/venv"
+    "$DEST/venv/bin/python" -m pip install --quiet --upgrade pip
+    "$DEST/venv/bin/python" -m pip install --quiet "$SOURCE"
+fi
+
+# 3. The robot: compiled model and deployment (the robot needs no model sources).
+MODEL_PATH="$PREFIX/robot/model.json"
+DEPLOYMENT_PATH="$PREFIX/robot/deployment.yaml"
+if [ -n "$MODEL" ]; then
+    MODEL_PATH="$PREFIX/robot/$(basename "$MODEL")"
+    install -m 0644 "$MODEL" "$ROOT$MODEL_PATH"
+fi
+if [ -n "$DEPLOYMENT" ]; then
+    DEPLOYMENT_PATH="$PREFIX/robot/$(basename "$DEPLOYMENT")"
+    install -m 0644 "$DEPLOYMENT" "$ROOT$DEPLOYMENT_PATH"
+fi
+
+# 4. Documentation and the broker security files, for reference on the robot.
+for doc in deploy-pi.md security.md; do
+    if [ -f "$SOURCE/docs/$doc" ]; then install -m 0644 "$SOURCE/docs/$doc" "$DEST/share/docs/$doc"; fi
+done
+for f in "$SOURCE"/deploy/mosquitto/*; do
+    if [ -f "$f" ]; then install -m 0644 "$f" "$DEST/share/mosquitto/$(basename "$f")"; fi
+done
+for f in "$SOURCE"/deploy/amqtt/*; do
+    if [ -f "$f" ]; then install -m 0644 "$f" "$DEST/share/amqtt/$(basename "$f")"; fi
+done
+if [ -f "$SOURCE/deploy/broker_auth.py" ]; then install -m 0755 "$SOURCE/deploy/broker_auth.py" "$DEST/share/broker_auth.py"; fi
+
+# 5. /etc/umlbot/umlbot.env: written once, never overwritten (it may hold credentials).
+ENVFILE="$ETC/umlbot.env"
+if [ -e "$ENVFILE" ]; then
+    say "keeping existing $ENVFILE"
+else
+    umask 027
+    cat >"$ENVFILE" <<EOF
+# /etc/umlbot/umlbot.env — read by every umlbot unit. Keep it root:umlbot 0640: the broker URL
+# may carry a password. /etc/umlbot/<motor|sonar|servo|gpio|orchestrator>.env may override
+# UMLBOT_BROKER with that role's own MQTT user (see docs/security.md).
+UMLBOT_ROBOT=$ROBOT
+UMLBOT_BROKER=$BROKER
+UMLBOT_DEPLOYMENT=$DEPLOYMENT_PATH
+UMLBOT_COMPILED=$MODEL_PATH
+UMLBOT_SERVICE_ARGS=--driver $DRIVER
+UMLBOT_RUN_ARGS=
+UMLBOT_BROKER_ARGS=--bind 127.0.0.1 --port 1883
+UMLBOT_LOG_LEVEL=INFO
+EOF
+    umask 022
+    chmod 0640 "$ENVFILE"
+fi
+if [ -z "$ROOT" ] && id umlbot >/dev/null 2>&1; then
+    chgrp umlbot "$ETC" "$ETC"/*.env 2>/dev/null || true
+fi
+
+# 6. The units, with the prefix filled in.
+for unit in "$SOURCE"/deploy/systemd/*.service "$SOURCE"/deploy/systemd/*.target; do
+    sed "s#/opt/umlbot#$PREFIX#g" "$unit" >"$UNITDIR/$(basename "$unit")"
+    chmod 0644 "$UNITDIR/$(basename "$unit")"
+done
+
+# 7. Enable: umlbot.target on boot, and under it every service kind and the orchestrator.
+WANTED=()
+for kind in $SERVICES; do WANTED+=("umlbot-service@$kind.service"); done
+if [ -n "$MODEL" ]; then WANTED+=(umlbot-orchestrator.service); fi
+if [ "$EMBEDDED_BROKER" -eq 1 ]; then WANTED+=(umlbot-broker.service); fi
+
+if [ "$ENABLE" -eq 1 ]; then
+    if [ "$LIVE" -eq 1 ]; then
+        systemctl daemon-reload
+        systemctl enable umlbot.target "${WANTED[@]}"
+    else
+        # Offline: the symlinks `systemctl enable` makes, from each unit's WantedBy=.
+        install -d -m 0755 "$UNITDIR/multi-user.target.wants" "$UNITDIR/umlbot.target.wants"
+        ln -sfn /etc/systemd/system/umlbot.target "$UNITDIR/multi-user.target.wants/umlbot.target"
+        for unit in "${WANTED[@]}"; do
+            file="$unit"
+            case "$unit" in *@*.service) file="${unit%%@*}@.service" ;; esac
+            ln -sfn "/etc/systemd/system/$file" "$UNITDIR/umlbot.target.wants/$unit"
+        done
+        if [ -z "$ROOT" ]; then say "systemd is not running: units enabled by symlink, run 'systemctl daemon-reload' later"; fi
+    fi
+fi
+
+if [ "$START" -eq 1 ]; then
+    [ "$LIVE" -eq 1 ] || die "--start needs a running systemd and no --root"
+    systemctl restart umlbot.target
+fi
+
+say "installed into ${ROOT:-/}: $PREFIX, /etc/umlbot, /etc/systemd/system (${WANTED[*]})"

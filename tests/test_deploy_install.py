@@ -1,0 +1,143 @@
+"""deploy/install.sh run into a temporary root produces the expected tree, and its units verify."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import stat
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parent.parent
+INSTALL = REPO / "deploy" / "install.sh"
+KINDS = ("motor", "sonar", "servo", "gpio")
+
+
+def run_install(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        ["bash", str(INSTALL), *args], capture_output=True, text=True, timeout=60, check=False,
+    )
+
+
+@pytest.fixture
+def robot_files(tmp_path: Path) -> tuple[Path, Path]:
+    model = tmp_path / "robot_car.json"
+    model.write_text('{"format": 1}\n', encoding="utf-8")
+    deployment = tmp_path / "deployment.txt"
+    deployment.write_text("LeftActuator=l298n\nRightActuator=l298n\n", encoding="utf-8")
+    return model, deployment
+
+
+def test_install_into_a_root_produces_the_tree(tmp_path: Path, robot_files: tuple[Path, Path]) -> None:
+    model, deployment = robot_files
+    root = tmp_path / "root"
+    result = run_install(
+        "--root", str(root), "--no-venv", "--model", str(model), "--deployment", str(deployment),
+        "--robot", "rover", "--broker", "mqtt://10.0.0.2:1883", "--driver", "mock",
+    )
+    assert result.returncode == 0, result.stderr
+
+    prefix = root / "opt" / "umlbot"
+    assert (prefix / "robot" / "robot_car.json").read_bytes() == model.read_bytes()
+    assert (prefix / "robot" / "deployment.txt").read_bytes() == deployment.read_bytes()
+    assert (prefix / "share" / "docs").is_dir()
+    assert not (prefix / "venv").exists()  # --no-venv
+
+    env_file = root / "etc" / "umlbot" / "umlbot.env"
+    env = dict(
+        line.split("=", 1) for line in env_file.read_text(encoding="utf-8").splitlines()
+        if line and not line.startswith("#")
+    )
+    assert env["UMLBOT_ROBOT"] == "rover"
+    assert env["UMLBOT_BROKER"] == "mqtt://10.0.0.2:1883"
+    assert env["UMLBOT_COMPILED"] == "/opt/umlbot/robot/robot_car.json"
+    assert env["UMLBOT_DEPLOYMENT"] == "/opt/umlbot/robot/deployment.txt"
+    assert env["UMLBOT_SERVICE_ARGS"] == "--driver mock"
+    # It may carry credentials: not readable by others.
+    assert stat.S_IMODE(env_file.stat().st_mode) & 0o007 == 0
+
+    units = root / "etc" / "systemd" / "system"
+    for name in ("umlbot-service@.service", "umlbot-orchestrator.service", "umlbot-broker.service",
+                 "umlbot.target"):
+        assert (units / name).read_text(encoding="utf-8") == (
+            REPO / "deploy" / "systemd" / name
+        ).read_text(encoding="utf-8")
+    wants = units / "umlbot.target.wants"
+    enabled = {p.name: os.readlink(p) for p in wants.iterdir()}
+    assert enabled == {
+        **{f"umlbot-service@{k}.service": "/etc/systemd/system/umlbot-service@.service" for k in KINDS},
+        "umlbot-orchestrator.service": "/etc/systemd/system/umlbot-orchestrator.service",
+    }
+    on_boot = units / "multi-user.target.wants" / "umlbot.target"
+    assert os.readlink(on_boot) == "/etc/systemd/system/umlbot.target"
+    assert (root / "etc" / "sysusers.d" / "umlbot.conf").read_text(encoding="utf-8").startswith("#")
+
+
+def test_installed_units_verify(tmp_path: Path, robot_files: tuple[Path, Path]) -> None:
+    model, deployment = robot_files
+    root = tmp_path / "root"
+    result = run_install(
+        "--root", str(root), "--no-venv", "--model", str(model), "--deployment", str(deployment)
+    )
+    assert result.returncode == 0, result.stderr
+    analyze = shutil.which("systemd-analyze")
+    assert analyze, "systemd-analyze is missing (Debian package systemd)"
+    units = root / "etc" / "systemd" / "system"
+    checked = tmp_path / "checked"
+    checked.mkdir()
+    names = [f"umlbot-service@{k}.service" for k in KINDS] + ["umlbot-orchestrator.service"]
+    for name in names:
+        source = units / ("umlbot-service@.service" if "@" in name else name)
+        text = source.read_text(encoding="utf-8").replace("/opt/umlbot/venv", sys.prefix)
+        (checked / name).write_text(text, encoding="utf-8")
+    verified = subprocess.run(
+        [analyze, "verify", *names], cwd=checked, capture_output=True, text=True, timeout=60, check=False,
+    )
+    assert verified.returncode == 0 and verified.stderr.strip() == "", verified.stderr
+
+
+def test_prefix_is_filled_into_the_units_and_env(tmp_path: Path, robot_files: tuple[Path, Path]) -> None:
+    model, _ = robot_files
+    root = tmp_path / "root"
+    result = run_install(
+        "--root", str(root), "--prefix", "/srv/bot", "--no-venv", "--model", str(model),
+        "--services", "motor sonar", "--embedded-broker",
+    )
+    assert result.returncode == 0, result.stderr
+    unit = (root / "etc/systemd/system/umlbot-orchestrator.service").read_text(encoding="utf-8")
+    assert "ExecStart=/srv/bot/venv/bin/umlbot run" in unit and "/opt/umlbot" not in unit
+    assert (root / "srv/bot/robot/robot_car.json").is_file()
+    enabled = {p.name for p in (root / "etc/systemd/system/umlbot.target.wants").iterdir()}
+    assert enabled == {"umlbot-service@motor.service", "umlbot-service@sonar.service",
+                       "umlbot-orchestrator.service", "umlbot-broker.service"}
+
+
+def test_existing_env_file_is_kept(tmp_path: Path) -> None:
+    root = tmp_path / "root"
+    (root / "etc" / "umlbot").mkdir(parents=True)
+    env_file = root / "etc" / "umlbot" / "umlbot.env"
+    env_file.write_text("UMLBOT_BROKER=mqtt://orchestrator:secret@broker:1883\n", encoding="utf-8")
+    result = run_install("--root", str(root), "--no-venv", "--no-enable")
+    assert result.returncode == 0, result.stderr
+    assert env_file.read_text(encoding="utf-8") == "UMLBOT_BROKER=mqtt://orchestrator:secret@broker:1883\n"
+    assert not (root / "etc/systemd/system/umlbot.target.wants").exists()
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--services", "motor laser"], "unknown service kind 'laser'"),
+        (["--driver", "gpiozero"], "unknown driver 'gpiozero'"),
+        (["--model", "/nonexistent/model.json"], "not found"),
+        (["--prefix", "relative/dir"], "absolute"),
+        (["--bogus"], "unknown option --bogus"),
+    ],
+)
+def test_bad_arguments_are_refused(tmp_path: Path, args: list[str], message: str) -> None:
+    result = run_install("--root", str(tmp_path / "root"), "--no-venv", *args)
+    assert result.returncode != 0
+    assert message in result.stderr
+    assert not (tmp_path / "root").exists()  # refused before anything is written

@@ -1,0 +1,111 @@
+"""The systemd units in deploy/systemd pass `systemd-analyze verify` once their paths are filled in."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parent.parent
+UNITS = REPO / "deploy" / "systemd"
+VENV = Path(sys.prefix)  # the venv running the tests holds a real `bin/umlbot`
+
+KINDS = ("motor", "sonar", "servo", "gpio")
+SERVICE_UNITS = ["umlbot-service@.service", "umlbot-orchestrator.service", "umlbot-broker.service"]
+
+#: unit file -> the name verified (the template is verified through one instance per kind).
+VERIFIED = {
+    "umlbot-orchestrator.service": ["umlbot-orchestrator.service"],
+    "umlbot-broker.service": ["umlbot-broker.service"],
+    "umlbot.target": ["umlbot.target"],
+    "umlbot-service@.service": [f"umlbot-service@{kind}.service" for kind in KINDS],
+}
+
+
+def _systemd_analyze() -> str:
+    exe = shutil.which("systemd-analyze")
+    assert exe, "systemd-analyze is missing: install Debian's systemd package (.ci/run does)"
+    return exe
+
+
+def fill_in(unit_text: str) -> str:
+    """The unit with /opt/umlbot/venv pointing at the venv that runs the tests."""
+    return unit_text.replace("/opt/umlbot/venv", str(VENV))
+
+
+def verify(paths: list[Path]) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [_systemd_analyze(), "verify", *[str(p) for p in paths]],
+        capture_output=True, text=True, timeout=60, cwd=paths[0].parent, check=False,
+    )
+
+
+def test_every_unit_is_listed() -> None:
+    shipped = {p.name for p in UNITS.iterdir() if p.suffix in (".service", ".target")}
+    assert shipped == set(VERIFIED)
+
+
+@pytest.mark.parametrize("unit", sorted(VERIFIED))
+def test_unit_verifies_cleanly(unit: str, tmp_path: Path) -> None:
+    text = fill_in((UNITS / unit).read_text(encoding="utf-8"))
+    (tmp_path / unit).write_text(text, encoding="utf-8")  # instances find their template beside them
+    targets = []
+    for name in VERIFIED[unit]:
+        path = tmp_path / name
+        path.write_text(text, encoding="utf-8")
+        targets.append(path)
+    result = verify(targets)
+    # verify exits 0 on unknown keys but prints them: any output is a defect in the unit.
+    assert result.returncode == 0, result.stderr
+    assert result.stderr.strip() == "", result.stderr
+
+
+def test_verify_catches_a_broken_unit(tmp_path: Path) -> None:
+    """The check above can fail: a unit whose binary is missing does not verify."""
+    text = fill_in((UNITS / "umlbot-orchestrator.service").read_text(encoding="utf-8"))
+    broken = tmp_path / "umlbot-orchestrator.service"
+    broken.write_text(text.replace(str(VENV), str(tmp_path / "nowhere")), encoding="utf-8")
+    assert verify([broken]).returncode != 0
+
+
+def _unit(name: str) -> dict[str, dict[str, str]]:
+    """The unit's sections; a key given several times (After=, EnvironmentFile=) joins its values."""
+    sections: dict[str, dict[str, str]] = {}
+    current: dict[str, str] = {}
+    for raw in (UNITS / name).read_text(encoding="utf-8").splitlines():
+        line = raw.strip()
+        if not line or line.startswith("#"):
+            continue
+        if line.startswith("["):
+            current = sections.setdefault(line.strip("[]"), {})
+            continue
+        key, _, value = line.partition("=")
+        current[key] = f"{current[key]} {value}" if key in current else value
+    return sections
+
+
+@pytest.mark.parametrize("name", SERVICE_UNITS)
+def test_units_run_unprivileged_restart_on_failure_and_read_the_env_file(name: str) -> None:
+    unit = _unit(name)
+    service = unit["Service"]
+    assert service["User"] == "umlbot"
+    assert service["Restart"] == "on-failure"
+    assert service["EnvironmentFile"].split()[0] == "/etc/umlbot/umlbot.env"
+    assert service["NoNewPrivileges"] == "yes"
+    assert service["ProtectSystem"] == "strict"
+    # TCP must stay possible: pigpiod on localhost:8888 and the broker.
+    families = service["RestrictAddressFamilies"].split()
+    assert "AF_INET" in families and "AF_INET6" in families
+    assert "PrivateNetwork" not in service
+    assert "network-online.target" in unit["Unit"]["After"].split()
+    assert "network-online.target" in unit["Unit"]["Wants"].split()
+
+
+def test_hardware_services_wait_for_pigpiod_and_the_broker() -> None:
+    unit = _unit("umlbot-service@.service")["Unit"]
+    assert "pigpiod.service" in unit["After"].split() and "pigpiod.service" in unit["Wants"].split()
+    assert {"mosquitto.service", "umlbot-broker.service"} <= set(unit["After"].split())
+    assert "mosquitto.service" in _unit("umlbot-orchestrator.service")["Unit"]["After"].split()
