@@ -1,0 +1,209 @@
+"""Contract suite for motor channel drivers: mock, and pigpio (with and without an enable pin) on
+the fake pigpio.pi. The observable is the signed drive in percent (+ clockwise, - anticlockwise)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+
+import pytest
+
+from services.fake_pigpio import FakePi
+from services.motor.driver import L298NSettings, MotorChannel
+from services.motor.mock import MockMotorChannel, MockMotorSettings
+from services.motor.pigpio import PWM_RANGE, PigpioL298NChannel
+from services.registry import create_driver
+from umlbot.errors import DriverError
+
+
+@dataclass
+class Rig:
+    driver: MotorChannel
+    drive: Callable[[], float]  # signed percent the motor receives
+
+
+def _pigpio_rig(fake: FakePi, enable: int | None) -> Rig:
+    settings = L298NSettings(in1=22, in2=23, enable=enable)
+    driver = PigpioL298NChannel("LeftActuator", settings, pi=fake)
+
+    def drive() -> float:
+        in1, in2 = fake.pin(22), fake.pin(23)
+        if enable is None:
+            return 100 * (in1.duty_fraction - in2.duty_fraction)
+        return 100 * fake.pin(enable).duty_fraction * (in1.level - in2.level)
+
+    return Rig(driver, drive)
+
+
+@pytest.fixture(params=["mock", "pigpio-fake", "pigpio-fake-enable"])
+def rig(request: pytest.FixtureRequest) -> Iterator[Rig]:
+    if request.param == "mock":
+        mock = MockMotorChannel("LeftActuator")
+        yield Rig(mock, lambda: (1 if mock.clockwise else -1) * mock.duty_cycle_percent * mock.enabled)
+        mock.close()
+        return
+    fake = FakePi()
+    rig = _pigpio_rig(fake, 24 if request.param.endswith("enable") else None)
+    yield rig
+    rig.driver.close()
+
+
+def test_starts_stopped(rig: Rig) -> None:
+    assert rig.drive() == 0
+
+
+def test_drives_with_duty_cycle_when_enabled(rig: Rig) -> None:
+    rig.driver.set_duty_cycle(60)
+    assert rig.drive() == 0, "not enabled yet"
+    rig.driver.set_enabled(True)
+    assert rig.drive() == pytest.approx(60)
+    rig.driver.set_duty_cycle(25.5)
+    assert rig.drive() == pytest.approx(25.5)
+
+
+def test_direction_reverses(rig: Rig) -> None:
+    rig.driver.set_duty_cycle(40)
+    rig.driver.set_enabled(True)
+    rig.driver.set_direction(False)
+    assert rig.drive() == pytest.approx(-40)
+    rig.driver.set_direction(True)
+    assert rig.drive() == pytest.approx(40)
+
+
+def test_disable_stops(rig: Rig) -> None:
+    rig.driver.set_duty_cycle(80)
+    rig.driver.set_enabled(True)
+    rig.driver.set_enabled(False)
+    assert rig.drive() == 0
+
+
+def test_stop_is_disabled_and_zero_duty(rig: Rig) -> None:
+    rig.driver.set_duty_cycle(80)
+    rig.driver.set_enabled(True)
+    rig.driver.stop()
+    assert rig.drive() == 0
+    rig.driver.set_enabled(True)
+    assert rig.drive() == 0, "stop() also sets the duty cycle to 0"
+
+
+def test_duty_cycle_out_of_range_is_refused(rig: Rig) -> None:
+    with pytest.raises(ValueError):
+        rig.driver.set_duty_cycle(101)
+    with pytest.raises(ValueError):
+        rig.driver.set_duty_cycle(-1)
+
+
+def test_close_twice_is_safe_and_leaves_motor_stopped(rig: Rig) -> None:
+    rig.driver.set_duty_cycle(100)
+    rig.driver.set_enabled(True)
+    rig.driver.close()
+    rig.driver.close()
+    assert rig.drive() == 0
+
+
+def test_is_a_motor_channel(rig: Rig) -> None:
+    assert isinstance(rig.driver, MotorChannel)
+
+
+# --- pigpio specifics --------------------------------------------------------------------------
+
+
+def test_pigpio_writes_zero_before_pwm_and_uses_documented_range() -> None:
+    fake = FakePi()
+    channel = PigpioL298NChannel("M", L298NSettings(in1=22, in2=23, pwm_frequency_hz=1000), pi=fake)
+    writes = [args for name, args in fake.calls if name == "write"]
+    assert (22, 0) in writes and (23, 0) in writes
+    assert fake.calls_named("set_PWM_range") == [(22, PWM_RANGE), (23, PWM_RANGE)]
+    assert fake.pin(22).pwm_frequency == 1000
+    channel.set_duty_cycle(50)
+    channel.set_enabled(True)
+    first_pwm = next(i for i, (n, a) in enumerate(fake.calls) if n == "set_PWM_dutycycle" and a[0] == 22)
+    first_write = next(i for i, (n, a) in enumerate(fake.calls) if n == "write" and a == (22, 0))
+    assert first_write < first_pwm
+    assert fake.pin(22).pwm_dutycycle == PWM_RANGE // 2
+    channel.close()
+
+
+def test_pigpio_frequency_is_the_nearest_pigpio_offers() -> None:
+    fake = FakePi()
+    channel = PigpioL298NChannel("M", L298NSettings(in1=5, in2=6, pwm_frequency_hz=900), pi=fake)
+    assert channel.pwm_frequency_hz in (800, 1000)
+    channel.close()
+
+
+def test_pigpio_never_drives_both_inputs() -> None:
+    fake = FakePi()
+    channel = PigpioL298NChannel("M", L298NSettings(in1=22, in2=23), pi=fake)
+    channel.set_duty_cycle(70)
+    channel.set_enabled(True)
+    for clockwise in (False, True, False):
+        channel.set_direction(clockwise)
+        assert min(fake.pin(22).duty_fraction, fake.pin(23).duty_fraction) == 0
+    channel.close()
+
+
+def test_pigpio_enable_pin_coasts_or_brakes() -> None:
+    fake = FakePi()
+    coast = PigpioL298NChannel("M", L298NSettings(in1=22, in2=23, enable=24), pi=fake)
+    coast.set_duty_cycle(50)
+    coast.set_enabled(True)
+    coast.set_enabled(False)
+    assert fake.pin(24).level == 0 and fake.pin(24).pwm_dutycycle == 0  # EN low: free running
+    coast.close()
+    fake2 = FakePi()
+    brake = PigpioL298NChannel("M", L298NSettings(in1=22, in2=23, enable=24, brake=True), pi=fake2)
+    brake.set_duty_cycle(50)
+    brake.set_enabled(True)
+    brake.set_enabled(False)
+    assert fake2.pin(24).level == 1 and fake2.pin(22).level == fake2.pin(23).level == 0  # fast stop
+    brake.close()
+
+
+def test_pigpio_invert_swaps_direction() -> None:
+    fake = FakePi()
+    channel = PigpioL298NChannel("M", L298NSettings(in1=22, in2=23, invert=True), pi=fake)
+    channel.set_duty_cycle(30)
+    channel.set_enabled(True)
+    assert fake.pin(23).duty_fraction == pytest.approx(0.3) and fake.pin(22).duty_fraction == 0
+    channel.close()
+
+
+def test_pigpio_lost_daemon_is_a_driver_error() -> None:
+    fake = FakePi()
+    channel = PigpioL298NChannel("M", L298NSettings(in1=22, in2=23), pi=fake)
+    fake.connected = False
+    with pytest.raises(DriverError, match="M: pigpio"):
+        channel.set_duty_cycle(10)
+
+
+def test_settings_refuse_shared_pins() -> None:
+    with pytest.raises(ValueError, match="different pins"):
+        L298NSettings(in1=22, in2=22)
+
+
+def test_mock_records_commands_and_injects_faults() -> None:
+    mock = create_driver("motor", "mock", "M", {"in1": 22, "mock_faults": {"set_direction": "jammed"}})
+    assert isinstance(mock, MockMotorChannel)
+    mock.set_duty_cycle(10)
+    with pytest.raises(DriverError, match="jammed"):
+        mock.set_direction(False)
+    mock.fail_next("set_enabled", "once")
+    with pytest.raises(DriverError, match="once"):
+        mock.set_enabled(True)
+    mock.set_enabled(True)
+    assert mock.commands == [
+        ("set_duty_cycle", (10,)),
+        ("set_direction", (False,)),
+        ("set_enabled", (True,)),
+        ("set_enabled", (True,)),
+    ]
+    assert mock.running
+
+
+def test_mock_latency_is_applied() -> None:
+    import time
+
+    mock = MockMotorChannel("M", MockMotorSettings(mock_latency_s=0.05))
+    started = time.monotonic()
+    mock.set_enabled(True)
+    assert time.monotonic() - started >= 0.05
