@@ -1,0 +1,226 @@
+"""The simulated world without MQTT: kinematics, ray casting, collisions, servo, track files."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import pytest
+
+from umlbot.errors import SimError
+from umlbot.sim.geometry import Point, Segment, cast, rectangle_corners, rectangle_hits
+from umlbot.sim.track import load_track, parse_track, tracks_dir
+from umlbot.sim.world import CarSpec, World
+
+BOX = """
+name: box
+start: {x: 0.0, y: 0.0, heading_deg: 90}
+goal: {x_min: -0.2, x_max: 0.2, y_min: 1.5, y_max: 1.9}
+walls:
+  - [[-1.0, -1.0], [1.0, -1.0], [1.0, 2.0], [-1.0, 2.0], [-1.0, -1.0]]
+"""
+
+# no lag: speeds follow the command at once, so the expected motion is exact
+IDEAL = CarSpec(motor_time_constant_s=0.0)
+
+
+def world(text: str = BOX, **kwargs: object) -> World:
+    return World(parse_track(text), IDEAL, **kwargs)  # type: ignore[arg-type]
+
+
+def drive(w: World, left: float, right: float, seconds: float) -> None:
+    for side, duty in (("left", left), ("right", right)):
+        w.set_motor(side, enabled=duty != 0, forward=duty >= 0, duty_percent=abs(duty))  # type: ignore[arg-type]
+    w.advance_to(w.snapshot().time_s + seconds)
+
+
+def test_straight_line_at_full_duty_covers_top_speed_times_time() -> None:
+    w = world()
+    drive(w, 100, 100, 1.0)
+    snap = w.snapshot()
+    assert snap.pose.x == pytest.approx(0.0, abs=1e-9)
+    assert snap.pose.y == pytest.approx(IDEAL.top_speed_mps * 1.0, rel=1e-6)
+    assert snap.distance_m == pytest.approx(0.5, rel=1e-6)
+    assert snap.collisions == 0
+
+
+def test_reverse_drives_backwards_and_half_duty_half_speed() -> None:
+    w = world()
+    drive(w, -50, -50, 1.0)
+    assert w.snapshot().pose.y == pytest.approx(-0.25, rel=1e-6)
+
+
+def test_duty_below_dead_band_does_not_move() -> None:
+    w = world()
+    drive(w, IDEAL.dead_band_percent - 1, IDEAL.dead_band_percent - 1, 1.0)
+    assert w.snapshot().distance_m == 0.0
+
+
+def test_disabled_channel_does_not_move() -> None:
+    w = world()
+    w.set_motor("left", enabled=False, duty_percent=100)
+    w.set_motor("right", enabled=False, duty_percent=100)
+    w.advance_to(1.0)
+    assert w.snapshot().distance_m == 0.0
+
+
+def test_spin_in_place_turns_at_the_documented_rate_without_moving() -> None:
+    w = world()
+    drive(w, -50, 50, 0.5)  # left back, right forward: counter-clockwise
+    snap = w.snapshot()
+    omega = 2 * 0.25 / IDEAL.turn_track_m
+    assert snap.pose.heading == pytest.approx(math.pi / 2 + omega * 0.5, rel=1e-6)
+    assert math.hypot(snap.pose.x, snap.pose.y) < 1e-9
+    drive(w, 50, -50, 0.5)
+    assert w.snapshot().pose.heading == pytest.approx(math.pi / 2, abs=1e-9)
+
+
+def test_motor_lag_reaches_the_commanded_speed() -> None:
+    w = World(parse_track(BOX), CarSpec(motor_time_constant_s=0.05))
+    drive(w, 100, 100, 0.5)
+    assert w.snapshot().left_speed_mps == pytest.approx(0.5, rel=1e-3)
+    assert w.snapshot().pose.y < 0.25  # it had to speed up first
+
+
+def test_ray_hits_a_known_wall_at_the_known_distance() -> None:
+    wall = [Segment(Point(-3, 2), Point(3, 2))]
+    assert cast(Point(0, 0), math.pi / 2, wall) == pytest.approx(2.0)
+    assert cast(Point(0, 0), -math.pi / 2, wall) is None  # behind
+    assert cast(Point(0, 0), 0.0, wall) is None  # parallel
+    assert cast(Point(0, 0), math.radians(45), wall) == pytest.approx(2 * math.sqrt(2))
+    assert cast(Point(0, 0), math.radians(20), wall) is None  # passes the wall's end
+
+
+def test_sonar_reads_the_wall_ahead_in_whole_centimetres() -> None:
+    w = world()
+    # sonar sits sonar_forward_m ahead of the centre; the wall ahead is at y = 2.0
+    expected = round((2.0 - IDEAL.sonar_forward_m) * 100)
+    assert w.read_sonar_cm() == expected
+    ping = w.pings[-1]
+    assert ping.distance_cm == expected and ping.origin.y == pytest.approx(IDEAL.sonar_forward_m)
+
+
+def test_sonar_beam_sees_a_post_off_the_axis_within_half_the_beam() -> None:
+    text = """
+name: post
+start: {x: 0.0, y: 0.0, heading_deg: 90}
+goal: {x_min: 3, x_max: 4, y_min: 3, y_max: 4}
+walls:
+  - [[0.10, 1.0], [0.16, 1.0]]
+"""
+    w = world(text)
+    # the post is ~5-9° off the axis: inside the 15° beam (±7.5°), the centre ray misses it
+    assert w.read_sonar_cm() == pytest.approx(89, abs=1)
+    w2 = World(parse_track(text), CarSpec(motor_time_constant_s=0.0, sonar_rays=1))
+    assert w2.read_sonar_cm() is None
+
+
+def test_sonar_without_echo_beyond_range_is_none_and_near_clamps_to_minimum() -> None:
+    far = """
+name: far
+start: {x: 0.0, y: 0.0, heading_deg: 90}
+goal: {x_min: 3, x_max: 4, y_min: 3, y_max: 4}
+walls:
+  - [[-1.0, 4.2], [1.0, 4.2]]
+"""
+    assert world(far).read_sonar_cm() is None
+    near = """
+name: near
+start: {x: 0.0, y: 0.0, heading_deg: 90}
+goal: {x_min: 3, x_max: 4, y_min: 3, y_max: 4}
+walls:
+  - [[-1.0, 0.125], [1.0, 0.135]]
+"""
+    # wall 1.5-2.5 cm ahead of the sonar but not touching the car's nose (0.13 m)?
+    # the nose is at 0.13, so keep the wall just beyond it on the right half only
+    w = world(near.replace("[[-1.0, 0.125], [1.0, 0.135]]", "[[0.0, 0.131], [1.0, 0.131]]"))
+    assert w.read_sonar_cm() == IDEAL.sonar_min_cm
+
+
+def test_seeded_noise_is_reproducible() -> None:
+    a = [world(sonar_noise_cm=3.0, seed=7).read_sonar_cm() for _ in range(3)]
+    b = [world(sonar_noise_cm=3.0, seed=7).read_sonar_cm() for _ in range(3)]
+    assert a == b
+    readings = {w.read_sonar_cm() for w in [world(sonar_noise_cm=3.0, seed=1)] for _ in range(20)}
+    assert len(readings) > 1
+
+
+def test_servo_turns_the_beam_at_a_finite_speed() -> None:
+    w = world()
+    w.set_servo(180)  # look left: the wall at x = -1.0
+    w.advance_to(0.05)  # 30° in 50 ms at 0.1 s / 60°
+    assert w.servo_angle_deg() == pytest.approx(120.0)
+    w.advance_to(0.5)
+    assert w.servo_angle_deg() == pytest.approx(180.0)
+    assert w.read_sonar_cm() == 100
+    with pytest.raises(ValueError):
+        w.set_servo(181)
+
+
+def test_collision_stops_the_car_at_the_wall_and_counts_once() -> None:
+    w = world()
+    drive(w, 100, 100, 10.0)
+    snap = w.snapshot()
+    assert snap.collisions == 1
+    assert snap.in_contact
+    nose = snap.pose.y + IDEAL.length_m / 2
+    assert 2.0 - 0.005 < nose < 2.0  # stopped at the wall, within one step
+    drive(w, 100, 100, 1.0)  # still pushing: the same contact, not a new collision
+    assert w.snapshot().collisions == 1
+    drive(w, 50, -50, 0.2)  # scraping while turning away: still the same contact
+    assert w.snapshot().collisions == 1
+    drive(w, -50, 50, 0.2)
+    drive(w, -50, -50, 0.5)
+    drive(w, 100, 100, 2.0)  # hits it again
+    assert w.snapshot().collisions == 2
+
+
+def test_spinning_too_close_to_a_wall_collides() -> None:
+    w = world()
+    drive(w, 100, 100, 10.0)  # against the wall
+    drive(w, -20, -20, 0.12)  # free again, 1.2 cm off
+    assert not w.snapshot().in_contact
+    drive(w, -40, 40, 0.5)  # a corner swings into it
+    assert w.snapshot().collisions == 2
+
+
+def test_goal_reached_when_the_centre_enters_the_goal() -> None:
+    w = world()
+    drive(w, 100, 100, 2.9)
+    assert not w.snapshot().goal_reached
+    drive(w, 100, 100, 0.2)
+    assert w.snapshot().goal_reached
+
+
+def test_rectangle_overlap_detects_crossing_and_inside_walls() -> None:
+    corners = rectangle_corners(__import__("umlbot.sim.geometry").sim.geometry.Pose(0, 0, 0), 0.26, 0.15)
+    assert rectangle_hits(corners, [Segment(Point(0, -1), Point(0, 1))])
+    assert rectangle_hits(corners, [Segment(Point(-0.01, 0), Point(0.01, 0))])  # wholly inside
+    assert not rectangle_hits(corners, [Segment(Point(0.2, -1), Point(0.2, 1))])
+
+
+def test_start_inside_a_wall_is_refused() -> None:
+    with pytest.raises(ValueError, match="overlaps a wall"):
+        world(BOX.replace("x: 0.0, y: 0.0", "x: 0.95, y: 0.0"))
+
+
+def test_bad_track_files_raise_sim_error_naming_the_field(tmp_path: Path) -> None:
+    with pytest.raises(SimError, match="goal"):
+        parse_track("name: x\nstart: {x: 0, y: 0}\nwalls: [[[0, 0], [1, 0]]]\n", "t.yaml")
+    with pytest.raises(SimError, match="wall 0 needs at least 2 points"):
+        parse_track("name: x\nstart: {x: 0, y: 0}\ngoal: {x_min: 0, x_max: 1, y_min: 0, y_max: 1}\n"
+                    "walls: [[[0, 0]]]\n", "t.yaml")
+    with pytest.raises(SimError, match="cannot read"):
+        load_track(tmp_path / "missing.yaml")
+
+
+def test_every_bundled_track_loads_and_its_start_is_free() -> None:
+    files = sorted(tracks_dir().glob("*.yaml"))
+    names = {f.stem for f in files}
+    assert {"corridor", "left_bend", "right_bend", "s_bend", "dead_end"} <= names
+    assert len(files) >= 6
+    for f in files:
+        track = load_track(f)
+        assert track.name == f.stem
+        w = World(track)
+        assert not w.snapshot().goal_reached

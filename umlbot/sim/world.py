@@ -1,0 +1,340 @@
+"""The simulated world: one car on one track, integrated in fixed steps of sim time.
+
+The car is the reference robot: a 4WD chassis (0.26 m x 0.15 m footprint) with 65 mm wheels
+driven as two sides (skid steering), an HC-SR04 on the front turned by a 180° servo. The world is
+thread-safe; the sim drivers call it from service threads (or, through `umlbot.sim.sharing`, from
+other processes) while `WorldLoop` advances it with the clock.
+
+Conventions: metres, seconds of sim time, headings in radians counter-clockwise from +x. Servo
+angle 90° points the sonar straight ahead, larger angles turn it to the left (counter-clockwise),
+so 180° looks left and 0° looks right.
+"""
+
+from __future__ import annotations
+
+import math
+import random
+import threading
+from dataclasses import dataclass, field
+from typing import Literal
+
+from umlbot.clock import Clock
+from umlbot.logs import get_logger
+from umlbot.sim.geometry import Point, Pose, Segment, cast, rectangle_corners, rectangle_hits
+from umlbot.sim.track import Track
+
+log = get_logger(__name__)
+
+Side = Literal["left", "right"]
+
+#: A car scraping along a wall touches it again and again; a new collision is counted only after
+#: it has moved free of every wall for this long (sim seconds).
+CONTACT_SETTLE_S = 0.1
+
+
+@dataclass(frozen=True)
+class CarSpec:
+    """The simulated car's physical constants (defaults: the reference robot car).
+
+    Side speed = `top_speed_mps` x duty / 100 when the channel is enabled and the duty is at least
+    `dead_band_percent` (below it the geared motors stall), else 0; the side's speed follows that
+    target with the time constant `motor_time_constant_s`. Turning rate = (right - left) /
+    `turn_track_m`; the effective track is wider than the 0.13 m wheel track because skid-steered
+    wheels slip sideways when the car turns.
+    """
+
+    length_m: float = 0.26
+    width_m: float = 0.15
+    wheel_diameter_m: float = 0.065
+    top_speed_mps: float = 0.5  # 65 mm wheel at ~150 rpm under load at 100 % duty
+    dead_band_percent: float = 20.0
+    motor_time_constant_s: float = 0.03
+    turn_track_m: float = 0.20
+    sonar_forward_m: float = 0.11  # sonar sits this far ahead of the centre
+    sonar_min_cm: int = 2
+    sonar_max_cm: int = 400
+    sonar_beam_deg: float = 15.0
+    sonar_rays: int = 7
+    servo_deg_per_s: float = 600.0  # 0.1 s per 60°
+    servo_max_deg: float = 180.0
+
+
+@dataclass
+class MotorChannelState:
+    """What the L298N channel of one side is told: on/off, direction, duty."""
+
+    enabled: bool = False
+    forward: bool = True
+    duty_percent: float = 0.0
+    speed_mps: float = 0.0  # the side's actual speed, lagging the command
+
+
+@dataclass(frozen=True)
+class Ping:
+    """One sonar measurement: when, from where, in which direction, and the reported range."""
+
+    time_s: float
+    origin: Point
+    angle: float
+    distance_cm: int | None
+
+
+@dataclass(frozen=True)
+class WorldSnapshot:
+    """A consistent copy of the world's state for progress lines and summaries."""
+
+    time_s: float
+    pose: Pose
+    distance_m: float
+    collisions: int
+    in_contact: bool
+    goal_reached: bool
+    servo_deg: float
+    left_speed_mps: float
+    right_speed_mps: float
+
+
+@dataclass
+class _Servo:
+    target_deg: float = 90.0
+    angle_deg: float = 90.0
+
+
+@dataclass
+class _Trace:
+    path: list[tuple[float, float, float]] = field(default_factory=list)  # (t, x, y)
+    pings: list[Ping] = field(default_factory=list)
+    collision_points: list[tuple[float, float]] = field(default_factory=list)
+
+
+class World:
+    """The car on a track. Drivers call `set_motor`, `set_servo`, `read_sonar_cm`.
+
+    With a `clock`, every call first advances the world to the clock's time, so commands take
+    effect at the sim time they arrive, however late the world loop runs.
+    """
+
+    def __init__(
+        self,
+        track: Track,
+        car: CarSpec | None = None,
+        *,
+        clock: Clock | None = None,
+        sonar_noise_cm: float = 0.0,
+        seed: int | None = None,
+        step_s: float = 0.005,
+    ) -> None:
+        self.track = track
+        self.car = car or CarSpec()
+        self.clock = clock
+        self.step_s = step_s
+        self.sonar_noise_cm = sonar_noise_cm
+        self._rng = random.Random(seed)
+        self._walls: list[Segment] = track.segments
+        self._lock = threading.RLock()
+        self._time = 0.0
+        self._pose = track.start.pose
+        self._motors: dict[Side, MotorChannelState] = {"left": MotorChannelState(),
+                                                       "right": MotorChannelState()}
+        self._servo = _Servo()
+        self._distance = 0.0
+        self._collisions = 0
+        self._in_contact = False
+        self._last_contact_s = -math.inf
+        self._goal_reached = track.goal.contains(self._pose.x, self._pose.y)
+        self._trace = _Trace()
+        self._trace.path.append((0.0, self._pose.x, self._pose.y))
+        if self.hits_wall(self._pose):
+            raise ValueError(f"track {track.name!r}: the car's start footprint overlaps a wall")
+
+    # --- commands from the drivers -------------------------------------------------------------
+
+    def set_motor(
+        self,
+        side: Side,
+        *,
+        enabled: bool | None = None,
+        forward: bool | None = None,
+        duty_percent: float | None = None,
+    ) -> None:
+        """Change one side's channel; arguments left None keep their value."""
+        with self._lock:
+            self._sync()
+            channel = self._motors[side]
+            if enabled is not None:
+                channel.enabled = enabled
+            if forward is not None:
+                channel.forward = forward
+            if duty_percent is not None:
+                if not 0 <= duty_percent <= 100:
+                    raise ValueError(f"duty must be 0..100 %, got {duty_percent}")
+                channel.duty_percent = duty_percent
+
+    def stop_motors(self) -> None:
+        """Disable both sides (the safe state)."""
+        for side in self._motors:
+            self.set_motor(side, enabled=False, duty_percent=0.0)
+
+    def set_servo(self, degrees: float) -> None:
+        """Command the sonar servo; it turns there at `servo_deg_per_s`."""
+        if not 0 <= degrees <= self.car.servo_max_deg:
+            raise ValueError(f"servo angle must be 0..{self.car.servo_max_deg:g}°, got {degrees}")
+        with self._lock:
+            self._sync()
+            self._servo.target_deg = float(degrees)
+
+    def servo_angle_deg(self) -> float:
+        """The servo's current (not commanded) angle."""
+        with self._lock:
+            self._sync()
+            return self._servo.angle_deg
+
+    def read_sonar_cm(self) -> int | None:
+        """One HC-SR04 ping: whole centimetres within 2..400, or None when no echo returns."""
+        with self._lock:
+            self._sync()
+            origin, bearing = self._sonar_origin()
+            half = math.radians(self.car.sonar_beam_deg) / 2
+            n = max(1, self.car.sonar_rays)
+            offsets = [0.0] if n == 1 else [-half + 2 * half * i / (n - 1) for i in range(n)]
+            hits = [d for off in offsets if (d := cast(origin, bearing + off, self._walls)) is not None]
+            result: int | None = None
+            if hits:
+                cm = min(hits) * 100.0
+                if self.sonar_noise_cm > 0:
+                    cm += self._rng.gauss(0.0, self.sonar_noise_cm)
+                if cm <= self.car.sonar_max_cm:
+                    result = max(self.car.sonar_min_cm, round(cm))
+            self._trace.pings.append(Ping(self._time, origin, bearing, result))
+            return result
+
+    # --- integration ---------------------------------------------------------------------------
+
+    def advance_to(self, time_s: float) -> None:
+        """Integrate in fixed steps until the world's time reaches `time_s`."""
+        with self._lock:
+            while self._time + self.step_s <= time_s + 1e-12:
+                self.step(self.step_s)
+
+    def step(self, dt: float) -> None:
+        """Advance the world by `dt` sim seconds: motors, servo, pose, collision, goal."""
+        with self._lock:
+            car = self.car
+            alpha = 1.0 if car.motor_time_constant_s <= 0 else min(1.0, dt / car.motor_time_constant_s)
+            for channel in self._motors.values():
+                target = 0.0
+                if channel.enabled and channel.duty_percent >= car.dead_band_percent:
+                    target = car.top_speed_mps * channel.duty_percent / 100.0
+                    target = target if channel.forward else -target
+                channel.speed_mps += (target - channel.speed_mps) * alpha
+            servo = self._servo
+            max_turn = car.servo_deg_per_s * dt
+            delta = servo.target_deg - servo.angle_deg
+            servo.angle_deg += max(-max_turn, min(max_turn, delta))
+
+            v_left, v_right = self._motors["left"].speed_mps, self._motors["right"].speed_mps
+            v = (v_left + v_right) / 2
+            omega = (v_right - v_left) / car.turn_track_m
+            x, y, heading = self._pose
+            mid = heading + omega * dt / 2  # midpoint rule: exact enough for 5 ms steps
+            candidate = Pose(x + v * math.cos(mid) * dt, y + v * math.sin(mid) * dt, heading + omega * dt)
+            self._time += dt
+            moved = candidate != self._pose
+            if moved and self.hits_wall(candidate):
+                if not self._in_contact:
+                    self._collisions += 1
+                    self._trace.collision_points.append((x, y))
+                    log.info("collision", time_s=round(self._time, 3), x=round(x, 3), y=round(y, 3))
+                self._in_contact = True
+                self._last_contact_s = self._time
+                for channel in self._motors.values():
+                    channel.speed_mps = 0.0  # the wall stops the car
+                return
+            if moved:
+                if self._time - self._last_contact_s >= CONTACT_SETTLE_S:
+                    self._in_contact = False
+                self._distance += math.hypot(candidate.x - x, candidate.y - y)
+                self._pose = candidate
+                last = self._trace.path[-1]
+                if math.hypot(candidate.x - last[1], candidate.y - last[2]) >= 0.005:
+                    self._trace.path.append((self._time, candidate.x, candidate.y))
+                if self.track.goal.contains(candidate.x, candidate.y):
+                    self._goal_reached = True
+
+    def _sync(self) -> None:
+        if self.clock is not None:
+            self.advance_to(self.clock.now())
+
+    # --- queries -------------------------------------------------------------------------------
+
+    def hits_wall(self, pose: Pose) -> bool:
+        """True when the car's footprint at `pose` touches a wall."""
+        return rectangle_hits(rectangle_corners(pose, self.car.length_m, self.car.width_m), self._walls)
+
+    def _sonar_origin(self) -> tuple[Point, float]:
+        x, y, heading = self._pose
+        origin = Point(x + self.car.sonar_forward_m * math.cos(heading),
+                       y + self.car.sonar_forward_m * math.sin(heading))
+        return origin, heading + math.radians(self._servo.angle_deg - 90.0)
+
+    def snapshot(self) -> WorldSnapshot:
+        with self._lock:
+            return WorldSnapshot(
+                time_s=self._time,
+                pose=self._pose,
+                distance_m=self._distance,
+                collisions=self._collisions,
+                in_contact=self._in_contact,
+                goal_reached=self._goal_reached,
+                servo_deg=self._servo.angle_deg,
+                left_speed_mps=self._motors["left"].speed_mps,
+                right_speed_mps=self._motors["right"].speed_mps,
+            )
+
+    def motor(self, side: Side) -> MotorChannelState:
+        """A copy of one side's channel state."""
+        with self._lock:
+            m = self._motors[side]
+            return MotorChannelState(m.enabled, m.forward, m.duty_percent, m.speed_mps)
+
+    @property
+    def path(self) -> list[tuple[float, float, float]]:
+        with self._lock:
+            return list(self._trace.path)
+
+    @property
+    def pings(self) -> list[Ping]:
+        with self._lock:
+            return list(self._trace.pings)
+
+    @property
+    def collision_points(self) -> list[tuple[float, float]]:
+        with self._lock:
+            return list(self._trace.collision_points)
+
+
+class WorldLoop:
+    """A named thread that keeps the world's time up with the clock (fixed steps, catch-up)."""
+
+    def __init__(self, world: World, clock: Clock, period_wall_s: float = 0.002) -> None:
+        self.world = world
+        self.clock = clock
+        self.period_wall_s = period_wall_s
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+
+    def start(self) -> None:
+        if self._thread is not None:
+            return
+        self._thread = threading.Thread(target=self._run, name="sim-world", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        while not self._stop.wait(self.period_wall_s):
+            self.world.advance_to(self.clock.now())
+
+    def stop(self) -> None:
+        """Stop the loop; idempotent."""
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=2.0)
