@@ -38,10 +38,13 @@ SERVICE_KINDS: tuple[ServiceKind, ...] = ("motor", "sonar", "servo", "gpio")
 DRIVERS: dict[tuple[ServiceKind, str], str] = {
     ("motor", "pigpio"): "services.motor.pigpio:FACTORY",
     ("motor", "mock"): "services.motor.mock:FACTORY",
+    ("motor", "sim"): "services.motor.sim:FACTORY",
     ("sonar", "pigpio"): "services.sonar.pigpio:FACTORY",
     ("sonar", "mock"): "services.sonar.mock:FACTORY",
+    ("sonar", "sim"): "services.sonar.sim:FACTORY",
     ("servo", "pigpio"): "services.servo.pigpio:FACTORY",
     ("servo", "mock"): "services.servo.mock:FACTORY",
+    ("servo", "sim"): "services.servo.sim:FACTORY",
     ("gpio", "pigpio"): "services.gpio.pigpio:FACTORY",
     ("gpio", "mock"): "services.gpio.mock:FACTORY",
 }
