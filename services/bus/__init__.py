@@ -1,0 +1,58 @@
+"""The MQTT bus shared by every service and the orchestrator (SPEC §3).
+
+`BusConnection` owns one paho client (reconnects, subscriptions, last will); `ComponentServer`
+answers one component's feature calls; `BusClient` makes calls. Topics, envelopes and settings
+are plain data. The embedded broker lives in `services.bus.broker` (imported on demand).
+"""
+
+from services.bus.client import BusClient
+from services.bus.connection import BusConnection, Handler, Message, Will
+from services.bus.envelopes import (
+    ERROR_CODES,
+    CallRequest,
+    ErrorBody,
+    ErrorCode,
+    ExitRequest,
+    OrchestratorStatus,
+    Reply,
+    Status,
+    TraceEvent,
+    to_payload,
+)
+from services.bus.server import MAX_REQUEST_BYTES, ComponentServer, Feature, FeatureError
+from services.bus.settings import (
+    DEFAULT_BROKER_URL,
+    BrokerSettings,
+    make_client_id,
+    redact_url,
+    resolve_broker_url,
+)
+from services.bus.topics import Topics
+
+__all__ = [
+    "DEFAULT_BROKER_URL",
+    "ERROR_CODES",
+    "MAX_REQUEST_BYTES",
+    "BrokerSettings",
+    "BusClient",
+    "BusConnection",
+    "CallRequest",
+    "ComponentServer",
+    "ErrorBody",
+    "ErrorCode",
+    "ExitRequest",
+    "Feature",
+    "FeatureError",
+    "Handler",
+    "Message",
+    "OrchestratorStatus",
+    "Reply",
+    "Status",
+    "Topics",
+    "TraceEvent",
+    "Will",
+    "make_client_id",
+    "redact_url",
+    "resolve_broker_url",
+    "to_payload",
+]

@@ -1,0 +1,438 @@
+"""One MQTT connection: the only place that owns a paho client and its reconnects.
+
+A supervisor thread connects, runs paho's network loop, and after a lost connection reconnects
+with a bounded, jittered exponential back-off. Subscriptions are restored after every reconnect
+and the `add_on_connect` callbacks run again (services republish their status there). Message
+handlers run on a dispatcher thread, in arrival order, never on paho's network thread.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import queue
+import random
+import socket
+import ssl
+import threading
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import paho.mqtt.client as mqtt
+from paho.mqtt.enums import CallbackAPIVersion, MQTTProtocolVersion
+from paho.mqtt.packettypes import PacketTypes
+from paho.mqtt.properties import Properties
+
+from services.bus.envelopes import to_payload
+from services.bus.settings import BrokerSettings, make_client_id
+from umlbot.errors import BusError, ConfigError, NotConnected
+from umlbot.logs import get_logger
+
+log = get_logger(__name__)
+
+#: back-off after a lost or failed connection: doubles from MIN to MAX, each wait jittered.
+RECONNECT_MIN_S = 0.1
+RECONNECT_MAX_S = 5.0
+
+
+@dataclass(frozen=True)
+class Message:
+    """A received MQTT message; MQTT 5 Response Topic and Correlation Data when present."""
+
+    topic: str
+    payload: bytes
+    qos: int = 0
+    retain: bool = False
+    response_topic: str | None = None
+    correlation_data: bytes | None = None
+
+    def text(self) -> str:
+        """The payload as UTF-8 text (raises UnicodeDecodeError)."""
+        return self.payload.decode("utf-8")
+
+    def json(self) -> Any:
+        """The payload parsed as JSON (raises ValueError)."""
+        import json
+
+        return json.loads(self.payload)
+
+
+@dataclass(frozen=True)
+class Will:
+    """The last will the broker publishes when this connection dies without saying goodbye."""
+
+    topic: str
+    payload: Any
+    qos: int = 1
+    retain: bool = True
+
+
+Handler = Callable[[Message], None]
+Callback = Callable[[], None]
+
+
+@dataclass
+class _Subscription:
+    topic_filter: str
+    handler: Handler
+    qos: int
+    inline: bool = False  # internal fast path: run on the network thread (must never block)
+
+
+@dataclass
+class _Counters:
+    connects: int = 0
+    disconnects: int = 0
+    handler_errors: int = 0
+    dropped: list[str] = field(default_factory=list)
+
+
+class BusConnection:
+    """A robust MQTT connection with a last will, reconnects and a dispatcher thread.
+
+    `start(timeout)` returns once connected (or raises NotConnected and cleans up); `close()` is
+    idempotent; the object is a context manager. `publish` never blocks on the network.
+    """
+
+    def __init__(
+        self,
+        settings: BrokerSettings,
+        role: str,
+        will: Will | None = None,
+        *,
+        robot: str = "any",
+        client_id: str | None = None,
+        reconnect_min_s: float = RECONNECT_MIN_S,
+        reconnect_max_s: float = RECONNECT_MAX_S,
+    ) -> None:
+        self.settings = settings
+        self.role = role
+        self.will = will
+        self.client_id = client_id or make_client_id(role, robot)
+        self.reconnect_min_s = reconnect_min_s
+        self.reconnect_max_s = max(reconnect_max_s, reconnect_min_s)
+        self.counters = _Counters()
+        self._mqtt5 = settings.protocol == "5"
+        self._client = self._make_client()
+        self._lock = threading.RLock()
+        self._subscriptions: list[_Subscription] = []
+        self._route_cache: dict[str, tuple[list[_Subscription], list[_Subscription]]] = {}
+        self._on_connect: list[Callback] = []
+        self._on_disconnect: list[Callback] = []
+        self._on_disconnect_inline: list[Callback] = []
+        self._connected = threading.Event()
+        self._lost = threading.Event()
+        self._closing = threading.Event()
+        self._supervisor: threading.Thread | None = None
+        self._dispatch_queue: queue.SimpleQueue[tuple[Callable[..., None], tuple[Any, ...]] | None] = (
+            queue.SimpleQueue()
+        )
+        self._dispatcher: threading.Thread | None = None
+        self._closed = False
+        self._last_error: str | None = None
+        self._accepted = False
+
+    # -- set-up ---------------------------------------------------------------------------------
+
+    def _make_client(self) -> mqtt.Client:
+        protocol = MQTTProtocolVersion.MQTTv5 if self._mqtt5 else MQTTProtocolVersion.MQTTv311
+        client = mqtt.Client(
+            CallbackAPIVersion.VERSION2,
+            client_id=self.client_id,
+            protocol=protocol,
+            clean_session=None if self._mqtt5 else True,
+            reconnect_on_failure=False,  # the supervisor owns reconnects (jittered back-off)
+        )
+        settings = self.settings
+        if settings.username is not None:
+            password = settings.password.get_secret_value() if settings.password is not None else None
+            client.username_pw_set(settings.username, password)
+        if settings.tls:
+            try:
+                client.tls_set(
+                    ca_certs=str(settings.ca_file) if settings.ca_file else None,
+                    certfile=str(settings.certfile) if settings.certfile else None,
+                    keyfile=str(settings.keyfile) if settings.keyfile else None,
+                    cert_reqs=ssl.CERT_NONE if settings.insecure else ssl.CERT_REQUIRED,
+                )
+            except (OSError, ssl.SSLError) as exc:
+                raise ConfigError(f"broker {settings.url}: cannot set up TLS: {exc}") from exc
+            if settings.insecure:
+                client.tls_insecure_set(True)
+        if self.will is not None:
+            client.will_set(
+                self.will.topic, to_payload(self.will.payload), qos=self.will.qos, retain=self.will.retain
+            )
+        client.on_connect = self._handle_connect
+        client.on_disconnect = self._handle_disconnect
+        client.on_message = self._handle_message
+        client.on_socket_open = self._handle_socket_open
+        return client
+
+    # -- public API -----------------------------------------------------------------------------
+
+    @property
+    def connected(self) -> bool:
+        """True while the broker has accepted this connection."""
+        return self._connected.is_set()
+
+    def wait_connected(self, timeout: float) -> bool:
+        """Wait up to `timeout` seconds for a connection; True when connected."""
+        return self._connected.wait(timeout)
+
+    def start(self, timeout: float | None = 5.0) -> None:
+        """Connect in the background; with a timeout, wait for the first connection.
+
+        Raises NotConnected (after cleaning up) when the broker was not reached in time.
+        """
+        if self._closed:
+            raise BusError("this connection was closed; make a new one")
+        if self._supervisor is not None:
+            return
+        self._dispatcher = threading.Thread(
+            target=self._dispatch_loop, name=f"bus-dispatch-{self.role}", daemon=True
+        )
+        self._dispatcher.start()
+        self._supervisor = threading.Thread(
+            target=self._supervise, name=f"bus-connect-{self.role}", daemon=True
+        )
+        self._supervisor.start()
+        if timeout is not None and not self._connected.wait(timeout):
+            reason = self._last_error or "no answer"
+            self.close()
+            raise NotConnected(
+                f"cannot connect to the MQTT broker at {self.settings.url} within {timeout:g} s "
+                f"({reason}); is it running? (umlbot broker, or --broker / UMLBOT_BROKER)"
+            )
+
+    def close(self, timeout: float = 5.0) -> None:
+        """Disconnect cleanly (no last will) and stop the threads; safe to call twice."""
+        if self._closed:
+            return
+        self._closed = True
+        self._closing.set()
+        with contextlib.suppress(Exception):
+            self._client.disconnect()
+        self._lost.set()
+        if self._supervisor is not None and self._supervisor is not threading.current_thread():
+            self._supervisor.join(timeout)
+        self._dispatch_queue.put(None)
+        if self._dispatcher is not None and self._dispatcher is not threading.current_thread():
+            self._dispatcher.join(timeout)
+        self._connected.clear()
+
+    def __enter__(self) -> BusConnection:
+        self.start()
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()
+
+    def publish(
+        self,
+        topic: str,
+        payload: Any,
+        qos: int = 1,
+        retain: bool = False,
+        *,
+        response_topic: str | None = None,
+        correlation_data: bytes | None = None,
+    ) -> None:
+        """Queue a message for sending; raises NotConnected while there is no connection.
+
+        `payload` may be bytes, str, a pydantic model or anything JSON-able. The MQTT 5 properties
+        are sent only on an MQTT 5 connection.
+        """
+        if not self._connected.is_set():
+            raise NotConnected(f"not connected to the MQTT broker at {self.settings.url}")
+        properties = None
+        if self._mqtt5 and (response_topic is not None or correlation_data is not None):
+            properties = Properties(PacketTypes.PUBLISH)  # type: ignore[no-untyped-call]
+            if response_topic is not None:
+                properties.ResponseTopic = response_topic
+            if correlation_data is not None:
+                properties.CorrelationData = correlation_data
+        info = self._client.publish(topic, to_payload(payload), qos=qos, retain=retain, properties=properties)
+        if info.rc == mqtt.MQTT_ERR_NO_CONN:
+            raise NotConnected(f"not connected to the MQTT broker at {self.settings.url}")
+        if info.rc == mqtt.MQTT_ERR_PAYLOAD_SIZE:
+            raise BusError(f"payload of {len(to_payload(payload))} bytes is too large for MQTT")
+
+    def subscribe(self, topic_filter: str, handler: Handler, qos: int = 1) -> None:
+        """Call `handler(message)` on the dispatcher thread for every message matching the filter.
+
+        The subscription survives reconnects. Several handlers may share a filter.
+        """
+        self._add_subscription(_Subscription(topic_filter, handler, qos))
+
+    def _subscribe_inline(self, topic_filter: str, handler: Handler, qos: int = 0) -> None:
+        """Internal: a handler run on the network thread itself; it must return at once."""
+        self._add_subscription(_Subscription(topic_filter, handler, qos, inline=True))
+
+    def _add_subscription(self, subscription: _Subscription) -> None:
+        with self._lock:
+            already = any(s.topic_filter == subscription.topic_filter for s in self._subscriptions)
+            self._subscriptions.append(subscription)
+            self._route_cache.clear()
+        if not already and self._connected.is_set():
+            self._client.subscribe(subscription.topic_filter, subscription.qos)
+
+    def unsubscribe(self, topic_filter: str) -> None:
+        """Drop every handler of this filter and tell the broker."""
+        with self._lock:
+            self._subscriptions = [s for s in self._subscriptions if s.topic_filter != topic_filter]
+            self._route_cache.clear()
+        if self._connected.is_set():
+            self._client.unsubscribe(topic_filter)
+
+    def add_on_connect(self, callback: Callback) -> None:
+        """Run `callback()` (on the dispatcher thread) after every successful (re)connect.
+
+        When already connected, it also runs once now.
+        """
+        with self._lock:
+            self._on_connect.append(callback)
+            connected = self._connected.is_set()
+        if connected:
+            self._dispatch_queue.put((callback, ()))
+
+    def add_on_disconnect(self, callback: Callback) -> None:
+        """Run `callback()` (on the dispatcher thread) after every lost connection."""
+        with self._lock:
+            self._on_disconnect.append(callback)
+
+    def _add_on_disconnect_inline(self, callback: Callback) -> None:
+        """Internal: run `callback()` on the network thread at once when the connection drops."""
+        with self._lock:
+            self._on_disconnect_inline.append(callback)
+
+    # -- paho callbacks (network thread: never block here) ------------------------------------------
+
+    def _handle_socket_open(self, client: mqtt.Client, userdata: Any, sock: Any) -> None:
+        with contextlib.suppress(OSError, AttributeError):
+            sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+
+    def _handle_connect(
+        self, client: mqtt.Client, userdata: Any, flags: Any, reason: Any, properties: Any = None
+    ) -> None:
+        if reason.is_failure:
+            self._last_error = f"broker refused the connection: {reason}"
+            log.warning("mqtt_connect_refused", broker=self.settings.url, client_id=self.client_id,
+                        reason=str(reason))
+            return
+        with self._lock:
+            filters: dict[str, int] = {}
+            for sub in self._subscriptions:
+                filters[sub.topic_filter] = max(filters.get(sub.topic_filter, 0), sub.qos)
+            callbacks = list(self._on_connect)
+        if filters:
+            client.subscribe([(f, q) for f, q in filters.items()])
+        self.counters.connects += 1
+        self._last_error = None
+        self._accepted = True
+        self._connected.set()
+        for callback in callbacks:
+            self._dispatch_queue.put((callback, ()))
+        log.info("mqtt_connected", broker=self.settings.url, client_id=self.client_id,
+                 reconnect=self.counters.connects > 1)
+
+    def _handle_disconnect(
+        self, client: mqtt.Client, userdata: Any, flags: Any, reason: Any, properties: Any = None
+    ) -> None:
+        was_connected = self._connected.is_set()
+        self._connected.clear()
+        self._lost.set()
+        if was_connected:
+            self.counters.disconnects += 1
+            with self._lock:
+                callbacks = list(self._on_disconnect)
+                inline = list(self._on_disconnect_inline)
+            for callback in inline:
+                try:
+                    callback()
+                except Exception:
+                    log.exception("bus_handler_failed", client_id=self.client_id)
+            for callback in callbacks:
+                self._dispatch_queue.put((callback, ()))
+            if not self._closing.is_set():
+                log.warning("mqtt_disconnected", broker=self.settings.url, client_id=self.client_id,
+                            reason=str(reason))
+
+    def _handle_message(self, client: mqtt.Client, userdata: Any, msg: mqtt.MQTTMessage) -> None:
+        topic = msg.topic
+        routes = self._route_cache.get(topic)
+        if routes is None:
+            routes = self._routes(topic)
+        inline, queued = routes
+        if not inline and not queued:
+            return
+        response_topic = correlation = None
+        if self._mqtt5:
+            props = getattr(msg, "properties", None)
+            if props is not None:
+                response_topic = getattr(props, "ResponseTopic", None)
+                correlation = getattr(props, "CorrelationData", None)
+        message = Message(topic, bytes(msg.payload), msg.qos, bool(msg.retain), response_topic, correlation)
+        for sub in inline:
+            try:
+                sub.handler(message)
+            except Exception:
+                self.counters.handler_errors += 1
+                log.exception("bus_handler_failed", topic=topic, client_id=self.client_id)
+        for sub in queued:
+            self._dispatch_queue.put((sub.handler, (message,)))
+
+    def _routes(self, topic: str) -> tuple[list[_Subscription], list[_Subscription]]:
+        with self._lock:
+            matching = [s for s in self._subscriptions if mqtt.topic_matches_sub(s.topic_filter, topic)]
+            routes = ([s for s in matching if s.inline], [s for s in matching if not s.inline])
+            if len(self._route_cache) > 4096:
+                self._route_cache.clear()
+            self._route_cache[topic] = routes
+        return routes
+
+    # -- threads --------------------------------------------------------------------------------
+
+    def _dispatch_loop(self) -> None:
+        while True:
+            item = self._dispatch_queue.get()
+            if item is None:
+                return
+            function, args = item
+            try:
+                function(*args)
+            except Exception:
+                self.counters.handler_errors += 1
+                log.exception("bus_handler_failed", client_id=self.client_id,
+                              handler=getattr(function, "__qualname__", repr(function)))
+
+    def _supervise(self) -> None:
+        delay = self.reconnect_min_s
+        first = True
+        while not self._closing.is_set():
+            self._lost.clear()
+            self._accepted = False
+            try:
+                if first:
+                    self._client.connect(self.settings.host, self.settings.port, self.settings.keepalive_s)
+                else:
+                    self._client.reconnect()
+            except (OSError, ssl.SSLError) as exc:
+                self._last_error = f"{type(exc).__name__}: {exc}"
+                if first or delay == self.reconnect_min_s:
+                    log.warning("mqtt_connect_failed", broker=self.settings.url, client_id=self.client_id,
+                                error=self._last_error, retry_in_s=round(delay, 2))
+            else:
+                first = False
+                self._client.loop_start()
+                self._lost.wait()
+                with contextlib.suppress(Exception):
+                    self._client.loop_stop()
+                if self._accepted:
+                    delay = self.reconnect_min_s
+            if self._closing.is_set():
+                break
+            # full jitter in [delay/2, delay]: reconnecting services do not all hit the broker at once
+            self._closing.wait(random.uniform(delay / 2, delay))
+            delay = min(delay * 2, self.reconnect_max_s)
+        self._connected.clear()

@@ -1,0 +1,355 @@
+"""The server side of the bus: one component's features, answered over MQTT.
+
+A `ComponentServer` owns its own connection (MQTT allows one last will per connection, and the
+will is what marks this component `offline`). It validates every request against the feature's
+`FeatureSpec` (count, types, ranges) before the handler sees it, answers with a `Reply`, and
+keeps serving whatever arrives: every bad input gets an error reply with a stable code and a log
+line. Handlers run on the connection's dispatcher thread, one at a time, in arrival order.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+from pydantic import ValidationError
+
+from services.bus.connection import BusConnection, Message, Will
+from services.bus.envelopes import ENVELOPE_KEYS, CallRequest, Reply, Status
+from services.bus.settings import BrokerSettings
+from services.bus.topics import Topics, check_name, is_valid_publish_topic
+from umlbot.errors import DriverError, NotConnected, UmlbotError
+from umlbot.library import FeatureSpec, Param
+from umlbot.logs import get_logger
+
+log = get_logger(__name__)
+
+#: requests larger than this are refused with `payload_too_large`.
+MAX_REQUEST_BYTES = 256 * 1024
+
+
+class FeatureError(UmlbotError):
+    """Raised by a feature handler to answer with an error reply of the given code."""
+
+    def __init__(self, code: str, message: str) -> None:
+        super().__init__(f"{code}: {message}")
+        self.code = code
+        self.message = message
+
+
+@dataclass(frozen=True)
+class Feature:
+    """A feature served by a component: its spec (arguments, ranges) and its handler.
+
+    The handler receives the validated arguments positionally and returns a JSON-able value.
+    """
+
+    spec: FeatureSpec
+    handler: Callable[..., Any]
+
+    @property
+    def name(self) -> str:
+        return self.spec.name
+
+
+@dataclass
+class _Parsed:
+    request_id: str | int | None
+    reply_to: str | None
+    args: list[Any]
+
+
+class _BadInput(Exception):
+    def __init__(self, code: str, message: str, request_id: str | int | None = None,
+                 reply_to: str | None = None) -> None:
+        super().__init__(message)
+        self.code = code
+        self.message = message
+        self.request_id = request_id
+        self.reply_to = reply_to
+
+
+def _describe(value: Any) -> str:
+    text = json.dumps(value)
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
+def check_arg(param: Param, value: Any) -> Any:
+    """The argument converted to the parameter's type; raises _BadInput (bad_args, out_of_range)."""
+    converted: Any
+    if param.type == "bool":
+        if isinstance(value, bool):
+            converted = value
+        elif isinstance(value, int) and value in (0, 1):
+            converted = bool(value)
+        else:
+            raise _BadInput("bad_args", f"{param.name} must be true or false, got {_describe(value)}")
+    elif param.type == "int":
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise _BadInput("bad_args", f"{param.name} must be an integer, got {_describe(value)}")
+        if isinstance(value, float):
+            if not math.isfinite(value) or value != int(value):
+                raise _BadInput("bad_args", f"{param.name} must be an integer, got {_describe(value)}")
+            value = int(value)
+        converted = value
+    elif param.type == "float":
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise _BadInput("bad_args", f"{param.name} must be a number, got {_describe(value)}")
+        if not math.isfinite(value):
+            raise _BadInput("bad_args", f"{param.name} must be a finite number")
+        converted = float(value)
+    else:
+        if not isinstance(value, str):
+            raise _BadInput("bad_args", f"{param.name} must be a string, got {_describe(value)}")
+        converted = value
+    if param.type in ("int", "float") and (
+        (param.minimum is not None and converted < param.minimum)
+        or (param.maximum is not None and converted > param.maximum)
+    ):
+        low = "-inf" if param.minimum is None else f"{param.minimum:g}"
+        high = "inf" if param.maximum is None else f"{param.maximum:g}"
+        unit = f" {param.unit}" if param.unit else ""
+        raise _BadInput("out_of_range", f"{param.name}={converted} is outside {low}..{high}{unit}")
+    return converted
+
+
+def check_args(spec: FeatureSpec, args: list[Any]) -> list[Any]:
+    """Validate a call's arguments against its feature spec; raises _BadInput."""
+    if len(args) != len(spec.params):
+        names = ", ".join(p.name for p in spec.params)
+        raise _BadInput(
+            "bad_args",
+            f"{spec.name} takes {len(spec.params)} argument(s) ({names}), got {len(args)}",
+        )
+    return [check_arg(param, value) for param, value in zip(spec.params, args, strict=True)]
+
+
+def parse_request(payload: bytes, response_topic: str | None = None) -> _Parsed:
+    """Turn a request payload into (id, reply_to, args): an envelope or a bare JSON value.
+
+    A JSON object with any of the keys `id`, `reply_to`, `args` is an envelope; any other JSON
+    value is the argument list (an array) or the only argument. An empty payload or `null` means
+    no arguments.
+    """
+    if not payload.strip():
+        return _Parsed(None, None, [])
+    try:
+        data = json.loads(payload)
+    except (UnicodeDecodeError, ValueError) as exc:
+        raise _BadInput("bad_json", f"payload is not UTF-8 JSON: {exc}") from None
+    if isinstance(data, dict) and ENVELOPE_KEYS & data.keys():
+        # find where to answer before validating, so a bad envelope still gets its error reply
+        reply_to = data.get("reply_to")
+        reply_to = reply_to if isinstance(reply_to, str) and is_valid_publish_topic(reply_to) else None
+        raw_id = data.get("id")
+        request_id = raw_id if isinstance(raw_id, str | int) and not isinstance(raw_id, bool) else None
+        if not isinstance(data.get("args", []), list):
+            data = {**data, "args": [data["args"]]}
+        try:
+            request = CallRequest.model_validate(data)
+        except ValidationError as exc:
+            first = exc.errors()[0]
+            where = ".".join(str(p) for p in first["loc"]) or "envelope"
+            raise _BadInput("bad_request", f"bad request envelope: {where}: {first['msg']}",
+                            request_id, reply_to) from None
+        if request.reply_to is not None and not is_valid_publish_topic(request.reply_to):
+            raise _BadInput("bad_request", "reply_to must be a topic without wildcards", request_id)
+        return _Parsed(request.id, request.reply_to, request.args)
+    if data is None:
+        return _Parsed(None, None, [])
+    return _Parsed(None, None, data if isinstance(data, list) else [data])
+
+
+class ComponentServer:
+    """Serves one component's features on `umlbot/<robot>/<component>/call/<feature>`.
+
+    `start()` connects and publishes the retained status `online` (again after every reconnect);
+    the last will sets `{"state":"offline"}`; `stop()` publishes `offline` itself and disconnects.
+    """
+
+    def __init__(
+        self,
+        settings: BrokerSettings,
+        robot: str,
+        component: str,
+        impl_id: str,
+        features: list[Feature],
+        *,
+        client_id: str | None = None,
+        max_request_bytes: int = MAX_REQUEST_BYTES,
+    ) -> None:
+        self.topics = Topics(robot)
+        self.component = check_name("component", component)
+        self.impl_id = impl_id
+        self.features = {f.name: f for f in features}
+        self.max_request_bytes = max_request_bytes
+        self.calls_served = 0
+        self.calls_failed = 0
+        self._since: float | None = None
+        self._status_topic = self.topics.status(component)
+        self._call_prefix = self.topics.calls(component)[:-1]  # ".../call/"
+        self.connection = BusConnection(
+            settings,
+            role=f"service-{component}",
+            will=Will(self._status_topic, Status(state="offline")),
+            robot=robot,
+            client_id=client_id,
+        )
+        self._log = log.bind(robot=robot, component=component)
+
+    @property
+    def connected(self) -> bool:
+        return self.connection.connected
+
+    def start(self, timeout: float | None = 5.0) -> None:
+        """Connect, subscribe to the calls and publish the status; raises NotConnected on time-out."""
+        self._since = time.time()
+        self.connection.subscribe(self.topics.calls(self.component), self._on_request, qos=1)
+        self.connection.add_on_connect(self._publish_online)
+        self.connection.start(timeout)
+
+    def stop(self) -> None:
+        """Publish `offline` (retained), then disconnect; safe to call twice."""
+        if self.connection.connected:
+            with contextlib.suppress(NotConnected):
+                self.connection.publish(self._status_topic, Status(state="offline"), qos=1, retain=True)
+        self.connection.close()
+
+    def __enter__(self) -> ComponentServer:
+        self.start()
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.stop()
+
+    def status(self) -> Status:
+        """The status this server publishes while online."""
+        return Status(
+            state="online",
+            impl=self.impl_id,
+            features=sorted(self.features),
+            client_id=self.connection.client_id,
+            since=self._since,
+        )
+
+    def publish_state(self, state: dict[str, Any]) -> None:
+        """Publish the component's current state (retained) on `…/<component>/state`."""
+        try:
+            self.connection.publish(self.topics.state(self.component), state, qos=1, retain=True)
+        except NotConnected:
+            self._log.debug("state_not_published", reason="not connected")
+
+    def _publish_online(self) -> None:
+        self.connection.publish(self._status_topic, self.status(), qos=1, retain=True)
+        self._log.info("component_online", impl=self.impl_id, features=sorted(self.features))
+
+    # -- request handling (dispatcher thread) --------------------------------------------------------
+
+    def _on_request(self, message: Message) -> None:
+        feature_name = message.topic[len(self._call_prefix):]
+        response_topic = message.response_topic
+        correlation = message.correlation_data
+        request_id: str | int | None = _correlation_id(correlation)
+        reply_to: str | None = None
+        try:
+            if len(message.payload) > self.max_request_bytes:
+                request_id, reply_to = _peek_envelope(message.payload, request_id)
+                raise _BadInput(
+                    "payload_too_large",
+                    f"request of {len(message.payload)} bytes exceeds the limit of "
+                    f"{self.max_request_bytes} bytes",
+                    request_id,
+                    reply_to,
+                )
+            parsed = parse_request(message.payload)
+            request_id = parsed.request_id if parsed.request_id is not None else request_id
+            reply_to = parsed.reply_to
+            feature = self.features.get(feature_name)
+            if feature is None:
+                known = ", ".join(sorted(self.features)) or "none"
+                raise _BadInput("unknown_feature",
+                                f"{self.component} has no feature {feature_name!r} (it has: {known})")
+            args = check_args(feature.spec, parsed.args)
+        except _BadInput as bad:
+            if bad.request_id is not None:
+                request_id = bad.request_id
+            reply_to = bad.reply_to or reply_to
+            self._fail(feature_name, request_id, reply_to, response_topic, correlation, bad.code, bad.message)
+            return
+        try:
+            value = feature.handler(*args)
+            reply = Reply.success(request_id, value)
+            self._send(reply, reply_to, response_topic, correlation)
+        except FeatureError as exc:
+            self._fail(feature_name, request_id, reply_to, response_topic, correlation, exc.code, exc.message)
+            return
+        except DriverError as exc:
+            self._fail(feature_name, request_id, reply_to, response_topic, correlation,
+                       "driver_error", str(exc))
+            return
+        except Exception:
+            # the traceback goes to the log only; the caller learns that it was our fault
+            self._log.exception("feature_failed", feature=feature_name, request_id=request_id)
+            self._fail(feature_name, request_id, reply_to, response_topic, correlation, "internal",
+                       f"internal error in {self.component}.{feature_name} (see the service log)",
+                       logged=True)
+            return
+        self.calls_served += 1
+
+    def _fail(self, feature: str, request_id: str | int | None, reply_to: str | None,
+              response_topic: str | None, correlation: bytes | None, code: str, message: str,
+              logged: bool = False) -> None:
+        self.calls_failed += 1
+        if not logged:
+            self._log.warning("call_rejected", feature=feature, code=code, error=message,
+                              request_id=request_id, reply=bool(reply_to or response_topic))
+        self._send(Reply.failure(request_id, code, message), reply_to, response_topic, correlation)
+
+    def _send(self, reply: Reply, reply_to: str | None, response_topic: str | None,
+              correlation: bytes | None) -> None:
+        """Answer on reply_to and/or the MQTT 5 response topic; nothing for fire-and-forget calls."""
+        if reply_to is None and response_topic is None:
+            return
+        try:
+            payload = json.dumps(reply.wire(), separators=(",", ":"), ensure_ascii=False).encode("utf-8")
+        except (TypeError, ValueError):
+            self._log.error("reply_not_serialisable", value_type=type(reply.value).__name__)
+            reply = Reply.failure(reply.id, "internal", "the feature returned a value that is not JSON")
+            payload = json.dumps(reply.wire()).encode("utf-8")
+        try:
+            if response_topic is not None:
+                self.connection.publish(response_topic, payload, qos=0, correlation_data=correlation)
+            if reply_to is not None and reply_to != response_topic:
+                self.connection.publish(reply_to, payload, qos=0)
+        except NotConnected:
+            self._log.warning("reply_lost", reason="not connected", request_id=reply.id)
+
+
+def _correlation_id(correlation: bytes | None) -> str | None:
+    if correlation is None:
+        return None
+    try:
+        return correlation.decode("utf-8")
+    except UnicodeDecodeError:
+        return correlation.hex()
+
+
+def _peek_envelope(payload: bytes, request_id: str | int | None) -> tuple[str | int | None, str | None]:
+    """Best effort: the id and reply_to of an oversized request, so it can still be answered."""
+    try:
+        data = json.loads(payload)
+    except (UnicodeDecodeError, ValueError):
+        return request_id, None
+    if not isinstance(data, dict):
+        return request_id, None
+    raw_id, reply_to = data.get("id"), data.get("reply_to")
+    if isinstance(raw_id, str | int) and not isinstance(raw_id, bool):
+        request_id = raw_id
+    if not (isinstance(reply_to, str) and is_valid_publish_topic(reply_to)):
+        reply_to = None
+    return request_id, reply_to
