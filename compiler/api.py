@@ -1,0 +1,62 @@
+"""The compiler's front door: check a model folder or file, compile it.
+
+`check_model` returns every problem (errors and warnings) and, when there is no error, the
+compiled model; `compile_model` returns the compiled model or raises `ModelErrors` carrying all
+problems. Both never raise anything but `ModelError` for a bad model.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from compiler.checker import check_source
+from compiler.compiled import CompiledModel
+from compiler.diagnostics import Diagnostic, Diagnostics, ModelErrors
+from compiler.source import SourceModel, load_source
+from umlbot.errors import ModelError
+
+
+@dataclass(frozen=True)
+class CheckResult:
+    """The outcome of checking a model: every problem, sorted, and the compiled model if no error."""
+
+    diagnostics: list[Diagnostic]
+    model: CompiledModel | None
+    source: SourceModel | None
+
+    @property
+    def ok(self) -> bool:
+        return self.model is not None
+
+    @property
+    def errors(self) -> list[Diagnostic]:
+        return [d for d in self.diagnostics if d.severity == "error"]
+
+    @property
+    def warnings(self) -> list[Diagnostic]:
+        return [d for d in self.diagnostics if d.severity == "warning"]
+
+
+def check_model(path: str | Path, deployment: str | Path | None = None) -> CheckResult:
+    """Check the model at `path` (a folder or one file); `deployment` overrides its deployment file."""
+    diagnostics = Diagnostics()
+    source: SourceModel | None = None
+    model: CompiledModel | None = None
+    try:
+        source = load_source(path, diagnostics, deployment)
+        model = check_source(source, diagnostics)
+    except ModelError as exc:
+        diagnostics.add_model_error(exc)
+        model = None
+    if diagnostics.has_errors:
+        model = None
+    return CheckResult(diagnostics.sorted(), model, source)
+
+
+def compile_model(path: str | Path, deployment: str | Path | None = None) -> CompiledModel:
+    """The compiled model, or `ModelErrors` listing every problem of the model."""
+    result = check_model(path, deployment)
+    if result.model is None:
+        raise ModelErrors(result.diagnostics)
+    return result.model

@@ -1,0 +1,924 @@
+"""The checks of a model and its translation into the compiled model.
+
+`check_source` runs every check of SPEC §2 on a `SourceModel` (components and their kinds, the
+deployment, each swimlane's graph, every expression's names and types, fork/join pairing,
+recursion between virtual swimlanes), reports all problems to `Diagnostics` in one run, and
+returns the `CompiledModel` when there is no error.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass, field
+from typing import Literal, cast
+
+from compiler.compiled import (
+    AcceptNode,
+    ActionNode,
+    Branch,
+    CompiledComponent,
+    CompiledModel,
+    DatastoreNode,
+    DecisionNode,
+    EndNode,
+    ForkNode,
+    JoinNode,
+    Lane,
+    Link,
+    Node,
+    SendNode,
+    StartNode,
+)
+from compiler.diagnostics import Diagnostics, Location
+from compiler.expr import (
+    Binary,
+    BinaryOperator,
+    BuiltinTarget,
+    Call,
+    Const,
+    Expr,
+    FeatureTarget,
+    LaneTarget,
+    Ref,
+    Unary,
+)
+from compiler.expr_parser import RawExpr, RBinary, RCall, RConst, RName, RUnary, SourceText, parse_expression
+from compiler.source import SourceLane, SourceModel, SourceNode
+from compiler.yamlsrc import YMap, YScalar, YSeq
+from umlbot.errors import ModelError
+from umlbot.library import KIND_FEATURES, ComponentKind, FeatureSpec, Implementation, resolve_implementation
+
+#: expression types; "any" is a value whose type is known only at run time (a signal payload);
+#: "unknown" exists only while datastore types are being inferred.
+Type = Literal["int", "float", "bool", "str", "none", "any", "unknown"]
+
+KINDS: tuple[ComponentKind, ...] = ("system", "actuator", "sensor")
+RESERVED = {"Application", "usleep", "msleep", "and", "or", "not", "true", "false", "True", "False"}
+SLEEP_BUILTINS = {"usleep": "us", "msleep": "ms"}
+NEXT_KINDS = ("start", "action", "datastore", "join", "send", "accept")
+ARITHMETIC = ("+", "-", "*", "/", "%")
+ORDERING = ("<", "<=", ">", ">=")
+
+
+def _type_of_const(value: object) -> Type:
+    if isinstance(value, bool):
+        return "bool"
+    if isinstance(value, int):
+        return "int"
+    if isinstance(value, float):
+        return "float"
+    if isinstance(value, str):
+        return "str"
+    return "none"
+
+
+def _numeric(t: Type) -> bool:
+    return t in ("int", "float", "any", "unknown")
+
+
+def _join(a: Type, b: Type) -> Type:
+    """The type of a datastore written with values of types a and b."""
+    if a == "unknown":
+        return b
+    if b == "unknown" or a == b:
+        return a
+    if {a, b} == {"int", "float"}:
+        return "float"
+    return "any"
+
+
+def _describe(spec: FeatureSpec) -> str:
+    return ", ".join(f"{p.name}: {p.type}" for p in spec.params)
+
+
+@dataclass
+class _Branch:
+    guard: YScalar | None
+    target: str | None
+    target_loc: Location
+    loc: Location
+    is_else: bool
+
+
+@dataclass
+class _Node:
+    """One activity node with its fields picked out of the YAML mapping."""
+
+    src: SourceNode
+    next: str | None = None
+    next_loc: Location | None = None
+    branches: list[_Branch] = field(default_factory=list)
+    targets: list[tuple[str, Location]] = field(default_factory=list)
+    expr: YScalar | None = None  # action call, datastore value or send payload
+    name: str | None = None  # datastore name
+    signal: str | None = None
+    store: str | None = None
+    compiled_expr: Expr | None = None
+    compiled_guards: list[Expr | None] = field(default_factory=list)
+
+    @property
+    def id(self) -> str:
+        return self.src.id
+
+    def successors(self) -> list[str]:
+        if self.src.kind == "decision":
+            return [b.target for b in self.branches if b.target is not None]
+        if self.src.kind == "fork":
+            return [t for t, _ in self.targets]
+        return [self.next] if self.next is not None else []
+
+
+@dataclass
+class _Lane:
+    src: SourceLane
+    virtual: bool
+    nodes: dict[str, _Node] = field(default_factory=dict)
+    order: list[str] = field(default_factory=list)
+    start: str | None = None
+    #: datastore name -> the value expressions written to it (None: an accept's payload).
+    writes: dict[str, list[YScalar | None]] = field(default_factory=dict)
+    fork_join: dict[str, str] = field(default_factory=dict)
+    incoming: dict[str, list[str]] = field(default_factory=dict)
+
+    @property
+    def name(self) -> str:
+        return self.src.name
+
+
+@dataclass
+class _Scope:
+    """What names mean in the whole model."""
+
+    kinds: dict[str, ComponentKind] = field(default_factory=dict)
+    impls: dict[str, Implementation] = field(default_factory=dict)
+    lanes: dict[str, _Lane] = field(default_factory=dict)
+    datastore_types: dict[tuple[str, str], Type] = field(default_factory=dict)
+
+    def feature_spec(self, component: str, feature: str) -> FeatureSpec | None:
+        impl = self.impls.get(component)
+        if impl is not None and feature in impl.features:
+            return impl.features[feature]
+        return KIND_FEATURES[self.kinds[component]].get(feature)
+
+
+@dataclass
+class _LaneCall:
+    caller: str
+    callee: str
+    loc: Location
+
+
+class _ExprChecker:
+    """Resolves the names of one expression and computes its type; errors are `ModelError`s."""
+
+    def __init__(self, scope: _Scope, lane: str, src: SourceText) -> None:
+        self.scope = scope
+        self.lane = lane
+        self.src = src
+        self.lane_calls: list[_LaneCall] = []
+
+    def fail(self, message: str, offset: int) -> ModelError:
+        return self.src.error(message, offset)
+
+    def resolve(self, raw: RawExpr, action: bool = False) -> tuple[Expr, Type]:
+        if isinstance(raw, RConst):
+            return Const(value=raw.value), _type_of_const(raw.value)
+        if isinstance(raw, RName):
+            return self.resolve_name(raw, action)
+        if isinstance(raw, RCall):
+            return self.resolve_call(raw, action)
+        if isinstance(raw, RUnary):
+            operand, t = self.resolve(raw.operand)
+            if raw.operator == "not":
+                if t not in ("bool", "any", "unknown"):
+                    raise self.fail(f"'not' needs a bool, got {t}", raw.offset)
+                return Unary(operator="not", operand=operand), "bool"
+            if not _numeric(t):
+                raise self.fail(f"'-' needs a number, got {t}", raw.offset)
+            if isinstance(operand, Const) and isinstance(operand.value, int | float) \
+                    and not isinstance(operand.value, bool):
+                return Const(value=-operand.value), t
+            return Unary(operator="-", operand=operand), t
+        return self.resolve_binary(raw)
+
+    def resolve_binary(self, raw: RBinary) -> tuple[Expr, Type]:
+        left, lt = self.resolve(raw.left)
+        right, rt = self.resolve(raw.right)
+        op = raw.operator
+        expr = Binary(operator=cast(BinaryOperator, op), left=left, right=right)
+        loose = ("any", "unknown")
+        if "unknown" in (lt, rt) and op in ARITHMETIC:
+            return expr, "unknown"
+        if op in ("and", "or"):
+            for t in (lt, rt):
+                if t not in ("bool", *loose):
+                    raise self.fail(f"'{op}' needs bools, got {lt} and {rt}", raw.offset)
+            return expr, "bool"
+        if op in ("==", "!="):
+            for t in (lt, rt):
+                if t == "none":
+                    raise self.fail(f"'{op}' compares values, but one side gives no value", raw.offset)
+            return expr, "bool"
+        if op in ORDERING:
+            if (_numeric(lt) and _numeric(rt)) or (lt in ("str", *loose) and rt in ("str", *loose)):
+                return expr, "bool"
+            raise self.fail(f"'{op}' needs two numbers or two strings, got {lt} and {rt}", raw.offset)
+        if op == "+" and lt in ("str", *loose) and rt in ("str", *loose) and "str" in (lt, rt):
+            return expr, "str"
+        if not (_numeric(lt) and _numeric(rt)) or "bool" in (lt, rt):
+            raise self.fail(f"'{op}' needs numbers, got {lt} and {rt}", raw.offset)
+        if "any" in (lt, rt):
+            return expr, "any"
+        if op == "/":
+            return expr, "float"
+        return expr, "int" if lt == rt == "int" else "float"
+
+    def datastore_type(self, lane: str, name: str) -> Type | None:
+        return self.scope.datastore_types.get((lane, name))
+
+    def resolve_name(self, raw: RName, action: bool) -> tuple[Expr, Type]:
+        scope = self.scope
+        if len(raw.parts) == 1:
+            name = raw.parts[0]
+            t = self.datastore_type(self.lane, name)
+            if t is not None:
+                return Ref(lane=self.lane, name=name), t
+            if name in scope.lanes and scope.lanes[name].virtual:
+                return self.lane_call(name, raw.offset, action)
+            if name in SLEEP_BUILTINS:
+                raise self.fail(f"{name} needs an argument: {name}({SLEEP_BUILTINS[name]})", raw.offset)
+            if name in scope.kinds:
+                raise self.fail(f"'{name}' is a component; call one of its features: "
+                                f"{name}.<feature>(...)", raw.offset)
+            if action:
+                raise self.fail(f"unknown swimlane or builtin '{name}'", raw.offset)
+            raise self.fail(f"unknown datastore '{name}' in swimlane '{self.lane}'", raw.offset)
+        owner, name = raw.parts
+        if owner == "Application":
+            if name == "exit":
+                return Call(target=BuiltinTarget(name="Application.exit")), "bool"
+            raise self.fail(f"unknown builtin 'Application.{name}' (known: Application.exit)",
+                            raw.offsets[1])
+        if owner in scope.lanes or owner in scope.kinds:
+            t = self.datastore_type(owner, name)
+            if t is not None:
+                return Ref(lane=owner, name=name), t
+            hint = ""
+            if owner in scope.kinds and name in KIND_FEATURES[scope.kinds[owner]]:
+                hint = f"; to call the feature, write {owner}.{name}()"
+            raise self.fail(f"unknown datastore '{name}' in swimlane '{owner}'{hint}", raw.offsets[1])
+        raise self.fail(f"unknown swimlane or component '{owner}'", raw.offset)
+
+    def lane_call(self, name: str, offset: int, action: bool) -> tuple[Expr, Type]:
+        if not action:
+            raise self.fail(f"a call of swimlane '{name}' is an action of its own; it gives no value",
+                            offset)
+        self.lane_calls.append(_LaneCall(self.lane, name, self.src.location(offset)))
+        return Call(target=LaneTarget(lane=name)), "none"
+
+    def resolve_call(self, raw: RCall, action: bool) -> tuple[Expr, Type]:
+        scope = self.scope
+        parts = raw.name.parts
+        if len(parts) == 1:
+            name = parts[0]
+            if name in SLEEP_BUILTINS:
+                if len(raw.args) != 1:
+                    raise self.fail(f"{name} takes 1 argument ({SLEEP_BUILTINS[name]}), got "
+                                    f"{len(raw.args)}", raw.offset)
+                arg, t = self.resolve(raw.args[0])
+                if not _numeric(t):
+                    raise self.fail(f"{name} needs a number of {SLEEP_BUILTINS[name]}, got {t}",
+                                    raw.args[0].offset)
+                if isinstance(arg, Const) and isinstance(arg.value, int | float) and arg.value < 0:
+                    raise self.fail(f"{name} needs a duration of 0 or more, got {arg.value}",
+                                    raw.args[0].offset)
+                return Call(target=BuiltinTarget(name=name), args=[arg]), "none"
+            if name in scope.lanes:
+                if not scope.lanes[name].virtual:
+                    raise self.fail(f"'{name}' is the swimlane of component '{name}'; only virtual "
+                                    "swimlanes can be called", raw.offset)
+                if raw.args:
+                    raise self.fail(f"swimlane '{name}' takes no arguments, got {len(raw.args)}",
+                                    raw.args[0].offset)
+                return self.lane_call(name, raw.offset, action)
+            if name in scope.kinds:
+                raise self.fail(f"'{name}' is a component; call one of its features: "
+                                f"{name}.<feature>(...)", raw.offset)
+            raise self.fail(f"unknown swimlane or builtin '{name}'", raw.offset)
+        owner, feature = parts
+        if owner == "Application":
+            if feature == "exit" and not raw.args:
+                return Call(target=BuiltinTarget(name="Application.exit")), "bool"
+            if feature == "exit":
+                raise self.fail("Application.exit takes no arguments", raw.args[0].offset)
+            raise self.fail(f"unknown builtin 'Application.{feature}' (known: Application.exit)",
+                            raw.name.offsets[1])
+        if owner not in scope.kinds:
+            if owner in scope.lanes:
+                raise self.fail(f"'{owner}' is a virtual swimlane, not a component; call it as "
+                                f"{owner}()", raw.offset)
+            raise self.fail(f"unknown component '{owner}'", raw.offset)
+        kind = scope.kinds[owner]
+        if feature not in KIND_FEATURES[kind]:
+            known = ", ".join(KIND_FEATURES[kind])
+            raise self.fail(f"unknown feature '{feature}' of {kind} component '{owner}' "
+                            f"(known: {known})", raw.name.offsets[1])
+        impl = scope.impls.get(owner)
+        if impl is not None and feature not in impl.features:
+            raise self.fail(f"implementation '{impl.id}' of '{owner}' does not offer feature "
+                            f"'{feature}' (it offers: {', '.join(impl.features)})", raw.name.offsets[1])
+        spec = scope.feature_spec(owner, feature)
+        assert spec is not None
+        if len(raw.args) != len(spec.params):
+            raise self.fail(f"{owner}.{feature} takes {len(spec.params)} argument(s) "
+                            f"({_describe(spec)}), got {len(raw.args)}", raw.offset)
+        args: list[Expr] = []
+        for index, (raw_arg, param) in enumerate(zip(raw.args, spec.params, strict=True), start=1):
+            arg, t = self.resolve(raw_arg)
+            ok = (t in ("any", "unknown") or t == param.type
+                  or (param.type == "float" and t == "int"))
+            if not ok:
+                raise self.fail(f"argument {index} ({param.name}) of {owner}.{feature} must be "
+                                f"{param.type}, got {t}", raw_arg.offset)
+            if isinstance(arg, Const) and isinstance(arg.value, int | float) \
+                    and not isinstance(arg.value, bool):
+                low, high = param.minimum, param.maximum
+                if (low is not None and arg.value < low) or (high is not None and arg.value > high):
+                    by = f" by implementation '{impl.id}'" if impl is not None else ""
+                    raise self.fail(f"argument {index} ({param.name}) of {owner}.{feature} must be "
+                                    f"{low:g}..{high:g}{by}, got {arg.value}", raw_arg.offset)
+            args.append(arg)
+        target = FeatureTarget(component=owner, feature=feature)
+        return Call(target=target, args=args), cast(Type, spec.returns)
+
+
+class _Checker:
+    def __init__(self, source: SourceModel, diagnostics: Diagnostics) -> None:
+        self.source = source
+        self.d = diagnostics
+        self.scope = _Scope()
+        self.lanes: list[_Lane] = []
+        self.lane_calls: list[_LaneCall] = []
+        self.signals: set[str] = set()
+
+    # --- components and deployment -----------------------------------------------------------------
+
+    def check_components(self) -> None:
+        for name, comp in self.source.components.items():
+            if name in RESERVED:
+                self.d.error(f"'{name}' is a reserved name; choose another component name", comp.loc)
+                continue
+            if comp.kind is None:
+                continue
+            if comp.kind not in KINDS:
+                self.d.error(f"unknown component kind '{comp.kind}' (expected system, actuator or "
+                             "sensor)", comp.kind_loc)
+                continue
+            kind: ComponentKind = comp.kind
+            self.scope.kinds[name] = kind
+            for port, (feature, loc) in comp.ports.items():
+                if feature not in KIND_FEATURES[kind]:
+                    self.d.error(f"port '{port}' names unknown feature '{feature}' of {kind} component "
+                                 f"'{name}' (known: {', '.join(KIND_FEATURES[kind])})", loc)
+        for link in self.source.links:
+            for end in (link.source, link.target):
+                if end is None:
+                    continue
+                comp_src = self.source.components.get(end.component)
+                if comp_src is None:
+                    self.d.error(f"link '{link.id}' names unknown component '{end.component}'", end.loc)
+                elif end.port not in comp_src.ports:
+                    self.d.error(f"link '{link.id}' names unknown port '{end.port}' of component "
+                                 f"'{end.component}'", end.loc)
+
+    def check_deployment(self) -> None:
+        dep = self.source.deployment
+        if dep is None:
+            self.d.error("the model has no deployment (deployment.yaml or deployment.txt beside "
+                         "model.yaml, or a 'deployment' section)", self.source.loc)
+            return
+        if dep.deployment is None:
+            return  # its problems were reported while reading it
+        for name, entry in dep.deployment.components.items():
+            where = dep.entries.get(name)
+            loc = where.loc if where else dep.loc
+            impl_loc = where.impl_loc if where else dep.loc
+            if name not in self.source.components:
+                self.d.error(f"deployment names unknown component '{name}'", loc)
+                continue
+            impl = resolve_implementation(entry.impl)
+            if impl is None:
+                self.d.error(f"unknown implementation id '{entry.impl}' for component '{name}'", impl_loc)
+                continue
+            kind = self.scope.kinds.get(name)
+            if kind is None:
+                continue
+            if impl.kind != kind:
+                self.d.error(f"component '{name}' is a {kind} but implementation '{impl.id}' is a "
+                             f"{impl.kind}", impl_loc)
+                continue
+            self.scope.impls[name] = impl
+            for port, (feature, port_loc) in self.source.components[name].ports.items():
+                if feature in KIND_FEATURES[kind] and feature not in impl.features:
+                    self.d.error(f"implementation '{impl.id}' of '{name}' does not offer feature "
+                                 f"'{feature}' (port '{port}')", port_loc)
+        for name, comp in self.source.components.items():
+            if name not in dep.deployment.components and comp.kind in KINDS:
+                self.d.error(f"component '{name}' has no implementation in the deployment", comp.loc)
+
+    # --- swimlanes -----------------------------------------------------------------------------------
+
+    def read_lanes(self) -> None:
+        for src in self.source.lanes:
+            if src.name in RESERVED:
+                self.d.error(f"'{src.name}' is a reserved name; choose another swimlane name", src.loc)
+                continue
+            if src.name in self.scope.lanes:
+                first = self.scope.lanes[src.name].src.loc
+                self.d.error(f"duplicate swimlane '{src.name}' (first defined at {first.file}:"
+                             f"{first.line})", src.loc)
+                continue
+            lane = _Lane(src, virtual=src.name not in self.source.components)
+            self.scope.lanes[src.name] = lane
+            self.lanes.append(lane)
+            for index, node in enumerate(src.nodes):
+                following = src.nodes[index + 1].id if index + 1 < len(src.nodes) else None
+                self.read_node(lane, node, following)
+            starts = [n for n in lane.nodes.values() if n.src.kind == "start"]
+            if not starts:
+                self.d.error(f"swimlane '{lane.name}' has no start node", src.loc)
+            else:
+                lane.start = starts[0].id
+                for extra in starts[1:]:
+                    self.d.error(f"duplicate start node '{extra.id}': swimlane '{lane.name}' already "
+                                 f"starts at '{starts[0].id}'", extra.src.id_loc)
+            if not any(n.src.kind == "end" for n in lane.nodes.values()):
+                self.d.error(f"swimlane '{lane.name}' has no end node", src.loc)
+
+    def scalar(self, fields: YMap, key: str, what: str, required: bool = True) -> YScalar | None:
+        node = fields.get(key)
+        if node is None:
+            if required:
+                self.d.error(f"{what} needs '{key}'", fields.loc)
+            return None
+        if not isinstance(node, YScalar) or node.tag.endswith(":null") or not node.text.strip():
+            self.d.error(f"'{key}' of {what} must be a single value", node.loc)
+            return None
+        return node
+
+    def name_field(self, fields: YMap, key: str, what: str, required: bool = True) -> str | None:
+        node = self.scalar(fields, key, what, required)
+        if node is None:
+            return None
+        text = node.text.strip()
+        if not text.isidentifier() or not text.isascii() or text in RESERVED:
+            self.d.error(f"'{key}' of {what} must be a plain name, got {text!r}", node.loc)
+            return None
+        return text
+
+    def read_node(self, lane: _Lane, src: SourceNode, following: str | None) -> None:
+        if src.id in lane.nodes:
+            self.d.error(f"duplicate node id '{src.id}' in swimlane '{lane.name}'", src.id_loc)
+            return
+        node = _Node(src)
+        lane.nodes[src.id] = node
+        lane.order.append(src.id)
+        fields = src.fields
+        what = f"{src.kind} node '{src.id}'"
+        if src.kind in NEXT_KINDS:
+            nxt = self.scalar(fields, "next", what, required=False)
+            if nxt is not None:
+                node.next, node.next_loc = nxt.text.strip(), nxt.loc
+            elif "next" not in fields.items and following is not None:
+                node.next, node.next_loc = following, src.loc
+            elif "next" not in fields.items:
+                self.d.error(f"{what} has no outgoing flow: give it 'next' or put a node after it",
+                             src.id_loc)
+        if src.kind == "action":
+            node.expr = self.scalar(fields, "call", what)
+        elif src.kind == "datastore":
+            node.name = self.name_field(fields, "name", what)
+            node.expr = self.scalar(fields, "value", what)
+            if node.name is not None:
+                lane.writes.setdefault(node.name, []).append(node.expr)
+        elif src.kind == "send":
+            node.signal = self.name_field(fields, "signal", what)
+            node.expr = self.scalar(fields, "payload", what, required=False)
+        elif src.kind == "accept":
+            node.signal = self.name_field(fields, "signal", what)
+            node.store = self.name_field(fields, "store", what, required=False)
+            if node.store is not None:
+                lane.writes.setdefault(node.store, []).append(None)
+        elif src.kind == "decision":
+            self.read_branches(node, fields, what)
+        elif src.kind == "fork":
+            targets = fields.get("targets")
+            if not isinstance(targets, YSeq) or not all(isinstance(t, YScalar) for t in targets.items):
+                self.d.error(f"{what} needs 'targets': a list of node ids", (targets or fields).loc)
+            else:
+                node.targets = [(cast(YScalar, t).text, t.loc) for t in targets.items]
+                if len(node.targets) < 2:
+                    self.d.error(f"{what} needs at least two targets", targets.loc)
+        if node.signal is not None:
+            self.signals.add(node.signal)
+
+    def read_branches(self, node: _Node, fields: YMap, what: str) -> None:
+        branches = fields.get("branches")
+        if not isinstance(branches, YSeq) or not branches.items:
+            self.d.error(f"{what} needs 'branches': a list of {{if: <guard>, then: <node>}} and "
+                         "{else: <node>}", (branches or fields).loc)
+            return
+        else_seen: Location | None = None
+        for item in branches.items:
+            if not isinstance(item, YMap):
+                self.d.error("a decision output is {if: <guard>, then: <node>} or {else: <node>}",
+                             item.loc)
+                continue
+            for key in item:
+                if key not in ("if", "then", "else"):
+                    self.d.error(f"unknown key '{key}' in decision output (expected: if, then, else)",
+                                 item.key_loc(key))
+            if "else" in item.items:
+                if "if" in item.items or "then" in item.items:
+                    self.d.error("an else output has no guard: write {else: <node>}", item.loc)
+                    continue
+                target = self.scalar(item, "else", "the else output")
+                if else_seen is not None:
+                    self.d.error(f"decision has two else outputs (the first at line {else_seen.line})",
+                                 item.loc)
+                    continue
+                else_seen = item.loc
+                node.branches.append(_Branch(None, target.text.strip() if target else None,
+                                             target.loc if target else item.loc, item.loc, True))
+                continue
+            guard_node = item.get("if")
+            if guard_node is None or (isinstance(guard_node, YScalar) and not guard_node.text.strip()):
+                self.d.error("decision output without guard: write {if: <guard>, then: <node>} or "
+                             "{else: <node>}", item.loc)
+                continue
+            if not isinstance(guard_node, YScalar):
+                self.d.error("a guard is an expression", guard_node.loc)
+                continue
+            target = self.scalar(item, "then", "a decision output")
+            node.branches.append(_Branch(guard_node, target.text.strip() if target else None,
+                                         target.loc if target else item.loc, item.loc, False))
+        # the else output is taken only when no guard holds, whatever its place in the list
+        node.branches.sort(key=lambda b: b.is_else)
+        if else_seen is None:
+            self.d.warning(f"decision '{node.id}' has no else output: when no guard holds, this flow "
+                           "stops", node.src.id_loc)
+
+    # --- expressions -------------------------------------------------------------------------------
+
+    def parse(self, scalar: YScalar) -> tuple[RawExpr, SourceText]:
+        where = scalar.content_location()
+        return parse_expression(scalar.text, where), SourceText(scalar.text, where)
+
+    def infer_datastore_types(self) -> None:
+        """Give every datastore the join of the types written to it (a fixpoint: values may read
+        other datastores, or the same one, as in `count = count + 1`)."""
+        parsed: dict[int, tuple[RawExpr, SourceText] | None] = {}
+        for lane in self.lanes:
+            for name in lane.writes:
+                self.scope.datastore_types[(lane.name, name)] = "unknown"
+        for _ in range(50):
+            changed = False
+            for lane in self.lanes:
+                for name, values in lane.writes.items():
+                    t: Type = "unknown"
+                    for scalar in values:
+                        if scalar is None:
+                            t = _join(t, "any")
+                            continue
+                        key = id(scalar)
+                        if key not in parsed:
+                            try:
+                                parsed[key] = self.parse(scalar)
+                            except ModelError:
+                                parsed[key] = None
+                        entry = parsed[key]
+                        if entry is None:
+                            t = _join(t, "any")
+                            continue
+                        try:
+                            _, value_type = _ExprChecker(self.scope, lane.name, entry[1]).resolve(entry[0])
+                        except ModelError:
+                            value_type = "any"
+                        if value_type == "none":
+                            value_type = "any"
+                        t = _join(t, value_type)
+                    if t != self.scope.datastore_types[(lane.name, name)]:
+                        self.scope.datastore_types[(lane.name, name)] = t
+                        changed = True
+            if not changed:
+                break
+        for store, t in self.scope.datastore_types.items():
+            if t == "unknown":
+                self.scope.datastore_types[store] = "any"
+
+    def expression(self, lane: _Lane, scalar: YScalar, action: bool = False) -> tuple[Expr, Type] | None:
+        try:
+            raw, text = self.parse(scalar)
+            checker = _ExprChecker(self.scope, lane.name, text)
+            result = checker.resolve(raw, action=action)
+        except ModelError as exc:
+            self.d.add_model_error(exc)
+            return None
+        self.lane_calls.extend(checker.lane_calls)
+        return result
+
+    def check_expressions(self) -> None:
+        for lane in self.lanes:
+            for node_id in lane.order:
+                node = lane.nodes[node_id]
+                kind = node.src.kind
+                if kind == "action" and node.expr is not None:
+                    result = self.expression(lane, node.expr, action=True)
+                    if result is not None:
+                        if isinstance(result[0], Call):
+                            node.compiled_expr = result[0]
+                        else:
+                            self.d.error("an action is a call: Component.feature(args), a virtual "
+                                         "swimlane, or a builtin such as msleep(ms)",
+                                         node.expr.content_location())
+                elif kind in ("datastore", "send") and node.expr is not None:
+                    result = self.expression(lane, node.expr)
+                    if result is not None:
+                        if result[1] == "none":
+                            self.d.error(f"'{node.expr.text.strip()}' gives no value",
+                                         node.expr.content_location())
+                        else:
+                            node.compiled_expr = result[0]
+                elif kind == "decision":
+                    for branch in node.branches:
+                        if branch.guard is None:
+                            node.compiled_guards.append(None)
+                            continue
+                        result = self.expression(lane, branch.guard)
+                        if result is None:
+                            node.compiled_guards.append(None)
+                            continue
+                        if result[1] not in ("bool", "any"):
+                            self.d.error(f"a guard must be a bool, got {result[1]}",
+                                         branch.guard.content_location())
+                        node.compiled_guards.append(result[0])
+
+    # --- graphs --------------------------------------------------------------------------------------
+
+    def check_graph(self, lane: _Lane) -> None:
+        for node_id in lane.order:
+            node = lane.nodes[node_id]
+            edges: list[tuple[str, Location]] = []
+            if node.next is not None and node.next_loc is not None:
+                edges.append((node.next, node.next_loc))
+            edges += [(b.target, b.target_loc) for b in node.branches if b.target is not None]
+            edges += node.targets
+            for target, loc in edges:
+                if target not in lane.nodes:
+                    self.d.error(f"flow from '{node_id}' goes to unknown node '{target}'", loc)
+                else:
+                    lane.incoming.setdefault(target, []).append(node_id)
+        if lane.start is None:
+            return
+        for node_id, preds in lane.incoming.items():
+            if node_id == lane.start:
+                self.d.error(f"the start node '{node_id}' cannot have incoming flows (from "
+                             f"'{preds[0]}')", lane.nodes[node_id].src.id_loc)
+        reached = {lane.start}
+        queue = deque([lane.start])
+        while queue:
+            for target in lane.nodes[queue.popleft()].successors():
+                if target in lane.nodes and target not in reached:
+                    reached.add(target)
+                    queue.append(target)
+        for node_id in lane.order:
+            if node_id not in reached:
+                self.d.error(f"node '{node_id}' has no path from the start of swimlane '{lane.name}'",
+                             lane.nodes[node_id].src.id_loc)
+        self.check_forks(lane, reached)
+
+    def check_forks(self, lane: _Lane, reached: set[str]) -> None:
+        """Pair every fork with the one join all its branches reach; report joins that never fire."""
+        memo: dict[str, str | None] = {}
+        in_progress: set[str] = set()
+        branch_preds: dict[str, list[set[str]]] = {}
+
+        def walk(start: str) -> tuple[set[str], set[str]]:
+            """The joins one branch reaches, and the nodes from which it enters them."""
+            joins: set[str] = set()
+            preds: set[str] = set()
+            seen: set[str] = set()
+            stack: list[tuple[str, str | None]] = [(start, None)]
+            while stack:
+                node_id, came_from = stack.pop()
+                node = lane.nodes.get(node_id)
+                if node is None:
+                    continue
+                if node.src.kind == "join":
+                    joins.add(node_id)
+                    if came_from is not None:
+                        preds.add(came_from)
+                    continue
+                if node_id in seen:
+                    continue
+                seen.add(node_id)
+                if node.src.kind == "fork":
+                    inner = match(node_id)
+                    if inner is not None:
+                        after = lane.nodes[inner].next
+                        if after is not None:
+                            stack.append((after, inner))
+                    continue
+                stack.extend((succ, node_id) for succ in node.successors())
+            return joins, preds
+
+        def match(fork_id: str) -> str | None:
+            if fork_id in memo:
+                return memo[fork_id]
+            if fork_id in in_progress:
+                return None
+            in_progress.add(fork_id)
+            fork = lane.nodes[fork_id]
+            results = [walk(target) for target, _ in fork.targets if target in lane.nodes]
+            in_progress.discard(fork_id)
+            all_joins = set().union(*(joins for joins, _ in results)) if results else set()
+            found: str | None = None
+            if len(all_joins) == 1 and all(joins for joins, _ in results):
+                found = next(iter(all_joins))
+                branch_preds[fork_id] = [preds for _, preds in results]
+            memo[fork_id] = found
+            return found
+
+        forks = [n for n in lane.order if lane.nodes[n].src.kind == "fork" and n in reached]
+        matched_by: dict[str, str] = {}
+        for fork_id in forks:
+            fork = lane.nodes[fork_id]
+            if len(fork.targets) < 2 or any(t not in lane.nodes for t, _ in fork.targets):
+                continue
+            join = match(fork_id)
+            if join is None:
+                results = [walk(t) for t, _ in fork.targets]
+                reached_joins = sorted(set().union(*(j for j, _ in results)))
+                if not reached_joins:
+                    why = "its flows never reach a join"
+                else:
+                    why = f"its flows reach different joins or none ({', '.join(reached_joins)})"
+                self.d.error(f"fork '{fork_id}' has no matching join: {why}", fork.src.id_loc)
+                continue
+            if join in matched_by:
+                self.d.error(f"join '{join}' is the matching join of two forks ('{matched_by[join]}' "
+                             f"and '{fork_id}')", fork.src.id_loc)
+                continue
+            matched_by[join] = fork_id
+            lane.fork_join[fork_id] = join
+            join_node = lane.nodes[join]
+            preds = branch_preds[fork_id]
+            for pred in lane.incoming.get(join, []):
+                owners = [i for i, p in enumerate(preds) if pred in p]
+                if not owners:
+                    self.d.error(f"join '{join}' can never fire: the flow from '{pred}' does not come "
+                                 f"from fork '{fork_id}'", join_node.src.id_loc)
+            for index, p in enumerate(preds):
+                if len(p) > 1:
+                    names = " and ".join(f"'{x}'" for x in sorted(p))
+                    self.d.error(f"join '{join}' can never fire: the flows from {names} come from the "
+                                 f"same branch of fork '{fork_id}' (from '{fork.targets[index][0]}'), so "
+                                 "only one of them arrives", join_node.src.id_loc)
+        for node_id in lane.order:
+            node = lane.nodes[node_id]
+            if node.src.kind != "join" or node_id in matched_by or node_id not in reached:
+                continue
+            incoming = lane.incoming.get(node_id, [])
+            if len(incoming) > 1:
+                self.d.error(f"join '{node_id}' can never fire: its incoming flows "
+                             f"({', '.join(incoming)}) do not come from one fork", node.src.id_loc)
+            else:
+                self.d.warning(f"join '{node_id}' has one incoming flow and no fork; it does nothing",
+                               node.src.id_loc)
+
+    def check_recursion(self) -> None:
+        """Report each cycle of calls between virtual swimlanes once, at a call that closes it."""
+        graph: dict[str, list[_LaneCall]] = {}
+        for call in self.lane_calls:
+            graph.setdefault(call.caller, []).append(call)
+        reported: set[frozenset[str]] = set()
+        for origin in sorted(graph):
+            # depth-first search for a path back to `origin`
+            stack: list[tuple[str, list[_LaneCall]]] = [(origin, [])]
+            visited: set[str] = set()
+            while stack:
+                lane, path = stack.pop()
+                for call in graph.get(lane, []):
+                    if call.callee == origin:
+                        cycle = [*path, call]
+                        members = frozenset(c.caller for c in cycle)
+                        if members not in reported:
+                            reported.add(members)
+                            names = " -> ".join([*(c.caller for c in cycle), origin])
+                            if len(cycle) == 1:
+                                msg = f"virtual swimlane '{origin}' calls itself (recursion is not allowed)"
+                            else:
+                                msg = f"recursion between virtual swimlanes: {names}"
+                            self.d.error(msg, cycle[-1].loc)
+                    elif call.callee not in visited:
+                        visited.add(call.callee)
+                        stack.append((call.callee, [*path, call]))
+        called = {call.callee for call in self.lane_calls}
+        for each in self.lanes:
+            if each.virtual and each.name not in called:
+                self.d.warning(f"virtual swimlane '{each.name}' is never called", each.src.loc)
+
+    # --- the compiled model ------------------------------------------------------------------------
+
+    def build(self) -> CompiledModel:
+        source = self.source
+        assert source.deployment is not None and source.deployment.deployment is not None
+        deployment = source.deployment.deployment
+        components = {}
+        for name, kind in sorted(self.scope.kinds.items()):
+            impl = self.scope.impls[name]
+            entry = deployment.components[name]
+            components[name] = CompiledComponent(
+                kind=kind, impl=impl.id, service=impl.service, driver=deployment.driver_for(name),
+                settings=dict(entry.settings), features=sorted(impl.features),
+                ports={port: feature for port, (feature, _) in sorted(source.components[name].ports.items())},
+            )
+        links = [
+            Link(id=link.id, source_component=link.source.component, source_port=link.source.port,
+                 target_component=link.target.component, target_port=link.target.port)
+            for link in source.links if link.source is not None and link.target is not None
+        ]
+        lanes = {lane.name: self.build_lane(lane) for lane in sorted(self.lanes, key=lambda x: x.name)}
+        return CompiledModel(
+            name=deployment.robot or source.name, source_hash=source.source_hash,
+            call_timeout_s=source.call_timeout_s, components=components, links=links,
+            signals=sorted(self.signals), lanes=lanes,
+        )
+
+    def build_lane(self, lane: _Lane) -> Lane:
+        nodes: dict[str, Node] = {}
+        for node_id in lane.order:
+            node = lane.nodes[node_id]
+            nodes[node_id] = self.build_node(lane, node)
+        assert lane.start is not None
+        return Lane(
+            name=lane.name, virtual=lane.virtual, component=None if lane.virtual else lane.name,
+            start=lane.start, nodes=nodes, datastores=sorted(lane.writes), file=lane.src.file,
+            line=lane.src.loc.line,
+        )
+
+    def build_node(self, lane: _Lane, node: _Node) -> Node:
+        common = {"id": node.id, "line": node.src.loc.line}
+        text = node.expr.text.strip() if node.expr is not None else ""
+        kind = node.src.kind
+        nxt = node.next or ""
+        if kind == "start":
+            return StartNode(**common, label="start", next=nxt)
+        if kind == "end":
+            return EndNode(**common, label="end")
+        if kind == "action":
+            assert isinstance(node.compiled_expr, Call)
+            return ActionNode(**common, label=text, call=node.compiled_expr, next=nxt)
+        if kind == "datastore":
+            assert node.name is not None and node.compiled_expr is not None
+            return DatastoreNode(**common, label=f"{node.name} = {text}", name=node.name,
+                                 value=node.compiled_expr, next=nxt)
+        if kind == "decision":
+            branches = [
+                Branch(guard=guard, target=b.target or "", line=b.loc.line,
+                       label=b.guard.text.strip() if b.guard is not None else "else")
+                for b, guard in zip(node.branches, node.compiled_guards, strict=True)
+            ]
+            return DecisionNode(**common, label=node.id, branches=branches)
+        if kind == "fork":
+            return ForkNode(**common, label="fork", targets=[t for t, _ in node.targets],
+                            join=lane.fork_join[node.id])
+        if kind == "join":
+            return JoinNode(**common, label="join", next=nxt, incoming=sorted(lane.incoming.get(node.id, [])))
+        if kind == "send":
+            assert node.signal is not None
+            label = f"send {node.signal}" + (f"({text})" if text else "")
+            return SendNode(**common, label=label, signal=node.signal, payload=node.compiled_expr,
+                            next=nxt)
+        assert node.signal is not None
+        label = f"accept {node.signal}" + (f" -> {node.store}" if node.store else "")
+        return AcceptNode(**common, label=label, signal=node.signal, store=node.store, next=nxt)
+
+
+def check_source(source: SourceModel, diagnostics: Diagnostics) -> CompiledModel | None:
+    """Run every check; the compiled model when there is no error, else None."""
+    checker = _Checker(source, diagnostics)
+    checker.check_components()
+    checker.check_deployment()
+    checker.read_lanes()
+    checker.infer_datastore_types()
+    checker.check_expressions()
+    for lane in checker.lanes:
+        checker.check_graph(lane)
+    checker.check_recursion()
+    if diagnostics.has_errors:
+        return None
+    return checker.build()
+
+
+__all__ = ["Type", "check_source"]

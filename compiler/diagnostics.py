@@ -1,0 +1,90 @@
+"""Problems found in a model: errors and warnings with their file, line and column.
+
+The loader and the checker collect every problem of a model in one run into `Diagnostics`;
+`ModelErrors` is the exception that carries them when a model cannot be compiled.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Literal
+
+from umlbot.errors import ModelError
+
+Severity = Literal["error", "warning"]
+
+
+@dataclass(frozen=True, order=True)
+class Location:
+    """A place in a model source file; line and column are 1-based."""
+
+    file: str
+    line: int = 1
+    column: int = 1
+
+    def shifted(self, lines: int, column: int) -> Location:
+        """The location `lines` further down; `column` replaces the column when lines > 0."""
+        if lines:
+            return Location(self.file, self.line + lines, column)
+        return Location(self.file, self.line, self.column + column - 1)
+
+
+@dataclass(frozen=True)
+class Diagnostic:
+    """One problem; `str()` gives the `file:line:col: error: message` form."""
+
+    severity: Severity
+    message: str
+    location: Location
+
+    def __str__(self) -> str:
+        loc = self.location
+        return f"{loc.file}:{loc.line}:{loc.column}: {self.severity}: {self.message}"
+
+
+@dataclass
+class Diagnostics:
+    """The problems of one model, in the order found; `sorted()` gives the reporting order."""
+
+    items: list[Diagnostic] = field(default_factory=list)
+
+    def error(self, message: str, location: Location) -> None:
+        self.items.append(Diagnostic("error", message, location))
+
+    def warning(self, message: str, location: Location) -> None:
+        self.items.append(Diagnostic("warning", message, location))
+
+    def add_model_error(self, exc: ModelError) -> None:
+        self.error(exc.message, Location(exc.file, exc.line, exc.column))
+
+    @property
+    def errors(self) -> list[Diagnostic]:
+        return [d for d in self.items if d.severity == "error"]
+
+    @property
+    def warnings(self) -> list[Diagnostic]:
+        return [d for d in self.items if d.severity == "warning"]
+
+    @property
+    def has_errors(self) -> bool:
+        return any(d.severity == "error" for d in self.items)
+
+    def sorted(self) -> list[Diagnostic]:
+        """Every problem once, by file, line and column."""
+        unique = {(d.location, d.severity, d.message): d for d in self.items}
+        return [unique[key] for key in sorted(unique)]
+
+
+class ModelErrors(ModelError):
+    """A model has errors; `diagnostics` holds all of them (and the warnings).
+
+    The exception's own file/line/column/message are those of the first error.
+    """
+
+    def __init__(self, diagnostics: list[Diagnostic]) -> None:
+        errors = [d for d in diagnostics if d.severity == "error"]
+        first = errors[0] if errors else Diagnostic("error", "model has errors", Location("<model>"))
+        more = f" (and {len(errors) - 1} more error(s))" if len(errors) > 1 else ""
+        loc = first.location
+        super().__init__(first.message + more, loc.file, loc.line, loc.column)
+        self.diagnostics = diagnostics

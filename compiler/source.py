@@ -1,0 +1,490 @@
+"""Reading a model's files: the component diagram, the swimlanes and the deployment, with positions.
+
+A model is a folder (`model.yaml`, `activities/*.yaml`, `deployment.yaml` or `deployment.txt`)
+or one YAML file holding everything. `load_source` reads it into `SourceModel` — plain data with a
+`Location` on everything — and reports shape problems (unknown keys, wrong types) to the given
+`Diagnostics`; the meaning is checked by `compiler.checker`. See docs/model-format.md.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from pydantic import ValidationError
+
+from compiler.diagnostics import Diagnostics, Location
+from compiler.yamlsrc import YMap, YNode, YScalar, YSeq, parse_yaml, to_python
+from umlbot.deployment import Deployment, is_plain_format
+from umlbot.errors import ModelError
+
+MODEL_FILE = "model.yaml"
+ACTIVITIES_DIR = "activities"
+DEPLOYMENT_FILES = ("deployment.yaml", "deployment.yml", "deployment.txt")
+MAX_FILE_BYTES = 5_000_000
+
+MODEL_KEYS = ("name", "call_timeout_s", "components", "links", "lanes", "deployment")
+LANE_KEYS = ("lane", "nodes")
+NODE_KINDS = ("start", "end", "action", "datastore", "decision", "fork", "join", "send", "accept")
+#: the keys each node kind takes besides `id` and `kind`.
+NODE_FIELDS: dict[str, tuple[str, ...]] = {
+    "start": ("next",),
+    "end": (),
+    "action": ("call", "next"),
+    "datastore": ("name", "value", "next"),
+    "decision": ("branches",),
+    "fork": ("targets",),
+    "join": ("next",),
+    "send": ("signal", "payload", "next"),
+    "accept": ("signal", "store", "next"),
+}
+
+
+@dataclass
+class SourceComponent:
+    """A component of the component diagram; `ports` maps a port name to (feature, location)."""
+
+    name: str
+    loc: Location
+    kind: str | None
+    kind_loc: Location
+    ports: dict[str, tuple[str, Location]] = field(default_factory=dict)
+
+
+@dataclass
+class LinkEnd:
+    component: str
+    port: str
+    loc: Location
+
+
+@dataclass
+class SourceLink:
+    id: str
+    loc: Location
+    source: LinkEnd | None
+    target: LinkEnd | None
+
+
+@dataclass
+class SourceNode:
+    """An activity node as written: its id, kind and the raw mapping of its fields."""
+
+    id: str
+    kind: str
+    loc: Location
+    fields: YMap
+    id_loc: Location
+
+
+@dataclass
+class SourceLane:
+    name: str
+    loc: Location
+    file: str  # path relative to the model root, as stored in the compiled file
+    nodes: list[SourceNode] = field(default_factory=list)
+
+
+@dataclass
+class DeploymentEntry:
+    """Where a component is named in the deployment, and where its implementation id is."""
+
+    loc: Location
+    impl_loc: Location
+
+
+@dataclass
+class SourceDeployment:
+    deployment: Deployment | None
+    file: str
+    loc: Location
+    entries: dict[str, DeploymentEntry] = field(default_factory=dict)
+
+
+@dataclass
+class SourceModel:
+    """Everything read from a model's files, positions included."""
+
+    name: str
+    loc: Location
+    call_timeout_s: float = 2.0
+    components: dict[str, SourceComponent] = field(default_factory=dict)
+    links: list[SourceLink] = field(default_factory=list)
+    lanes: list[SourceLane] = field(default_factory=list)
+    deployment: SourceDeployment | None = None
+    source_hash: str = ""
+
+
+class _Reader:
+    """Reads files of one model, remembering their bytes for the content hash."""
+
+    def __init__(self, root: Path, diagnostics: Diagnostics) -> None:
+        self.root = root
+        self.diagnostics = diagnostics
+        self.contents: dict[str, bytes] = {}
+
+    def display(self, path: Path) -> str:
+        return str(path)
+
+    def relative(self, path: Path) -> str:
+        try:
+            return path.relative_to(self.root).as_posix()
+        except ValueError:
+            return path.name
+
+    def read_text(self, path: Path) -> str:
+        shown = self.display(path)
+        try:
+            size = path.stat().st_size
+            if size > MAX_FILE_BYTES:
+                raise ModelError(f"file too large ({size} bytes)", shown, 1, 1)
+            data = path.read_bytes()
+        except OSError as exc:
+            raise ModelError(f"cannot read: {exc.strerror}", shown, 1, 1) from None
+        self.contents[self.relative(path)] = data
+        try:
+            return data.decode("utf-8")
+        except UnicodeDecodeError as exc:
+            raise ModelError(f"not UTF-8 text: {exc.reason}", shown, 1, 1) from None
+
+    def source_hash(self) -> str:
+        digest = hashlib.sha256()
+        for rel in sorted(self.contents):
+            data = self.contents[rel]
+            digest.update(f"{rel}\0{len(data)}\0".encode())
+            digest.update(data)
+        return "sha256:" + digest.hexdigest()
+
+
+def load_source(path: str | Path, diagnostics: Diagnostics,
+                deployment_path: str | Path | None = None) -> SourceModel:
+    """Read a model folder or a one-file model; shape problems go to `diagnostics`.
+
+    Raises `ModelError` only when nothing sensible can be read (missing folder, no model.yaml).
+    """
+    p = Path(path)
+    if p.is_dir():
+        reader = _Reader(p, diagnostics)
+        model_file = p / MODEL_FILE
+        if not model_file.is_file():
+            raise ModelError(f"not a model: no {MODEL_FILE} in this folder", str(p), 1, 1)
+        model = _read_model_file_safe(reader, model_file, default_name=p.resolve().name)
+        activities = p / ACTIVITIES_DIR
+        if activities.is_dir():
+            files = sorted([*activities.glob("*.yaml"), *activities.glob("*.yml")])
+            for lane_file in files:
+                _read_lane_file(reader, lane_file, model)
+        if deployment_path is None and model.deployment is None:
+            for name in DEPLOYMENT_FILES:
+                if (p / name).is_file():
+                    deployment_path = p / name
+                    break
+    elif p.is_file():
+        reader = _Reader(p.parent, diagnostics)
+        model = _read_model_file_safe(reader, p, default_name=p.stem)
+    else:
+        raise ModelError("no such model folder or file", str(p), 1, 1)
+    if deployment_path is not None:
+        model.deployment = _read_deployment_file(reader, Path(deployment_path))
+    model.source_hash = reader.source_hash()
+    return model
+
+
+def _read_model_file_safe(reader: _Reader, path: Path, default_name: str) -> SourceModel:
+    """Read the model file; when it is unreadable, report that and go on with an empty model."""
+    try:
+        return _read_model_file(reader, path, default_name)
+    except ModelError as exc:
+        reader.diagnostics.add_model_error(exc)
+        return SourceModel(name=default_name, loc=Location(reader.display(path), 1, 1))
+
+
+def _parse(reader: _Reader, path: Path) -> tuple[YNode | None, str]:
+    shown = reader.display(path)
+    text = reader.read_text(path)
+    return parse_yaml(text, shown, reader.diagnostics), shown
+
+
+def _read_model_file(reader: _Reader, path: Path, default_name: str) -> SourceModel:
+    root, shown = _parse(reader, path)
+    model = SourceModel(name=default_name, loc=Location(shown, 1, 1))
+    if root is None:
+        return model
+    if not isinstance(root, YMap):
+        raise ModelError("a model file is a mapping with 'components' and 'lanes'", shown,
+                         root.loc.line, root.loc.column)
+    d = reader.diagnostics
+    _unknown_keys(root, MODEL_KEYS, "model", d)
+    name = root.get("name")
+    if name is not None:
+        if isinstance(name, YScalar) and _is_identifier(name.text, allow_dash=True):
+            model.name = name.text
+        else:
+            d.error("the model's name must be a plain name (letters, digits, _ and -)", name.loc)
+    timeout = root.get("call_timeout_s")
+    if timeout is not None:
+        value = timeout.value if isinstance(timeout, YScalar) else None
+        if isinstance(value, int | float) and not isinstance(value, bool) and 0 < value <= 3600:
+            model.call_timeout_s = float(value)
+        else:
+            d.error("call_timeout_s must be a number of seconds, more than 0 and at most 3600",
+                    timeout.loc)
+    components = root.get("components")
+    if components is not None:
+        _read_components(components, model, d)
+    links = root.get("links")
+    if links is not None:
+        _read_links(links, model, d)
+    lanes = root.get("lanes")
+    if lanes is not None:
+        _read_lanes(lanes, reader.relative(path), model, d)
+    deployment = root.get("deployment")
+    if deployment is not None:
+        model.deployment = _deployment_from_yaml(deployment, shown, d)
+    return model
+
+
+def _read_lane_file(reader: _Reader, path: Path, model: SourceModel) -> None:
+    try:
+        root, shown = _parse(reader, path)
+    except ModelError as exc:
+        reader.diagnostics.add_model_error(exc)
+        return
+    if root is None:
+        reader.diagnostics.warning("empty activity file", Location(shown, 1, 1))
+        return
+    rel = reader.relative(path)
+    if isinstance(root, YMap) and "lanes" in root.items:
+        _unknown_keys(root, ("lanes",), "activity file", reader.diagnostics)
+        _read_lanes(root.items["lanes"], rel, model, reader.diagnostics)
+    else:
+        _read_lane(root, rel, model, reader.diagnostics)
+
+
+def _read_components(node: YNode, model: SourceModel, d: Diagnostics) -> None:
+    if not isinstance(node, YMap):
+        d.error("'components' is a mapping: ComponentName: {kind: ..., ports: {...}}", node.loc)
+        return
+    for name in node:
+        value = node.items[name]
+        key_loc = node.key_loc(name)
+        if not _is_identifier(name):
+            d.error(f"component name {name!r} is not a plain name (letters, digits and _)", key_loc)
+            continue
+        comp = SourceComponent(name=name, loc=key_loc, kind=None, kind_loc=key_loc)
+        if isinstance(value, YScalar):
+            comp.kind, comp.kind_loc = value.text, value.loc
+        elif isinstance(value, YMap):
+            _unknown_keys(value, ("kind", "ports"), f"component {name!r}", d)
+            kind = value.get("kind")
+            if isinstance(kind, YScalar):
+                comp.kind, comp.kind_loc = kind.text, kind.loc
+            elif kind is not None:
+                d.error("a component's kind is one of system, actuator, sensor", kind.loc)
+            else:
+                d.error(f"component {name!r} has no kind (system, actuator or sensor)", key_loc)
+            ports = value.get("ports")
+            if isinstance(ports, YMap):
+                for port in ports:
+                    feature = ports.items[port]
+                    if not _is_identifier(port):
+                        d.error(f"port name {port!r} is not a plain name", ports.key_loc(port))
+                    elif isinstance(feature, YScalar):
+                        comp.ports[port] = (feature.text, feature.loc)
+                    else:
+                        d.error("a port names one feature of its component", feature.loc)
+            elif ports is not None:
+                d.error("'ports' is a mapping: port_name: feature", ports.loc)
+        else:
+            d.error(f"component {name!r}: expected a kind or a mapping with 'kind'", value.loc)
+        model.components[name] = comp
+
+
+def _link_end(node: YNode | None, what: str, where: Location, d: Diagnostics) -> LinkEnd | None:
+    if node is None:
+        d.error(f"link has no '{what}' (Component.port)", where)
+        return None
+    if not isinstance(node, YScalar) or not re.fullmatch(r"[A-Za-z_]\w*\.[A-Za-z_]\w*", node.text):
+        d.error(f"link '{what}' must be Component.port", node.loc)
+        return None
+    component, port = node.text.split(".")
+    return LinkEnd(component, port, node.loc)
+
+
+def _read_links(node: YNode, model: SourceModel, d: Diagnostics) -> None:
+    if not isinstance(node, YSeq):
+        d.error("'links' is a list of {from: Component.port, to: Component.port}", node.loc)
+        return
+    for index, item in enumerate(node.items, start=1):
+        if not isinstance(item, YMap):
+            d.error("a link is a mapping {from: Component.port, to: Component.port}", item.loc)
+            continue
+        _unknown_keys(item, ("id", "from", "to"), "link", d)
+        ident = item.get("id")
+        link_id = ident.text if isinstance(ident, YScalar) else f"link{index}"
+        model.links.append(SourceLink(
+            id=link_id, loc=item.loc,
+            source=_link_end(item.get("from"), "from", item.loc, d),
+            target=_link_end(item.get("to"), "to", item.loc, d),
+        ))
+
+
+def _read_lanes(node: YNode, rel: str, model: SourceModel, d: Diagnostics) -> None:
+    if not isinstance(node, YSeq):
+        d.error("'lanes' is a list of swimlanes, each {lane: Name, nodes: [...]}", node.loc)
+        return
+    for item in node.items:
+        _read_lane(item, rel, model, d)
+
+
+def _read_lane(node: YNode, rel: str, model: SourceModel, d: Diagnostics) -> None:
+    if not isinstance(node, YMap):
+        d.error("a swimlane is a mapping {lane: Name, nodes: [...]}", node.loc)
+        return
+    _unknown_keys(node, LANE_KEYS, "swimlane", d)
+    name_node = node.get("lane")
+    if not isinstance(name_node, YScalar) or not _is_identifier(name_node.text):
+        where = name_node.loc if name_node is not None else node.loc
+        d.error("a swimlane needs 'lane: Name' (a plain name)", where)
+        return
+    lane = SourceLane(name=name_node.text, loc=name_node.loc, file=rel)
+    nodes = node.get("nodes")
+    if nodes is None:
+        d.error(f"swimlane {lane.name!r} has no 'nodes'", node.loc)
+    elif not isinstance(nodes, YSeq):
+        d.error("'nodes' is a list of activity nodes", nodes.loc)
+    else:
+        for item in nodes.items:
+            source_node = _read_node(item, d)
+            if source_node is not None:
+                lane.nodes.append(source_node)
+    model.lanes.append(lane)
+
+
+def _read_node(node: YNode, d: Diagnostics) -> SourceNode | None:
+    if not isinstance(node, YMap):
+        d.error("an activity node is a mapping {id: ..., kind: ..., ...}", node.loc)
+        return None
+    ident = node.get("id")
+    kind = node.get("kind")
+    if not isinstance(ident, YScalar) or not _is_identifier(ident.text, allow_dash=True):
+        where = ident.loc if ident is not None else node.loc
+        d.error("an activity node needs 'id' (a plain name: letters, digits, _ and -)", where)
+        return None
+    if not isinstance(kind, YScalar) or kind.text not in NODE_KINDS:
+        where = kind.loc if kind is not None else node.loc
+        d.error(f"node {ident.text!r}: 'kind' must be one of {', '.join(NODE_KINDS)}", where)
+        return None
+    _unknown_keys(node, ("id", "kind", *NODE_FIELDS[kind.text]), f"{kind.text} node", d)
+    return SourceNode(id=ident.text, kind=kind.text, loc=node.loc, fields=node, id_loc=ident.loc)
+
+
+# --- deployment ------------------------------------------------------------------------------------
+
+
+def _read_deployment_file(reader: _Reader, path: Path) -> SourceDeployment | None:
+    shown = reader.display(path)
+    try:
+        text = reader.read_text(path)
+    except ModelError as exc:
+        reader.diagnostics.add_model_error(exc)
+        return None
+    if is_plain_format(text):
+        return _deployment_from_plain(text, shown, reader.diagnostics)
+    try:
+        root = parse_yaml(text, shown, reader.diagnostics)
+    except ModelError as exc:
+        reader.diagnostics.add_model_error(exc)
+        return None
+    if root is None:
+        reader.diagnostics.error("empty deployment", Location(shown, 1, 1))
+        return None
+    return _deployment_from_yaml(root, shown, reader.diagnostics)
+
+
+def _deployment_from_plain(text: str, shown: str, d: Diagnostics) -> SourceDeployment:
+    """The seed's `<component>=<implementation id>` lines, with a position for each."""
+    from umlbot.deployment import ComponentDeployment
+
+    result = SourceDeployment(None, shown, Location(shown, 1, 1))
+    components: dict[str, ComponentDeployment] = {}
+    for lineno, raw in enumerate(text.splitlines(), start=1):
+        content = raw.split("#", 1)[0]
+        if not content.strip():
+            continue
+        name, sep, impl = content.partition("=")
+        column = len(name) - len(name.lstrip()) + 1
+        loc = Location(shown, lineno, column)
+        if not sep or not name.strip() or not impl.strip():
+            d.error("expected '<component>=<implementation id>'", loc)
+            continue
+        impl_column = len(name) + 2 + len(impl) - len(impl.lstrip())
+        if name.strip() in components:
+            d.error(f"component {name.strip()!r} deployed twice", loc)
+            continue
+        components[name.strip()] = ComponentDeployment(impl=impl.strip())
+        result.entries[name.strip()] = DeploymentEntry(loc, Location(shown, lineno, impl_column))
+    result.deployment = Deployment(components=components)
+    return result
+
+
+def _deployment_from_yaml(root: YNode, shown: str, d: Diagnostics) -> SourceDeployment | None:
+    if isinstance(root, YMap) and isinstance(root.get("deployment"), YMap):
+        inner = root.get("deployment")
+        assert inner is not None
+        root = inner
+    result = SourceDeployment(None, shown, root.loc)
+    if not isinstance(root, YMap):
+        d.error("a deployment is a mapping with 'components' (or the plain Component=impl lines)",
+                root.loc)
+        return None
+    components = root.get("components")
+    if isinstance(components, YMap):
+        for name in components:
+            entry = components.items[name]
+            impl = entry.get("impl") if isinstance(entry, YMap) else None
+            key_loc = components.key_loc(name)
+            result.entries[name] = DeploymentEntry(key_loc, impl.loc if impl is not None else key_loc)
+    try:
+        result.deployment = Deployment.model_validate(to_python(root))
+    except ValidationError as exc:
+        for err in exc.errors():
+            loc = _locate(root, err["loc"])
+            where = ".".join(str(p) for p in err["loc"])
+            d.error(f"invalid deployment: {where}: {err['msg']}", loc)
+        return None
+    return result
+
+
+def _locate(root: YNode, path: tuple[int | str, ...]) -> Location:
+    """The position of the value at a pydantic error path (as deep as the path exists)."""
+    node: YNode = root
+    loc = root.loc
+    for part in path:
+        if isinstance(node, YMap) and isinstance(part, str) and part in node.items:
+            loc = node.key_loc(part)
+            node = node.items[part]
+        elif isinstance(node, YSeq) and isinstance(part, int) and 0 <= part < len(node.items):
+            node = node.items[part]
+            loc = node.loc
+        else:
+            break
+    return loc
+
+
+# --- helpers ---------------------------------------------------------------------------------------
+
+_IDENT = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+_IDENT_DASH = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_\-]*")
+
+
+def _is_identifier(text: str, allow_dash: bool = False) -> bool:
+    return bool((_IDENT_DASH if allow_dash else _IDENT).fullmatch(text))
+
+
+def _unknown_keys(node: YMap, allowed: tuple[str, ...], what: str, d: Diagnostics) -> None:
+    for key in node:
+        if key not in allowed:
+            d.error(f"unknown key {key!r} in {what} (expected: {', '.join(allowed)})", node.key_loc(key))
