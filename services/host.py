@@ -1,0 +1,256 @@
+"""Running one hardware service: every component of one service kind in a deployment, on the bus.
+
+`ServiceHost(kind, deployment, settings, robot, driver=None)` builds each component's driver
+through the registry (driver name: `driver` if given, else the deployment's choice), serves the
+implementation's features on its own bus connection (one last will per component), publishes
+the retained `state` after every change, and guarantees the safe stops:
+
+- motors stop when the host stops (any exit path: `stop()`, context manager exit, signals in
+  `umlbot service`), when `umlbot/<robot>/orchestrator/status` says `offline` (its last will),
+  `stopped` or `failed`, when the broker connection is lost, and when the watchdog expires;
+- servos stop their pulses when the host stops.
+
+`host.drivers[component]` is the driver object, so tests can read a mock driver's commands.
+"""
+
+from __future__ import annotations
+
+import importlib
+import json
+import threading
+import time
+from collections.abc import Mapping
+from typing import Any
+
+from services.bus.connection import Message
+from services.bus.server import ComponentServer
+from services.bus.settings import BrokerSettings
+from services.bus.topics import Topics
+from services.component_service import ComponentService
+from services.registry import SERVICE_KINDS, create_driver
+from umlbot.deployment import Deployment
+from umlbot.errors import ConfigError
+from umlbot.library import ServiceKind
+from umlbot.logs import get_logger
+
+log = get_logger("umlbot.host")
+
+#: service kind -> "module:class" of its ComponentService.
+SERVICES: dict[ServiceKind, str] = {
+    "motor": "services.motor.service:MotorService",
+    "sonar": "services.sonar.service:SonarService",
+    "servo": "services.servo.service:ServoService",
+    "gpio": "services.gpio.service:GpioService",
+}
+
+#: Orchestrator states after which no motor may keep running.
+ORCHESTRATOR_STOP_STATES = frozenset({"offline", "stopped", "failed"})
+
+#: Settings keys that name a GPIO a component owns.
+PIN_KEYS = ("in1", "in2", "enable", "trigger", "echo", "gpio")
+
+TICK_S = 0.05
+
+
+def owned_pins(deployment: Deployment) -> dict[int, str]:
+    """GPIO -> component for every pin named in the components' settings (motor, sonar, servo)."""
+    owners: dict[int, str] = {}
+    for name, comp in deployment.components.items():
+        for key in PIN_KEYS:
+            pin = comp.settings.get(key)
+            if isinstance(pin, int) and not isinstance(pin, bool):
+                owners.setdefault(pin, name)
+    return owners
+
+
+def _service_class(kind: ServiceKind) -> type[ComponentService]:
+    module_name, _, attribute = SERVICES[kind].partition(":")
+    cls: type[ComponentService] = getattr(importlib.import_module(module_name), attribute)
+    return cls
+
+
+class ServiceHost:
+    """Serves every component of one service kind; `start()`/`stop()` (idempotent), or `with`."""
+
+    def __init__(
+        self,
+        kind: ServiceKind,
+        deployment: Deployment,
+        settings: BrokerSettings,
+        robot: str,
+        driver: str | None = None,
+        *,
+        components: list[str] | None = None,
+        connect_timeout_s: float = 5.0,
+    ) -> None:
+        if kind not in SERVICE_KINDS:
+            raise ConfigError(f"unknown service kind {kind!r}; known: {', '.join(SERVICE_KINDS)}")
+        self.kind = kind
+        self.deployment = deployment
+        self.settings = settings
+        self.robot = robot
+        self.topics = Topics(robot)
+        self.driver_override = driver
+        self.connect_timeout_s = connect_timeout_s
+        served = deployment.components_of_service(kind)
+        if components is not None:
+            unknown = sorted(set(components) - set(served))
+            if unknown:
+                raise ConfigError(f"no {kind} component(s) {unknown} in the deployment")
+            served = {name: comp for name, comp in served.items() if name in components}
+        if not served:
+            raise ConfigError(f"the deployment has no component served by the {kind} service")
+        self.component_deployments = served
+        self.drivers: dict[str, Any] = {}
+        self.services: dict[str, ComponentService] = {}
+        self.servers: dict[str, ComponentServer] = {}
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self._ticker: threading.Thread | None = None
+        self._started = False
+        self._stopped = False
+
+    # -- lifecycle ----------------------------------------------------------------------------------
+
+    def driver_name(self, component: str) -> str:
+        """The driver a component runs with: `--driver`, else the deployment's choice."""
+        return self.driver_override or self.deployment.driver_for(component)
+
+    def _driver_settings(self, component: str) -> dict[str, Any]:
+        settings = dict(self.component_deployments[component].settings)
+        if self.kind == "gpio":
+            reserved = {
+                pin: owner for pin, owner in owned_pins(self.deployment).items() if owner != component
+            }
+            listed = settings.get("pins")
+            if isinstance(listed, list):
+                clash = sorted(p for p in listed if p in reserved)
+                if clash:
+                    owners = ", ".join(f"GPIO {p} ({reserved[p]})" for p in clash)
+                    raise ConfigError(f"{component}: pins {owners} belong to other components")
+            settings["reserved_pins"] = {**reserved, **settings.get("reserved_pins", {})}
+        return settings
+
+    def start(self) -> None:
+        """Build the drivers, connect every component and start the safety watch.
+
+        On any failure everything built so far is stopped again (motors stopped) and the error
+        is raised: `ConfigError`, `UnknownDriver`, `DriverError` or `NotConnected`.
+        """
+        with self._lock:
+            if self._started:
+                return
+            self._started = True
+        try:
+            self._build()
+            for name, server in self.servers.items():
+                server.start(self.connect_timeout_s)
+                self.services[name].changed()
+            self._watch_orchestrator()
+            self._ticker = threading.Thread(
+                target=self._tick_loop, name=f"{self.kind}-safety", daemon=True
+            )
+            self._ticker.start()
+        except BaseException:
+            self.stop()
+            raise
+        log.info("service_started", kind=self.kind, robot=self.robot,
+                 components={n: self.driver_name(n) for n in self.services}, broker=self.settings.url)
+
+    def _build(self) -> None:
+        service_cls = _service_class(self.kind)
+        for name, comp in self.component_deployments.items():
+            driver = create_driver(self.kind, self.driver_name(name), name, self._driver_settings(name))
+            self.drivers[name] = driver
+            service = service_cls(name, comp.implementation, driver, comp.settings)
+            self.services[name] = service
+            server = ComponentServer(self.settings, self.robot, name, comp.implementation.id,
+                                     service.features())
+            service.publish_state = server.publish_state
+            # Re-publish the retained state after a reconnect (the broker may have restarted).
+            server.connection.add_on_connect(service.changed)
+            server.connection.add_on_disconnect(self._on_disconnect_of(service))
+            self.servers[name] = server
+
+    def _on_disconnect_of(self, service: ComponentService) -> Any:
+        def lost() -> None:
+            if not self._stop.is_set():
+                service.safe_stop("broker connection lost")
+
+        return lost
+
+    def _watch_orchestrator(self) -> None:
+        if self.kind != "motor" or not self.servers:
+            return
+        first = next(iter(self.servers.values()))
+        first.connection.subscribe(self.topics.orchestrator_status, self._on_orchestrator_status)
+
+    def _on_orchestrator_status(self, message: Message) -> None:
+        state: Any
+        try:
+            data = json.loads(message.payload) if message.payload.strip() else None
+        except ValueError:
+            data = message.payload.decode("utf-8", "replace").strip()
+        state = data.get("state") if isinstance(data, dict) else data
+        if isinstance(state, str) and state in ORCHESTRATOR_STOP_STATES:
+            self.safe_stop_all(f"orchestrator {state}")
+
+    def safe_stop_all(self, reason: str) -> None:
+        """Put every served component into its safe state (motors stopped)."""
+        for service in list(self.services.values()):
+            try:
+                service.safe_stop(reason)
+            except Exception:
+                log.exception("safe_stop_failed", component=service.component, reason=reason)
+
+    def _tick_loop(self) -> None:
+        while not self._stop.wait(TICK_S):
+            now = time.monotonic()
+            for service in list(self.services.values()):
+                try:
+                    service.tick(now)
+                except Exception:
+                    log.exception("tick_failed", component=service.component)
+
+    def stop(self) -> None:
+        """Stop the hardware safely first, then go offline and release the drivers; idempotent."""
+        with self._lock:
+            if self._stopped:
+                return
+            self._stopped = True
+        self._stop.set()
+        # Safety first: motors stop before anything that might hang (network, joins).
+        self.safe_stop_all("service stopping")
+        for server in self.servers.values():
+            try:
+                server.stop()
+            except Exception:
+                log.exception("server_stop_failed", component=server.component)
+        for service in self.services.values():
+            service.close()
+        for name, driver in self.drivers.items():
+            if name not in self.services:  # built, but its service was not
+                try:
+                    driver.close()
+                except Exception:
+                    log.exception("driver_close_failed", component=name)
+        if self._ticker is not None and self._ticker is not threading.current_thread():
+            self._ticker.join(timeout=2.0)
+        log.info("service_stopped", kind=self.kind, robot=self.robot)
+
+    def __enter__(self) -> ServiceHost:
+        self.start()
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.stop()
+
+    def wait(self, stop: threading.Event) -> None:
+        """Block until `stop` is set (the CLI sets it from SIGTERM/SIGINT)."""
+        while not stop.wait(0.5):
+            pass
+
+    @property
+    def components(self) -> Mapping[str, ComponentService]:
+        """The served components by name."""
+        return self.services

@@ -1,0 +1,83 @@
+"""`umlbot service KIND --deploy FILE`: run one hardware service (motor, sonar, servo or gpio).
+
+Serves every component of that kind in the deployment until SIGTERM or SIGINT; on every exit
+path (signal, error, broker loss) the motors are stopped before the process ends.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import threading
+from pathlib import Path
+from types import FrameType
+
+import click
+
+from services.registry import SERVICE_KINDS
+
+
+def resolve_robot(cli_value: str | None, deployment_robot: str | None) -> str:
+    """Robot id: `--robot`, else the deployment's `robot`, else `UMLBOT_ROBOT`, else `car`."""
+    return cli_value or deployment_robot or os.environ.get("UMLBOT_ROBOT") or "car"
+
+
+@click.command(name="service")
+@click.argument("kind", type=click.Choice(SERVICE_KINDS))
+@click.option("--deploy", "deploy_file", required=True, metavar="FILE",
+              type=click.Path(dir_okay=False, path_type=Path),
+              help="Deployment file (plain `Component=impl` lines or YAML).")
+@click.option("--driver", default=None, metavar="NAME",
+              help="Driver for every component: pigpio, mock or sim (default: the deployment's).")
+@click.option("--component", "components", multiple=True, metavar="NAME",
+              help="Serve only this component (repeatable; default: all of this kind).")
+@click.option("--broker", "broker_url", default=None, metavar="URL",
+              help="Broker URL, e.g. mqtt://user:pass@host:1883 "
+              "(default: $UMLBOT_BROKER or mqtt://127.0.0.1:1883).")
+@click.option("--ca-file", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="CA certificate file for mqtts:// brokers.")
+@click.option("--robot", default=None, metavar="ID",
+              help="Robot id (default: the deployment's robot, $UMLBOT_ROBOT, or car).")
+@click.option("--connect-timeout", default=10.0, show_default=True, type=click.FloatRange(min=0.1),
+              help="Seconds to wait for the broker at start-up.")
+def command(
+    kind: str,
+    deploy_file: Path,
+    driver: str | None,
+    components: tuple[str, ...],
+    broker_url: str | None,
+    ca_file: Path | None,
+    robot: str | None,
+    connect_timeout: float,
+) -> None:
+    """Run one hardware service for the components the deployment gives it."""
+    from services.bus.settings import BrokerSettings, resolve_broker_url
+    from services.host import ServiceHost
+    from umlbot.deployment import load_deployment
+    from umlbot.library import ServiceKind
+
+    service_kind: ServiceKind = kind  # type: ignore[assignment]  # click.Choice checked it
+    deployment = load_deployment(deploy_file)
+    settings = BrokerSettings.from_url(resolve_broker_url(broker_url), ca_file=ca_file)
+    host = ServiceHost(
+        service_kind,
+        deployment,
+        settings,
+        resolve_robot(robot, deployment.robot),
+        driver,
+        components=list(components) or None,
+        connect_timeout_s=connect_timeout,
+    )
+    stop = threading.Event()
+
+    def on_signal(signum: int, frame: FrameType | None) -> None:
+        stop.set()
+
+    previous = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGTERM, signal.SIGINT)}
+    try:
+        host.start()
+        host.wait(stop)
+    finally:
+        host.stop()  # motors stop here on every path: signal, error, KeyboardInterrupt
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
