@@ -1,0 +1,49 @@
+"""`umlbot compile MODEL -o FILE`: check a model and write its compiled model file."""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+
+import click
+
+
+@click.command(name="compile")
+@click.argument("model", type=click.Path(exists=True, path_type=Path))
+@click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="Compiled file to write ('-' for stdout). Default: <model name>.compiled.json.")
+@click.option("--deployment", type=click.Path(exists=True, dir_okay=False, path_type=Path), default=None,
+              help="Deployment file to use instead of the model's own.")
+@click.pass_context
+def command(ctx: click.Context, model: Path, output: Path | None, deployment: Path | None) -> None:
+    """Compile MODEL (a model folder or file) into a compiled model file for `umlbot run`."""
+    from compiler.api import check_model
+    from compiler.compiled import dump_compiled
+
+    result = check_model(model, deployment)
+    for diagnostic in result.diagnostics:
+        click.echo(str(diagnostic), err=True)
+    if result.model is None:
+        click.echo(f"{model}: {len(result.errors)} error(s); nothing written", err=True)
+        ctx.exit(1)
+    data = dump_compiled(result.model)
+    if output is not None and str(output) == "-":
+        click.echo(data.decode("utf-8"), nl=False)
+        return
+    target = output or Path(f"{result.model.name}.compiled.json")
+    _write_atomically(target, data)
+    click.echo(f"wrote {target} ({result.model.source_hash})", err=True)
+
+
+def _write_atomically(path: Path, data: bytes) -> None:
+    """Write through a temporary file and rename, so a reader never sees half a file."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as handle:
+            handle.write(data)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise

@@ -1,0 +1,34 @@
+"""`umlbot render MODEL`: the component and activity diagrams as Mermaid, PlantUML, DOT and SVG."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+
+@click.command(name="render")
+@click.argument("model", type=click.Path(exists=True, path_type=Path))
+@click.option("-o", "--output", "out_dir", type=click.Path(file_okay=False, path_type=Path), default=None,
+              help="Folder to write the diagrams into. Default: <model name>-diagrams.")
+@click.option("--format", "fmt", type=click.Choice(["mermaid", "plantuml", "dot", "svg", "all"]),
+              default="all", show_default=True, help="Which notation to write.")
+@click.option("--deployment", type=click.Path(exists=True, dir_okay=False, path_type=Path), default=None,
+              help="Deployment file to use instead of the model's own.")
+@click.pass_context
+def command(ctx: click.Context, model: Path, out_dir: Path | None, fmt: str,
+            deployment: Path | None) -> None:
+    """Draw MODEL's diagrams (SVG needs Graphviz's `dot`)."""
+    from compiler.api import check_model
+    from compiler.render import FORMATS, Format, render_model
+
+    result = check_model(model, deployment)
+    for diagnostic in result.diagnostics:
+        click.echo(str(diagnostic), err=True)
+    if result.model is None:
+        click.echo(f"{model}: {len(result.errors)} error(s); nothing drawn", err=True)
+        ctx.exit(1)
+    formats: tuple[Format, ...] = FORMATS if fmt == "all" else (fmt,)  # type: ignore[assignment]
+    target = out_dir or Path(f"{result.model.name}-diagrams")
+    for path in render_model(result.model, target, formats):
+        click.echo(str(path))
