@@ -409,6 +409,7 @@ class BusConnection:
     def _supervise(self) -> None:
         delay = self.reconnect_min_s
         first = True
+        failures = 0
         while not self._closing.is_set():
             self._lost.clear()
             self._accepted = False
@@ -419,11 +420,14 @@ class BusConnection:
                     self._client.reconnect()
             except (OSError, ssl.SSLError) as exc:
                 self._last_error = f"{type(exc).__name__}: {exc}"
-                if first or delay == self.reconnect_min_s:
-                    log.warning("mqtt_connect_failed", broker=self.settings.url, client_id=self.client_id,
-                                error=self._last_error, retry_in_s=round(delay, 2))
+                failures += 1
+                # one warning per outage; the retries of the same outage only at debug level
+                (log.warning if failures == 1 else log.debug)(
+                    "mqtt_connect_failed", broker=self.settings.url, client_id=self.client_id,
+                    error=self._last_error, attempt=failures)
             else:
                 first = False
+                failures = 0
                 self._client.loop_start()
                 self._lost.wait()
                 with contextlib.suppress(Exception):

@@ -1,0 +1,112 @@
+"""`umlbot call Component.feature ARGS…`: one request from the command line, the reply as JSON.
+
+Exit codes: 0 the call succeeded; 1 the service answered with an error reply (stderr shows
+`code: message`); 2 bad command line; 3 no reply within `--timeout`; 4 the broker could not be
+reached (or the connection dropped during the call).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+from typing import Any
+
+import click
+
+EXIT_OK = 0
+EXIT_ERROR_REPLY = 1
+EXIT_USAGE = 2
+EXIT_TIMEOUT = 3
+EXIT_NOT_CONNECTED = 4
+
+
+class CallFailed(click.ClickException):
+    """A failed call: one line on stderr; subclasses set the exit code."""
+
+    def show(self, file: Any = None) -> None:
+        click.echo(self.format_message(), err=True)
+
+
+class ErrorReplyFailure(CallFailed):
+    exit_code = EXIT_ERROR_REPLY
+
+
+class TimeoutFailure(CallFailed):
+    exit_code = EXIT_TIMEOUT
+
+
+class NotConnectedFailure(CallFailed):
+    exit_code = EXIT_NOT_CONNECTED
+
+
+def parse_arg(text: str) -> Any:
+    """A command-line argument as JSON when it parses (`60`, `true`, `[1,2]`), else the string."""
+    try:
+        return json.loads(text)
+    except ValueError:
+        return text
+
+
+def parse_target(target: str) -> tuple[str, str]:
+    """`Component.feature` -> (component, feature)."""
+    component, dot, feature = target.partition(".")
+    if not dot or not component or not feature or "." in feature:
+        raise click.BadParameter(f"expected Component.feature, got {target!r}", param_hint="TARGET")
+    return component, feature
+
+
+@click.command(name="call", context_settings={"ignore_unknown_options": True})
+@click.argument("target")
+@click.argument("args", nargs=-1, type=click.UNPROCESSED)
+@click.option("--robot", default=lambda: os.environ.get("UMLBOT_ROBOT") or "car",
+              show_default="$UMLBOT_ROBOT or car",
+              help="Robot id (the topic base is umlbot/<robot>/).")
+@click.option("--timeout", default=2.0, show_default=True, type=click.FloatRange(min=0.01),
+              help="Seconds to wait for the reply.")
+@click.option("--broker", "broker_url", default=None, metavar="URL",
+              help="Broker URL, e.g. mqtt://user:pass@host:1883 "
+              "(default: $UMLBOT_BROKER or mqtt://127.0.0.1:1883).")
+@click.option("--ca-file", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="CA certificate file for mqtts:// brokers.")
+@click.option("--connect-timeout", default=3.0, show_default=True, type=click.FloatRange(min=0.1),
+              help="Seconds to wait for the broker connection.")
+def command(
+    target: str,
+    args: tuple[str, ...],
+    robot: str,
+    timeout: float,
+    broker_url: str | None,
+    ca_file: Path | None,
+    connect_timeout: float,
+) -> None:
+    """Call TARGET (Component.feature) with ARGS and print the reply as JSON.
+
+    Each ARG is JSON when it parses (60, true, "text", [1,2]) and a string otherwise.
+    Exit status: 0 ok, 1 error reply, 3 time-out, 4 broker not reachable.
+
+    Example: umlbot call LeftActuator.dutycycle 60
+    """
+    from services.bus import BrokerSettings, BusClient, resolve_broker_url
+    from umlbot.errors import CallTimeout, NotConnected, RemoteError
+
+    component, feature = parse_target(target)
+    values = [parse_arg(a) for a in args]
+    settings = BrokerSettings.from_url(resolve_broker_url(broker_url), ca_file=ca_file)
+    client = BusClient(settings, robot, role="cli")
+    try:
+        try:
+            client.start(connect_timeout)
+            value = client.call(component, feature, *values, timeout=timeout)
+        except RemoteError as exc:
+            click.echo(json.dumps({"ok": False, "error": {"code": exc.code, "message": exc.message}}))
+            raise ErrorReplyFailure(f"{exc.code}: {exc.message}") from None
+        except CallTimeout as exc:
+            raise TimeoutFailure(
+                f"timeout: {exc} (is the {component} service running for robot {robot!r}?)"
+            ) from None
+        except NotConnected as exc:
+            raise NotConnectedFailure(f"not_connected: {exc}") from None
+        click.echo(json.dumps({"ok": True, "value": value}, ensure_ascii=False))
+    finally:
+        client.close()
