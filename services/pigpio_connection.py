@@ -29,14 +29,17 @@ FAKE_STATE_ENV = "UMLBOT_FAKE_PIGPIO_STATE"
 
 _lock = threading.Lock()
 _fake: FakePi | None = None
+_env_fake_users = 0  # users of a fake made from UMLBOT_FAKE_PIGPIO; the last one stops it
+_env_fake: FakePi | None = None
 _shared: dict[tuple[str, int], tuple[Any, int]] = {}
 
 
 def install_fake(fake: FakePi | None) -> None:
     """Make `acquire` hand out `fake` (None: back to the real daemon or the env-selected fake)."""
-    global _fake
+    global _fake, _env_fake, _env_fake_users
     with _lock:
         _fake = fake
+        _env_fake, _env_fake_users = None, 0
 
 
 def installed_fake() -> FakePi | None:
@@ -57,14 +60,16 @@ def _env_wants_fake() -> bool:
 
 def acquire(host: str | None = None, port: int | None = None) -> Any:
     """A connected `pigpio.pi` (or the fake); raises `DriverError` saying how to start pigpiod."""
-    global _fake
+    global _fake, _env_fake, _env_fake_users
     with _lock:
         if _fake is None and _env_wants_fake():
-            _fake = FakePi(state_file=os.environ.get(FAKE_STATE_ENV) or None)
+            _fake = _env_fake = FakePi(state_file=os.environ.get(FAKE_STATE_ENV) or None)
             log.warning("using the fake pigpio (no hardware)", env=FAKE_ENV)
         if _fake is not None:
             if not _fake.connected:
                 raise DriverError("cannot reach the pigpio daemon (fake disconnected)")
+            if _fake is _env_fake:
+                _env_fake_users += 1
             return _fake
         address = _address(host, port)
         entry = _shared.get(address)
@@ -90,19 +95,28 @@ def acquire(host: str | None = None, port: int | None = None) -> Any:
 
 
 def release(pi: Any) -> None:
-    """Give back a connection from `acquire`; the last user of a real connection stops it."""
+    """Give back a connection from `acquire`; its last user stops it (an installed fake: never)."""
+    global _fake, _env_fake, _env_fake_users
     with _lock:
-        if pi is _fake:
-            return  # the fake lives as long as the test (or process) that installed it
-        for address, (shared, count) in list(_shared.items()):
-            if shared is pi:
-                if count > 1:
-                    _shared[address] = (shared, count - 1)
-                    return
-                del _shared[address]
-                break
+        if pi is _env_fake:
+            _env_fake_users -= 1
+            if _env_fake_users > 0:
+                return
+            if _fake is _env_fake:
+                _fake = None
+            _env_fake = None
+        elif pi is _fake:
+            return  # an installed fake lives as long as the test that installed it
         else:
-            return
+            for address, (shared, count) in list(_shared.items()):
+                if shared is pi:
+                    if count > 1:
+                        _shared[address] = (shared, count - 1)
+                        return
+                    del _shared[address]
+                    break
+            else:
+                return  # not handed out here
     try:
         pi.stop()
     except Exception as exc:  # the daemon may already be gone; the connection is released anyway

@@ -1,0 +1,302 @@
+"""The motor service over real brokers: features via the bus and via raw bare payloads, error
+replies, retained state, and every safety stop (service stop, SIGTERM/SIGINT of the process,
+orchestrator last will, broker loss, watchdog)."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+from conftest import BrokerProcess, RawClient
+from services_support import ROBOT, StateWatch, client, deployment, raw_state, running, wait_for
+
+from services import pigpio_connection
+from services.bus import Topics
+from services.fake_pigpio import FakePi
+from services.motor.mock import MockMotorChannel
+from umlbot.errors import RemoteError
+
+pytestmark = pytest.mark.network
+TOPICS = Topics(ROBOT)
+
+
+def mock(host: Any, name: str = "LeftActuator") -> MockMotorChannel:
+    driver: MockMotorChannel = host.drivers[name]
+    return driver
+
+
+def test_every_feature_via_the_bus_and_state_follows(broker: BrokerProcess) -> None:
+    with running("motor", deployment(), broker.url) as host, client(broker.url) as bus:
+        watch = StateWatch(bus, "LeftActuator")
+        watch.wait("LeftActuator", lambda s: s["enabled"] is False)
+        assert bus.call("LeftActuator", "dutycycle", 60) is None
+        assert bus.call("LeftActuator", "direction", False) is None
+        assert bus.call("LeftActuator", "enabled", True) is None
+        left = mock(host)
+        assert (left.enabled, left.clockwise, left.duty_cycle_percent) == (True, False, 60)
+        state = watch.wait("LeftActuator", lambda s: s["enabled"])
+        assert state == {"enabled": True, "clockwise": False, "dutycycle": 60, "running": True,
+                         "stop_reason": None}
+        assert mock(host, "RightActuator").commands == [("stop", ())], "the other channel untouched"
+    assert not left.running and left.closed, "stopping the service stops and closes the motor"
+
+
+def test_status_is_online_with_features_then_offline(
+    broker: BrokerProcess, raw_client: Callable[..., RawClient]
+) -> None:
+    raw = raw_client(broker)
+    with running("motor", deployment(), broker.url):
+        raw.subscribe(TOPICS.status("LeftActuator"))
+        status = json.loads(raw.get(topic=TOPICS.status("LeftActuator")).payload)
+        assert status["state"] == "online" and status["impl"] == "l298n"
+        assert status["features"] == ["direction", "dutycycle", "enabled"]
+    msg = raw.get(topic=TOPICS.status("LeftActuator"))
+    assert json.loads(msg.payload)["state"] == "offline"
+
+
+def test_raw_bare_payloads_drive_the_motor(
+    mosquitto_broker: BrokerProcess, raw_client: Callable[..., RawClient]
+) -> None:
+    raw = raw_client(mosquitto_broker)
+    with running("motor", deployment(), mosquitto_broker.url) as host:
+        raw.publish(TOPICS.call("RightActuator", "dutycycle"), "60")
+        raw.publish(TOPICS.call("RightActuator", "direction"), "[true]")
+        raw.publish(TOPICS.call("RightActuator", "enabled"), "true")
+        right = mock(host, "RightActuator")
+        assert right.wait_until(lambda: right.running, 5.0)
+        assert right.duty_cycle_percent == 60 and right.clockwise
+        raw.subscribe(TOPICS.state("RightActuator"))
+        state = raw_state(raw, "RightActuator", lambda s: s["running"])
+        assert state["dutycycle"] == 60 and state["clockwise"] is True
+
+
+@pytest.mark.parametrize(
+    ("feature", "args", "code"),
+    [
+        ("dutycycle", ["fast"], "bad_args"),
+        ("dutycycle", [101], "out_of_range"),
+        ("dutycycle", [-1], "out_of_range"),
+        ("dutycycle", [50.5], "bad_args"),
+        ("enabled", ["yes"], "bad_args"),
+        ("enabled", [True, False], "bad_args"),
+        ("direction", [], "bad_args"),
+        ("angle", [90], "unknown_feature"),
+    ],
+)
+def test_bad_calls_get_error_replies(
+    mosquitto_broker: BrokerProcess, raw_client: Callable[..., RawClient],
+    feature: str, args: list[Any], code: str,
+) -> None:
+    raw = raw_client(mosquitto_broker)
+    raw.subscribe("test/reply")
+    with running("motor", deployment(), mosquitto_broker.url) as host:
+        body = json.dumps({"id": "r1", "reply_to": "test/reply", "args": args})
+        raw.publish(TOPICS.call("LeftActuator", feature), body)
+        reply = json.loads(raw.get(topic="test/reply").payload)
+        assert reply["id"] == "r1" and reply["ok"] is False
+        assert reply["error"]["code"] == code, reply
+        assert mock(host).commands == [("stop", ())], "nothing reached the driver"
+
+
+def test_malformed_payloads_never_wedge_the_service(
+    mosquitto_broker: BrokerProcess, raw_client: Callable[..., RawClient]
+) -> None:
+    raw = raw_client(mosquitto_broker)
+    raw.subscribe("test/reply")
+    with running("motor", deployment(), mosquitto_broker.url) as host:
+        for junk in (b"{not json", b"\xff\xfe", b'{"id": 1, "reply_to": "test/reply", "args": 5, "x": 1}'):
+            raw.publish(TOPICS.call("LeftActuator", "dutycycle"), junk)
+        reply = json.loads(raw.get(topic="test/reply").payload)
+        assert reply["ok"] is False and reply["error"]["code"] == "bad_request"
+        raw.publish(TOPICS.call("LeftActuator", "dutycycle"),
+                    json.dumps({"id": "ok", "reply_to": "test/reply", "args": [33]}))
+        assert json.loads(raw.get(topic="test/reply").payload) == {"id": "ok", "ok": True, "value": None}
+        assert mock(host).duty_cycle_percent == 33
+
+
+def test_driver_fault_is_a_driver_error_reply_and_service_survives(mosquitto_broker: BrokerProcess) -> None:
+    dep = deployment(LeftActuator={"mock_faults": {"set_duty_cycle": "H-bridge overheated"}})
+    with running("motor", dep, mosquitto_broker.url) as host, client(mosquitto_broker.url) as bus:
+        with pytest.raises(RemoteError) as caught:
+            bus.call("LeftActuator", "dutycycle", 50)
+        assert caught.value.code == "driver_error" and "overheated" in caught.value.message
+        assert bus.call("LeftActuator", "enabled", True) is None
+        assert mock(host).enabled
+
+
+def test_pigpio_driver_on_the_fake_over_the_bus(mosquitto_broker: BrokerProcess) -> None:
+    fake = FakePi()
+    pigpio_connection.install_fake(fake)
+    try:
+        with running("motor", deployment(), mosquitto_broker.url, driver="pigpio"), \
+                client(mosquitto_broker.url) as bus:
+            bus.call("LeftActuator", "dutycycle", 75)
+            bus.call("LeftActuator", "enabled", True)
+            assert fake.pin(22).duty_fraction == pytest.approx(0.75)
+            bus.call("LeftActuator", "direction", False)
+            assert fake.pin(23).duty_fraction == pytest.approx(0.75) and fake.pin(22).duty_fraction == 0
+        assert all(fake.pin(p).duty_fraction == 0 for p in (22, 23, 24, 25))
+    finally:
+        pigpio_connection.install_fake(None)
+
+
+# --- safety ------------------------------------------------------------------------------------
+
+
+def test_watchdog_stops_a_motor_without_commands(mosquitto_broker: BrokerProcess) -> None:
+    dep = deployment(LeftActuator={"watchdog_s": 0.3}, RightActuator={"watchdog_s": 0})
+    with running("motor", dep, mosquitto_broker.url) as host, client(mosquitto_broker.url) as bus:
+        watch = StateWatch(bus, "LeftActuator")
+        for name in ("LeftActuator", "RightActuator"):
+            bus.call(name, "dutycycle", 40)
+            bus.call(name, "enabled", True)
+        left, right = mock(host), mock(host, "RightActuator")
+        for _ in range(4):  # commands keep it alive
+            assert left.wait_until(lambda: not left.running, 0.15) is False
+            bus.call("LeftActuator", "dutycycle", 40)
+        assert left.wait_until(lambda: not left.running, 2.0)
+        state = watch.wait("LeftActuator", lambda s: s["stop_reason"] == "watchdog")
+        assert state["enabled"] is False and state["dutycycle"] == 0
+        assert right.running, "watchdog_s: 0 turns the watchdog off"
+
+
+def _stopped(driver: MockMotorChannel) -> Callable[[], bool]:
+    return lambda: not driver.running
+
+
+def _fake_orchestrator(port: int, tmp_path: Path) -> subprocess.Popen[bytes]:
+    """A plain paho client with the orchestrator's last will; SIGKILL makes the broker send it."""
+    script = tmp_path / "orchestrator.py"
+    script.write_text(textwrap.dedent(f"""
+        import json, sys, time
+        import paho.mqtt.client as mqtt
+        from paho.mqtt.enums import CallbackAPIVersion
+        topic = "{TOPICS.orchestrator_status}"
+        c = mqtt.Client(CallbackAPIVersion.VERSION2, client_id="fake-orchestrator")
+        c.will_set(topic, json.dumps({{"state": "offline"}}), qos=1, retain=True)
+        c.connect("127.0.0.1", {port}, keepalive=5)
+        c.loop_start()
+        c.publish(topic, json.dumps({{"state": "running"}}), qos=1, retain=True).wait_for_publish(5)
+        print("ready", flush=True)
+        time.sleep(60)
+    """))
+    proc = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE)
+    assert proc.stdout is not None and proc.stdout.readline().strip() == b"ready"
+    return proc
+
+
+def test_orchestrator_last_will_stops_the_motors(broker: BrokerProcess, tmp_path: Path) -> None:
+    orchestrator = _fake_orchestrator(broker.port, tmp_path)
+    try:
+        with running("motor", deployment(), broker.url) as host, client(broker.url) as bus:
+            watch = StateWatch(bus, "LeftActuator", "RightActuator")
+            for name in ("LeftActuator", "RightActuator"):
+                bus.call(name, "dutycycle", 80)
+                bus.call(name, "enabled", True)
+            assert mock(host).running and mock(host, "RightActuator").running
+            orchestrator.kill()  # no DISCONNECT: the broker publishes the will
+            for name in ("LeftActuator", "RightActuator"):
+                driver = mock(host, name)
+                assert driver.wait_until(_stopped(driver), 10.0), name
+                watch.wait(name, lambda s: s["stop_reason"] == "orchestrator offline")
+    finally:
+        orchestrator.kill()
+        orchestrator.wait(5)
+
+
+@pytest.mark.parametrize("state", ["stopped", "failed"])
+def test_orchestrator_stopped_or_failed_stops_the_motors(
+    mosquitto_broker: BrokerProcess, raw_client: Callable[..., RawClient], state: str
+) -> None:
+    raw = raw_client(mosquitto_broker)
+    with running("motor", deployment(), mosquitto_broker.url) as host, client(mosquitto_broker.url) as bus:
+        bus.call("LeftActuator", "dutycycle", 80)
+        bus.call("LeftActuator", "enabled", True)
+        raw.publish(TOPICS.orchestrator_status, json.dumps({"state": "running"}))
+        assert mock(host).wait_until(lambda: not mock(host).running, 0.3) is False, "running is fine"
+        raw.publish(TOPICS.orchestrator_status, json.dumps({"state": state}))
+        assert mock(host).wait_until(lambda: not mock(host).running, 5.0)
+
+
+def test_broker_loss_stops_the_motors(broker: BrokerProcess) -> None:
+    with running("motor", deployment(), broker.url) as host:
+        with client(broker.url) as bus:
+            bus.call("LeftActuator", "dutycycle", 50)
+            bus.call("LeftActuator", "enabled", True)
+        left = mock(host)
+        assert left.running
+        broker.kill()
+        assert left.wait_until(lambda: not left.running, 10.0)
+        broker.start()  # the service reconnects and serves again
+        assert wait_for(lambda: all(s.connected for s in host.servers.values()), 20.0)
+        with client(broker.url) as bus:
+            bus.call("LeftActuator", "dutycycle", 10, timeout=5.0)
+            assert left.duty_cycle_percent == 10
+
+
+# --- the process: signals leave the (fake) pins at zero duty -----------------------------------
+
+
+@pytest.fixture
+def motor_process(
+    mosquitto_broker: BrokerProcess, tmp_path: Path
+) -> Iterator[tuple[subprocess.Popen[bytes], Path]]:
+    deploy = tmp_path / "deploy.yaml"
+    deploy.write_text(json.dumps(json.loads(deployment("pigpio").model_dump_json())))
+    state_file = tmp_path / "pins.json"
+    env = {**os.environ, "UMLBOT_FAKE_PIGPIO": "1", "UMLBOT_FAKE_PIGPIO_STATE": str(state_file),
+           "UMLBOT_LOG_LEVEL": "WARNING"}
+    proc = subprocess.Popen(
+        [sys.executable, "-c", "from umlbot.cli import main; main()", "service", "motor",
+         "--deploy", str(deploy), "--broker", mosquitto_broker.url],
+        env=env, stderr=subprocess.PIPE,
+    )
+    yield proc, state_file
+    if proc.poll() is None:
+        proc.kill()
+    proc.wait(5)
+
+
+def _pin_duties(state_file: Path) -> dict[str, float]:
+    try:
+        pins = json.loads(state_file.read_text())["pins"]
+    except (OSError, ValueError, KeyError):
+        return {}
+    return {gpio: pin["duty_fraction"] for gpio, pin in pins.items()}
+
+
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])
+def test_signal_leaves_pins_at_zero_duty(
+    motor_process: tuple[subprocess.Popen[bytes], Path], mosquitto_broker: BrokerProcess, signum: int
+) -> None:
+    proc, state_file = motor_process
+    with client(mosquitto_broker.url) as bus:
+        assert wait_for(lambda: _status(bus, "RightActuator"), 15.0), "service came online"
+        bus.call("LeftActuator", "dutycycle", 60, timeout=5.0)
+        bus.call("LeftActuator", "enabled", True, timeout=5.0)
+        bus.call("RightActuator", "dutycycle", 30, timeout=5.0)
+        bus.call("RightActuator", "direction", False, timeout=5.0)
+        bus.call("RightActuator", "enabled", True, timeout=5.0)
+    duties = _pin_duties(state_file)
+    assert duties["22"] == pytest.approx(0.6) and duties["25"] == pytest.approx(0.3)
+    proc.send_signal(signum)
+    assert proc.wait(10) == 0 or proc.returncode in (0, 130)
+    duties = _pin_duties(state_file)
+    assert duties and all(d == 0 for d in duties.values()), duties
+    assert json.loads(state_file.read_text())["stopped"] is True
+
+
+def _status(bus: Any, component: str) -> bool:
+    try:
+        bus.call(component, "enabled", False, timeout=0.5)
+        return True
+    except Exception:
+        return False
