@@ -1,0 +1,562 @@
+"""The orchestrator: runs a compiled model against the robot's services over MQTT, safely.
+
+Life of a run (docs/semantics.md says the same for users):
+
+1. connect (two connections: `control` carries the retained status with its last will
+   `offline`, the subscriptions, the trace and the signals; `calls` carries feature calls only,
+   so a burst of trace events never queues in front of a request);
+2. wait, bounded by `startup_timeout_s`, until every used component's retained status is
+   `online` (else `OrchestratorError` naming the missing ones);
+3. stop every actuator (its implementation's `safe_stop` calls), publish status `running` and
+   start every component lane at once;
+4. run until every lane ended, termination was requested (SIGINT/SIGTERM, `request_exit`, a
+   message on `…/orchestrator/exit`: `Application.exit` becomes true, lanes get `grace_s` to
+   finish) or a fault happened (a call timed out or got an error reply, an expression failed, a
+   used component went `offline`, the broker connection was lost: fail-safe at once);
+5. on every path: cancel the lanes, stop every actuator (after a lost broker: as soon as it is
+   back, waiting at most `reconnect_wait_s`), publish the final status `stopped` or `failed`
+   with the reason, flush the trace, disconnect.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import json
+import signal
+import threading
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from compiler.compiled import CompiledModel
+from services.bus import (
+    BrokerSettings,
+    BusClient,
+    BusConnection,
+    ExitRequest,
+    Message,
+    OrchestratorStatus,
+    Status,
+    Topics,
+    Will,
+)
+from services.bus.envelopes import dumps
+from services.orchestrator.engine import Engine, EngineStats, NodeFailed, used_components
+from services.orchestrator.expressions import Value
+from services.orchestrator.signals import SignalBoard
+from services.orchestrator.trace import Listener, TraceRecorder
+from umlbot.clock import Clock
+from umlbot.errors import BusError, NotConnected, OrchestratorError
+from umlbot.library import resolve_implementation
+from umlbot.logs import get_logger
+
+log = get_logger(__name__)
+
+#: seconds the lanes get to finish on their own after termination was requested.
+DEFAULT_GRACE_S = 2.0
+#: seconds to wait at start-up for every used component to be online.
+DEFAULT_STARTUP_TIMEOUT_S = 10.0
+#: seconds to wait for a lost broker to come back before giving up on the final stop calls.
+DEFAULT_RECONNECT_WAIT_S = 10.0
+#: seconds to wait for the first broker connection.
+CONNECT_TIMEOUT_S = 5.0
+#: time-out of each safe-stop call on the way out (the services stop on their own anyway).
+FINAL_STOP_TIMEOUT_S = 1.0
+#: seconds cancelled lanes get to unwind.
+LANE_CANCEL_TIMEOUT_S = 2.0
+
+EXIT_OK = 0
+EXIT_FAULT = 1
+
+
+class Orchestrator:
+    """Executes one compiled model; `await run()` returns the exit code (0 ok, 1 fault).
+
+    `run()` raises `OrchestratorError` when the run could not start (broker unreachable, components
+    not online). `request_exit(reason)` may be called from any thread, before or during the run.
+    """
+
+    def __init__(
+        self,
+        compiled: CompiledModel,
+        broker_settings: BrokerSettings,
+        robot: str | None = None,
+        clock: Clock | None = None,
+        call_timeout_s: float | None = None,
+        trace: bool = True,
+        trace_file: str | Path | None = None,
+        grace_s: float = DEFAULT_GRACE_S,
+        startup_timeout_s: float = DEFAULT_STARTUP_TIMEOUT_S,
+        reconnect_wait_s: float = DEFAULT_RECONNECT_WAIT_S,
+        trace_listener: Listener | None = None,
+        handle_signals: bool = True,
+    ) -> None:
+        self.model = compiled
+        self.settings = broker_settings
+        self.robot = robot or compiled.name
+        self.topics = Topics(self.robot)
+        self.clock = clock or Clock(1.0)
+        self.call_timeout_s = compiled.call_timeout_s if call_timeout_s is None else call_timeout_s
+        if not self.call_timeout_s > 0:
+            raise OrchestratorError(f"the call time-out must be > 0 s, got {self.call_timeout_s!r}")
+        self.trace_to_mqtt = trace
+        self.trace_file = trace_file
+        self.trace_listener = trace_listener
+        self.grace_s = grace_s
+        self.startup_timeout_s = startup_timeout_s
+        self.reconnect_wait_s = reconnect_wait_s
+        self.handle_signals = handle_signals
+        #: the reason of the fail-safe stop, None while nothing went wrong.
+        self.failure: str | None = None
+        #: why termination was requested, None until it was.
+        self.exit_reason: str | None = None
+        #: the last status published: starting, running, stopping, stopped or failed.
+        self.state = "starting"
+        self.signals = SignalBoard()
+        self.engine = Engine(compiled, self, self.signals, self.clock)
+        self.used = sorted(used_components(compiled))
+        self.actuators = self._actuator_stops()
+        self.required = sorted(set(self.used) | {name for name, _, _ in self.actuators})
+        self.availability: dict[str, str] = {}
+        self.recorder: TraceRecorder | None = None
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._changed: asyncio.Event | None = None
+        self._exit_deadline: float | None = None
+        self._pending_exit: str | None = None
+        self._lane_tasks: dict[str, asyncio.Task[None]] = {}
+        self._closing = False
+        self._running = False
+        self._control: BusConnection | None = None
+        self._client: BusClient | None = None
+
+    @property
+    def stats(self) -> EngineStats:
+        """Executed nodes, actions and their latencies so far."""
+        return self.engine.stats
+
+    # --- public control -----------------------------------------------------------------------------
+
+    def request_exit(self, reason: str = "exit requested") -> None:
+        """Ask the run to end: `Application.exit` becomes true, lanes get the grace period.
+
+        Thread-safe; a second request ends the grace period at once.
+        """
+        loop = self._loop
+        if loop is None:
+            self._pending_exit = self._pending_exit or reason
+            return
+        try:
+            current = asyncio.get_running_loop()
+        except RuntimeError:
+            current = None
+        if current is loop:
+            self._on_exit_request(reason)
+        else:
+            with contextlib.suppress(RuntimeError):  # the loop is already closed: nothing to end
+                loop.call_soon_threadsafe(self._on_exit_request, reason)
+
+    def run_sync(self) -> int:
+        """`run()` in a fresh event loop (for callers without one)."""
+        return asyncio.run(self.run())
+
+    async def run(self) -> int:
+        """Run the model to its end; returns 0 (ended or exit requested) or 1 (fail-safe stop)."""
+        if self._running:
+            raise OrchestratorError("this orchestrator is already running")
+        self._running = True
+        self._loop = asyncio.get_running_loop()
+        self._changed = asyncio.Event()
+        remove_handlers = self._install_signal_handlers()
+        started = time.monotonic()
+        start_error: OrchestratorError | None = None
+        try:
+            await self._connect()
+            try:
+                if self._pending_exit is not None:
+                    self._on_exit_request(self._pending_exit)
+                self._publish_status("starting")
+                await self._wait_online()
+                if self.failure is None and self.exit_reason is None:
+                    await self._stop_actuators(at_start=True)
+                if self.failure is None and self.exit_reason is None:
+                    self._publish_status("running")
+                    log.info("orchestrator_running", robot=self.robot, model=self.model.name,
+                             lanes=self.engine.component_lanes(), call_timeout_s=self.call_timeout_s)
+                    await self._supervise()
+            except OrchestratorError as exc:
+                start_error = exc
+                self._fault(str(exc))
+            finally:
+                code = await self._shut_down()
+        finally:
+            remove_handlers()
+        log.info("orchestrator_finished", exit_code=code, failure=self.failure, exit_reason=self.exit_reason,
+                 nodes=self.stats.nodes, actions=self.stats.actions,
+                 wall_s=round(time.monotonic() - started, 3))
+        if start_error is not None:
+            raise start_error
+        return code
+
+    # --- Port (what the engine calls) ---------------------------------------------------------------
+
+    async def call(self, component: str, feature: str, args: list[Value]) -> Value:
+        """One feature call with the run's time-out."""
+        client = self._client
+        if client is None:
+            raise NotConnected("the orchestrator is not connected")
+        return await client.acall(component, feature, *args, timeout=self.call_timeout_s)
+
+    def publish_signal(self, name: str, payload: Value) -> None:
+        """Publish `…/signal/<name>` with the payload as JSON (QoS 1)."""
+        control = self._control
+        if control is None:
+            raise NotConnected("the orchestrator is not connected")
+        control.publish(self.topics.signal(name), dumps(payload).encode("utf-8"), qos=1)
+
+    # --- start-up -----------------------------------------------------------------------------------
+
+    async def _connect(self) -> None:
+        will = Will(
+            self.topics.orchestrator_status,
+            OrchestratorStatus(state="offline", reason="orchestrator connection lost", model=self.model.name),
+        )
+        control = BusConnection(self.settings, role="orchestrator", will=will, robot=self.robot)
+        client = BusClient(self.settings, self.robot, role="orchestrator-calls")
+        self._control, self._client = control, client
+        control.subscribe(f"{self.topics.base}/+/status", self._on_status_message)
+        control.subscribe(self.topics.signals, self._on_signal_message)
+        control.subscribe(self.topics.orchestrator_exit, self._on_exit_message)
+        control.add_on_disconnect(self._on_connection_lost)
+        client.connection.add_on_disconnect(self._on_connection_lost)
+        try:
+            await asyncio.gather(
+                asyncio.to_thread(control.start, CONNECT_TIMEOUT_S),
+                asyncio.to_thread(client.start, CONNECT_TIMEOUT_S),
+            )
+        except NotConnected as exc:
+            await asyncio.to_thread(self._close_connections)
+            raise OrchestratorError(str(exc)) from exc
+        if self.trace_to_mqtt or self.trace_file is not None or self.trace_listener is not None:
+            self.recorder = TraceRecorder(
+                self._publish_trace if self.trace_to_mqtt else None, self.trace_file, self.trace_listener
+            )
+            self.engine.trace = self.recorder.record
+
+    async def _wait_online(self) -> None:
+        loop, changed = self._runtime()
+        deadline = loop.time() + self.startup_timeout_s
+        while True:
+            missing = [c for c in self.required if self.availability.get(c) != "online"]
+            if not missing or self.failure is not None or self.exit_reason is not None:
+                return
+            remaining = deadline - loop.time()
+            if remaining <= 0:
+                raise OrchestratorError(
+                    f"component(s) not online after {self.startup_timeout_s:g} s: "
+                    + ", ".join(self._describe_component(c) for c in missing)
+                    + f" (robot {self.robot!r}, broker {self.settings.url}); "
+                    "start their services with `umlbot service KIND --deploy FILE`"
+                )
+            changed.clear()
+            with contextlib.suppress(TimeoutError):
+                await asyncio.wait_for(changed.wait(), remaining)
+
+    def _describe_component(self, name: str) -> str:
+        component = self.model.components.get(name)
+        state = self.availability.get(name, "no status")
+        service = f"{component.service} service, " if component is not None else ""
+        return f"{name} ({service}{state})"
+
+    # --- running ------------------------------------------------------------------------------------
+
+    async def _supervise(self) -> None:
+        loop, changed = self._runtime()
+        for name in self.engine.component_lanes():
+            task = asyncio.create_task(self._run_lane(name), name=f"lane:{name}")
+            task.add_done_callback(lambda _task: changed.set())
+            self._lane_tasks[name] = task
+        while True:
+            if self.failure is not None:
+                return
+            if all(task.done() for task in self._lane_tasks.values()):
+                log.info("every lane ended")
+                return
+            timeout: float | None = None
+            if self._exit_deadline is not None:
+                timeout = self._exit_deadline - loop.time()
+                if timeout <= 0:
+                    running = sorted(n for n, t in self._lane_tasks.items() if not t.done())
+                    log.info("grace period over: cancelling lanes", lanes=running)
+                    return
+            changed.clear()
+            with contextlib.suppress(TimeoutError):
+                await asyncio.wait_for(changed.wait(), timeout)
+
+    async def _run_lane(self, name: str) -> None:
+        try:
+            await self.engine.run_lane(name)
+        except asyncio.CancelledError:
+            raise
+        except NodeFailed as exc:
+            self._fault(str(exc))
+        except Exception as exc:  # a bug: still stop the robot safely
+            log.exception("lane_crashed", lane=name)
+            self._fault(f"lane {name}: internal error: {exc!r}")
+
+    def _fault(self, reason: str) -> None:
+        """Fail-safe: remember the first reason and wake the supervisor (loop thread only)."""
+        if self.failure is not None:
+            return
+        self.failure = reason
+        self.engine.exit_requested = True
+        log.error("fail_safe_stop", reason=reason)
+        if self._changed is not None:
+            self._changed.set()
+
+    def _on_exit_request(self, reason: str) -> None:
+        loop, changed = self._runtime()
+        if self.exit_reason is None:
+            self.exit_reason = reason
+            self.engine.exit_requested = True
+            self._exit_deadline = loop.time() + self.grace_s
+            log.info("exit_requested", reason=reason, grace_s=self.grace_s)
+            if self.state == "running":
+                self._publish_status("stopping", reason)
+        else:
+            self._exit_deadline = loop.time()  # asked twice: no more grace
+        changed.set()
+
+    # --- shutting down ------------------------------------------------------------------------------
+
+    async def _shut_down(self) -> int:
+        self.engine.exit_requested = True
+        tasks = [task for task in self._lane_tasks.values() if not task.done()]
+        for task in tasks:
+            task.cancel()
+        if tasks:
+            await asyncio.wait(tasks, timeout=LANE_CANCEL_TIMEOUT_S)
+        control, client = self._control, self._client
+        if control is not None and client is not None:
+            if not (control.connected and client.connected):
+                log.warning("waiting for the broker to stop the actuators", wait_s=self.reconnect_wait_s)
+                back = await asyncio.to_thread(self._wait_reconnected, self.reconnect_wait_s)
+                if not back:
+                    log.error("broker not back: actuators not stopped by the orchestrator "
+                              "(the motor services stop on their own when the broker is lost)")
+            if control.connected and client.connected:
+                await self._stop_actuators(at_start=False)
+            final = "failed" if self.failure is not None else "stopped"
+            self._publish_status(final, self.failure or self.exit_reason or "every lane ended")
+        self._closing = True
+        if self.recorder is not None:
+            await asyncio.to_thread(self.recorder.close)
+        await asyncio.to_thread(self._close_connections)
+        return EXIT_FAULT if self.failure is not None else EXIT_OK
+
+    def _wait_reconnected(self, timeout: float) -> bool:
+        deadline = time.monotonic() + timeout
+        for connection in (self._control, self._client):
+            if connection is None or self._closing:
+                return False
+            if not connection.wait_connected(max(0.0, deadline - time.monotonic())):
+                return False
+        return True
+
+    def _close_connections(self) -> None:
+        self._closing = True
+        for connection in (self._client, self._control):
+            if connection is not None:
+                with contextlib.suppress(Exception):
+                    connection.close()
+
+    # --- actuators ----------------------------------------------------------------------------------
+
+    def _actuator_stops(self) -> list[tuple[str, str, tuple[bool | int, ...]]]:
+        """(component, feature, args) of every safe-stop call of the model's components."""
+        stops: list[tuple[str, str, tuple[bool | int, ...]]] = []
+        for name, component in sorted(self.model.components.items()):
+            impl = resolve_implementation(component.impl)
+            if impl is None:
+                continue
+            for feature, args in impl.safe_stop:
+                stops.append((name, feature, args))
+        return stops
+
+    async def _stop_actuators(self, at_start: bool) -> None:
+        """Send every safe-stop call; at start a failure is a fault, at the end it is logged."""
+        client = self._client
+        if client is None or not self.actuators:
+            return
+        calls = [
+            (name, feature, args) for name, feature, args in self.actuators
+            if at_start or self.availability.get(name) == "online"
+        ]
+        skipped = sorted({name for name, _, _ in self.actuators} - {name for name, _, _ in calls})
+        if skipped:
+            log.warning("actuators offline, not stopped by the orchestrator", components=skipped)
+        timeout = self.call_timeout_s if at_start else min(self.call_timeout_s, FINAL_STOP_TIMEOUT_S)
+        results = await asyncio.gather(
+            *(client.acall(name, feature, *args, timeout=timeout) for name, feature, args in calls),
+            return_exceptions=True,
+        )
+        failures = [
+            f"{name}.{feature}: {result}" for (name, feature, _), result in zip(calls, results, strict=True)
+            if isinstance(result, BaseException)
+        ]
+        if failures and at_start:
+            raise OrchestratorError("cannot stop the actuators at start-up: " + "; ".join(failures))
+        if failures:
+            log.error("actuator_stop_failed", failures=failures)
+        else:
+            log.info("actuators_stopped", components=sorted({name for name, _, _ in calls}))
+
+    # --- MQTT handlers (dispatcher thread) ----------------------------------------------------------
+
+    def _to_loop(self, function: Callable[..., object], *args: Any) -> None:
+        loop = self._loop
+        if loop is None or self._closing:
+            return
+        with contextlib.suppress(RuntimeError):  # loop closed: the run is over
+            loop.call_soon_threadsafe(function, *args)
+
+    def _on_status_message(self, message: Message) -> None:
+        component = message.topic[len(self.topics.base) + 1:].split("/", 1)[0]
+        if component not in self.model.components:
+            return
+        try:
+            state = Status.model_validate_json(message.payload).state if message.payload else "offline"
+        except ValueError:
+            log.warning("bad component status", component=component, payload=message.payload[:200])
+            return
+        self._to_loop(self._on_status, component, state)
+
+    def _on_status(self, component: str, state: str) -> None:
+        previous = self.availability.get(component)
+        self.availability[component] = state
+        if previous != state:
+            log.info("component_status", component=component, state=state)
+        if (
+            state != "online"
+            and previous == "online"
+            and component in self.required
+            and self.state in ("running", "stopping")
+        ):
+            self._fault(f"component {component} went {state}")
+        if self._changed is not None:
+            self._changed.set()
+
+    def _on_signal_message(self, message: Message) -> None:
+        if message.retain:  # a retained signal is old news; only live occurrences count
+            return
+        name = message.topic.rsplit("/", 1)[-1]
+        self._to_loop(self.signals.deliver, name, _signal_payload(message.payload))
+
+    def _on_exit_message(self, message: Message) -> None:
+        if message.retain:  # a retained exit request would end every future run at once
+            log.warning("ignoring a retained exit request", topic=message.topic)
+            return
+        reason = "exit requested over MQTT"
+        with contextlib.suppress(ValueError):
+            request = ExitRequest.model_validate_json(message.payload)
+            if request.reason:
+                reason = f"exit requested over MQTT: {request.reason}"
+        self.request_exit(reason)
+
+    def _on_connection_lost(self) -> None:
+        if not self._closing:
+            self._to_loop(self._fault, "connection to the MQTT broker lost")
+
+    # --- publishing ---------------------------------------------------------------------------------
+
+    def _publish_status(self, state: str, reason: str | None = None) -> None:
+        self.state = state
+        control = self._control
+        if control is None:
+            return
+        status = OrchestratorStatus.model_validate(
+            {"state": state, "reason": reason, "model": self.model.name, "robot": self.robot,
+             "source_hash": self.model.source_hash, "since": time.time()}
+        )
+        try:
+            control.publish(self.topics.orchestrator_status, status, qos=1, retain=True)
+        except BusError as exc:
+            log.warning("orchestrator status not published", state=state, error=str(exc))
+
+    def _publish_trace(self, data: bytes) -> None:
+        control = self._control
+        if control is not None and control.connected:
+            with contextlib.suppress(NotConnected):
+                control.publish(self.topics.orchestrator_trace, data, qos=0)
+
+    # --- helpers ------------------------------------------------------------------------------------
+
+    def _runtime(self) -> tuple[asyncio.AbstractEventLoop, asyncio.Event]:
+        if self._loop is None or self._changed is None:
+            raise OrchestratorError("the orchestrator is not running")
+        return self._loop, self._changed
+
+    def _install_signal_handlers(self) -> Callable[[], None]:
+        """SIGINT/SIGTERM request the exit (a second one ends the grace); returns the remover."""
+        loop = self._loop
+        in_main_thread = threading.current_thread() is threading.main_thread()
+        if not self.handle_signals or loop is None or not in_main_thread:
+            return lambda: None
+        installed: list[signal.Signals] = []
+        for signum in (signal.SIGINT, signal.SIGTERM):
+            try:
+                loop.add_signal_handler(signum, self.request_exit, f"{signum.name} received")
+            except (NotImplementedError, RuntimeError, ValueError):
+                continue
+            installed.append(signum)
+
+        def remove() -> None:
+            for signum in installed:
+                with contextlib.suppress(Exception):
+                    loop.remove_signal_handler(signum)
+
+        return remove
+
+
+def _signal_payload(payload: bytes) -> Value:
+    """A signal's payload: its JSON value, the raw text when it is not JSON, None when empty."""
+    if not payload:
+        return None
+    try:
+        return json.loads(payload)
+    except ValueError:
+        return payload.decode("utf-8", errors="replace")
+
+
+def run_orchestrator(
+    compiled: CompiledModel,
+    broker_settings: BrokerSettings,
+    robot: str | None = None,
+    clock: Clock | None = None,
+    call_timeout_s: float | None = None,
+    trace: bool = True,
+    trace_file: str | Path | None = None,
+    grace_s: float = DEFAULT_GRACE_S,
+    startup_timeout_s: float = DEFAULT_STARTUP_TIMEOUT_S,
+    trace_listener: Listener | None = None,
+    handle_signals: bool = True,
+) -> int:
+    """Run the orchestrator to its end in a fresh event loop; returns the exit code.
+
+    Used by `umlbot run` and `umlbot sim`. Raises `OrchestratorError` when it cannot start.
+    """
+    orchestrator = Orchestrator(
+        compiled,
+        broker_settings,
+        robot=robot,
+        clock=clock,
+        call_timeout_s=call_timeout_s,
+        trace=trace,
+        trace_file=trace_file,
+        grace_s=grace_s,
+        startup_timeout_s=startup_timeout_s,
+        trace_listener=trace_listener,
+        handle_signals=handle_signals,
+    )
+    return orchestrator.run_sync()
