@@ -394,6 +394,8 @@ class _Checker:
     def check_deployment(self) -> None:
         dep = self.source.deployment
         if dep is None:
+            if not self.source.complete:
+                return  # the model file's own error says enough
             self.d.error("the model has no deployment (deployment.yaml or deployment.txt beside "
                          "model.yaml, or a 'deployment' section)", self.source.loc)
             return
@@ -441,8 +443,16 @@ class _Checker:
             lane = _Lane(src, virtual=src.name not in self.source.components)
             self.scope.lanes[src.name] = lane
             self.lanes.append(lane)
-            for index, node in enumerate(src.nodes):
-                following = src.nodes[index + 1].id if index + 1 < len(src.nodes) else None
+            unique: list[SourceNode] = []
+            seen: set[str] = set()
+            for node in src.nodes:
+                if node.id in seen:
+                    self.d.error(f"duplicate node id '{node.id}' in swimlane '{lane.name}'", node.id_loc)
+                else:
+                    seen.add(node.id)
+                    unique.append(node)
+            for index, node in enumerate(unique):
+                following = unique[index + 1].id if index + 1 < len(unique) else None
                 self.read_node(lane, node, following)
             starts = [n for n in lane.nodes.values() if n.src.kind == "start"]
             if not starts:
@@ -477,9 +487,6 @@ class _Checker:
         return text
 
     def read_node(self, lane: _Lane, src: SourceNode, following: str | None) -> None:
-        if src.id in lane.nodes:
-            self.d.error(f"duplicate node id '{src.id}' in swimlane '{lane.name}'", src.id_loc)
-            return
         node = _Node(src)
         lane.nodes[src.id] = node
         lane.order.append(src.id)

@@ -115,6 +115,8 @@ class SourceModel:
     lanes: list[SourceLane] = field(default_factory=list)
     deployment: SourceDeployment | None = None
     source_hash: str = ""
+    #: False when the model file itself could not be read (checks that need it are skipped).
+    complete: bool = True
 
 
 class _Reader:
@@ -198,7 +200,7 @@ def _read_model_file_safe(reader: _Reader, path: Path, default_name: str) -> Sou
         return _read_model_file(reader, path, default_name)
     except ModelError as exc:
         reader.diagnostics.add_model_error(exc)
-        return SourceModel(name=default_name, loc=Location(reader.display(path), 1, 1))
+        return SourceModel(name=default_name, loc=Location(reader.display(path), 1, 1), complete=False)
 
 
 def _parse(reader: _Reader, path: Path) -> tuple[YNode | None, str]:
@@ -454,7 +456,6 @@ def _deployment_from_yaml(root: YNode, shown: str, d: Diagnostics) -> SourceDepl
             loc = _locate(root, err["loc"])
             where = ".".join(str(p) for p in err["loc"])
             d.error(f"invalid deployment: {where}: {err['msg']}", loc)
-        return None
     return result
 
 

@@ -1,0 +1,359 @@
+"""One failing model per check: the exact message, line and column of each problem."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from compiler_support import HEADER, MAIN, at, check_text, errors_of, position
+
+
+def lane(*nodes: str, name: str = "Pi") -> str:
+    body = "".join(f"      - {node}\n" for node in nodes)
+    return f"  - lane: {name}\n    nodes:\n{body}"
+
+
+def main_with(*middle: str) -> str:
+    return lane("{id: start, kind: start}", *middle, "{id: end, kind: end}")
+
+
+# (case id, model text, expected message, text to find the position by, which occurrence)
+CASES: list[tuple[str, str, str, str, int]] = [
+    ("unknown component",
+     HEADER + main_with("{id: a, kind: action, call: Motr.enabled(true)}"),
+     "unknown component 'Motr'", "Motr.", 0),
+    ("unknown feature",
+     HEADER + main_with("{id: a, kind: action, call: Motor.speed(3)}"),
+     "unknown feature 'speed' of actuator component 'Motor' (known: enabled, direction, dutycycle, "
+     "angle)", "speed", 0),
+    ("wrong argument count",
+     HEADER + main_with("{id: a, kind: action, call: Motor.enabled()}"),
+     "Motor.enabled takes 1 argument(s) (on: bool), got 0", "Motor.enabled()", 0),
+    ("wrong argument type",
+     HEADER + main_with("{id: a, kind: action, call: Motor.dutycycle(true)}"),
+     "argument 1 (percent) of Motor.dutycycle must be int, got bool", "true)", 0),
+    ("argument out of range",
+     HEADER + main_with("{id: a, kind: action, call: Motor.dutycycle(150)}"),
+     "argument 1 (percent) of Motor.dutycycle must be 0..100 by implementation 'l298n', got 150",
+     "150", 0),
+    ("argument out of the implementation's range",
+     HEADER + main_with("{id: a, kind: action, call: Servo.angle(270)}"),
+     "argument 1 (degrees) of Servo.angle must be 0..180 by implementation 'servo', got 270", "270", 0),
+    ("negative constant out of range",
+     HEADER + main_with("{id: a, kind: action, call: Servo.angle(-5)}"),
+     "argument 1 (degrees) of Servo.angle must be 0..180 by implementation 'servo', got -5", "-5", 0),
+    ("implementation does not offer the feature",
+     HEADER + main_with("{id: a, kind: action, call: Motor.angle(90)}"),
+     "implementation 'l298n' of 'Motor' does not offer feature 'angle' (it offers: enabled, direction, "
+     "dutycycle)", "angle", 0),
+    ("duplicate start",
+     HEADER + main_with("{id: again, kind: start, next: end}"),
+     "duplicate start node 'again': swimlane 'Pi' already starts at 'start'", "again", 0),
+    ("missing start",
+     HEADER + lane("{id: a, kind: action, call: Motor.enabled(true)}", "{id: end, kind: end}"),
+     "swimlane 'Pi' has no start node", "Pi\n    nodes", 0),
+    ("missing end",
+     HEADER + lane("{id: start, kind: start}", "{id: a, kind: action, call: Motor.enabled(true), "
+                   "next: a}"),
+     "swimlane 'Pi' has no end node", "Pi\n    nodes", 0),
+    ("node with no path from the start",
+     HEADER + lane("{id: start, kind: start, next: end}", "{id: lost, kind: action, call: "
+                   "Motor.enabled(true)}", "{id: end, kind: end}"),
+     "node 'lost' has no path from the start of swimlane 'Pi'", "lost", 0),
+    ("edge to an unknown node",
+     HEADER + main_with("{id: d, kind: decision, branches: [{if: 'true', then: nowhere}, {else: end}]}"),
+     "flow from 'd' goes to unknown node 'nowhere'", "nowhere", 0),
+    ("decision output without guard",
+     HEADER + main_with("{id: d, kind: decision, branches: [{then: end}, {else: end}]}"),
+     "decision output without guard: write {if: <guard>, then: <node>} or {else: <node>}",
+     "{then: end}", 0),
+    ("fork without matching join",
+     HEADER + main_with("{id: f, kind: fork, targets: [a, b]}",
+                        "{id: a, kind: action, call: Motor.enabled(true), next: end}",
+                        "{id: b, kind: action, call: Motor.enabled(false), next: end}"),
+     "fork 'f' has no matching join: its flows never reach a join", "f,", 0),
+    ("join that can never fire (two flows of one branch)",
+     HEADER + main_with(
+         "{id: f, kind: fork, targets: [a, d]}",
+         "{id: a, kind: action, call: Motor.enabled(true), next: j}",
+         "{id: d, kind: decision, branches: [{if: 'true', then: x}, {else: y}]}",
+         "{id: x, kind: action, call: msleep(1), next: j}",
+         "{id: y, kind: action, call: msleep(2), next: j}",
+         "{id: j, kind: join}"),
+     "join 'j' can never fire: the flows from 'x' and 'y' come from the same branch of fork 'f' "
+     "(from 'd'), so only one of them arrives", "j, kind: join", 0),
+    ("join that can never fire (no fork)",
+     HEADER + main_with(
+         "{id: d, kind: decision, branches: [{if: 'true', then: x}, {else: y}]}",
+         "{id: x, kind: action, call: msleep(1), next: j}",
+         "{id: y, kind: action, call: msleep(2), next: j}",
+         "{id: j, kind: join}"),
+     "join 'j' can never fire: its incoming flows (x, y) do not come from one fork", "j, kind: join", 0),
+    ("unknown datastore",
+     HEADER + main_with("{id: a, kind: action, call: msleep(delay)}"),
+     "unknown datastore 'delay' in swimlane 'Pi'", "delay", 0),
+    ("unknown datastore of another lane",
+     HEADER + main_with("{id: x, kind: datastore, name: x, value: 1}",
+                        "{id: a, kind: action, call: msleep(Pi.y)}"),
+     "unknown datastore 'y' in swimlane 'Pi'", "y)", 0),
+    ("feature read without parentheses",
+     HEADER + main_with("{id: x, kind: datastore, name: x, value: Sonar.value}"),
+     "unknown datastore 'value' in swimlane 'Sonar'; to call the feature, write Sonar.value()",
+     "value}", 0),
+    ("call to an unknown lane",
+     HEADER + main_with("{id: a, kind: action, call: TurnAround}"),
+     "unknown swimlane or builtin 'TurnAround'", "TurnAround", 0),
+    ("call to an unknown lane with parentheses",
+     HEADER + main_with("{id: a, kind: action, call: TurnAround()}"),
+     "unknown swimlane or builtin 'TurnAround'", "TurnAround", 0),
+    ("call of a component's lane",
+     HEADER + main_with("{id: a, kind: action, call: Pi()}"),
+     "'Pi' is the swimlane of component 'Pi'; only virtual swimlanes can be called", "Pi()", 0),
+    ("virtual lane called with arguments",
+     HEADER + main_with("{id: a, kind: action, call: Helper(1)}")
+     + lane("{id: start, kind: start}", "{id: end, kind: end}", name="Helper"),
+     "swimlane 'Helper' takes no arguments, got 1", "1)", 0),
+    ("a value that is not there",
+     HEADER + main_with("{id: x, kind: datastore, name: x, value: Motor.enabled(true)}"),
+     "'Motor.enabled(true)' gives no value", "Motor.enabled(true)", 0),
+    ("guard that is not a bool",
+     HEADER + main_with("{id: d, kind: decision, branches: [{if: 1 + 2, then: end}, {else: end}]}"),
+     "a guard must be a bool, got int", "1 + 2", 0),
+    ("operator on wrong types",
+     HEADER + main_with("{id: x, kind: datastore, name: x, value: true + 1}"),
+     "'+' needs numbers, got bool and int", "+ 1", 0),
+    ("expression syntax error",
+     HEADER + main_with("{id: x, kind: datastore, name: x, value: '(1 + 2'}"),
+     "expected ')', found end of expression", "'}", 0),
+    ("expression syntax error in double quotes",
+     HEADER + main_with('{id: x, kind: datastore, name: x, value: "1 = 2"}'),
+     "unexpected character '=' (write '==')", "= 2", 0),
+    ("action that is not a call",
+     HEADER + main_with("{id: a, kind: action, call: 1 + 2}"),
+     "an action is a call: Component.feature(args), a virtual swimlane, or a builtin such as msleep(ms)",
+     "1 + 2", 0),
+    ("duplicate node id",
+     HEADER + main_with("{id: start, kind: action, call: msleep(1)}"),
+     "duplicate node id 'start' in swimlane 'Pi'", "start, kind: action", 0),
+    ("unknown key in a node",
+     HEADER + main_with("{id: a, kind: action, call: msleep(1), nxt: end}"),
+     "unknown key 'nxt' in action node (expected: id, kind, call, next)", "nxt", 0),
+    ("unknown node kind",
+     HEADER + main_with("{id: a, kind: activity}"),
+     "node 'a': 'kind' must be one of start, end, action, datastore, decision, fork, join, send, accept",
+     "activity", 0),
+    ("node without outgoing flow",
+     HEADER + lane("{id: start, kind: start}",
+                   "{id: d, kind: decision, branches: [{if: 'true', then: last}, {else: end}]}",
+                   "{id: end, kind: end}", "{id: last, kind: action, call: msleep(1)}"),
+     "action node 'last' has no outgoing flow: give it 'next' or put a node after it", "last", 1),
+    ("duplicate swimlane",
+     HEADER + MAIN + MAIN,
+     "duplicate swimlane 'Pi' (first defined at {file}:17)", "Pi\n    nodes", 1),
+    ("unknown component kind",
+     HEADER.replace("Pi: {kind: system}", "Pi: {kind: computer}") + MAIN,
+     "unknown component kind 'computer' (expected system, actuator or sensor)", "computer", 0),
+    ("port naming an unknown feature",
+     HEADER.replace("ports: {drive: enabled}", "ports: {drive: speed}") + MAIN,
+     "port 'drive' names unknown feature 'speed' of actuator component 'Motor' (known: enabled, "
+     "direction, dutycycle, angle)", "speed", 0),
+    ("port naming a feature the implementation lacks",
+     HEADER.replace("ports: {drive: enabled}", "ports: {drive: angle}") + MAIN,
+     "implementation 'l298n' of 'Motor' does not offer feature 'angle' (port 'drive')", "angle", 0),
+    ("link to an unknown port",
+     HEADER + MAIN + "links:\n  - {id: wire, from: Motor.drive, to: Sonar.echo}\n",
+     "link 'wire' names unknown port 'echo' of component 'Sonar'", "Sonar.echo", 0),
+    ("deployment naming an unknown component",
+     HEADER.replace("    Sonar: {impl: hcsr04}\n", "    Sonar: {impl: hcsr04}\n    Wheel: {impl: l298n}\n")
+     + MAIN,
+     "deployment names unknown component 'Wheel'", "Wheel", 0),
+    ("deployment naming an unknown implementation",
+     HEADER.replace("Motor: {impl: l298n}", "Motor: {impl: l293d}") + MAIN,
+     "unknown implementation id 'l293d' for component 'Motor'", "l293d", 0),
+    ("deployment missing a component",
+     HEADER.replace("    Sonar: {impl: hcsr04}\n", "") + MAIN,
+     "component 'Sonar' has no implementation in the deployment", "Sonar", 0),
+    ("implementation of another kind",
+     HEADER.replace("Sonar: {impl: hcsr04}", "Sonar: {impl: l298n}") + MAIN,
+     "component 'Sonar' is a sensor but implementation 'l298n' is a actuator", "l298n}", 1),
+    ("invalid YAML",
+     HEADER + "  - lane: Pi\n    nodes: [\n",
+     "invalid YAML: expected the node content, but found '<stream end>'", "", -1),
+    ("reserved name",
+     HEADER + MAIN + lane("{id: start, kind: start}", "{id: end, kind: end}", name="Application"),
+     "'Application' is a reserved name; choose another swimlane name", "Application", 0),
+    ("builtin misspelt",
+     HEADER + main_with("{id: d, kind: decision, branches: [{if: Application.quit, then: end}, "
+                        "{else: end}]}"),
+     "unknown builtin 'Application.quit' (known: Application.exit)", "quit", 0),
+    ("sleep without argument",
+     HEADER + main_with("{id: a, kind: action, call: msleep}"),
+     "msleep needs an argument: msleep(ms)", "msleep", 0),
+]
+
+
+@pytest.mark.parametrize(("text", "message", "needle", "nth"),
+                         [case[1:] for case in CASES], ids=[case[0] for case in CASES])
+def test_each_check_reports_message_line_and_column(tmp_path: Path, text: str, message: str,
+                                                    needle: str, nth: int) -> None:
+    result = check_text(tmp_path, text)
+    file = str(tmp_path / "model.yaml")
+    errors = errors_of(result)
+    assert result.model is None
+    assert [e.message for e in errors] == [message.replace("{file}", file)], [str(e) for e in errors]
+    if nth >= 0:
+        assert at(errors[0]) == position(text, needle, nth)
+    assert errors[0].location.file == file
+    assert str(errors[0]).startswith(f"{file}:{errors[0].location.line}:{errors[0].location.column}: "
+                                     "error: ")
+
+
+def test_invalid_yaml_points_at_the_problem(tmp_path: Path) -> None:
+    text = HEADER + "  - lane: Pi\n    nodes: [\n"
+    errors = errors_of(check_text(tmp_path, text))
+    assert at(errors[0]) == (text.count("\n") + 1, 1)
+
+
+def test_exact_position_of_an_unknown_feature(tmp_path: Path) -> None:
+    """The same check as above, with the position written out: line 20, column 43."""
+    text = HEADER + main_with("{id: a, kind: action, call: Motor.speed(3)}")
+    errors = errors_of(check_text(tmp_path, text))
+    assert at(errors[0]) == (20, 43)
+
+
+def test_decision_without_else_is_a_warning(tmp_path: Path) -> None:
+    text = HEADER + main_with("{id: d, kind: decision, branches: [{if: Application.exit, then: end}]}")
+    result = check_text(tmp_path, text)
+    assert result.ok
+    assert [(w.message, at(w)) for w in result.warnings] == [
+        ("decision 'd' has no else output: when no guard holds, this flow stops",
+         position(text, "d, kind: decision"))]
+
+
+def test_virtual_lane_never_called_is_a_warning(tmp_path: Path) -> None:
+    text = HEADER + MAIN + lane("{id: start, kind: start}", "{id: end, kind: end}", name="Spare")
+    result = check_text(tmp_path, text)
+    assert result.ok
+    assert [(w.message, at(w)) for w in result.warnings] == [
+        ("virtual swimlane 'Spare' is never called", position(text, "Spare"))]
+
+
+def test_recursion_between_virtual_lanes(tmp_path: Path) -> None:
+    text = (HEADER + main_with("{id: a, kind: action, call: Ping}")
+            + lane("{id: start, kind: start}", "{id: p, kind: action, call: Pong}", "{id: end, kind: end}",
+                   name="Ping")
+            + lane("{id: start, kind: start}", "{id: p, kind: action, call: Ping()}",
+                   "{id: end, kind: end}", name="Pong"))
+    errors = errors_of(check_text(tmp_path, text))
+    assert [e.message for e in errors] == ["recursion between virtual swimlanes: Ping -> Pong -> Ping"]
+    assert at(errors[0]) == position(text, "Ping()")
+
+
+def test_a_virtual_lane_calling_itself(tmp_path: Path) -> None:
+    text = (HEADER + main_with("{id: a, kind: action, call: Loop}")
+            + lane("{id: start, kind: start}", "{id: again, kind: action, call: Loop}",
+                   "{id: end, kind: end}", name="Loop"))
+    errors = errors_of(check_text(tmp_path, text))
+    assert [e.message for e in errors] == ["virtual swimlane 'Loop' calls itself (recursion is not allowed)"]
+    assert at(errors[0]) == position(text, "Loop}", 1)
+
+
+def test_every_problem_in_one_run(tmp_path: Path) -> None:
+    text = HEADER.replace("Motor: {impl: l298n}", "Motor: {impl: l293d}") + main_with(
+        "{id: a, kind: action, call: Motr.enabled(true)}",
+        "{id: b, kind: action, call: Servo.angle(999)}",
+        "{id: c, kind: action, call: msleep(delay), next: nowhere}",
+    )
+    result = check_text(tmp_path, text)
+    messages = [e.message for e in errors_of(result)]
+    assert messages == [
+        "unknown implementation id 'l293d' for component 'Motor'",
+        "unknown component 'Motr'",
+        "argument 1 (degrees) of Servo.angle must be 0..180 by implementation 'servo', got 999",
+        "unknown datastore 'delay' in swimlane 'Pi'",
+        "flow from 'c' goes to unknown node 'nowhere'",
+        "node 'end' has no path from the start of swimlane 'Pi'",
+    ]
+    lines = [e.location.line for e in errors_of(result)]
+    assert lines == sorted(lines)
+
+
+def test_missing_deployment(tmp_path: Path) -> None:
+    text = HEADER.split("deployment:")[0] + "lanes:\n" + MAIN
+    errors = errors_of(check_text(tmp_path, text))
+    assert [e.message for e in errors] == [
+        "the model has no deployment (deployment.yaml or deployment.txt beside model.yaml, or a "
+        "'deployment' section)"]
+    assert at(errors[0]) == (1, 1)
+
+
+def _folder_model(tmp_path: Path, deployment: str, name: str = "deployment.txt") -> Path:
+    root = tmp_path / "m"
+    (root / "activities").mkdir(parents=True)
+    components = HEADER.split("deployment:")[0]
+    (root / "model.yaml").write_text(components, encoding="utf-8")
+    (root / "activities" / "main.yaml").write_text(
+        "lane: Pi\nnodes:\n  - {id: start, kind: start}\n  - {id: end, kind: end}\n", encoding="utf-8")
+    (root / name).write_text(deployment, encoding="utf-8")
+    return root
+
+
+def test_plain_deployment_positions(tmp_path: Path) -> None:
+    from compiler.api import check_model
+
+    text = "# seed format\nPi=CModelSystemRaspberryPI\nMotor=CModelL298NActuator\n  Servo = CModelServo\n" \
+           "Sonar=CModelDistanceSensorHCSR\nWheel=l298n\n"
+    root = _folder_model(tmp_path, text)
+    errors = errors_of(check_model(root))
+    file = str(root / "deployment.txt")
+    assert [(e.message, e.location.file, at(e)) for e in errors] == [
+        ("unknown implementation id 'CModelServo' for component 'Servo'", file, (4, 11)),
+        ("deployment names unknown component 'Wheel'", file, (6, 1)),
+    ]
+
+
+def test_rich_deployment_shape_error_position(tmp_path: Path) -> None:
+    from compiler.api import check_model
+
+    text = "driver: mock\ncomponents:\n  Pi: {impl: raspberrypi, colour: red}\n"
+    root = _folder_model(tmp_path, text, "deployment.yaml")
+    errors = errors_of(check_model(root))
+    assert [(e.message, at(e)) for e in errors] == [
+        ("invalid deployment: components.Pi.colour: Extra inputs are not permitted", (3, 27))]
+
+
+def test_folder_model_errors_name_their_files(tmp_path: Path) -> None:
+    from compiler.api import check_model
+
+    root = _folder_model(tmp_path, "Pi=raspberrypi\nMotor=l298n\nServo=servo\nSonar=hcsr04\n")
+    (root / "activities" / "extra.yaml").write_text(
+        "lane: Extra\nnodes:\n  - {id: start, kind: start}\n  - {id: a, kind: action, call: Motor.fly()}\n"
+        "  - {id: end, kind: end}\n", encoding="utf-8")
+    errors = errors_of(check_model(root))
+    assert [(e.location.file, at(e), e.message) for e in errors] == [
+        (str(root / "activities" / "extra.yaml"), (4, 39),
+         "unknown feature 'fly' of actuator component 'Motor' (known: enabled, direction, dutycycle, "
+         "angle)")]
+
+
+def test_missing_model_file(tmp_path: Path) -> None:
+    from compiler.api import check_model
+
+    result = check_model(tmp_path)
+    assert [e.message for e in result.errors] == ["not a model: no model.yaml in this folder"]
+
+
+def test_compile_model_raises_model_errors_with_every_diagnostic(tmp_path: Path) -> None:
+    from compiler.api import compile_model
+    from compiler.diagnostics import ModelErrors
+    from umlbot.errors import ModelError
+
+    path = tmp_path / "model.yaml"
+    path.write_text(HEADER + main_with("{id: a, kind: action, call: Motr.enabled(true)}",
+                                       "{id: b, kind: action, call: Motor.fly()}"), encoding="utf-8")
+    with pytest.raises(ModelErrors) as caught:
+        compile_model(path)
+    assert isinstance(caught.value, ModelError)
+    assert caught.value.message == "unknown component 'Motr' (and 1 more error(s))"
+    assert (caught.value.line, caught.value.column) == (20, 37)
+    assert len(caught.value.diagnostics) == 2
