@@ -1,0 +1,22 @@
+"""`umlbot monitor`: watch a robot's traffic — availability, calls with latency, the trace.
+
+`MonitorState` turns MQTT messages (or trace-file lines) into `MonitorEvent`s and statistics;
+`LiveMonitor` feeds it from the broker; `replay` from a recorded trace; `render` draws it.
+"""
+
+from services.monitor.live import LiveMonitor, topic_filter
+from services.monitor.replay import read_trace, replay
+from services.monitor.state import MonitorEvent, MonitorState, Stats, percentile
+from services.monitor.view import render
+
+__all__ = [
+    "LiveMonitor",
+    "MonitorEvent",
+    "MonitorState",
+    "Stats",
+    "percentile",
+    "read_trace",
+    "render",
+    "replay",
+    "topic_filter",
+]

@@ -1,0 +1,60 @@
+"""The live source of the monitor: one read-only bus connection subscribed to a robot's topics."""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable
+
+from services.bus.connection import BusConnection, Message
+from services.bus.settings import BrokerSettings
+from services.monitor.state import MonitorEvent, MonitorState
+
+EventSink = Callable[[MonitorEvent], None]
+
+
+def topic_filter(robot: str | None) -> str:
+    """Everything of one robot, or of every robot when `robot` is None."""
+    return f"umlbot/{robot}/#" if robot else "umlbot/+/#"
+
+
+class LiveMonitor:
+    """Feeds `state` from the broker; `on_event` runs on the bus dispatcher thread.
+
+    Readers of `state` (the terminal view) hold `lock` while they look. It never publishes, so a
+    read-only MQTT user (`umlbot-monitor`) is enough.
+    """
+
+    def __init__(self, settings: BrokerSettings, robot: str | None, on_event: EventSink,
+                 state: MonitorState | None = None) -> None:
+        self.robot = robot
+        self.state = state or MonitorState()
+        self.lock = threading.Lock()
+        self._on_event = on_event
+        self._connection = BusConnection(settings, "monitor", robot=robot or "any")
+        self._connection.subscribe(topic_filter(robot), self._handle)
+
+    @property
+    def connected(self) -> bool:
+        return self._connection.connected
+
+    def start(self, timeout: float = 5.0) -> None:
+        """Connect; raises NotConnected when the broker is not reached within `timeout`."""
+        self._connection.start(timeout)
+
+    def tick(self, now: float | None = None) -> None:
+        """Report calls that stayed unanswered (call it about once a second)."""
+        with self.lock:
+            events = self.state.expire(time.time() if now is None else now)
+        for event in events:
+            self._on_event(event)
+
+    def close(self) -> None:
+        """Disconnect; safe to call twice."""
+        self._connection.close()
+
+    def _handle(self, message: Message) -> None:
+        with self.lock:
+            events = self.state.observe(message.topic, message.payload, time.time())
+        for event in events:
+            self._on_event(event)

@@ -1,0 +1,334 @@
+"""What the monitor knows about a robot, built from the MQTT messages it sees (SPEC §3).
+
+`MonitorState.observe(topic, payload, at)` turns one message under `umlbot/<robot>/` into zero or
+more `MonitorEvent`s and updates the picture the live view draws: availability per component,
+the last calls with their latency (a request on `…/call/<feature>` paired by `reply_to` and `id`
+with its reply), the node each lane executes, and per-action counts with p50/p99 durations.
+Nothing here touches the network; the same state is fed live from the bus or from a trace file.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections import Counter, deque
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, ValidationError
+
+from services.bus.envelopes import ENVELOPE_KEYS, CallRequest, Reply, TraceEvent
+
+EventType = Literal["availability", "call", "state", "signal", "trace", "orchestrator", "exit"]
+
+#: trace node kinds that do work (their durations are worth a percentile).
+TIMED_KINDS = frozenset({"action", "datastore", "send", "accept"})
+#: a request without a reply for this long is reported as unanswered.
+DEFAULT_CALL_TIMEOUT_S = 5.0
+#: samples kept per action or feature for the percentiles.
+SAMPLE_WINDOW = 2000
+MAX_PENDING_CALLS = 10_000
+
+
+class MonitorEvent(BaseModel):
+    """One thing that happened on the robot, as printed by `umlbot monitor --json` (one a line)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    type: EventType
+    time: float  # unix seconds: when the monitor saw it (a trace event: when the node ended)
+    robot: str
+    topic: str | None = None
+    component: str | None = None
+    feature: str | None = None
+    state: str | None = None  # availability ("online"/"offline") or the orchestrator's state
+    impl: str | None = None
+    args: list[Any] | None = None
+    id: str | None = None
+    ok: bool | None = None
+    value: Any = None
+    error: str | None = None
+    latency_ms: float | None = None
+    lane: str | None = None
+    node: str | None = None
+    kind: str | None = None
+    duration_ms: float | None = None
+    level: str | None = None
+    detail: str | None = None
+    payload: Any = None
+
+    def line(self) -> str:
+        """The compact JSON line (fields that are None left out)."""
+        return self.model_dump_json(exclude_none=True)
+
+
+def percentile(sorted_values: list[float], fraction: float) -> float:
+    """Nearest-rank percentile of an ascending list (fraction 0.5 = median); NaN when empty."""
+    if not sorted_values:
+        return math.nan
+    rank = max(1, math.ceil(fraction * len(sorted_values)))
+    return sorted_values[min(rank, len(sorted_values)) - 1]
+
+
+@dataclass
+class Stats:
+    """Count, errors and a window of durations (ms) of one action or feature."""
+
+    label: str
+    count: int = 0
+    errors: int = 0
+    samples: deque[float] = field(default_factory=lambda: deque(maxlen=SAMPLE_WINDOW))
+
+    def add(self, duration_ms: float | None, failed: bool = False) -> None:
+        self.count += 1
+        if failed:
+            self.errors += 1
+        if duration_ms is not None and math.isfinite(duration_ms):
+            self.samples.append(duration_ms)
+
+    @property
+    def p50(self) -> float:
+        return percentile(sorted(self.samples), 0.50)
+
+    @property
+    def p99(self) -> float:
+        return percentile(sorted(self.samples), 0.99)
+
+
+@dataclass
+class Availability:
+    """The last status a component published."""
+
+    state: str
+    impl: str | None
+    since: float
+
+
+@dataclass
+class LaneNow:
+    """The node a lane executed last (trace events arrive when a node ends)."""
+
+    node: str
+    kind: str
+    detail: str | None
+    at: float
+    error: str | None = None
+
+
+@dataclass
+class _Pending:
+    robot: str
+    component: str
+    feature: str
+    args: list[Any]
+    at: float
+    topic: str
+
+
+def split_topic(topic: str) -> tuple[str, list[str]] | None:
+    """(robot, levels after `umlbot/<robot>/`) or None for a topic outside umlbot."""
+    parts = topic.split("/")
+    if len(parts) < 3 or parts[0] != "umlbot":
+        return None
+    return parts[1], parts[2:]
+
+
+class MonitorState:
+    """The robot as the monitor sees it; feed it messages, read its tables, print its events."""
+
+    def __init__(self, call_timeout_s: float = DEFAULT_CALL_TIMEOUT_S, recent: int = 20) -> None:
+        self.call_timeout_s = call_timeout_s
+        self.availability: dict[tuple[str, str], Availability] = {}
+        self.orchestrator: dict[str, str] = {}
+        self.lanes: dict[tuple[str, str], LaneNow] = {}
+        self.actions: dict[tuple[str, str, str], Stats] = {}
+        self.features: dict[tuple[str, str, str], Stats] = {}
+        self.recent_calls: deque[MonitorEvent] = deque(maxlen=recent)
+        self.recent_events: deque[MonitorEvent] = deque(maxlen=recent)
+        self.messages = 0
+        self.unparsed = 0
+        self._pending: dict[tuple[str, str], _Pending] = {}
+        self._reply_topics: Counter[str] = Counter()  # reply_to topics of the pending calls
+
+    # -- input ----------------------------------------------------------------------------------
+
+    def observe(self, topic: str, payload: bytes, at: float) -> list[MonitorEvent]:
+        """Take one MQTT message seen at unix time `at`; return the events it makes."""
+        where = split_topic(topic)
+        if where is None:
+            if topic in self._reply_topics:  # a caller chose a reply topic outside umlbot/
+                self.messages += 1
+                return self._on_reply(topic, payload, at)
+            return []
+        self.messages += 1
+        robot, levels = where
+        events: list[MonitorEvent] = []
+        if levels[0] == "_reply" or topic in self._reply_topics:
+            events += self._on_reply(topic, payload, at)
+        elif levels[0] == "signal" and len(levels) >= 2:
+            events.append(MonitorEvent(type="signal", time=at, robot=robot, topic=topic,
+                                       feature="/".join(levels[1:]), payload=_json_or_text(payload)))
+        elif levels[0] == "orchestrator" and len(levels) == 2:
+            events += self._on_orchestrator(robot, levels[1], topic, payload, at)
+        elif len(levels) >= 3 and levels[1] == "call":
+            events += self._on_request(robot, levels[0], "/".join(levels[2:]), topic, payload, at)
+        elif len(levels) == 2 and levels[1] == "status":
+            events += self._on_status(robot, levels[0], topic, payload, at)
+        elif len(levels) == 2 and levels[1] == "state":
+            events.append(MonitorEvent(type="state", time=at, robot=robot, topic=topic,
+                                       component=levels[0], payload=_json_or_text(payload)))
+        for event in events:
+            if event.type != "call":
+                self.recent_events.append(event)
+        return events
+
+    def observe_trace(self, trace: TraceEvent, robot: str, topic: str | None = None) -> MonitorEvent:
+        """Take one trace event (from the bus or a trace file) and return its monitor event."""
+        now = LaneNow(trace.node, trace.kind, trace.detail, trace.end, trace.error)
+        self.lanes[(robot, trace.lane)] = now
+        if trace.kind in TIMED_KINDS:
+            key = (robot, trace.lane, trace.node)
+            stats = self.actions.get(key)
+            if stats is None:
+                stats = self.actions[key] = Stats(trace.detail or trace.node)
+            stats.add(trace.duration_ms, failed=trace.error is not None)
+        return MonitorEvent(
+            type="trace", time=trace.end, robot=robot, topic=topic, lane=trace.lane, node=trace.node,
+            kind=trace.kind, duration_ms=trace.duration_ms, value=trace.value, error=trace.error,
+            level=trace.level, detail=trace.detail,
+        )
+
+    def expire(self, now: float) -> list[MonitorEvent]:
+        """Report the calls that got no reply within the time-out as failed (`error` says so)."""
+        late = [key for key, p in self._pending.items() if now - p.at > self.call_timeout_s]
+        events = []
+        for key in late:
+            pending = self._take(key)
+            assert pending is not None
+            events.append(self._finish(pending, key[1], at=now, ok=False, value=None,
+                                       error=f"no reply within {self.call_timeout_s:g} s", latency_ms=None))
+        return events
+
+    @property
+    def pending_calls(self) -> int:
+        """Requests seen whose reply has not arrived yet."""
+        return len(self._pending)
+
+    # -- message kinds --------------------------------------------------------------------------
+
+    def _on_request(self, robot: str, component: str, feature: str, topic: str, payload: bytes,
+                    at: float) -> list[MonitorEvent]:
+        try:
+            data = json.loads(payload) if payload else None
+        except ValueError:
+            return [self._record_call(MonitorEvent(
+                type="call", time=at, robot=robot, topic=topic, component=component, feature=feature,
+                ok=False, error="bad_json: the request is not JSON"))]
+        if isinstance(data, dict) and data and set(data) <= ENVELOPE_KEYS:
+            try:
+                request = CallRequest.model_validate(data)
+            except ValidationError:
+                return [self._record_call(MonitorEvent(
+                    type="call", time=at, robot=robot, topic=topic, component=component, feature=feature,
+                    ok=False, error="bad_request: not a valid request envelope"))]
+            if request.reply_to and request.id is not None:
+                if len(self._pending) >= MAX_PENDING_CALLS:
+                    self._take(next(iter(self._pending)))
+                key = (request.reply_to, str(request.id))
+                self._take(key)  # a repeated id replaces the older request
+                self._reply_topics[request.reply_to] += 1
+                self._pending[key] = _Pending(robot, component, feature, request.args, at, topic)
+                return []
+            args: list[Any] = request.args
+        else:
+            args = data if isinstance(data, list) else [data]
+        # fire-and-forget: no reply will come
+        return [self._record_call(MonitorEvent(
+            type="call", time=at, robot=robot, topic=topic, component=component, feature=feature,
+            args=args, detail="fire-and-forget"))]
+
+    def _on_reply(self, topic: str, payload: bytes, at: float) -> list[MonitorEvent]:
+        try:
+            reply = Reply.model_validate_json(payload)
+        except ValidationError:
+            self.unparsed += 1
+            return []
+        key = (topic, str(reply.id))
+        pending = self._take(key)
+        if pending is None:
+            return []  # a reply to a call made before the monitor started
+        error = f"{reply.error.code}: {reply.error.message}" if reply.error is not None else None
+        return [self._finish(pending, key[1], at=at, ok=reply.ok, value=reply.value, error=error,
+                             latency_ms=round((at - pending.at) * 1000.0, 3))]
+
+    def _take(self, key: tuple[str, str]) -> _Pending | None:
+        """Remove a pending call (and its count on its reply topic)."""
+        pending = self._pending.pop(key, None)
+        if pending is not None:
+            self._reply_topics[key[0]] -= 1
+            if self._reply_topics[key[0]] <= 0:
+                del self._reply_topics[key[0]]
+        return pending
+
+    def _finish(self, pending: _Pending, call_id: str, *, at: float, ok: bool, value: Any,
+                error: str | None, latency_ms: float | None) -> MonitorEvent:
+        return self._record_call(MonitorEvent(
+            type="call", time=at, robot=pending.robot, topic=pending.topic, component=pending.component,
+            feature=pending.feature, args=pending.args, id=call_id, ok=ok, value=value, error=error,
+            latency_ms=latency_ms))
+
+    def _record_call(self, event: MonitorEvent) -> MonitorEvent:
+        assert event.component is not None and event.feature is not None
+        key = (event.robot, event.component, event.feature)
+        stats = self.features.get(key)
+        if stats is None:
+            stats = self.features[key] = Stats(f"{event.component}.{event.feature}")
+        stats.add(event.latency_ms, failed=event.ok is False)
+        self.recent_calls.append(event)
+        return event
+
+    def _on_status(self, robot: str, component: str, topic: str, payload: bytes,
+                   at: float) -> list[MonitorEvent]:
+        data = _json_or_text(payload)
+        if not payload:  # a cleared retained status
+            self.availability.pop((robot, component), None)
+            return []
+        state = str(data.get("state", "unknown")) if isinstance(data, dict) else "unknown"
+        impl = data.get("impl") if isinstance(data, dict) else None
+        previous = self.availability.get((robot, component))
+        if previous is not None and previous.state == state:
+            previous.impl = impl or previous.impl
+            return []
+        self.availability[(robot, component)] = Availability(state, impl, at)
+        return [MonitorEvent(type="availability", time=at, robot=robot, topic=topic, component=component,
+                             state=state, impl=impl)]
+
+    def _on_orchestrator(self, robot: str, leaf: str, topic: str, payload: bytes,
+                         at: float) -> list[MonitorEvent]:
+        if leaf == "trace":
+            try:
+                trace = TraceEvent.model_validate_json(payload)
+            except ValidationError:
+                self.unparsed += 1
+                return []
+            return [self.observe_trace(trace, robot, topic)]
+        data = _json_or_text(payload)
+        if leaf == "status":
+            if not payload:
+                return []
+            state = str(data.get("state", "unknown")) if isinstance(data, dict) else str(data)
+            self.orchestrator[robot] = state
+            reason = data.get("reason") if isinstance(data, dict) else None
+            return [MonitorEvent(type="orchestrator", time=at, robot=robot, topic=topic, state=state,
+                                 detail=reason)]
+        if leaf == "exit":
+            return [MonitorEvent(type="exit", time=at, robot=robot, topic=topic, payload=data)]
+        return []
+
+
+def _json_or_text(payload: bytes) -> Any:
+    """The payload as JSON when it is JSON, else as text (undecodable bytes replaced)."""
+    try:
+        return json.loads(payload)
+    except ValueError:
+        return payload.decode("utf-8", errors="replace")

@@ -1,0 +1,138 @@
+"""MonitorState: requests paired with replies, availability changes, lanes and percentiles."""
+
+from __future__ import annotations
+
+import io
+import json
+import math
+from pathlib import Path
+
+import pytest
+from rich.console import Console
+
+from services.bus.envelopes import TraceEvent
+from services.monitor import MonitorEvent, MonitorState, percentile, read_trace, render, replay
+from umlbot.errors import ConfigError
+
+
+def j(value: object) -> bytes:
+    return json.dumps(value).encode()
+
+
+def trace(lane: str, node: str, kind: str, start: float, ms: float, **extra: object) -> TraceEvent:
+    return TraceEvent(lane=lane, node=node, kind=kind, start=start, end=start + ms / 1000,
+                      duration_ms=ms, **extra)
+
+
+def test_a_request_is_paired_with_its_reply_by_reply_topic_and_id() -> None:
+    state = MonitorState()
+    reply_to = "umlbot/car/_reply/orch-1"
+    assert state.observe("umlbot/car/DistanceRead/call/value",
+                         j({"id": "7", "reply_to": reply_to, "args": []}), at=100.0) == []
+    assert state.pending_calls == 1
+    # same id on another caller's reply topic: not ours
+    assert state.observe("umlbot/car/_reply/other", j({"id": "7", "ok": True, "value": 1}), 100.01) == []
+    [event] = state.observe(reply_to, j({"id": "7", "ok": True, "value": 42}), at=100.0125)
+    assert event.type == "call" and event.component == "DistanceRead" and event.feature == "value"
+    assert event.ok is True and event.value == 42
+    assert event.latency_ms == pytest.approx(12.5)
+    assert state.pending_calls == 0
+    assert state.features[("car", "DistanceRead", "value")].count == 1
+
+
+def test_error_replies_and_unanswered_calls_are_failures() -> None:
+    state = MonitorState(call_timeout_s=1.0)
+    motor = "umlbot/car/LeftActuator/call"
+    state.observe(f"{motor}/dutycycle", j({"id": 1, "reply_to": "r/x", "args": [500]}), 0.0)
+    [failed] = state.observe("r/x", j({"id": 1, "ok": False,
+                                       "error": {"code": "out_of_range", "message": "0..100"}}), 0.002)
+    assert failed.ok is False and failed.error == "out_of_range: 0..100" and failed.args == [500]
+    state.observe(f"{motor}/enabled", j({"id": 2, "reply_to": "r/x", "args": [True]}), 1.0)
+    assert state.expire(1.5) == []
+    [late] = state.expire(2.5)
+    assert late.ok is False and late.error is not None and "no reply" in late.error
+    assert state.features[("car", "LeftActuator", "dutycycle")].errors == 1
+
+
+def test_fire_and_forget_and_bad_requests() -> None:
+    state = MonitorState()
+    [bare] = state.observe("umlbot/car/LeftActuator/call/dutycycle", b"60", 5.0)
+    assert bare.args == [60] and bare.ok is None and bare.detail == "fire-and-forget"
+    [listed] = state.observe("umlbot/car/RaspberryPI/call/writePin", b"[22, 1]", 5.0)
+    assert listed.args == [22, 1]
+    [bad] = state.observe("umlbot/car/LeftActuator/call/dutycycle", b"{not json", 5.0)
+    assert bad.ok is False and bad.error is not None and bad.error.startswith("bad_json")
+
+
+def test_availability_events_only_on_change() -> None:
+    state = MonitorState()
+    online = j({"state": "online", "impl": "l298n", "features": ["enabled"]})
+    [first] = state.observe("umlbot/car/LeftActuator/status", online, 1.0)
+    assert (first.type, first.component, first.state, first.impl) == ("availability", "LeftActuator",
+                                                                     "online", "l298n")
+    assert state.observe("umlbot/car/LeftActuator/status", online, 2.0) == []
+    [gone] = state.observe("umlbot/car/LeftActuator/status", j({"state": "offline"}), 3.0)
+    assert gone.state == "offline"
+    assert state.availability[("car", "LeftActuator")].state == "offline"
+
+
+def test_orchestrator_status_signal_state_and_exit() -> None:
+    state = MonitorState()
+    [status] = state.observe("umlbot/car/orchestrator/status", j({"state": "running", "model": "m"}), 1.0)
+    assert status.type == "orchestrator" and status.state == "running"
+    [signal] = state.observe("umlbot/car/signal/obstacle", j({"cm": 12}), 1.0)
+    assert signal.type == "signal" and signal.feature == "obstacle" and signal.payload == {"cm": 12}
+    [st] = state.observe("umlbot/car/LeftActuator/state", j({"enabled": True}), 1.0)
+    assert st.type == "state" and st.payload == {"enabled": True}
+    [ex] = state.observe("umlbot/car/orchestrator/exit", b"{}", 1.0)
+    assert ex.type == "exit"
+    assert state.observe("elsewhere/topic", b"1", 1.0) == []
+
+
+def test_trace_events_drive_lanes_and_action_percentiles() -> None:
+    state = MonitorState()
+    for i in range(100):
+        event = state.observe("umlbot/car/orchestrator/trace", trace(
+            "LeftActuator", "a1", "action", 10.0 + i, float(i + 1),
+            detail="LeftActuator.dutycycle(60)").model_dump_json().encode(), 0.0)
+        assert event[0].type == "trace"
+    state.observe_trace(trace("LeftActuator", "d1", "decision", 200.0, 0.01), "car")
+    lane = state.lanes[("car", "LeftActuator")]
+    assert (lane.node, lane.kind) == ("d1", "decision")
+    stats = state.actions[("car", "LeftActuator", "a1")]
+    assert stats.count == 100 and stats.label == "LeftActuator.dutycycle(60)"
+    assert stats.p50 == 50.0 and stats.p99 == 99.0
+    assert ("car", "LeftActuator", "d1") not in state.actions  # decisions are not timed
+
+
+def test_percentile_nearest_rank() -> None:
+    assert math.isnan(percentile([], 0.5))
+    assert percentile([3.0], 0.99) == 3.0
+    assert percentile([1.0, 2.0, 3.0, 4.0], 0.5) == 2.0
+    assert percentile([float(i) for i in range(1, 1001)], 0.99) == 990.0
+
+
+def test_replay_reads_a_trace_file_at_the_recorded_pace(tmp_path: Path) -> None:
+    path = tmp_path / "trace.jsonl"
+    events = [trace("Sensor", f"n{i}", "action", 100.0 + i * 0.5, 1.0) for i in range(4)]
+    path.write_text("".join(e.model_dump_json() + "\n" for e in events) + "\n", encoding="utf-8")
+    state = MonitorState()
+    seen: list[MonitorEvent] = []
+    slept: list[float] = []
+    assert replay(path, state, "car", seen.append, speed=2.0, sleep=slept.append) == 4
+    assert [e.node for e in seen] == ["n0", "n1", "n2", "n3"]
+    assert slept == pytest.approx([0.25, 0.25, 0.25])
+    assert state.lanes[("car", "Sensor")].node == "n3"
+    console = Console(record=True, width=160, file=io.StringIO())
+    console.print(render(state, now=200.0))
+    screen = console.export_text()
+    assert "Lanes" in screen and "Sensor" in screen and "n3" in screen
+
+
+def test_a_bad_trace_line_names_file_and_line(tmp_path: Path) -> None:
+    path = tmp_path / "trace.jsonl"
+    path.write_text(trace("L", "n", "action", 1.0, 1.0).model_dump_json() + "\n{\"lane\": 1}\n")
+    with pytest.raises(ConfigError, match=r"trace.jsonl:2: not a trace event"):
+        list(read_trace(path))
+    with pytest.raises(ConfigError, match="cannot read trace file"):
+        list(read_trace(tmp_path / "missing.jsonl"))

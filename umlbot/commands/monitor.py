@@ -1,0 +1,161 @@
+"""`umlbot monitor`: a live view of a robot's traffic, JSON lines for piping, or a trace replay."""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import sys
+import threading
+import time
+from collections.abc import Callable
+from pathlib import Path
+from types import FrameType
+from typing import TYPE_CHECKING
+
+import click
+
+if TYPE_CHECKING:
+    from services.monitor import MonitorEvent, MonitorState
+
+Sink = Callable[["MonitorEvent"], None]
+
+REFRESH_S = 0.25
+
+
+@click.command(name="monitor")
+@click.option("--robot", default=lambda: os.environ.get("UMLBOT_ROBOT") or None,
+              show_default="$UMLBOT_ROBOT, else every robot",
+              help="Robot id to watch (topics umlbot/<robot>/#).")
+@click.option("--broker", "broker_url", default=None, metavar="URL",
+              help="Broker URL, e.g. mqtt://user:pass@host:1883 "
+              "(default: $UMLBOT_BROKER or mqtt://127.0.0.1:1883).")
+@click.option("--ca-file", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="CA certificate file for mqtts:// brokers.")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON line per event instead of the view.")
+@click.option("--replay", "replay_file", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="Play a recorded trace (umlbot run --trace FILE) instead of watching the broker.")
+@click.option("--speed", type=click.FloatRange(min=0), default=None,
+              help="Replay speed: 1 = recorded pace, 0 = no waiting "
+              "(default: 1 for the view, 0 with --json).")
+@click.option("--duration", type=click.FloatRange(min=0), default=None,
+              help="Stop after this many seconds (default: until Ctrl-C or SIGTERM).")
+@click.option("--call-timeout", type=click.FloatRange(min=0.1), default=5.0, show_default=True,
+              help="Report a call without a reply after this many seconds.")
+@click.option("--connect-timeout", default=5.0, show_default=True, type=click.FloatRange(min=0.1),
+              help="Seconds to wait for the broker connection.")
+def command(
+    robot: str | None,
+    broker_url: str | None,
+    ca_file: Path | None,
+    as_json: bool,
+    replay_file: Path | None,
+    speed: float | None,
+    duration: float | None,
+    call_timeout: float,
+    connect_timeout: float,
+) -> None:
+    """Watch the robot: availability, calls with their latency, the node each lane runs.
+
+    With --json every event is one JSON line on stdout (type: availability, call, state, signal,
+    trace, orchestrator, exit). With --replay FILE a recorded trace is played instead.
+    """
+    from services.monitor import MonitorState
+
+    stop = threading.Event()
+
+    def on_signal(signum: int, frame: FrameType | None) -> None:
+        stop.set()
+
+    previous = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
+    out_lock = threading.Lock()
+
+    def print_line(event: MonitorEvent) -> None:
+        with out_lock:
+            sys.stdout.write(event.line() + "\n")
+            sys.stdout.flush()
+
+    state = MonitorState(call_timeout_s=call_timeout)
+    try:
+        if replay_file is not None:
+            _run_replay(replay_file, state, robot or "robot", as_json, print_line, speed, stop)
+        else:
+            _run_live(state, robot, broker_url, ca_file, as_json, print_line, duration, connect_timeout, stop)
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+
+
+class _Stopped(Exception):
+    """The user stopped a replay."""
+
+
+def _run_replay(path: Path, state: MonitorState, robot: str, as_json: bool, print_line: Sink,
+                speed: float | None, stop: threading.Event) -> None:
+    from rich.console import Console
+    from rich.live import Live
+
+    from services.monitor import render, replay
+
+    pace = speed if speed is not None else (0.0 if as_json else 1.0)
+
+    def sleep(seconds: float) -> None:
+        if stop.wait(seconds):
+            raise _Stopped
+
+    if as_json:
+        with contextlib.suppress(_Stopped):
+            replay(path, state, robot, print_line, pace, sleep)
+        return
+    console = Console()
+    with Live(render(state, title="umlbot monitor (replay)"), console=console, auto_refresh=False) as live:
+        last = 0.0
+
+        def redraw(event: MonitorEvent) -> None:
+            nonlocal last
+            now = time.monotonic()
+            if now - last >= REFRESH_S:
+                live.update(render(state, now=event.time, title="umlbot monitor (replay)"), refresh=True)
+                last = now
+
+        try:
+            end = replay(path, state, robot, redraw, pace, sleep)
+        except _Stopped:
+            end = 0
+        final = max((lane.at for lane in state.lanes.values()), default=time.time())
+        live.update(render(state, now=final, title=f"umlbot monitor (replay, {end} events)"), refresh=True)
+
+
+def _run_live(state: MonitorState, robot: str | None, broker_url: str | None, ca_file: Path | None,
+              as_json: bool, print_line: Sink, duration: float | None, connect_timeout: float,
+              stop: threading.Event) -> None:
+    from rich.console import Console
+    from rich.live import Live
+
+    from services.bus import BrokerSettings, resolve_broker_url
+    from services.monitor import LiveMonitor, render
+
+    settings = BrokerSettings.from_url(resolve_broker_url(broker_url), ca_file=ca_file)
+
+    def ignore(event: MonitorEvent) -> None:
+        pass
+
+    sink = print_line if as_json else ignore
+    monitor = LiveMonitor(settings, robot, sink, state)
+    deadline = None if duration is None else time.monotonic() + duration
+    try:
+        monitor.start(connect_timeout)
+        if as_json:
+            while not stop.wait(REFRESH_S) and (deadline is None or time.monotonic() < deadline):
+                monitor.tick()
+            return
+        with Live(console=Console(), auto_refresh=False) as live:
+            while deadline is None or time.monotonic() < deadline:
+                monitor.tick()
+                with monitor.lock:
+                    frame = render(state)
+                live.update(frame, refresh=True)
+                if stop.wait(REFRESH_S):
+                    break
+    finally:
+        monitor.close()
