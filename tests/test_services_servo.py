@@ -1,0 +1,80 @@
+"""The servo service over real brokers: angle via the bus and raw payloads, range errors, state,
+pulses off on stop, pigpio on the fake."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable
+
+import pytest
+from conftest import BrokerProcess, RawClient
+from services_support import ROBOT, StateWatch, client, deployment, raw_state, running
+
+from services import pigpio_connection
+from services.bus import Topics
+from services.fake_pigpio import FakePi
+from services.servo.mock import MockServo
+from umlbot.errors import RemoteError
+
+pytestmark = pytest.mark.network
+TOPICS = Topics(ROBOT)
+
+
+def test_angle_via_the_bus_and_state(broker: BrokerProcess) -> None:
+    with running("servo", deployment(), broker.url) as host, client(broker.url) as bus:
+        watch = StateWatch(bus, "Sensor")
+        assert watch.wait("Sensor", lambda s: True) == {"angle": None}
+        assert bus.call("Sensor", "angle", 45) is None
+        assert watch.wait("Sensor", lambda s: s["angle"] == 45)
+        servo: MockServo = host.drivers["Sensor"]
+        assert servo.angle_deg == 45 and servo.pulsing
+    assert (servo.pulsing, servo.closed) == (False, True), "stopping the service stops the pulses"
+
+
+@pytest.mark.parametrize("degrees", [181, 360, -5])
+def test_angle_outside_the_implementation_range_is_out_of_range(
+    mosquitto_broker: BrokerProcess, degrees: int
+) -> None:
+    with running("servo", deployment(), mosquitto_broker.url) as host, client(mosquitto_broker.url) as bus:
+        with pytest.raises(RemoteError) as caught:
+            bus.call("Sensor", "angle", degrees)
+        assert caught.value.code == "out_of_range"
+        assert host.drivers["Sensor"].commands == []
+
+
+def test_narrower_servo_range_from_settings(mosquitto_broker: BrokerProcess) -> None:
+    dep = deployment(Sensor={"max_angle_deg": 90})
+    with running("servo", dep, mosquitto_broker.url), client(mosquitto_broker.url) as bus:
+        bus.call("Sensor", "angle", 90)
+        with pytest.raises(RemoteError) as caught:
+            bus.call("Sensor", "angle", 120)
+        assert caught.value.code == "out_of_range" and "0..90" in caught.value.message
+
+
+def test_raw_bare_angle(mosquitto_broker: BrokerProcess, raw_client: Callable[..., RawClient]) -> None:
+    raw = raw_client(mosquitto_broker)
+    raw.subscribe(TOPICS.state("Sensor"))
+    with running("servo", deployment(), mosquitto_broker.url) as host:
+        raw.publish(TOPICS.call("Sensor", "angle"), "135")
+        assert raw_state(raw, "Sensor", lambda s: s["angle"] == 135)
+        assert host.drivers["Sensor"].angle_deg == 135
+        raw.subscribe("test/reply")
+        raw.publish(TOPICS.call("Sensor", "angle"), json.dumps({"id": "a", "reply_to": "test/reply",
+                                                                "args": [90.5]}))
+        assert json.loads(raw.get(topic="test/reply").payload)["error"]["code"] == "bad_args"
+
+
+def test_pigpio_on_the_fake_over_the_bus(mosquitto_broker: BrokerProcess) -> None:
+    fake = FakePi()
+    pigpio_connection.install_fake(fake)
+    try:
+        dep = deployment(Sensor={"min_pulse_us": 600, "max_pulse_us": 2400})
+        with running("servo", dep, mosquitto_broker.url, driver="pigpio"), \
+                client(mosquitto_broker.url) as bus:
+            bus.call("Sensor", "angle", 90)
+            assert fake.pin(18).servo_pulsewidth == 1500
+            bus.call("Sensor", "angle", 0)
+            assert fake.pin(18).servo_pulsewidth == 600
+        assert fake.pin(18).servo_pulsewidth == 0, "pulses off on stop"
+    finally:
+        pigpio_connection.install_fake(None)
