@@ -1,0 +1,173 @@
+"""The compiled model file: deterministic bytes, round trip, version refusal, what it holds."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+from compiler_support import HEADER, MAIN
+
+from compiler.api import compile_model
+from compiler.compiled import (
+    FORMAT_VERSION,
+    AcceptNode,
+    ActionNode,
+    CompiledModel,
+    DatastoreNode,
+    DecisionNode,
+    ForkNode,
+    JoinNode,
+    SendNode,
+    dump_compiled,
+    load_compiled,
+)
+from compiler.expr import Binary, BuiltinTarget, Call, Const, FeatureTarget, LaneTarget, Ref
+from umlbot.errors import CompiledModelError
+
+ROBOT_CAR = Path(__file__).resolve().parent.parent / "models" / "robot_car"
+
+EVERY_KIND = HEADER + """\
+  - lane: Pi
+    nodes:
+      - {id: start, kind: start}
+      - {id: count0, kind: datastore, name: count, value: 0}
+      - {id: ask, kind: send, signal: ping, payload: count * 2 + 1}
+      - {id: wait, kind: accept, signal: pong, store: answer}
+      - {id: both, kind: fork, targets: [left, right]}
+      - {id: left, kind: action, call: Motor.direction(true), next: inner}
+      - {id: inner, kind: fork, targets: [s1, s2]}
+      - {id: s1, kind: action, call: usleep(100), next: inner_join}
+      - {id: s2, kind: action, call: msleep(1), next: inner_join}
+      - {id: inner_join, kind: join, next: joined}
+      - {id: right, kind: action, call: Helper(), next: joined}
+      - {id: joined, kind: join}
+      - {id: count1, kind: datastore, name: count, value: count + 1}
+      - id: loop
+        kind: decision
+        branches:
+          - {else: done}
+          - {if: count < 3 and not Application.exit, then: ask}
+      - {id: done, kind: action, call: Motor.enabled(false)}
+      - {id: end, kind: end}
+  - lane: Helper
+    nodes:
+      - {id: start, kind: start}
+      - {id: far, kind: datastore, name: far, value: Sonar.value() / 2 > Pi.count}
+      - {id: end, kind: end}
+"""
+
+
+def write(tmp_path: Path, text: str) -> Path:
+    path = tmp_path / "model.yaml"
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+def test_every_node_kind_compiles_to_a_resolved_graph(tmp_path: Path) -> None:
+    model = compile_model(write(tmp_path, EVERY_KIND))
+    pi = model.lanes["Pi"]
+    assert (pi.virtual, pi.component, pi.start) == (False, "Pi", "start")
+    assert pi.datastores == ["answer", "count"]
+    assert model.lanes["Helper"].virtual and model.lanes["Helper"].component is None
+    assert model.signals == ["ping", "pong"]
+    nodes = pi.nodes
+    assert isinstance(nodes["both"], ForkNode) and nodes["both"].join == "joined"
+    assert isinstance(nodes["inner"], ForkNode) and nodes["inner"].join == "inner_join"
+    joined = nodes["joined"]
+    assert isinstance(joined, JoinNode) and joined.incoming == ["inner_join", "right"]
+    assert joined.next == "count1"
+    send = nodes["ask"]
+    assert isinstance(send, SendNode) and send.signal == "ping"
+    assert send.payload == Binary(operator="+", left=Binary(operator="*", left=Ref(lane="Pi", name="count"),
+                                                             right=Const(value=2)), right=Const(value=1))
+    accept = nodes["wait"]
+    assert isinstance(accept, AcceptNode) and accept.store == "answer" and accept.next == "both"
+    call = nodes["right"]
+    assert isinstance(call, ActionNode) and call.call.target == LaneTarget(lane="Helper")
+    decision = nodes["loop"]
+    assert isinstance(decision, DecisionNode)
+    # the else output is always last, whatever its place in the source
+    assert [b.target for b in decision.branches] == ["ask", "done"]
+    assert decision.branches[1].guard is None and decision.branches[1].label == "else"
+    guard = decision.branches[0].guard
+    assert isinstance(guard, Binary) and guard.operator == "and"
+    assert guard.right.model_dump() == {"op": "unary", "operator": "not", "operand": Call(
+        target=BuiltinTarget(name="Application.exit")).model_dump()}
+    far = model.lanes["Helper"].nodes["far"]
+    assert isinstance(far, DatastoreNode)
+    assert far.value == Binary(
+        operator=">",
+        left=Binary(operator="/", left=Call(target=FeatureTarget(component="Sonar", feature="value")),
+                    right=Const(value=2)),
+        right=Ref(lane="Pi", name="count"))
+    assert model.components["Motor"].model_dump() == {
+        "kind": "actuator", "impl": "l298n", "service": "motor", "driver": "mock", "settings": {},
+        "features": ["direction", "dutycycle", "enabled"], "ports": {"drive": "enabled"}}
+    assert nodes["count1"].line == 31 and pi.file == "model.yaml" and pi.line == 17
+
+
+def test_compile_is_deterministic(tmp_path: Path) -> None:
+    first = dump_compiled(compile_model(ROBOT_CAR))
+    copy = tmp_path / "elsewhere" / "robot_car"
+    shutil.copytree(ROBOT_CAR, copy)
+    second = dump_compiled(compile_model(copy))
+    assert first == second
+    assert dump_compiled(compile_model(ROBOT_CAR)) == first
+    assert b"elsewhere" not in second and str(ROBOT_CAR).encode() not in first
+
+
+def test_source_hash_follows_the_content(tmp_path: Path) -> None:
+    copy = tmp_path / "robot_car"
+    shutil.copytree(ROBOT_CAR, copy)
+    before = compile_model(copy).source_hash
+    assert before.startswith("sha256:") and len(before) == len("sha256:") + 64
+    main = copy / "activities" / "main.yaml"
+    main.write_text(main.read_text(encoding="utf-8").replace("value: 400}", "value: 450}", 1),
+                    encoding="utf-8")
+    assert compile_model(copy).source_hash != before
+
+
+def test_round_trip(tmp_path: Path) -> None:
+    model = compile_model(write(tmp_path, EVERY_KIND))
+    data = dump_compiled(model)
+    target = tmp_path / "out.json"
+    target.write_bytes(data)
+    loaded = load_compiled(target)
+    assert loaded == model
+    assert load_compiled(data) == model
+    assert dump_compiled(loaded) == data
+    assert json.loads(data)["format_version"] == FORMAT_VERSION
+
+
+def test_a_newer_format_version_is_refused(tmp_path: Path) -> None:
+    data = json.loads(dump_compiled(compile_model(write(tmp_path, HEADER + MAIN))))
+    data["format_version"] = FORMAT_VERSION + 1
+    path = tmp_path / "future.json"
+    path.write_text(json.dumps(data), encoding="utf-8")
+    with pytest.raises(CompiledModelError, match=r"format version 2 is newer than this umlbot reads "
+                                                   r"\(up to 1\); upgrade umlbot"):
+        load_compiled(path)
+
+
+@pytest.mark.parametrize("content", [b"", b"\xff\xfe", b"[1, 2]", b"{}", b'{"format_version": "1"}',
+                                     b'{"format_version": 1}', b'{"format_version": 1, "name": 3}',
+                                     b"[" * 100_000])
+def test_corrupt_files_are_refused(content: bytes) -> None:
+    with pytest.raises(CompiledModelError):
+        load_compiled(content)
+
+
+def test_unreadable_file_is_refused(tmp_path: Path) -> None:
+    with pytest.raises(CompiledModelError, match="cannot read compiled model"):
+        load_compiled(tmp_path / "missing.json")
+
+
+def test_compiled_types_validate_what_they_load() -> None:
+    model = CompiledModel(name="x", source_hash="sha256:0")
+    data = json.loads(dump_compiled(model))
+    data["lanes"] = {"L": {"name": "L", "virtual": True, "start": "s",
+                           "nodes": {"s": {"id": "s", "kind": "teleport"}}}}
+    with pytest.raises(CompiledModelError, match="corrupt compiled model"):
+        load_compiled(json.dumps(data).encode())
