@@ -1,0 +1,178 @@
+"""The service host and `umlbot service`: driver choice, clear start-up errors, clean stops,
+runtime driver registration (how the simulator plugs in), and the registry's settings rules."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+import pytest
+from conftest import BrokerProcess, free_port
+from services_support import ROBOT, broker_settings, client, deployment, running
+
+from services import registry
+from services.host import ServiceHost, owned_pins
+from services.motor.driver import L298NSettings
+from services.motor.mock import MockMotorChannel, MockMotorSettings
+from umlbot.deployment import parse_deployment
+from umlbot.errors import ConfigError, DriverError, NotConnected, UnknownDriver
+
+
+def test_unknown_driver_lists_the_known_names() -> None:
+    with pytest.raises(UnknownDriver, match=r"unknown motor driver 'warp'; known drivers: mock, pigpio"):
+        registry.get_factory("motor", "warp")
+
+
+def test_unknown_kind() -> None:
+    with pytest.raises(ConfigError, match="unknown service kind"):
+        ServiceHost("lidar", deployment(), broker_settings("mqtt://127.0.0.1:1"), ROBOT)  # type: ignore[arg-type]
+
+
+def test_deployment_without_components_of_the_kind() -> None:
+    dep = parse_deployment("LeftActuator=CModelL298NActuator\n")
+    with pytest.raises(ConfigError, match="no component served by the sonar service"):
+        ServiceHost("sonar", dep, broker_settings("mqtt://127.0.0.1:1"), ROBOT)
+
+
+def test_settings_prefixes_are_stripped_per_driver() -> None:
+    raw = {"in1": 22, "in2": 23, "mock_latency_s": 0.1, "sim_mass_kg": 1.2}
+    assert registry.driver_settings("pigpio", raw) == {"in1": 22, "in2": 23}
+    assert registry.driver_settings("mock", raw) == {"in1": 22, "in2": 23, "mock_latency_s": 0.1}
+    assert registry.driver_settings("sim", raw) == {"in1": 22, "in2": 23, "sim_mass_kg": 1.2}
+
+
+def test_a_typo_in_a_pigpio_setting_is_a_config_error() -> None:
+    with pytest.raises(ConfigError, match=r"LeftActuator: invalid settings: .*in_1: Extra inputs"):
+        registry.create_driver("motor", "pigpio", "LeftActuator", {"in_1": 22, "in2": 23})
+
+
+def test_owned_pins_of_the_reference_robot() -> None:
+    assert owned_pins(deployment()) == {22: "LeftActuator", 23: "LeftActuator", 24: "RightActuator",
+                                        25: "RightActuator", 18: "Sensor", 8: "DistanceRead",
+                                        7: "DistanceRead"}
+
+
+def test_runtime_registered_driver_is_used(mosquitto_broker: BrokerProcess) -> None:
+    made: list[MockMotorChannel] = []
+
+    def create(component: str, settings: L298NSettings) -> MockMotorChannel:
+        made.append(MockMotorChannel(component, MockMotorSettings(watchdog_s=settings.watchdog_s)))
+        return made[-1]
+
+    registry.register_driver("motor", "bench", registry.DriverFactory(L298NSettings, create))
+    try:
+        assert "bench" in registry.known_drivers("motor")
+        with running("motor", deployment(), mosquitto_broker.url, driver="bench") as host, \
+                client(mosquitto_broker.url) as bus:
+            bus.call("LeftActuator", "enabled", True)
+            assert [d.component for d in made] == ["LeftActuator", "RightActuator"]
+            assert host.drivers["LeftActuator"] is made[0] and made[0].enabled
+    finally:
+        registry.unregister_driver("motor", "bench")
+    assert "bench" not in registry.known_drivers("motor")
+
+
+def test_per_component_driver_override(mosquitto_broker: BrokerProcess) -> None:
+    dep = parse_deployment(
+        "driver: pigpio\n"
+        "components:\n"
+        "  LeftActuator: {impl: l298n, driver: mock}\n"
+    )
+    with running("motor", dep, mosquitto_broker.url) as host:
+        assert host.driver_name("LeftActuator") == "mock"
+        assert isinstance(host.drivers["LeftActuator"], MockMotorChannel)
+
+
+def test_failed_start_releases_what_was_built(monkeypatch: pytest.MonkeyPatch) -> None:
+    built: list[Any] = []
+    original = registry.create_driver
+
+    def create(kind: Any, driver: str, component: str, settings: Any) -> Any:
+        if component == "RightActuator":
+            raise DriverError("cannot reach the pigpio daemon")
+        built.append(original(kind, driver, component, settings))
+        return built[-1]
+
+    monkeypatch.setattr("services.host.create_driver", create)
+    host = ServiceHost("motor", deployment(), broker_settings("mqtt://127.0.0.1:1"), ROBOT)
+    with pytest.raises(DriverError):
+        host.start()
+    assert len(built) == 1 and built[0].closed
+
+
+def test_unreachable_broker_is_not_connected_and_motors_stay_stopped() -> None:
+    host = ServiceHost("motor", deployment(), broker_settings(f"mqtt://127.0.0.1:{free_port()}"), ROBOT,
+                       connect_timeout_s=0.5)
+    with pytest.raises(NotConnected):
+        host.start()
+    left: MockMotorChannel = host.drivers["LeftActuator"]
+    assert left.closed and not left.running
+    host.stop()  # twice is fine
+
+
+def test_stop_is_idempotent_and_start_after_stop_is_harmless(mosquitto_broker: BrokerProcess) -> None:
+    host = ServiceHost("servo", deployment(), broker_settings(mosquitto_broker.url), ROBOT)
+    host.start()
+    host.start()
+    host.stop()
+    host.stop()
+    assert host.drivers["Sensor"].closed
+
+
+def _cli(
+    *args: str, env: dict[str, str] | None = None, timeout: float = 30
+) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-c", "from umlbot.cli import main; main()", *args],
+        capture_output=True, text=True, timeout=timeout, env={**os.environ, **(env or {})},
+    )
+
+
+def test_cli_unknown_driver_is_one_clear_line(tmp_path: Path) -> None:
+    deploy = tmp_path / "d.txt"
+    deploy.write_text("LeftActuator=CModelL298NActuator\n")
+    result = _cli("service", "motor", "--deploy", str(deploy), "--driver", "warp",
+                  "--broker", f"mqtt://127.0.0.1:{free_port()}")
+    assert result.returncode == 1
+    assert "unknown motor driver 'warp'; known drivers: mock, pigpio" in result.stderr
+
+
+def test_cli_pigpio_without_daemon_says_how_to_start_it(tmp_path: Path) -> None:
+    deploy = tmp_path / "d.yaml"
+    deploy.write_text("components:\n  LeftActuator: {impl: l298n, settings: {in1: 22, in2: 23}}\n")
+    result = _cli("service", "motor", "--deploy", str(deploy), "--broker", f"mqtt://127.0.0.1:{free_port()}",
+                  env={"PIGPIO_PORT": str(free_port())})
+    assert result.returncode == 1
+    assert "pigpio" in result.stderr and ("pip install" in result.stderr or "pigpiod" in result.stderr)
+
+
+def test_cli_missing_deployment(tmp_path: Path) -> None:
+    result = _cli("service", "gpio", "--deploy", str(tmp_path / "nope.yaml"))
+    assert result.returncode == 1 and "cannot read deployment" in result.stderr
+
+
+def test_cli_robot_from_env_and_plain_deployment(mosquitto_broker: BrokerProcess, tmp_path: Path) -> None:
+    deploy = tmp_path / "d.txt"
+    deploy.write_text("Sensor=CModelActuator\n")
+    proc = subprocess.Popen(
+        [sys.executable, "-c", "from umlbot.cli import main; main()", "service", "servo",
+         "--deploy", str(deploy), "--driver", "mock", "--broker", mosquitto_broker.url],
+        env={**os.environ, "UMLBOT_ROBOT": ROBOT, "UMLBOT_LOG_LEVEL": "WARNING"},
+    )
+    try:
+        with client(mosquitto_broker.url) as bus:
+            import time
+
+            deadline = time.monotonic() + 15
+            while True:
+                try:
+                    assert bus.call("Sensor", "angle", 10, timeout=0.5) is None
+                    break
+                except TimeoutError:
+                    assert time.monotonic() < deadline, "service never answered"
+    finally:
+        proc.terminate()
+        assert proc.wait(10) == 0
