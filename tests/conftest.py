@@ -16,6 +16,7 @@ import signal
 import socket
 import subprocess
 import sys
+import threading
 import time
 import uuid
 from collections.abc import Callable, Iterator
@@ -315,3 +316,71 @@ def raw_client() -> Iterator[Callable[..., RawClient]]:
     yield make
     for client in made:
         client.close()
+
+
+#: A component service in its own process (so a test can SIGKILL it): `Motor`-like features.
+_SERVER_SCRIPT = """
+import sys, threading
+from services.bus import BrokerSettings, ComponentServer, Feature
+from umlbot.library import IMPLEMENTATIONS, FeatureSpec, Param
+from umlbot.logs import configure_logging
+configure_logging()
+url, robot, component = sys.argv[1:4]
+motor = IMPLEMENTATIONS["l298n"].features
+features = [
+    Feature(motor["dutycycle"], lambda percent: None),
+    Feature(motor["enabled"], lambda on: None),
+    Feature(FeatureSpec("value", (), "int"), lambda: 42),
+    Feature(FeatureSpec("echo", (Param("text", "str"),), "str"), lambda text: text),
+]
+server = ComponentServer(BrokerSettings.from_url(url), robot, component, "l298n", features)
+server.start(10.0)
+print("ready", flush=True)
+threading.Event().wait()
+"""
+
+
+def spawn_test_server(url: str, robot: str, component: str, timeout: float = 15.0) -> subprocess.Popen[str]:
+    """Start a component server in a child process; returns once it is online."""
+    proc = subprocess.Popen(
+        [sys.executable, "-c", _SERVER_SCRIPT, url, robot, component],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.DEVNULL,
+        text=True,
+        env={**os.environ, "UMLBOT_LOG_LEVEL": "WARNING"},
+    )
+    ready: queue.Queue[str] = queue.Queue()
+
+    def read() -> None:
+        assert proc.stdout is not None
+        ready.put(proc.stdout.readline())
+
+    threading.Thread(target=read, daemon=True).start()
+    try:
+        line = ready.get(timeout=timeout)
+    except queue.Empty:
+        proc.kill()
+        proc.wait(5)
+        raise RuntimeError("the test server did not come online") from None
+    if line.strip() != "ready":
+        proc.kill()
+        proc.wait(5)
+        raise RuntimeError(f"the test server failed to start: {line!r}")
+    return proc
+
+
+@pytest.fixture
+def server_process(broker: BrokerProcess) -> Iterator[Callable[[str, str], subprocess.Popen[str]]]:
+    """Factory `server_process(robot, component)`: a component server process on `broker`."""
+    made: list[subprocess.Popen[str]] = []
+
+    def make(robot: str, component: str) -> subprocess.Popen[str]:
+        proc = spawn_test_server(broker.url, robot, component)
+        made.append(proc)
+        return proc
+
+    yield make
+    for proc in made:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait(5)

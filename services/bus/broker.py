@@ -13,6 +13,7 @@ import contextlib
 import errno
 import socket
 import threading
+import warnings
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -57,6 +58,16 @@ def load_acl(path: str | Path) -> BrokerAcl:
         raise ConfigError(
             f"ACL file {file}: {where}: {first['msg']} (allowed keys: acl, publish_acl)"
         ) from exc
+
+
+def password_line(user: str, password: str) -> str:
+    """A line for the broker's password file: `user:<argon2 hash>`."""
+    from pwdlib import PasswordHash
+    from pwdlib.hashers.argon2 import Argon2Hasher
+
+    if not user or ":" in user:
+        raise ConfigError("a user name must be non-empty and contain no ':'")
+    return f"{user}:{PasswordHash((Argon2Hasher(),)).hash(password)}"
 
 
 def broker_config(
@@ -182,8 +193,11 @@ class EmbeddedBroker:
         from amqtt.broker import Broker  # heavy import, only when a broker runs
 
         config = broker_config(self.host, self.port, self.passwd_file, self.acl)
-        self._broker = Broker(config)
-        await self._broker.start()
+        with warnings.catch_warnings():
+            # amqtt 0.12 calls `acl` deprecated yet its config accepts no other name for it
+            warnings.filterwarnings("ignore", "The 'acl' option is deprecated", DeprecationWarning)
+            self._broker = Broker(config)
+            await self._broker.start()
 
     async def _shutdown(self) -> None:
         if self._broker is not None:

@@ -15,7 +15,7 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Final
 
 from pydantic import ValidationError
 
@@ -31,6 +31,8 @@ log = get_logger(__name__)
 
 #: requests larger than this are refused with `payload_too_large`.
 MAX_REQUEST_BYTES = 256 * 1024
+#: the status payload of a component that is gone (last will, and on a clean stop).
+OFFLINE: Final[dict[str, str]] = {"state": "offline"}
 
 
 class FeatureError(UmlbotError):
@@ -196,7 +198,7 @@ class ComponentServer:
         self.connection = BusConnection(
             settings,
             role=f"service-{component}",
-            will=Will(self._status_topic, Status(state="offline")),
+            will=Will(self._status_topic, OFFLINE),
             robot=robot,
             client_id=client_id,
         )
@@ -217,7 +219,7 @@ class ComponentServer:
         """Publish `offline` (retained), then disconnect; safe to call twice."""
         if self.connection.connected:
             with contextlib.suppress(NotConnected):
-                self.connection.publish(self._status_topic, Status(state="offline"), qos=1, retain=True)
+                self.connection.publish(self._status_topic, OFFLINE, qos=1, retain=True)
         self.connection.close()
 
     def __enter__(self) -> ComponentServer:

@@ -23,9 +23,22 @@ log = get_logger(__name__)
               help="amqtt password file (user:argon2-hash lines); anonymous clients are then refused.")
 @click.option("--acl", "acl_file", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="YAML file with per-user topic filters: keys `acl` (subscribe) and `publish_acl`.")
-def command(host: str, port: int, passwd_file: Path | None, acl_file: Path | None) -> None:
-    """Run the embedded MQTT broker (amqtt, MQTT 3.1.1) until Ctrl-C or SIGTERM."""
-    from services.bus.broker import EmbeddedBroker
+@click.option("--hash-password", "hash_user", metavar="USER", default=None,
+              help="Print a password-file line `USER:<argon2 hash>` (password from the prompt), then exit.")
+def command(
+    host: str, port: int, passwd_file: Path | None, acl_file: Path | None, hash_user: str | None
+) -> None:
+    """Run the embedded MQTT broker (amqtt, MQTT 3.1.1) until Ctrl-C or SIGTERM.
+
+    It listens on loopback only, unless --bind says otherwise.
+    """
+    from services.bus.broker import EmbeddedBroker, password_line
+
+    if hash_user is not None:
+        password = click.prompt(f"password for {hash_user}", hide_input=True, confirmation_prompt=True,
+                                err=True)
+        click.echo(password_line(hash_user, password))
+        return
 
     broker = EmbeddedBroker(host=host, port=port, passwd_file=passwd_file, acl=acl_file)
     stop = threading.Event()

@@ -1,0 +1,187 @@
+"""The embedded broker: in-process start/stop, a taken port, passwords, ACLs, `umlbot broker` signals."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+import pytest
+from conftest import free_port, port_accepts, wait_until
+
+from services.bus import BrokerSettings, BusClient, BusConnection, ComponentServer, Feature, Message
+from services.bus.broker import BrokerAcl, EmbeddedBroker, broker_config, load_acl, password_line
+from umlbot.errors import ConfigError, NotConnected
+from umlbot.library import FeatureSpec
+
+pytestmark = pytest.mark.network
+
+
+@pytest.fixture
+def embedded() -> Iterator[EmbeddedBroker]:
+    broker = EmbeddedBroker(port=free_port())
+    broker.start()
+    yield broker
+    broker.stop()
+
+
+def test_embedded_broker_serves_calls_in_process(embedded: EmbeddedBroker) -> None:
+    assert embedded.running and embedded.url == f"mqtt://127.0.0.1:{embedded.port}"
+    settings = BrokerSettings.from_url(embedded.url)
+    features = [Feature(FeatureSpec("value", (), "int"), lambda: 7)]
+    with ComponentServer(settings, "car", "Sensor", "hcsr04", features), BusClient(settings, "car") as client:
+        assert client.call("Sensor", "value") == 7
+    embedded.stop()
+    embedded.stop()  # twice is fine
+    assert not port_accepts(embedded.port)
+
+
+def test_loopback_by_default() -> None:
+    broker = EmbeddedBroker(port=free_port())
+    assert broker.host == "127.0.0.1"
+    config = broker_config(broker.host, broker.port)
+    assert config["listeners"]["default"]["bind"] == f"127.0.0.1:{broker.port}"
+
+
+def test_taken_port_is_a_clear_config_error() -> None:
+    with socket.socket() as squatter:
+        squatter.bind(("127.0.0.1", 0))
+        squatter.listen()
+        port = squatter.getsockname()[1]
+        with pytest.raises(ConfigError) as info:
+            EmbeddedBroker(port=port).start()
+    message = str(info.value)
+    assert str(port) in message and "--port" in message and "--broker" in message
+
+
+def _connect(url: str) -> BusConnection:
+    connection = BusConnection(BrokerSettings.from_url(url), "test")
+    connection.start(3.0)
+    return connection
+
+
+def test_password_file_refuses_anonymous_and_wrong_passwords(tmp_path: Path) -> None:
+    passwd = tmp_path / "passwd"
+    passwd.write_text(password_line("robot", "s3cret") + "\n", encoding="utf-8")
+    port = free_port()
+    with EmbeddedBroker(port=port, passwd_file=passwd):
+        good = _connect(f"mqtt://robot:s3cret@127.0.0.1:{port}")
+        assert good.connected
+        good.close()
+        for url in (f"mqtt://127.0.0.1:{port}", f"mqtt://robot:wrong@127.0.0.1:{port}"):
+            with pytest.raises(NotConnected) as info:
+                _connect(url)
+            assert "s3cret" not in str(info.value) and "wrong" not in str(info.value)
+
+
+def test_missing_password_file_is_a_config_error(tmp_path: Path) -> None:
+    with pytest.raises(ConfigError, match="does not exist"):
+        EmbeddedBroker(port=free_port(), passwd_file=tmp_path / "nope").start()
+
+
+def test_acl_limits_subscribe_and_publish(tmp_path: Path) -> None:
+    passwd = tmp_path / "passwd"
+    passwd.write_text(
+        password_line("alice", "a") + "\n" + password_line("bob", "b") + "\n", encoding="utf-8"
+    )
+    acl_file = tmp_path / "acl.yaml"
+    acl_file.write_text(
+        "acl:\n  alice: ['umlbot/#']\n  bob: ['other/#']\n"
+        "publish_acl:\n  alice: ['umlbot/#']\n  bob: ['other/#']\n",
+        encoding="utf-8",
+    )
+    port = free_port()
+    with EmbeddedBroker(port=port, passwd_file=passwd, acl=acl_file):
+        alice = _connect(f"mqtt://alice:a@127.0.0.1:{port}")
+        bob = _connect(f"mqtt://bob:b@127.0.0.1:{port}")
+        try:
+            alice_got: list[Message] = []
+            bob_got: list[Message] = []
+            alice_event, bob_event = threading.Event(), threading.Event()
+            def recorder(got: list[Message], event: threading.Event) -> Callable[[Message], None]:
+                def handler(message: Message) -> None:
+                    got.append(message)
+                    event.set()
+
+                return handler
+
+            alice.subscribe("umlbot/#", recorder(alice_got, alice_event))
+            bob.subscribe("umlbot/#", recorder(bob_got, bob_event))  # refused by the ACL
+            time.sleep(0.3)
+            bob.publish("umlbot/car/x", b"from bob")  # dropped by the publish ACL
+            alice.publish("umlbot/car/x", b"from alice")
+            assert alice_event.wait(5.0)
+            time.sleep(0.3)
+            assert [m.payload for m in alice_got] == [b"from alice"]
+            assert bob_got == []
+        finally:
+            alice.close()
+            bob.close()
+
+
+def test_acl_file_accepts_only_acl_and_publish_acl(tmp_path: Path) -> None:
+    good = tmp_path / "good.yaml"
+    good.write_text(json.dumps({"acl": {"u": ["a/#"]}, "publish_acl": {"u": ["a/b"]}}), encoding="utf-8")
+    assert load_acl(good) == BrokerAcl(acl={"u": ["a/#"]}, publish_acl={"u": ["a/b"]})
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("subscribe-acl:\n  u: ['a/#']\n", encoding="utf-8")
+    with pytest.raises(ConfigError, match="allowed keys: acl, publish_acl"):
+        load_acl(bad)
+    with pytest.raises(ConfigError, match="cannot read"):
+        load_acl(tmp_path / "missing.yaml")
+
+
+def _umlbot(*args: str) -> list[str]:
+    return [sys.executable, "-c", "from umlbot.cli import main; main()", *args]
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_umlbot_broker_shuts_down_cleanly_on_signals(sig: signal.Signals) -> None:
+    port = free_port()
+    proc = subprocess.Popen(
+        _umlbot("broker", "--port", str(port)), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        env={**os.environ, "UMLBOT_LOG_LEVEL": "INFO"},
+    )
+    try:
+        assert wait_until(lambda: port_accepts(port), 10.0)
+        client = BusClient(BrokerSettings.from_url(f"mqtt://127.0.0.1:{port}"), "car")
+        client.start(5.0)
+        proc.send_signal(sig)
+        _, err = proc.communicate(timeout=10.0)
+        assert proc.returncode == 0, err
+        assert "broker_stopped" in err
+        assert "Traceback" not in err
+        assert not port_accepts(port)
+        assert wait_until(lambda: not client.connected, 5.0)
+        client.close()
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait(5)
+
+
+def test_umlbot_broker_on_a_taken_port_says_what_to_do() -> None:
+    with socket.socket() as squatter:
+        squatter.bind(("127.0.0.1", 0))
+        squatter.listen()
+        port = squatter.getsockname()[1]
+        result = subprocess.run(_umlbot("broker", "--port", str(port)), capture_output=True, text=True,
+                                timeout=30)
+    assert result.returncode == 1
+    assert f"port {port}" in result.stderr and "--port" in result.stderr
+    assert "Traceback" not in result.stderr
+
+
+def test_hash_password_prints_a_password_file_line() -> None:
+    result = subprocess.run(_umlbot("broker", "--hash-password", "robot"), input="pw\npw\n",
+                            capture_output=True, text=True, timeout=30)
+    assert result.returncode == 0, result.stderr
+    user, _, digest = result.stdout.strip().partition(":")
+    assert user == "robot" and digest.startswith("$argon2")

@@ -1,0 +1,148 @@
+"""Availability over broker outages and crashes: reconnects, fail-fast calls, last will."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import threading
+import time
+from collections.abc import Callable, Iterator
+from typing import Any
+
+import pytest
+from conftest import BrokerProcess, RawClient, wait_until
+
+from services.bus import BrokerSettings, BusClient, BusConnection, ComponentServer, Feature, Topics
+from umlbot.errors import CallTimeout, NotConnected
+from umlbot.library import FeatureSpec, Param
+
+pytestmark = pytest.mark.network
+
+ROBOT = "testcar"
+TOPICS = Topics(ROBOT)
+RECONNECT_S = 15.0  # back-off tops out at 5 s, so two attempts fit easily
+
+
+def _features() -> list[Feature]:
+    def sleep(seconds: float) -> float:
+        time.sleep(seconds)
+        return seconds
+
+    return [
+        Feature(FeatureSpec("value", (), "int"), lambda: 42),
+        Feature(FeatureSpec("sleep", (Param("seconds", "float", 0, 10),), "float"), sleep),
+    ]
+
+
+@pytest.fixture
+def pair(broker: BrokerProcess) -> Iterator[tuple[ComponentServer, BusClient]]:
+    settings = BrokerSettings.from_url(broker.url)
+    server = ComponentServer(settings, ROBOT, "Sensor", "hcsr04", _features())
+    client = BusClient(settings, ROBOT, role="test")
+    server.start(5.0)
+    client.start(5.0)
+    yield server, client
+    client.close()
+    server.stop()
+
+
+def test_broker_restart_reconnects_both_sides(
+    broker: BrokerProcess, pair: tuple[ComponentServer, BusClient], raw_client: Callable[..., RawClient]
+) -> None:
+    server, client = pair
+    assert client.call("Sensor", "value") == 42
+
+    broker.stop()
+    assert wait_until(lambda: not client.connected and not server.connected, 5.0)
+    started = time.monotonic()
+    with pytest.raises(NotConnected):
+        client.call("Sensor", "value", timeout=5.0)
+    assert time.monotonic() - started < 0.5  # fails fast, does not wait for the time-out
+
+    broker.start()
+    assert wait_until(lambda: client.connected and server.connected, RECONNECT_S)
+    # the broker lost its retained messages (no persistence): the status must have been republished
+    watcher = raw_client(broker)
+    watcher.subscribe(TOPICS.status("Sensor"))
+    assert json.loads(watcher.get(5.0, TOPICS.status("Sensor")).payload)["state"] == "online"
+    # subscriptions were restored on both sides: calls work again
+    assert wait_until(lambda: _call_ok(client), 5.0)
+    assert client.call("Sensor", "value") == 42
+    assert server.connection.counters.connects >= 2
+
+
+def _call_ok(client: BusClient) -> bool:
+    try:
+        return bool(client.call("Sensor", "value", timeout=0.5) == 42)
+    except (NotConnected, CallTimeout):
+        return False
+
+
+def test_call_in_flight_fails_fast_when_the_broker_dies(
+    broker: BrokerProcess, pair: tuple[ComponentServer, BusClient]
+) -> None:
+    _, client = pair
+    outcome: list[BaseException | Any] = []
+
+    def slow_call() -> None:
+        try:
+            outcome.append(client.call("Sensor", "sleep", 3.0, timeout=20.0))
+        except BaseException as exc:
+            outcome.append(exc)
+
+    caller = threading.Thread(target=slow_call)
+    started = time.monotonic()
+    caller.start()
+    time.sleep(0.3)
+    broker.kill()
+    caller.join(10.0)
+    assert not caller.is_alive()
+    assert len(outcome) == 1 and isinstance(outcome[0], NotConnected)
+    assert time.monotonic() - started < 5.0
+
+
+def test_async_calls_while_down_fail_fast(
+    broker: BrokerProcess, pair: tuple[ComponentServer, BusClient]
+) -> None:
+    import asyncio
+
+    _, client = pair
+    broker.stop()
+    assert wait_until(lambda: not client.connected, 5.0)
+
+    async def attempt() -> None:
+        await client.acall("Sensor", "value", timeout=5.0)
+
+    started = time.monotonic()
+    with pytest.raises(NotConnected):
+        asyncio.run(attempt())
+    assert time.monotonic() - started < 0.5
+
+
+def test_start_without_broker_raises_not_connected() -> None:
+    from conftest import free_port
+
+    connection = BusConnection(BrokerSettings.from_url(f"mqtt://127.0.0.1:{free_port()}"), "test")
+    started = time.monotonic()
+    with pytest.raises(NotConnected, match="cannot connect"):
+        connection.start(0.5)
+    assert time.monotonic() - started < 3.0
+    connection.close()  # already closed by the failed start; twice is fine
+
+
+def test_sigkill_of_a_server_process_leaves_offline_status(
+    broker: BrokerProcess,
+    server_process: Callable[[str, str], subprocess.Popen[str]],
+    raw_client: Callable[..., RawClient],
+) -> None:
+    proc = server_process(ROBOT, "Doomed")
+    watcher = raw_client(broker)
+    watcher.subscribe(TOPICS.status("Doomed"))
+    assert json.loads(watcher.get(5.0, TOPICS.status("Doomed")).payload)["state"] == "online"
+    proc.kill()
+    proc.wait(5.0)
+    assert json.loads(watcher.get(10.0, TOPICS.status("Doomed")).payload) == {"state": "offline"}
+    # retained: a late subscriber sees offline too
+    late = raw_client(broker)
+    late.subscribe(TOPICS.status("Doomed"))
+    assert json.loads(late.get(5.0, TOPICS.status("Doomed")).payload) == {"state": "offline"}
