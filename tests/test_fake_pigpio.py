@@ -174,3 +174,18 @@ def test_disconnected_fake_is_a_driver_error(no_installed_fake: None) -> None:
     pigpio_connection.install_fake(FakePi(connected=False))
     with pytest.raises(DriverError, match="cannot reach the pigpio daemon"):
         pigpio_connection.acquire()
+
+
+def test_env_fake_is_stopped_by_its_last_user(
+    no_installed_fake: None, monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    monkeypatch.setenv(pigpio_connection.FAKE_ENV, "1")
+    monkeypatch.setenv(pigpio_connection.FAKE_STATE_ENV, str(tmp_path / "s.json"))
+    first = pigpio_connection.acquire()
+    second = pigpio_connection.acquire()
+    assert first is second
+    pigpio_connection.release(first)
+    assert not first.stopped
+    pigpio_connection.release(second)
+    assert first.stopped
+    assert json.loads((tmp_path / "s.json").read_text())["stopped"] is True
