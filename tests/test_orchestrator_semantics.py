@@ -6,11 +6,17 @@ assertions read the trace events and the commands the mock drivers recorded.
 
 from __future__ import annotations
 
+import json
 import time
+from collections.abc import Callable
+from pathlib import Path
 
 import pytest
-from conftest import BrokerProcess
-from orchestrator_support import rig
+from conftest import BrokerProcess, RawClient
+from orchestrator_support import rig, wait_for
+
+from services.bus import OrchestratorStatus, TraceEvent
+from umlbot.errors import OrchestratorError
 
 pytestmark = pytest.mark.network
 
@@ -31,3 +37,167 @@ def test_fork_runs_both_calls_at_once_and_join_continues_once(broker: BrokerProc
         assert r.driver("LeftActuator").commands_named("set_duty_cycle") == [(10,)]
         assert r.driver("RightActuator").commands_named("set_duty_cycle") == [(20,)]
         assert orch.engine.stores["RaspberryPI"] == {"began": 1, "done": True}
+
+
+def test_replies_feed_datastores_guards_and_arguments(broker: BrokerProcess) -> None:
+    with rig(broker.url, "sensor_decision.yaml") as r:
+        code, orch = r.run()
+        assert code == 0, orch.failure
+        assert r.driver("DistanceRead").reads == 3
+        # 50 cm: clear -> 60 %; 10 cm: blocked -> 60 - 50 + 2 = 12 %; 30 cm: clear -> 60 %
+        assert r.driver("LeftActuator").commands_named("set_duty_cycle") == [(60,), (12,), (60,)]
+        reads = [e["value"] for e in r.trace(kind="datastore") if e["node"] == "read"]
+        assert reads == [50, 10, 30]
+        choices = [e["value"] for e in r.trace(kind="decision") if e["node"] == "clear"]
+        assert choices == ["go", "slow", "go"]
+        assert orch.engine.stores["RaspberryPI"]["readings"] == 3
+        naps = [e for e in r.trace(kind="action") if e["node"] == "nap"]
+        assert len(naps) == 3 and all(e["duration_ms"] >= 0.9 for e in naps)
+
+
+def test_virtual_lane_called_from_two_lanes_at_once(broker: BrokerProcess) -> None:
+    with rig(broker.url, "reentrant.yaml") as r:
+        began = time.monotonic()
+        code, orch = r.run()
+        assert code == 0, orch.failure
+        waits = [e for e in r.trace(lane="Pulse") if e["node"] == "wait"]
+        assert len(waits) == 2
+        # the two calls' sleeps overlap: they really ran at the same time
+        assert max(e["start"] for e in waits) < min(e["end"] for e in waits)
+        assert r.driver("LeftActuator").commands_named("set_direction") == [(True,), (True,)]
+        assert orch.engine.stores["Pulse"]["last_caller_done"] is True
+        callers = [e for e in r.trace(kind="action") if e["node"] == "call"]
+        assert {e["lane"] for e in callers} == {"LeftActuator", "RightActuator"}
+        assert all(150 <= e["duration_ms"] < 290 for e in callers), callers
+        assert time.monotonic() - began < 5.0
+
+
+def test_decision_with_no_match_and_no_else_stops_that_flow(broker: BrokerProcess) -> None:
+    with rig(broker.url, "no_match.yaml") as r:
+        code, orch = r.run()
+        assert code == 0, orch.failure
+        warnings = [e for e in r.events if e["level"] == "warning"]
+        assert len(warnings) == 1
+        assert warnings[0]["node"] == "check" and "no guard holds" in warnings[0]["detail"]
+        assert "drive" not in r.nodes()
+        assert r.driver("LeftActuator").commands_named("set_enabled") == [(False,), (False,)]
+
+
+def test_signal_from_a_raw_mqtt_client_wakes_the_accept_event(
+    broker: BrokerProcess, raw_client: Callable[..., RawClient]
+) -> None:
+    raw = raw_client(broker)
+    raw.subscribe("umlbot/test/signal/done")
+    with rig(broker.url, "signals.yaml") as r:
+        running = r.start()
+        orch = running.orchestrator
+        assert wait_for(lambda: orch.signals.waiting("go") == 1, 5.0), "the accept node never waited"
+        raw.publish("umlbot/test/signal/go", "55")
+        assert running.wait() == 0, orch.failure
+        assert r.driver("LeftActuator").commands_named("set_duty_cycle") == [(55,)]
+        accepted = [e for e in r.trace(kind="accept")]
+        assert accepted[0]["value"] == 55
+        done = raw.get(topic="umlbot/test/signal/done")
+        assert json.loads(done.payload) == 110
+
+
+def test_held_signal_and_text_payload(broker: BrokerProcess, raw_client: Callable[..., RawClient]) -> None:
+    # a signal that arrives before anyone waits is held (newest wins); a non-JSON payload is text
+    raw = raw_client(broker)
+    with rig(broker.url, "signals.yaml") as r:
+        running = r.start()
+        orch = running.orchestrator
+        assert wait_for(lambda: orch.signals.waiting("go") == 1, 5.0)
+        raw.publish("umlbot/test/signal/other", "hello there")
+        assert wait_for(lambda: orch.signals.held("other"), 5.0)
+        orch.request_exit("test over")
+        assert running.wait() == 0
+        assert orch.exit_reason == "test over"
+
+
+def test_exit_request_over_mqtt_sets_application_exit(
+    broker: BrokerProcess, raw_client: Callable[..., RawClient]
+) -> None:
+    raw = raw_client(broker)
+    raw.subscribe("umlbot/test/orchestrator/status")
+    with rig(broker.url, "exit_loop.yaml") as r:
+        running = r.start()
+        orch = running.orchestrator
+        assert wait_for(lambda: "nap" in r.nodes(), 5.0)
+        began = time.monotonic()
+        raw.publish("umlbot/test/orchestrator/exit", json.dumps({"reason": "end of test"}))
+        assert running.wait() == 0, orch.failure
+        assert time.monotonic() - began < orch.grace_s  # the lane ended by itself
+        assert orch.exit_reason == "exit requested over MQTT: end of test"
+        nodes = r.nodes()
+        assert nodes[-2:] == ["halt", "end"]
+        left = r.driver("LeftActuator")
+        assert left.commands_named("set_enabled")[-2:] == [(False,), (False,)]  # the lane's, then ours
+        assert not left.running
+        states = []
+        while True:
+            try:
+                message = raw.get(timeout=1.0, topic="umlbot/test/orchestrator/status")
+            except TimeoutError:
+                break
+            states.append(OrchestratorStatus.model_validate_json(message.payload).state)
+        assert states[-3:] == ["running", "stopping", "stopped"]
+
+
+def test_grace_period_then_lanes_cancelled_and_motor_stopped(broker: BrokerProcess) -> None:
+    with rig(broker.url, "stubborn.yaml") as r:
+        running = r.start(grace_s=0.3)
+        orch = running.orchestrator
+        left = r.driver("LeftActuator")
+        assert wait_for(lambda: left.running, 5.0)
+        began = time.monotonic()
+        orch.request_exit("test")
+        assert running.wait() == 0
+        assert 0.25 < time.monotonic() - began < 3.0
+        assert not left.running
+        assert "nap" not in r.nodes()  # cancelled, never completed
+
+
+def test_trace_on_mqtt_and_in_a_file(
+    broker: BrokerProcess, raw_client: Callable[..., RawClient], tmp_path: Path
+) -> None:
+    raw = raw_client(broker)
+    raw.subscribe("umlbot/test/orchestrator/trace")
+    trace_file = tmp_path / "trace.jsonl"
+    with rig(broker.url, "fork.yaml") as r:
+        code, _ = r.run(trace_file=trace_file)
+        assert code == 0
+    lines = [json.loads(line) for line in trace_file.read_text(encoding="utf-8").splitlines()]
+    from_file = [TraceEvent.model_validate(line) for line in lines]
+    assert [e.node for e in from_file] == r.nodes()
+    assert len(from_file) == 8  # start, before, fork, left, right, join, after, end
+    received = []
+    for _ in from_file:
+        received.append(TraceEvent.model_validate_json(raw.get(topic="umlbot/test/orchestrator/trace").payload))
+    assert sorted(e.node for e in received) == sorted(e.node for e in from_file)
+    left = next(e for e in from_file if e.node == "left")
+    assert (left.lane, left.kind, left.detail) == ("RaspberryPI", "action", "LeftActuator.dutycycle(10)")
+    assert left.end >= left.start and left.duration_ms >= 95
+
+
+def test_no_trace_publishes_nothing(broker: BrokerProcess, raw_client: Callable[..., RawClient]) -> None:
+    raw = raw_client(broker)
+    raw.subscribe("umlbot/test/orchestrator/trace")
+    with rig(broker.url, "no_match.yaml") as r:
+        code, orch = r.run(trace=False, trace_listener=None)
+        assert code == 0
+        assert orch.recorder is None and orch.engine.trace is None
+    with pytest.raises(TimeoutError):
+        raw.get(timeout=0.5, topic="umlbot/test/orchestrator/trace")
+
+
+def test_start_up_names_the_components_that_are_not_online(broker: BrokerProcess) -> None:
+    with rig(broker.url, "sensor_decision.yaml", services=["motor"]) as r:
+        began = time.monotonic()
+        with pytest.raises(OrchestratorError) as caught:
+            r.run(startup_timeout_s=0.5)
+        assert time.monotonic() - began < 5.0
+        assert "DistanceRead (sonar service" in str(caught.value)
+        assert "LeftActuator" not in str(caught.value)
+        # the online actuators are stopped on this exit path too
+        assert r.driver("LeftActuator").commands_named("set_enabled") == [(False,)]

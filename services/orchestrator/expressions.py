@@ -10,7 +10,7 @@ passed to eval/exec: every operator maps to one fixed Python operation from `BIN
 from __future__ import annotations
 
 import operator
-from collections.abc import Awaitable, Callable
+from collections.abc import Callable, Coroutine
 from dataclasses import dataclass
 from typing import Any, Protocol
 
@@ -19,7 +19,7 @@ from compiler.expr import Binary, BuiltinTarget, Call, Const, Expr, FeatureTarge
 #: A model value: bool, int, float, str, None, or whatever JSON a service or a signal delivered.
 Value = Any
 SyncFn = Callable[[], Value]
-AsyncFn = Callable[[], Awaitable[Value]]
+AsyncFn = Callable[[], Coroutine[Any, Any, Value]]
 
 
 class Runtime(Protocol):
