@@ -1,0 +1,92 @@
+"""`umlbot sim MODEL`: run the whole robot in the 2D simulator and report how it went."""
+
+from __future__ import annotations
+
+import json
+import math
+import signal
+import sys
+import threading
+from pathlib import Path
+from types import FrameType
+
+import click
+
+DEFAULT_TRACK = "models/tracks/s_bend.yaml"
+
+
+@click.command(name="sim")
+@click.argument("model", type=click.Path(exists=True, path_type=Path))
+@click.option("--track", "track", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help=f"Track file (default: {DEFAULT_TRACK}).")
+@click.option("--speed", type=click.FloatRange(min=0.1, max=100), default=10.0, show_default=True,
+              help="Sim seconds per wall second (model sleeps and the world).")
+@click.option("--broker", "broker_url", default=None, metavar="URL",
+              help="Use this broker instead of starting the embedded one.")
+@click.option("--port", type=click.IntRange(0, 65535), default=1883, show_default=True,
+              help="Port of the embedded broker (0 = any free port).")
+@click.option("--timeout", "timeout_s", type=click.FloatRange(min=1), default=600.0, show_default=True,
+              help="Give up after this many sim seconds.")
+@click.option("--plot", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="Write the track, path and sonar pings to this PNG or SVG file.")
+@click.option("--processes", is_flag=True,
+              help="Run each service as its own 'umlbot service' process (as on the robot).")
+@click.option("--seed", type=int, default=None, help="Seed of the sonar noise.")
+@click.option("--noise", "noise_cm", type=click.FloatRange(min=0), default=0.0, show_default=True,
+              help="Sonar noise, standard deviation in cm.")
+@click.option("--max-collisions", type=click.IntRange(min=1), default=1, show_default=True,
+              help="Stop after this many collisions.")
+@click.option("--json", "as_json", is_flag=True, help="Print the summary as one JSON object.")
+def command(model: Path, track: Path | None, speed: float, broker_url: str | None, port: int,
+            timeout_s: float, plot: Path | None, processes: bool, seed: int | None, noise_cm: float,
+            max_collisions: int, as_json: bool) -> None:
+    """Run MODEL on a track: embedded broker, world, services, orchestrator; exit 0 only when the
+    goal was reached without a collision."""
+    from umlbot.sim.runner import Progress, SimOptions, run_sim
+
+    options = SimOptions(
+        model=model, track=track or Path(DEFAULT_TRACK), speed=speed, broker_url=broker_url, port=port,
+        timeout_s=timeout_s, plot=plot, processes=processes, seed=seed, sonar_noise_cm=noise_cm,
+        max_collisions=max_collisions,
+    )
+    live = sys.stdout.isatty() and not as_json
+
+    def show(progress: Progress) -> None:
+        s = progress.snapshot
+        line = (f"t={s.time_s:7.1f}s  x={s.pose.x:6.2f} y={s.pose.y:6.2f} "
+                f"heading={math.degrees(s.pose.heading) % 360:5.1f}°  dist={s.distance_m:5.2f} m  "
+                f"actions={progress.actions:5d}  {progress.action}")
+        if live:
+            click.echo("\r" + line[:150].ljust(150), nl=False)
+        elif not as_json:
+            click.echo(line)
+
+    stop = threading.Event()
+
+    def on_signal(signum: int, frame: FrameType | None) -> None:
+        stop.set()
+
+    previous = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        result = run_sim(options, show, stop)
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+    if live:
+        click.echo()
+    if as_json:
+        click.echo(json.dumps(result.as_dict()))
+    else:
+        verdict = "goal reached" if result.goal_reached else "goal NOT reached"
+        click.echo(f"{result.track}: {verdict} ({result.reason})")
+        click.echo(f"  collisions      {result.collisions}")
+        click.echo(f"  sim time        {result.sim_s:.1f} s   wall time {result.wall_s:.1f} s")
+        click.echo(f"  distance        {result.distance_m:.2f} m")
+        p50 = "-" if result.action_p50_ms is None else f"{result.action_p50_ms:.2f} ms"
+        p99 = "-" if result.action_p99_ms is None else f"{result.action_p99_ms:.2f} ms"
+        click.echo(f"  actions         {result.actions}   latency p50 {p50}, p99 {p99}")
+        if result.failure:
+            click.echo(f"  failure         {result.failure}")
+        if result.plot is not None:
+            click.echo(f"  picture         {result.plot}")
+    sys.exit(0 if result.ok else 1)

@@ -1,0 +1,65 @@
+"""The picture at the end of a run: the track, the car's path, its sonar pings (matplotlib, Agg)."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+from umlbot.errors import SimError
+from umlbot.sim.geometry import rectangle_corners
+from umlbot.sim.world import World
+
+#: pings drawn at most (the newest); a long run makes thousands.
+MAX_PINGS = 1500
+
+
+def plot_run(world: World, path: str | Path, title: str = "") -> Path:
+    """Draw the run into `path` (PNG or SVG by its suffix) and return the path."""
+    import matplotlib
+
+    matplotlib.use("Agg")  # no display needed; also safe in threads and on servers
+    import matplotlib.pyplot as plt
+    from matplotlib.patches import Polygon, Rectangle
+
+    out = Path(path)
+    if out.suffix.lower() not in (".png", ".svg", ".pdf"):
+        raise SimError(f"plot file {out} must end in .png, .svg or .pdf")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    track = world.track
+    snap = world.snapshot()
+    fig, ax = plt.subplots(figsize=(7, 7))
+    try:
+        goal = track.goal
+        ax.add_patch(Rectangle((goal.x_min, goal.y_min), goal.x_max - goal.x_min, goal.y_max - goal.y_min,
+                               color="tab:green", alpha=0.25, label="goal"))
+        for seg in track.segments:
+            ax.plot([seg.a.x, seg.b.x], [seg.a.y, seg.b.y], color="black", linewidth=2.5)
+        for ping in world.pings[-MAX_PINGS:]:
+            if ping.distance_cm is None:
+                continue
+            d = ping.distance_cm / 100.0
+            hx, hy = ping.origin.x + d * math.cos(ping.angle), ping.origin.y + d * math.sin(ping.angle)
+            ax.plot([ping.origin.x, hx], [ping.origin.y, hy], color="tab:orange", alpha=0.06, linewidth=0.8)
+            ax.plot([hx], [hy], ".", color="tab:orange", markersize=2, alpha=0.5)
+        xs = [p[1] for p in world.path]
+        ys = [p[2] for p in world.path]
+        ax.plot(xs, ys, color="tab:blue", linewidth=1.5, label="path")
+        start = track.start
+        ax.plot([start.x], [start.y], "o", color="tab:blue", label="start")
+        ax.add_patch(Polygon(rectangle_corners(snap.pose, world.car.length_m, world.car.width_m),
+                             closed=True, fill=False, edgecolor="tab:blue", linewidth=1.5))
+        for i, (cx, cy) in enumerate(world.collision_points):
+            ax.plot([cx], [cy], "x", color="tab:red", markersize=10, mew=2,
+                    label="collision" if i == 0 else None)
+        outcome = "goal reached" if snap.goal_reached else "goal not reached"
+        ax.set_title(title or f"{track.name}: {outcome}, {snap.collisions} collision(s), "
+                     f"{snap.distance_m:.2f} m in {snap.time_s:.1f} s")
+        ax.set_aspect("equal")
+        ax.set_xlabel("x (m)")
+        ax.set_ylabel("y (m)")
+        ax.grid(True, alpha=0.3)
+        ax.legend(loc="best", fontsize="small")
+        fig.savefig(out, dpi=110, bbox_inches="tight")
+    finally:
+        plt.close(fig)
+    return out

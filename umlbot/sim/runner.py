@@ -1,0 +1,406 @@
+"""`umlbot sim`: the whole robot on one machine — broker, world, services, orchestrator — and a report.
+
+`run_sim(SimOptions(...))` compiles the model, starts the embedded broker (unless a broker URL is
+given), the world and its loop, the services with the `sim` drivers (in this process, or as
+`umlbot service KIND` child processes with `processes=True`, which reach the world through
+`umlbot.sim.sharing.WorldServer`) and the orchestrator in this process with the same clock. It
+stops when the goal is reached, when the collision limit or the time-out is hit, when the
+orchestrator ends, or on Ctrl-C; on every path the motors are stopped and everything started is
+torn down. The result carries the summary; `plot` draws the picture.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import os
+import signal
+import statistics
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from umlbot.errors import ConfigError, SimError
+from umlbot.logs import get_logger
+from umlbot.sim.clock import SimClock
+from umlbot.sim.sharing import WorldServer, attach_local_world
+from umlbot.sim.track import load_track
+from umlbot.sim.world import World, WorldLoop, WorldSnapshot
+
+log = get_logger(__name__)
+
+#: The default embedded-broker port: the standard one, so any MQTT client can watch the run.
+DEFAULT_PORT = 1883
+#: Sim seconds before a run is given up.
+DEFAULT_TIMEOUT_S = 600.0
+
+
+@dataclass(frozen=True)
+class SimOptions:
+    """What `umlbot sim` was asked to do."""
+
+    model: Path
+    track: Path
+    speed: float = 10.0
+    broker_url: str | None = None
+    port: int = DEFAULT_PORT
+    timeout_s: float = DEFAULT_TIMEOUT_S  # sim seconds
+    plot: Path | None = None
+    processes: bool = False
+    seed: int | None = None
+    sonar_noise_cm: float = 0.0
+    max_collisions: int = 1
+    progress_interval_s: float = 0.5  # wall seconds between progress reports
+
+
+@dataclass(frozen=True)
+class Progress:
+    """One progress report: sim time, pose, distance and the action being executed."""
+
+    snapshot: WorldSnapshot
+    action: str
+    actions: int
+
+
+@dataclass
+class SimResult:
+    """How a run ended, with the numbers of the summary."""
+
+    track: str
+    reason: str  # goal, collision, timeout, interrupted, orchestrator ended, orchestrator failed
+    goal_reached: bool
+    collisions: int
+    sim_s: float
+    wall_s: float
+    distance_m: float
+    actions: int
+    action_p50_ms: float | None
+    action_p99_ms: float | None
+    plot: Path | None = None
+    failure: str | None = None
+    final_pose: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    @property
+    def ok(self) -> bool:
+        """The run counts as a success: goal reached without a collision."""
+        return self.goal_reached and self.collisions == 0
+
+    def as_dict(self) -> dict[str, Any]:
+        return {
+            "track": self.track,
+            "reason": self.reason,
+            "goal": self.goal_reached,
+            "collisions": self.collisions,
+            "sim_s": round(self.sim_s, 3),
+            "wall_s": round(self.wall_s, 3),
+            "distance_m": round(self.distance_m, 3),
+            "actions": self.actions,
+            "action_p50_ms": _round(self.action_p50_ms),
+            "action_p99_ms": _round(self.action_p99_ms),
+            "plot": str(self.plot) if self.plot else None,
+        }
+
+
+def _round(value: float | None) -> float | None:
+    return None if value is None else round(value, 3)
+
+
+def percentile(values: list[float], q: float) -> float | None:
+    """The q-th percentile (0..100, nearest rank) or None for no values."""
+    if not values:
+        return None
+    ordered = sorted(values)
+    rank = max(1, math.ceil(q / 100.0 * len(ordered)))
+    return ordered[min(rank, len(ordered)) - 1]
+
+
+@dataclass
+class _Watch:
+    """What the runner learns from the orchestrator's trace listener."""
+
+    components: frozenset[str]
+    action: str = ""
+    lock: threading.Lock = field(default_factory=threading.Lock)
+
+    def on_event(self, event: dict[str, Any]) -> None:
+        if event.get("kind") != "action":
+            return
+        detail = str(event.get("detail", ""))
+        if detail.split(".", 1)[0] in self.components:
+            with self.lock:
+                self.action = detail
+
+
+def sim_deployment(compiled: Any) -> Any:
+    """The deployment the services run with in the simulator: `sim` drivers, gpio on `mock`."""
+    from umlbot.deployment import ComponentDeployment, Deployment
+
+    components = {
+        name: ComponentDeployment(
+            impl=comp.impl,
+            driver="mock" if comp.service == "gpio" else "sim",
+            settings=dict(comp.settings),
+        )
+        for name, comp in compiled.components.items()
+    }
+    return Deployment(robot=compiled.name, driver="sim", components=components)
+
+
+def _deployment_yaml(deployment: Any) -> str:
+    import json
+
+    # JSON is YAML: the child processes read it with the ordinary deployment loader
+    return json.dumps(deployment.model_dump(mode="json"), indent=1, sort_keys=True)
+
+
+class _Services:
+    """The services of the run: in-process `ServiceHost`s, or `umlbot service` child processes."""
+
+    def __init__(self, deployment: Any, broker_url: str, processes: bool, world: World) -> None:
+        self.deployment = deployment
+        self.broker_url = broker_url
+        self.processes = processes
+        self.world = world
+        self.kinds = sorted({c.implementation.service for c in deployment.components.values()})
+        self.hosts: list[Any] = []
+        self.children: dict[str, subprocess.Popen[bytes]] = {}
+        self.server: WorldServer | None = None
+        self._tmp: tempfile.TemporaryDirectory[str] | None = None
+
+    def start(self) -> None:
+        if self.processes:
+            self._start_processes()
+        else:
+            self._start_in_process()
+
+    def _start_in_process(self) -> None:
+        from services.bus.settings import BrokerSettings
+        from services.host import ServiceHost
+
+        attach_local_world(self.world)
+        settings = BrokerSettings.from_url(self.broker_url)
+        for kind in self.kinds:
+            host = ServiceHost(kind, self.deployment, settings, self.deployment.robot)
+            self.hosts.append(host)
+            host.start()
+
+    def _start_processes(self) -> None:
+        self.server = WorldServer(self.world).start()
+        self._tmp = tempfile.TemporaryDirectory(prefix="umlbot-sim-")
+        deploy_file = Path(self._tmp.name) / "deployment.yaml"
+        deploy_file.write_text(_deployment_yaml(self.deployment), encoding="utf-8")
+        env = {**os.environ, **self.server.env, "UMLBOT_BROKER": self.broker_url}
+        for kind in self.kinds:
+            argv = [sys.executable, "-c", "from umlbot.cli import main; main()", "service", kind,
+                    "--deploy", str(deploy_file), "--broker", self.broker_url,
+                    "--robot", str(self.deployment.robot)]
+            self.children[kind] = subprocess.Popen(argv, env=env, stdin=subprocess.DEVNULL)
+            log.info("service_process_started", kind=kind, pid=self.children[kind].pid)
+
+    def check_children(self) -> str | None:
+        """The first child service that died, as a message, or None."""
+        for kind, child in self.children.items():
+            code = child.poll()
+            if code is not None:
+                return f"the {kind} service process exited with code {code}"
+        return None
+
+    def stop(self) -> None:
+        """Stop every service (their motors stop with them); idempotent."""
+        for host in reversed(self.hosts):
+            with contextlib.suppress(Exception):
+                host.stop()
+        self.hosts.clear()
+        for child in self.children.values():
+            if child.poll() is None:
+                child.send_signal(signal.SIGTERM)
+        for kind, child in self.children.items():
+            try:
+                child.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                log.warning("service_process_killed", kind=kind, pid=child.pid)
+                child.kill()
+                child.wait(timeout=5)
+        self.children.clear()
+        if self.server is not None:
+            self.server.stop()
+            self.server = None
+        if self._tmp is not None:
+            self._tmp.cleanup()
+            self._tmp = None
+        attach_local_world(None)
+
+
+def _start_broker(options: SimOptions) -> tuple[Any, str]:
+    """The embedded broker (or None) and the URL everybody connects to."""
+    if options.broker_url is not None:
+        return None, options.broker_url
+    from services.bus.broker import EmbeddedBroker
+
+    port = options.port or _free_port()
+    broker = EmbeddedBroker("127.0.0.1", port)
+    try:
+        broker.start()
+    except ConfigError as exc:
+        raise SimError(
+            f"cannot start the embedded broker on 127.0.0.1:{port} ({exc}). "
+            f"If a broker already runs there, use it: --broker mqtt://127.0.0.1:{port}; "
+            "or pick another port: --port 0 (any free port)"
+        ) from exc
+    return broker, broker.url
+
+
+def _free_port() -> int:
+    import socket
+
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as sock:
+        sock.bind(("127.0.0.1", 0))
+        port: int = sock.getsockname()[1]
+        return port
+
+
+def run_sim(
+    options: SimOptions,
+    on_progress: Callable[[Progress], None] | None = None,
+    stop: threading.Event | None = None,
+) -> SimResult:
+    """Run one simulation to its end (see the module docstring); `stop` ends it early (Ctrl-C)."""
+    from compiler.api import compile_model
+    from services.bus.settings import BrokerSettings
+    if not options.speed > 0:
+        raise SimError(f"--speed must be > 0, got {options.speed}")
+    track = load_track(options.track)
+    compiled = compile_model(options.model)
+    try:
+        world = World(track, sonar_noise_cm=options.sonar_noise_cm, seed=options.seed)
+    except ValueError as exc:
+        raise SimError(str(exc)) from exc
+    deployment = sim_deployment(compiled)
+    stop = stop or threading.Event()
+    broker, url = _start_broker(options)
+    services = _Services(deployment, url, options.processes, world)
+    loop: WorldLoop | None = None
+    orchestrator: Any = None
+    orch_thread: threading.Thread | None = None
+    orch_outcome: dict[str, Any] = {}
+    watch = _Watch(frozenset(compiled.components))
+    wall_start = time.monotonic()
+    reason = "interrupted"
+    failure: str | None = None
+    try:
+        services.start()
+        # the world moves with the clock from now on: start-up time is not sim time
+        clock = SimClock(options.speed)
+        world.clock = clock
+        orchestrator = _sim_orchestrator_class()(
+            compiled, BrokerSettings.from_url(url), robot=deployment.robot, clock=clock,
+            trace_listener=watch.on_event, handle_signals=False,
+        )
+
+        def run_orchestrator() -> None:
+            try:
+                orch_outcome["code"] = orchestrator.run_sync()
+            except Exception as exc:  # reported in the result; the runner tears down
+                orch_outcome["error"] = str(exc)
+
+        loop = WorldLoop(world, clock)
+        loop.start()
+        orch_thread = threading.Thread(target=run_orchestrator, name="sim-orchestrator", daemon=True)
+        orch_thread.start()
+        next_report = 0.0
+        while True:
+            if stop.wait(0.02):
+                reason = "interrupted"
+                break
+            snap = world.snapshot()
+            if snap.goal_reached:
+                reason = "goal"
+                break
+            if snap.collisions >= options.max_collisions:
+                reason = "collision"
+                break
+            if snap.time_s >= options.timeout_s:
+                reason = "timeout"
+                break
+            if not orch_thread.is_alive():
+                failure = orch_outcome.get("error") or orchestrator.failure
+                reason = "orchestrator failed" if failure else "orchestrator ended"
+                break
+            dead = services.check_children()
+            if dead is not None:
+                reason, failure = "service failed", dead
+                break
+            now = time.monotonic()
+            if on_progress is not None and now >= next_report:
+                next_report = now + options.progress_interval_s
+                with watch.lock:
+                    action = watch.action
+                on_progress(Progress(snap, action, orchestrator.stats.actions))
+    except KeyboardInterrupt:
+        reason = "interrupted"
+    finally:
+        world.stop_motors()  # at once, whatever the services still do
+        final = world.snapshot()
+        wall_s = time.monotonic() - wall_start
+        if orchestrator is not None:
+            orchestrator.request_exit(f"simulation ended: {reason}")
+            if orch_thread is not None:
+                orch_thread.join(timeout=10)
+                if orch_thread.is_alive():
+                    orchestrator.request_exit("simulation ended")  # a second request ends the grace
+                    orch_thread.join(timeout=5)
+        services.stop()
+        if loop is not None:
+            loop.stop()
+        world.stop_motors()
+        if broker is not None:
+            broker.stop()
+    latencies = list(orchestrator.stats.action_latency_s) if orchestrator is not None else []
+    result = SimResult(
+        track=track.name,
+        reason=reason,
+        goal_reached=final.goal_reached,
+        collisions=final.collisions,
+        sim_s=final.time_s,
+        wall_s=wall_s,
+        distance_m=final.distance_m,
+        actions=orchestrator.stats.actions if orchestrator is not None else 0,
+        action_p50_ms=_ms(statistics.median(latencies)) if latencies else None,
+        action_p99_ms=_ms(percentile(latencies, 99)),
+        failure=failure,
+        final_pose=(final.pose.x, final.pose.y, math.degrees(final.pose.heading)),
+    )
+    if options.plot is not None:
+        from umlbot.sim.plot import plot_run
+
+        result.plot = plot_run(world, options.plot)
+    log.info("sim_finished", **result.as_dict())
+    return result
+
+
+def _sim_orchestrator_class() -> Any:
+    """The orchestrator, telling its `SimClock` when a feature call is in flight."""
+    from services.orchestrator.orchestrator import Orchestrator
+
+    class SimOrchestrator(Orchestrator):
+        async def call(self, component: str, feature: str, args: list[Any]) -> Any:
+            clock = self.clock
+            if not isinstance(clock, SimClock):
+                return await super().call(component, feature, args)
+            clock.call_started()
+            try:
+                return await super().call(component, feature, args)
+            finally:
+                clock.call_finished()
+
+    return SimOrchestrator
+
+
+def _ms(seconds: float | None) -> float | None:
+    return None if seconds is None else seconds * 1000.0
