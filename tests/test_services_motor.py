@@ -152,17 +152,17 @@ def test_pigpio_driver_on_the_fake_over_the_bus(mosquitto_broker: BrokerProcess)
 
 
 def test_watchdog_stops_a_motor_without_commands(mosquitto_broker: BrokerProcess) -> None:
-    dep = deployment(LeftActuator={"watchdog_s": 0.3}, RightActuator={"watchdog_s": 0})
+    dep = deployment(LeftActuator={"watchdog_s": 0.8}, RightActuator={"watchdog_s": 0})
     with running("motor", dep, mosquitto_broker.url) as host, client(mosquitto_broker.url) as bus:
         watch = StateWatch(bus, "LeftActuator")
         for name in ("LeftActuator", "RightActuator"):
             bus.call(name, "dutycycle", 40)
             bus.call(name, "enabled", True)
         left, right = mock(host), mock(host, "RightActuator")
-        for _ in range(4):  # commands keep it alive
+        for _ in range(8):  # commands keep it alive for longer than the watchdog period
             assert left.wait_until(lambda: not left.running, 0.15) is False
             bus.call("LeftActuator", "dutycycle", 40)
-        assert left.wait_until(lambda: not left.running, 2.0)
+        assert left.wait_until(lambda: not left.running, 3.0)
         state = watch.wait("LeftActuator", lambda s: s["stop_reason"] == "watchdog")
         assert state["enabled"] is False and state["dutycycle"] == 0
         assert right.running, "watchdog_s: 0 turns the watchdog off"
