@@ -64,6 +64,8 @@ DEFAULT_RECONNECT_WAIT_S = 10.0
 CONNECT_TIMEOUT_S = 5.0
 #: time-out of each safe-stop call on the way out (the services stop on their own anyway).
 FINAL_STOP_TIMEOUT_S = 1.0
+#: after a reconnect, seconds to wait for the actuators' services to be back online.
+ACTUATORS_BACK_TIMEOUT_S = 2.0
 #: seconds cancelled lanes get to unwind.
 LANE_CANCEL_TIMEOUT_S = 2.0
 
@@ -345,6 +347,8 @@ class Orchestrator:
                 if not back:
                     log.error("broker not back: actuators not stopped by the orchestrator "
                               "(the motor services stop on their own when the broker is lost)")
+                else:  # the services reconnect too: give their retained status a moment to arrive
+                    await self._wait_actuators_online(ACTUATORS_BACK_TIMEOUT_S)
             if control.connected and client.connected:
                 await self._stop_actuators(at_start=False)
             final = "failed" if self.failure is not None else "stopped"
@@ -354,6 +358,18 @@ class Orchestrator:
             await asyncio.to_thread(self.recorder.close)
         await asyncio.to_thread(self._close_connections)
         return EXIT_FAULT if self.failure is not None else EXIT_OK
+
+    async def _wait_actuators_online(self, limit_s: float) -> None:
+        loop, changed = self._runtime()
+        deadline = loop.time() + limit_s
+        names = {name for name, _, _ in self.actuators}
+        while any(self.availability.get(name) != "online" for name in names):
+            remaining = deadline - loop.time()
+            if remaining <= 0:
+                return
+            changed.clear()
+            with contextlib.suppress(TimeoutError):
+                await asyncio.wait_for(changed.wait(), remaining)
 
     def _wait_reconnected(self, timeout: float) -> bool:
         deadline = time.monotonic() + timeout

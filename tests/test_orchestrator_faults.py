@@ -1,0 +1,157 @@
+"""Faults end the run in a fail-safe stop: every actuator stopped, status `failed` with the reason,
+exit code 1 — for an error reply, a reply that does not come, a service killed mid-run and a
+broker that goes away. Nothing may hang: every run here is bounded.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+import pytest
+from conftest import BrokerProcess, RawClient
+from orchestrator_support import Rig, rig, wait_for
+from ruamel.yaml import YAML
+
+from services.bus import OrchestratorStatus
+
+pytestmark = pytest.mark.network
+
+MOTORS = ("LeftActuator", "RightActuator")
+
+
+def motors_running(r: Rig) -> bool:
+    return any(r.driver(name).running for name in MOTORS)
+
+
+def start_and_wait_driving(r: Rig, **options: object):  # type: ignore[no-untyped-def]
+    running = r.start(**options)
+    assert wait_for(lambda: all(r.driver(n).running for n in MOTORS) and "read" in r.nodes(), 5.0), \
+        running.orchestrator.failure
+    return running
+
+
+def last_status(raw: RawClient) -> OrchestratorStatus:
+    status = None
+    while True:
+        try:
+            message = raw.get(timeout=0.5, topic="umlbot/test/orchestrator/status")
+        except TimeoutError:
+            break
+        status = OrchestratorStatus.model_validate_json(message.payload)
+    assert status is not None
+    return status
+
+
+def test_error_reply_fails_safe(broker: BrokerProcess, raw_client: Callable[..., RawClient]) -> None:
+    raw = raw_client(broker)
+    raw.subscribe("umlbot/test/orchestrator/status")
+    with rig(broker.url, "fault_loop.yaml") as r:
+        running = start_and_wait_driving(r)
+        r.driver("DistanceRead").fail_next("read_distance_cm", "no echo line")
+        began = time.monotonic()
+        assert running.wait() == 1
+        assert time.monotonic() - began < 2.0
+        orch = running.orchestrator
+        assert orch.failure is not None
+        assert "node read" in orch.failure and "driver_error" in orch.failure
+        assert not motors_running(r)
+        for name in MOTORS:  # stopped by the orchestrator itself, not only by the status watch
+            assert r.driver(name).commands_named("set_enabled")[-1] == (False,)
+        status = last_status(raw)
+        assert status.state == "failed" and "driver_error" in (status.reason or "")
+        errors = [e for e in r.events if e["level"] == "error"]
+        assert [e["node"] for e in errors] == ["read"]
+
+
+def test_call_time_out_fails_safe(broker: BrokerProcess) -> None:
+    with rig(broker.url, "fault_loop.yaml") as r:
+        running = start_and_wait_driving(r, call_timeout_s=0.3)
+        r.driver("DistanceRead").latency_s = 1.0
+        began = time.monotonic()
+        assert running.wait() == 1
+        assert time.monotonic() - began < 0.3 + 1.5
+        assert "no reply from DistanceRead.value within 0.3 s" in (running.orchestrator.failure or "")
+        assert not motors_running(r)
+
+
+@pytest.fixture
+def sonar_process(tmp_path: Path) -> Iterator[Callable[[str], subprocess.Popen[bytes]]]:
+    """Starts `umlbot service sonar` (mock driver) as a child process for the fault_loop model."""
+    started: list[subprocess.Popen[bytes]] = []
+
+    def start(broker_url: str) -> subprocess.Popen[bytes]:
+        deployment = tmp_path / "deployment.yaml"
+        YAML().dump({"driver": "mock", "components": {
+            "DistanceRead": {"impl": "hcsr04", "settings": {"trigger": 8, "echo": 7}}}}, deployment)
+        proc = subprocess.Popen(
+            [sys.executable, "-c", "from umlbot.cli import main; main()", "--log-level", "WARNING",
+             "service", "sonar", "--deploy", str(deployment), "--broker", broker_url, "--robot", "test"],
+            stdout=subprocess.DEVNULL, stderr=(tmp_path / "sonar.log").open("wb"),
+        )
+        started.append(proc)
+        return proc
+
+    yield start
+    for proc in started:
+        if proc.poll() is None:
+            proc.kill()
+        proc.wait(5)
+
+
+def test_service_killed_mid_run_fails_safe_within_the_call_time_out(
+    broker: BrokerProcess,
+    raw_client: Callable[..., RawClient],
+    sonar_process: Callable[[str], subprocess.Popen[bytes]],
+) -> None:
+    raw = raw_client(broker)
+    raw.subscribe("umlbot/test/orchestrator/status")
+    sonar = sonar_process(broker.url)
+    with rig(broker.url, "fault_loop.yaml", services=["motor"]) as r:
+        running = start_and_wait_driving(r, startup_timeout_s=10.0)
+        os.kill(sonar.pid, signal.SIGKILL)
+        began = time.monotonic()
+        assert running.wait() == 1
+        assert time.monotonic() - began < running.orchestrator.call_timeout_s + 0.5
+        failure = running.orchestrator.failure or ""
+        # whichever comes first: the last will (offline) or the unanswered call
+        assert "DistanceRead" in failure, failure
+        assert not motors_running(r)
+        status = last_status(raw)
+        assert status.state == "failed" and "DistanceRead" in (status.reason or "")
+
+
+def test_broker_restart_mid_run_fails_safe_and_stops_when_it_is_back(broker: BrokerProcess) -> None:
+    with rig(broker.url, "fault_loop.yaml") as r:
+        running = start_and_wait_driving(r)
+        began = time.monotonic()
+        broker.stop()
+        # the motor services stop on their own as soon as the connection is gone
+        assert wait_for(lambda: not motors_running(r), 3.0)
+        broker.start()
+        assert running.wait(timeout=20.0) == 1
+        assert time.monotonic() - began < 15.0
+        orch = running.orchestrator
+        # the first sign wins: the lost connection, a failed call, or (amqtt publishes the wills of
+        # its clients when it shuts down) a component going offline
+        assert orch.failure is not None
+        assert any(word in orch.failure for word in ("broker", "NotConnected", "offline")), orch.failure
+        assert not motors_running(r)
+        if broker.kind == "mosquitto":  # the connection loss came first: stops sent once it was back
+            for name in MOTORS:
+                assert r.driver(name).commands_named("set_enabled")[-1] == (False,)
+
+
+def test_broker_gone_for_good_ends_the_run_anyway(broker: BrokerProcess) -> None:
+    with rig(broker.url, "fault_loop.yaml") as r:
+        running = start_and_wait_driving(r, reconnect_wait_s=1.0)
+        began = time.monotonic()
+        broker.kill()
+        assert running.wait(timeout=15.0) == 1
+        assert time.monotonic() - began < 8.0
+        assert wait_for(lambda: not motors_running(r), 3.0)
