@@ -59,13 +59,16 @@ def test_listing_an_owned_pin_is_a_config_error(mosquitto_broker: BrokerProcess)
         host.start()
 
 
-def test_raw_bare_write(mosquitto_broker: BrokerProcess, raw_client: Callable[..., RawClient]) -> None:
+def test_raw_bare_write_and_read(mosquitto_broker: BrokerProcess, raw_client: Callable[..., RawClient]) -> None:
     raw = raw_client(mosquitto_broker)
     raw.subscribe(TOPICS.state("RaspberryPI"))
     with running("gpio", deployment(), mosquitto_broker.url) as host:
         raw.publish(TOPICS.call("RaspberryPI", "writePin"), "[27, 1]")
         assert raw_state(raw, "RaspberryPI", lambda s: s["pins"].get("27") == 1)
         assert host.drivers["RaspberryPI"].levels[27] == 1
+        host.drivers["RaspberryPI"].set_level(17, 1)
+        raw.publish(TOPICS.call("RaspberryPI", "readPin"), "17")  # bare: the read shows in the state
+        assert raw_state(raw, "RaspberryPI", lambda s: s["pins"].get("17") == 1)["pins"]["27"] == 1
 
 
 def test_pigpio_on_the_fake_over_the_bus(mosquitto_broker: BrokerProcess) -> None:
