@@ -59,7 +59,9 @@ def test_listing_an_owned_pin_is_a_config_error(mosquitto_broker: BrokerProcess)
         host.start()
 
 
-def test_raw_bare_write_and_read(mosquitto_broker: BrokerProcess, raw_client: Callable[..., RawClient]) -> None:
+def test_raw_bare_write_and_read(
+    mosquitto_broker: BrokerProcess, raw_client: Callable[..., RawClient]
+) -> None:
     raw = raw_client(mosquitto_broker)
     raw.subscribe(TOPICS.state("RaspberryPI"))
     with running("gpio", deployment(), mosquitto_broker.url) as host:
