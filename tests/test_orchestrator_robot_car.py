@@ -37,7 +37,8 @@ def test_robot_car_drives_by_the_scripted_distances(broker: BrokerProcess) -> No
         assert list(zip(left_directions, right_directions, strict=False))[:4] == EXPECTED
         # every move: directions set, both sides enabled, then the halt disables both
         for driver in (left, right):
-            moves = [(name, args) for name, args in driver.commands if name in ("set_direction", "set_enabled")]
+            moves = [(name, args) for name, args in driver.commands
+                     if name in ("set_direction", "set_enabled")]
             assert moves[:2] == [("set_enabled", (False,)), ("set_enabled", (False,))]  # ours, the model's
             for i in range(4):
                 chunk = moves[2 + 3 * i: 5 + 3 * i]
