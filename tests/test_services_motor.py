@@ -164,8 +164,12 @@ def test_watchdog_stops_a_motor_without_commands(mosquitto_broker: BrokerProcess
             bus.call("LeftActuator", "dutycycle", 40)
         assert left.wait_until(lambda: not left.running, 3.0)
         state = watch.wait("LeftActuator", lambda s: s["stop_reason"] == "watchdog")
-        assert state["enabled"] is False and state["dutycycle"] == 0
+        assert state["enabled"] is False and state["running"] is False
+        assert left.duty_cycle_percent == 0, "the driver's duty is zeroed"
         assert right.running, "watchdog_s: 0 turns the watchdog off"
+        bus.call("LeftActuator", "enabled", True)  # a model that set dutycycle once resumes
+        assert left.running and left.duty_cycle_percent == 40
+        assert watch.wait("LeftActuator", lambda s: s["running"])["stop_reason"] is None
 
 
 def _stopped(driver: MockMotorChannel) -> Callable[[], bool]:

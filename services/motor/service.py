@@ -3,7 +3,8 @@
 Features (library): `enabled(bool)`, `direction(bool)` (true = clockwise), `dutycycle(0..100)`.
 State: `{"enabled", "clockwise", "dutycycle", "running", "stop_reason"}` where `stop_reason` names
 the last safety stop (`watchdog`, `orchestrator offline`, `broker connection lost`, `service
-stopping`) and is null after a command.
+stopping`) and is null after a command. A safety stop disables the motor and puts its pins at
+zero duty; `dutycycle` stays the commanded value, applied again by the next `enabled(true)`.
 
 Watchdog: while enabled, a command (any feature) must arrive at least every `watchdog_s` seconds
 of wall time (deployment setting, default 2.0; 0 turns it off); otherwise the motor stops.
@@ -52,6 +53,7 @@ class MotorService(ComponentService):
         self.duty_percent = 0
         self.stop_reason: str | None = None
         self.safety_stops = 0
+        self._duty_zeroed = True
         self.last_command = time.monotonic()
         self.channel.stop()
 
@@ -61,6 +63,10 @@ class MotorService(ComponentService):
 
     def enabled(self, on: bool) -> None:
         with self.lock:
+            if on and self._duty_zeroed:
+                if self.duty_percent > 0:
+                    self.channel.set_duty_cycle(self.duty_percent)  # a safety stop zeroed the pins
+                self._duty_zeroed = False
             self.channel.set_enabled(on)
             self.is_enabled = on
             self._command()
@@ -77,6 +83,7 @@ class MotorService(ComponentService):
         with self.lock:
             self.channel.set_duty_cycle(percent)
             self.duty_percent = percent
+            self._duty_zeroed = False
             self._command()
         self.changed()
 
@@ -91,12 +98,16 @@ class MotorService(ComponentService):
             }
 
     def safe_stop(self, reason: str) -> None:
-        """Disable and zero the duty cycle; publishes the state when something changed."""
+        """Stop the motor: the driver disables it and zeroes the pins' duty cycle.
+
+        The commanded duty cycle is remembered: the next `enabled(true)` drives at it again (a
+        model may set `dutycycle` once and then only switch `enabled`).
+        """
         with self.lock:
-            was_active = self.is_enabled or self.duty_percent > 0
+            was_active = self.is_enabled
             self.channel.stop()
             self.is_enabled = False
-            self.duty_percent = 0
+            self._duty_zeroed = True
             if was_active:
                 self.stop_reason = reason
                 self.safety_stops += 1
