@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import paho.mqtt.client as mqtt
-from paho.mqtt.enums import CallbackAPIVersion, MQTTProtocolVersion
+from paho.mqtt.enums import CallbackAPIVersion, MQTTErrorCode, MQTTProtocolVersion
 from paho.mqtt.packettypes import PacketTypes
 from paho.mqtt.properties import Properties
 
@@ -87,6 +87,43 @@ class _Counters:
     dropped: list[str] = field(default_factory=list)
 
 
+class _PahoClient(mqtt.Client):
+    """paho's client with one lock around socket writes.
+
+    Our own thread runs paho's network loop (not `loop_start`), so paho writes a packet directly
+    from the thread that publishes it instead of waking the network thread first: a reply leaves
+    the dispatcher thread at once. The lock keeps writes from several threads from interleaving.
+    """
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self._write_lock = threading.RLock()
+
+    def _packet_write(self) -> MQTTErrorCode:
+        with self._write_lock:
+            return super()._packet_write()
+
+    def _packet_queue(
+        self, command: int, packet: bytes | bytearray, mid: int, qos: int, info: Any = None
+    ) -> MQTTErrorCode:
+        # paho would also wake the network thread for every packet; we wake it only when the
+        # packet could not be written here (inside a paho callback, or a full socket buffer).
+        self._out_packet.append(
+            {"command": command, "mid": mid, "qos": qos, "pos": 0, "to_process": len(packet),
+             "packet": packet, "info": info}
+        )
+        if self._in_callback_mutex.acquire(False):
+            self._in_callback_mutex.release()
+            rc = self.loop_write()
+            if not self.want_write():
+                return rc
+        wake = self._sockpairW
+        if wake is not None:
+            with contextlib.suppress(BlockingIOError, OSError):
+                wake.send(b"0")
+        return MQTTErrorCode.MQTT_ERR_SUCCESS
+
+
 class BusConnection:
     """A robust MQTT connection with a last will, reconnects and a dispatcher thread.
 
@@ -136,7 +173,7 @@ class BusConnection:
 
     def _make_client(self) -> mqtt.Client:
         protocol = MQTTProtocolVersion.MQTTv5 if self._mqtt5 else MQTTProtocolVersion.MQTTv311
-        client = mqtt.Client(
+        client = _PahoClient(
             CallbackAPIVersion.VERSION2,
             client_id=self.client_id,
             protocol=protocol,
@@ -237,11 +274,13 @@ class BusConnection:
         *,
         response_topic: str | None = None,
         correlation_data: bytes | None = None,
+        wait_s: float | None = None,
     ) -> None:
-        """Queue a message for sending; raises NotConnected while there is no connection.
+        """Send a message; raises NotConnected while there is no connection.
 
         `payload` may be bytes, str, a pydantic model or anything JSON-able. The MQTT 5 properties
-        are sent only on an MQTT 5 connection.
+        are sent only on an MQTT 5 connection. With `wait_s`, wait that long at most for the
+        broker's acknowledgement (QoS 1) before returning.
         """
         if not self._connected.is_set():
             raise NotConnected(f"not connected to the MQTT broker at {self.settings.url}")
@@ -257,6 +296,9 @@ class BusConnection:
             raise NotConnected(f"not connected to the MQTT broker at {self.settings.url}")
         if info.rc == mqtt.MQTT_ERR_PAYLOAD_SIZE:
             raise BusError(f"payload of {len(to_payload(payload))} bytes is too large for MQTT")
+        if wait_s is not None and qos > 0:
+            with contextlib.suppress(RuntimeError, ValueError):
+                info.wait_for_publish(wait_s)
 
     def subscribe(self, topic_filter: str, handler: Handler, qos: int = 1) -> None:
         """Call `handler(message)` on the dispatcher thread for every message matching the filter.
@@ -406,6 +448,22 @@ class BusConnection:
                 log.exception("bus_handler_failed", client_id=self.client_id,
                               handler=getattr(function, "__qualname__", repr(function)))
 
+    def _network_loop(self) -> None:
+        """paho's network loop on this thread until the connection is lost or closed."""
+        client = self._client
+        while not self._lost.is_set():
+            try:
+                rc = client.loop(timeout=1.0)
+            except Exception:  # a bug in a callback must not kill the connection thread
+                log.exception("mqtt_loop_failed", client_id=self.client_id)
+                rc = mqtt.MQTT_ERR_UNKNOWN
+            if rc != mqtt.MQTT_ERR_SUCCESS:
+                break
+        if self._connected.is_set():  # lost without paho calling on_disconnect
+            self._handle_disconnect(client, None, None, "connection lost")
+        with contextlib.suppress(Exception):
+            client.disconnect()
+
     def _supervise(self) -> None:
         delay = self.reconnect_min_s
         first = True
@@ -428,10 +486,7 @@ class BusConnection:
             else:
                 first = False
                 failures = 0
-                self._client.loop_start()
-                self._lost.wait()
-                with contextlib.suppress(Exception):
-                    self._client.loop_stop()
+                self._network_loop()
                 if self._accepted:
                     delay = self.reconnect_min_s
             if self._closing.is_set():

@@ -12,6 +12,7 @@ from __future__ import annotations
 import contextlib
 import json
 import math
+import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -193,6 +194,8 @@ class ComponentServer:
         self.calls_served = 0
         self.calls_failed = 0
         self._since: float | None = None
+        self._status_lock = threading.Lock()
+        self._stopping = False
         self._status_topic = self.topics.status(component)
         self._call_prefix = self.topics.calls(component)[:-1]  # ".../call/"
         self.connection = BusConnection(
@@ -217,9 +220,11 @@ class ComponentServer:
 
     def stop(self) -> None:
         """Publish `offline` (retained), then disconnect; safe to call twice."""
-        if self.connection.connected:
-            with contextlib.suppress(NotConnected):
-                self.connection.publish(self._status_topic, OFFLINE, qos=1, retain=True)
+        with self._status_lock:
+            stopping, self._stopping = self._stopping, True
+            if not stopping and self.connection.connected:
+                with contextlib.suppress(NotConnected):
+                    self.connection.publish(self._status_topic, OFFLINE, qos=1, retain=True, wait_s=2.0)
         self.connection.close()
 
     def __enter__(self) -> ComponentServer:
@@ -247,7 +252,10 @@ class ComponentServer:
             self._log.debug("state_not_published", reason="not connected")
 
     def _publish_online(self) -> None:
-        self.connection.publish(self._status_topic, self.status(), qos=1, retain=True)
+        with self._status_lock:  # never after stop() said offline
+            if self._stopping:
+                return
+            self.connection.publish(self._status_topic, self.status(), qos=1, retain=True)
         self._log.info("component_online", impl=self.impl_id, features=sorted(self.features))
 
     # -- request handling (dispatcher thread) --------------------------------------------------------
