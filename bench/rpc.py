@@ -34,6 +34,7 @@ from paho.mqtt.enums import CallbackAPIVersion
 
 from services.bus import BrokerSettings, BusClient, ComponentServer, Feature
 from umlbot.library import IMPLEMENTATIONS
+from umlbot.logs import configure_logging
 
 ROBOT = "bench"
 TIMEOUT_S = 5.0
@@ -137,8 +138,8 @@ class RawPair:
         self.counter += 1
         self.expected = f"r{self.counter}"
         self.got.clear()
-        payload = json.dumps({"id": self.expected, "reply_to": self.reply_topic, "args": [self.counter % 100]},
-                             separators=(",", ":")).encode()
+        request = {"id": self.expected, "reply_to": self.reply_topic, "args": [self.counter % 100]}
+        payload = json.dumps(request, separators=(",", ":")).encode()
         started = time.perf_counter()
         self.requester.publish(self.request_topic, payload, qos=0)
         if not self.got.wait(TIMEOUT_S):
@@ -157,7 +158,8 @@ class UmlbotPair:
     def __init__(self, url: str) -> None:
         settings = BrokerSettings.from_url(url)
         spec = IMPLEMENTATIONS["l298n"].features["dutycycle"]
-        self.server = ComponentServer(settings, ROBOT, "Motor", "l298n", [Feature(spec, lambda percent: None)])
+        features = [Feature(spec, lambda percent: None)]
+        self.server = ComponentServer(settings, ROBOT, "Motor", "l298n", features)
         self.server.start(TIMEOUT_S)
         self.client = BusClient(settings, ROBOT, role="bench")
         self.client.start(TIMEOUT_S)
@@ -200,18 +202,20 @@ def measure(kind: str, n: int, blocks: int, warmup: int) -> dict[str, Any]:
         finally:
             bus.close()
             raw.close()
-    result = {
+    raw_p50, raw_p99 = percentile(raw_samples, 50) * 1000, percentile(raw_samples, 99) * 1000
+    bus_p50, bus_p99 = percentile(bus_samples, 50) * 1000, percentile(bus_samples, 99) * 1000
+    result: dict[str, Any] = {
         "broker": kind,
         "n": len(raw_samples),
-        "raw_p50_ms": round(percentile(raw_samples, 50) * 1000, 4),
-        "raw_p99_ms": round(percentile(raw_samples, 99) * 1000, 4),
-        "umlbot_p50_ms": round(percentile(bus_samples, 50) * 1000, 4),
-        "umlbot_p99_ms": round(percentile(bus_samples, 99) * 1000, 4),
+        "raw_p50_ms": round(raw_p50, 4),
+        "raw_p99_ms": round(raw_p99, 4),
+        "umlbot_p50_ms": round(bus_p50, 4),
+        "umlbot_p99_ms": round(bus_p99, 4),
+        "ratio_p50": round(bus_p50 / raw_p50, 3),
+        "ratio_p99": round(bus_p99 / raw_p99, 3),
         "raw_mean_ms": round(statistics.fmean(raw_samples) * 1000, 4),
         "umlbot_mean_ms": round(statistics.fmean(bus_samples) * 1000, 4),
     }
-    result["ratio_p50"] = round(result["umlbot_p50_ms"] / result["raw_p50_ms"], 3)
-    result["ratio_p99"] = round(result["umlbot_p99_ms"] / result["raw_p99_ms"], 3)
     return result
 
 
@@ -222,6 +226,7 @@ def main() -> None:
     parser.add_argument("--warmup", type=int, default=200)
     parser.add_argument("--brokers", default="amqtt,mosquitto")
     options = parser.parse_args()
+    configure_logging("WARNING")  # logs to stderr; stdout stays for the figures
     results = []
     for kind in options.brokers.split(","):
         result = measure(kind.strip(), options.n, options.blocks, options.warmup)
