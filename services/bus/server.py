@@ -132,6 +132,10 @@ def check_args(spec: FeatureSpec, args: list[Any]) -> list[Any]:
     return [check_arg(param, value) for param, value in zip(spec.params, args, strict=True)]
 
 
+def _is_id(value: Any) -> bool:
+    return isinstance(value, str | int) and not isinstance(value, bool)
+
+
 def parse_request(payload: bytes, response_topic: str | None = None) -> _Parsed:
     """Turn a request payload into (id, reply_to, args): an envelope or a bare JSON value.
 
@@ -146,6 +150,15 @@ def parse_request(payload: bytes, response_topic: str | None = None) -> _Parsed:
     except (UnicodeDecodeError, ValueError) as exc:
         raise _BadInput("bad_json", f"payload is not UTF-8 JSON: {exc}") from None
     if isinstance(data, dict) and ENVELOPE_KEYS & data.keys():
+        # fast path for the well-formed envelope every umlbot client sends
+        request_id, reply_to, args = data.get("id"), data.get("reply_to"), data.get("args", [])
+        if (
+            data.keys() <= ENVELOPE_KEYS
+            and isinstance(args, list)
+            and (request_id is None or _is_id(request_id))
+            and (reply_to is None or (isinstance(reply_to, str) and is_valid_publish_topic(reply_to)))
+        ):
+            return _Parsed(request_id, reply_to, args)
         # find where to answer before validating, so a bad envelope still gets its error reply
         reply_to = data.get("reply_to")
         reply_to = reply_to if isinstance(reply_to, str) and is_valid_publish_topic(reply_to) else None
