@@ -134,6 +134,10 @@ def test_acl_file_accepts_only_acl_and_publish_acl(tmp_path: Path) -> None:
     bad.write_text("subscribe-acl:\n  u: ['a/#']\n", encoding="utf-8")
     with pytest.raises(ConfigError, match="allowed keys: acl, publish_acl"):
         load_acl(bad)
+    only_publish = tmp_path / "only_publish.yaml"
+    only_publish.write_text("publish_acl:\n  u: ['a/#']\n", encoding="utf-8")
+    with pytest.raises(ConfigError, match="no client could subscribe"):
+        load_acl(only_publish)
     with pytest.raises(ConfigError, match="cannot read"):
         load_acl(tmp_path / "missing.yaml")
 

@@ -51,13 +51,20 @@ def load_acl(path: str | Path) -> BrokerAcl:
     except YAMLError as exc:
         raise ConfigError(f"ACL file {file} is not valid YAML: {exc}") from exc
     try:
-        return BrokerAcl.model_validate(data or {})
+        acl = BrokerAcl.model_validate(data or {})
     except ValidationError as exc:
         first = exc.errors()[0]
         where = ".".join(str(p) for p in first["loc"])
         raise ConfigError(
             f"ACL file {file}: {where}: {first['msg']} (allowed keys: acl, publish_acl)"
         ) from exc
+    if not acl.acl:
+        # amqtt treats a missing or empty `acl` as "nobody may subscribe to anything"
+        raise ConfigError(
+            f"ACL file {file}: `acl` is missing or empty, so no client could subscribe to anything; "
+            "list each user's topic filters, e.g. acl: {robot: ['umlbot/#']}"
+        )
+    return acl
 
 
 def password_line(user: str, password: str) -> str:
