@@ -22,6 +22,10 @@ usage: install.sh [options]
   --driver NAME       driver for the services: pigpio (default), mock or sim
   --services "K..."   service kinds to enable (default: "motor sonar servo gpio")
   --embedded-broker   also enable umlbot-broker.service (the embedded amqtt broker)
+  --secure            one MQTT user per service and for the orchestrator (deploy/broker_auth.py):
+                      /etc/umlbot/<role>.env, Mosquitto's conf.d/umlbot.conf, umlbot.passwd and
+                      umlbot.acl, and the embedded broker's password and ACL files (needs
+                      --deployment)
   --no-venv           do not create the virtual environment (one exists, or a test)
   --no-enable         install the units but do not enable them
   --start             start umlbot.target at the end (not with --root)
@@ -40,6 +44,7 @@ BROKER=mqtt://127.0.0.1:1883
 DRIVER=pigpio
 SERVICES="motor sonar servo gpio"
 EMBEDDED_BROKER=0
+SECURE=0
 VENV=1
 ENABLE=1
 START=0
@@ -57,6 +62,7 @@ while [ $# -gt 0 ]; do
         --driver) DRIVER="$2"; shift 2 ;;
         --services) SERVICES="$2"; shift 2 ;;
         --embedded-broker) EMBEDDED_BROKER=1; shift ;;
+        --secure) SECURE=1; shift ;;
         --no-venv) VENV=0; shift ;;
         --no-enable) ENABLE=0; shift ;;
         --start) START=1; shift ;;
@@ -77,6 +83,10 @@ case "$DRIVER" in pigpio|mock|sim) ;; *) die "unknown driver '$DRIVER' (pigpio, 
 [ -z "$MODEL" ] || [ -f "$MODEL" ] || die "compiled model $MODEL not found"
 [ -z "$DEPLOYMENT" ] || [ -f "$DEPLOYMENT" ] || die "deployment $DEPLOYMENT not found"
 [ -f "$SOURCE/pyproject.toml" ] || die "$SOURCE is not an umlbot checkout (no pyproject.toml)"
+if [ "$SECURE" -eq 1 ] && [ -z "$DEPLOYMENT" ]; then die "--secure needs --deployment"; fi
+case "$BROKER" in
+    *@*) if [ "$SECURE" -eq 1 ]; then die "--secure makes the credentials: give --broker without user:password"; fi ;;
+esac
 
 LIVE=0
 if [ -z "$ROOT" ] && [ -d /run/systemd/system ]; then LIVE=1; fi
@@ -84,7 +94,8 @@ if [ -z "$ROOT" ] && [ "$(id -u)" -ne 0 ]; then die "run as root (or give --root
 
 DEST="$ROOT$PREFIX"
 UNITDIR="$ROOT/etc/systemd/system"
-ETC="$ROOT/etc/umlbot"
+ETC_PATH=/etc/umlbot
+ETC="$ROOT$ETC_PATH"
 
 install -d -m 0755 "$DEST" "$DEST/robot" "$DEST/share/docs" "$DEST/share/mosquitto" \
     "$DEST/share/amqtt" "$UNITDIR" "$ROOT/etc/sysusers.d"
@@ -133,7 +144,38 @@ for f in "$SOURCE"/deploy/amqtt/*; do
 done
 if [ -f "$SOURCE/deploy/broker_auth.py" ]; then install -m 0755 "$SOURCE/deploy/broker_auth.py" "$DEST/share/broker_auth.py"; fi
 
-# 5. /etc/umlbot/umlbot.env: written once, never overwritten (it may hold credentials).
+# 5. Broker users and ACLs (--secure): per-role env files with each role's own MQTT user.
+BROKER_ARGS="--bind 127.0.0.1 --port 1883"
+if [ "$SECURE" -eq 1 ]; then
+    AUTH="$ETC/auth"
+    PY="$DEST/venv/bin/python"
+    if [ ! -x "$PY" ]; then PY="$PYTHON"; fi
+    hostport="${BROKER#*://}"; hostport="${hostport%%/*}"
+    host="${hostport%:*}"; port="${hostport##*:}"
+    if [ "$port" = "$hostport" ]; then port=1883; fi
+    tls=(); case "$BROKER" in mqtts://*) tls=(--tls) ;; esac
+    install -d -m 0750 "$AUTH"
+    "$PY" "$SOURCE/deploy/broker_auth.py" --deployment "$DEPLOYMENT" --robot "$ROBOT" --out "$AUTH" \
+        --host "$host" --port "$port" "${tls[@]}"
+    for role in motor sonar servo gpio orchestrator; do
+        install -m 0640 "$AUTH/$role.env" "$ETC/$role.env"
+    done
+    install -d -m 0755 "$ROOT/etc/mosquitto/conf.d"
+    sed "s#^listener 1883 127.0.0.1#listener $port 127.0.0.1#" "$SOURCE/deploy/mosquitto/umlbot.conf" \
+        >"$ROOT/etc/mosquitto/conf.d/umlbot.conf"
+    install -m 0644 "$AUTH/mosquitto.acl" "$ROOT/etc/mosquitto/umlbot.acl"
+    if [ -f "$AUTH/mosquitto.passwd" ]; then
+        install -m 0640 "$AUTH/mosquitto.passwd" "$ROOT/etc/mosquitto/umlbot.passwd"
+        if [ -z "$ROOT" ] && getent group mosquitto >/dev/null 2>&1; then
+            chgrp mosquitto "$ROOT/etc/mosquitto/umlbot.passwd"
+        fi
+    fi
+    chmod 0640 "$AUTH/amqtt.passwd"
+    BROKER_ARGS="--bind 127.0.0.1 --port $port --passwd $ETC_PATH/auth/amqtt.passwd --acl $ETC_PATH/auth/amqtt-acl.yaml"
+    say "broker users written to /etc/umlbot/auth (operator.env and monitor.env are for people)"
+fi
+
+# 6. /etc/umlbot/umlbot.env: written once, never overwritten (it may hold credentials).
 ENVFILE="$ETC/umlbot.env"
 if [ -e "$ENVFILE" ]; then
     say "keeping existing $ENVFILE"
@@ -149,23 +191,23 @@ UMLBOT_DEPLOYMENT=$DEPLOYMENT_PATH
 UMLBOT_COMPILED=$MODEL_PATH
 UMLBOT_SERVICE_ARGS=--driver $DRIVER
 UMLBOT_RUN_ARGS=
-UMLBOT_BROKER_ARGS=--bind 127.0.0.1 --port 1883
+UMLBOT_BROKER_ARGS=$BROKER_ARGS
 UMLBOT_LOG_LEVEL=INFO
 EOF
     umask 022
     chmod 0640 "$ENVFILE"
 fi
 if [ -z "$ROOT" ] && id umlbot >/dev/null 2>&1; then
-    chgrp umlbot "$ETC" "$ETC"/*.env 2>/dev/null || true
+    chgrp -R umlbot "$ETC"
 fi
 
-# 6. The units, with the prefix filled in.
+# 7. The units, with the prefix filled in.
 for unit in "$SOURCE"/deploy/systemd/*.service "$SOURCE"/deploy/systemd/*.target; do
     sed "s#/opt/umlbot#$PREFIX#g" "$unit" >"$UNITDIR/$(basename "$unit")"
     chmod 0644 "$UNITDIR/$(basename "$unit")"
 done
 
-# 7. Enable: umlbot.target on boot, and under it every service kind and the orchestrator.
+# 8. Enable: umlbot.target on boot, and under it every service kind and the orchestrator.
 WANTED=()
 for kind in $SERVICES; do WANTED+=("umlbot-service@$kind.service"); done
 if [ -n "$MODEL" ]; then WANTED+=(umlbot-orchestrator.service); fi

@@ -141,3 +141,42 @@ def test_bad_arguments_are_refused(tmp_path: Path, args: list[str], message: str
     assert result.returncode != 0
     assert message in result.stderr
     assert not (tmp_path / "root").exists()  # refused before anything is written
+
+
+def test_secure_install_writes_one_user_per_role(tmp_path: Path) -> None:
+    root = tmp_path / "root"
+    deployment = REPO / "models" / "robot_car" / "deployment.yaml"
+    result = run_install(
+        "--root", str(root), "--no-venv", "--python", sys.executable, "--deployment", str(deployment),
+        "--robot", "car", "--broker", "mqtt://127.0.0.1:1884", "--secure", "--embedded-broker",
+    )
+    assert result.returncode == 0, result.stderr
+    etc = root / "etc" / "umlbot"
+    passwords = set()
+    for role in (*KINDS, "orchestrator"):
+        text = (etc / f"{role}.env").read_text(encoding="utf-8")
+        assert f"UMLBOT_BROKER=mqtt://umlbot-{role}:" in text and "@127.0.0.1:1884" in text
+        assert stat.S_IMODE((etc / f"{role}.env").stat().st_mode) & 0o007 == 0
+        passwords.add(text.split(":")[2].split("@")[0])
+    assert len(passwords) == 5
+    for password in passwords:  # nothing printed them
+        assert password not in result.stdout + result.stderr
+    mosquitto = root / "etc" / "mosquitto"
+    conf = (mosquitto / "conf.d" / "umlbot.conf").read_text(encoding="utf-8")
+    assert "listener 1884 127.0.0.1" in conf and "allow_anonymous false" in conf
+    assert "user umlbot-motor" in (mosquitto / "umlbot.acl").read_text(encoding="utf-8")
+    assert "umlbot/car/LeftActuator/#" in (mosquitto / "umlbot.acl").read_text(encoding="utf-8")
+    assert (mosquitto / "umlbot.passwd").read_text(encoding="utf-8").startswith("umlbot-motor:$7$")
+    env = (etc / "umlbot.env").read_text(encoding="utf-8")
+    assert ("UMLBOT_BROKER_ARGS=--bind 127.0.0.1 --port 1884 --passwd /etc/umlbot/auth/amqtt.passwd "
+            "--acl /etc/umlbot/auth/amqtt-acl.yaml") in env
+    assert (etc / "auth" / "amqtt.passwd").read_text(encoding="utf-8").startswith("umlbot-motor:$argon2")
+
+
+def test_secure_needs_a_deployment_and_no_password_in_the_url(tmp_path: Path) -> None:
+    result = run_install("--root", str(tmp_path / "r1"), "--no-venv", "--secure")
+    assert result.returncode != 0 and "--secure needs --deployment" in result.stderr
+    deployment = REPO / "models" / "robot_car" / "deployment.yaml"
+    result = run_install("--root", str(tmp_path / "r2"), "--no-venv", "--secure", "--deployment",
+                         str(deployment), "--broker", "mqtt://me:secret@host:1883")
+    assert result.returncode != 0 and "without user:password" in result.stderr
