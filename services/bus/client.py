@@ -19,6 +19,7 @@ from concurrent.futures import TimeoutError as FutureTimeout
 from typing import Any
 
 from services.bus.connection import BusConnection, Handler, Message
+from services.bus.envelopes import dumps
 from services.bus.settings import BrokerSettings
 from services.bus.topics import Topics
 from umlbot.errors import CallTimeout, NotConnected, RemoteError
@@ -90,11 +91,7 @@ class BusClient:
         future: Future[dict[str, Any]] = Future()
         with self._pending_lock:
             self._pending[request_id] = future
-        payload = json.dumps(
-            {"id": request_id, "reply_to": self.reply_topic, "args": list(args)},
-            separators=(",", ":"),
-            ensure_ascii=False,
-        ).encode("utf-8")
+        payload = dumps({"id": request_id, "reply_to": self.reply_topic, "args": args}).encode("utf-8")
         try:
             self.connection.publish(self.topics.call(component, feature), payload, qos=0)
         except BaseException:
@@ -151,7 +148,7 @@ class BusClient:
 
     def _on_reply(self, message: Message) -> None:
         try:
-            reply = json.loads(message.payload)
+            reply = json.loads(message.payload.decode("utf-8"))
         except ValueError:
             log.warning("bad_reply", topic=message.topic, reason="not JSON")
             return

@@ -21,7 +21,7 @@ from typing import Any, Final
 from pydantic import ValidationError
 
 from services.bus.connection import BusConnection, Message, Will
-from services.bus.envelopes import ENVELOPE_KEYS, CallRequest, Reply, Status
+from services.bus.envelopes import ENVELOPE_KEYS, CallRequest, Reply, Status, dumps
 from services.bus.settings import BrokerSettings
 from services.bus.topics import Topics, check_name, is_valid_publish_topic
 from umlbot.errors import DriverError, NotConnected, UmlbotError
@@ -146,7 +146,7 @@ def parse_request(payload: bytes, response_topic: str | None = None) -> _Parsed:
     if not payload.strip():
         return _Parsed(None, None, [])
     try:
-        data = json.loads(payload)
+        data = json.loads(payload.decode("utf-8"))
     except (UnicodeDecodeError, ValueError) as exc:
         raise _BadInput("bad_json", f"payload is not UTF-8 JSON: {exc}") from None
     if isinstance(data, dict) and ENVELOPE_KEYS & data.keys():
@@ -306,8 +306,9 @@ class ComponentServer:
             return
         try:
             value = feature.handler(*args)
-            reply = Reply.success(request_id, value)
-            self._send(reply, reply_to, response_topic, correlation)
+            if reply_to is not None or response_topic is not None:
+                reply = {"id": request_id, "ok": True, "value": value}
+                self._send(reply, reply_to, response_topic, correlation)
         except FeatureError as exc:
             self._fail(feature_name, request_id, reply_to, response_topic, correlation, exc.code, exc.message)
             return
@@ -331,26 +332,29 @@ class ComponentServer:
         if not logged:
             self._log.warning("call_rejected", feature=feature, code=code, error=message,
                               request_id=request_id, reply=bool(reply_to or response_topic))
-        self._send(Reply.failure(request_id, code, message), reply_to, response_topic, correlation)
+        self._send(Reply.failure(request_id, code, message).wire(), reply_to, response_topic, correlation)
 
-    def _send(self, reply: Reply, reply_to: str | None, response_topic: str | None,
+    def _send(self, reply: dict[str, Any], reply_to: str | None, response_topic: str | None,
               correlation: bytes | None) -> None:
-        """Answer on reply_to and/or the MQTT 5 response topic; nothing for fire-and-forget calls."""
+        """Answer on reply_to and/or the MQTT 5 response topic; nothing for fire-and-forget calls.
+
+        `reply` is the wire form of a `Reply`.
+        """
         if reply_to is None and response_topic is None:
             return
         try:
-            payload = json.dumps(reply.wire(), separators=(",", ":"), ensure_ascii=False).encode("utf-8")
+            payload = dumps(reply).encode("utf-8")
         except (TypeError, ValueError):
-            self._log.error("reply_not_serialisable", value_type=type(reply.value).__name__)
-            reply = Reply.failure(reply.id, "internal", "the feature returned a value that is not JSON")
-            payload = json.dumps(reply.wire()).encode("utf-8")
+            self._log.error("reply_not_serialisable", value_type=type(reply.get("value")).__name__)
+            failure = Reply.failure(reply["id"], "internal", "the feature returned a value that is not JSON")
+            payload = dumps(failure.wire()).encode("utf-8")
         try:
             if response_topic is not None:
                 self.connection.publish(response_topic, payload, qos=0, correlation_data=correlation)
             if reply_to is not None and reply_to != response_topic:
                 self.connection.publish(reply_to, payload, qos=0)
         except NotConnected:
-            self._log.warning("reply_lost", reason="not connected", request_id=reply.id)
+            self._log.warning("reply_lost", reason="not connected", request_id=reply["id"])
 
 
 def _correlation_id(correlation: bytes | None) -> str | None:
