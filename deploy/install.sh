@@ -117,7 +117,8 @@ if [ "$VENV" -eq 1 ]; then
     say "creating $DEST/venv and installing umlbot from $SOURCE"
     "$PYTHON" -m venv "$DEST/venv"
     "$DEST/venv/bin/python" -m pip install --quiet --upgrade pip
-    "$DEST/venv/bin/python" -m pip install --quiet "$SOURCE"
+    # the `pi` extra brings the pigpio client library the pigpio drivers use
+    "$DEST/venv/bin/python" -m pip install --quiet "$SOURCE[pi]"
 fi
 
 # 3. The robot: compiled model and deployment (the robot needs no model sources).
