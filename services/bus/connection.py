@@ -461,8 +461,7 @@ class BusConnection:
                 break
         if self._connected.is_set():  # lost without paho calling on_disconnect
             self._handle_disconnect(client, None, None, "connection lost")
-        with contextlib.suppress(Exception):
-            client.disconnect()
+        # the next reconnect() closes the old socket and drops unsent packets
 
     def _supervise(self) -> None:
         delay = self.reconnect_min_s
