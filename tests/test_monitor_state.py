@@ -136,3 +136,12 @@ def test_a_bad_trace_line_names_file_and_line(tmp_path: Path) -> None:
         list(read_trace(path))
     with pytest.raises(ConfigError, match="cannot read trace file"):
         list(read_trace(tmp_path / "missing.jsonl"))
+
+
+def test_datastores_count_only_when_set_from_a_call() -> None:
+    state = MonitorState()
+    from_call = trace("Measure", "c", "datastore", 1.0, 5.0, detail="center = DistanceRead.value()")
+    state.observe_trace(from_call, "car")
+    state.observe_trace(trace("Main", "k", "datastore", 1.0, 0.0, detail="speed_percent = 70"), "car")
+    assert ("car", "Measure", "c") in state.actions
+    assert ("car", "Main", "k") not in state.actions

@@ -21,8 +21,9 @@ from services.bus.envelopes import ENVELOPE_KEYS, CallRequest, Reply, TraceEvent
 
 EventType = Literal["availability", "call", "state", "signal", "trace", "orchestrator", "exit"]
 
-#: trace node kinds that do work (their durations are worth a percentile).
-TIMED_KINDS = frozenset({"action", "datastore", "send", "accept"})
+#: trace node kinds that do work (their durations are worth a percentile); a datastore counts
+#: when it is set from a call (its label has parentheses), not from a constant.
+TIMED_KINDS = frozenset({"action", "send", "accept"})
 #: a request without a reply for this long is reported as unanswered.
 DEFAULT_CALL_TIMEOUT_S = 5.0
 #: samples kept per action or feature for the percentiles.
@@ -186,7 +187,7 @@ class MonitorState:
         """Take one trace event (from the bus or a trace file) and return its monitor event."""
         now = LaneNow(trace.node, trace.kind, trace.detail, trace.end, trace.error)
         self.lanes[(robot, trace.lane)] = now
-        if trace.kind in TIMED_KINDS:
+        if trace.kind in TIMED_KINDS or (trace.kind == "datastore" and "(" in (trace.detail or "")):
             key = (robot, trace.lane, trace.node)
             stats = self.actions.get(key)
             if stats is None:

@@ -14,6 +14,8 @@ from rich.text import Text
 from services.monitor.state import MonitorEvent, MonitorState, Stats
 
 MAX_CELL = 40
+#: rows of the statistics tables (the busiest first).
+MAX_STATS_ROWS = 20
 
 
 def _short(value: Any) -> str:
@@ -35,11 +37,15 @@ def _name(robot: str, name: str, many_robots: bool) -> str:
 
 
 def _stats_table(title: str, first: str, rows: list[tuple[str, Stats]]) -> Table:
-    table = Table(title=title, title_justify="left", expand=True)
+    busiest = sorted(rows, key=lambda row: (-row[1].count, row[0]))
+    shown = busiest[:MAX_STATS_ROWS]
+    more = len(busiest) - len(shown)
+    table = Table(title=title, title_justify="left", expand=True,
+                  caption=f"… and {more} more" if more else None, caption_justify="left")
     table.add_column(first)
     for column in ("count", "errors", "p50 ms", "p99 ms"):
         table.add_column(column, justify="right")
-    for name, stats in rows:
+    for name, stats in shown:
         table.add_row(name, str(stats.count), str(stats.errors) if stats.errors else "",
                       _ms(stats.p50), _ms(stats.p99))
     return table
@@ -97,4 +103,5 @@ def render(state: MonitorState, now: float | None = None, title: str = "umlbot m
         "Calls per feature", "feature",
         [(_name(r, s.label, many), s) for (r, _c, _f), s in sorted(state.features.items())],
     )
-    return Group(header, components, lanes, calls, actions, features)
+    body: list[RenderableType] = [t for t in (components, lanes, calls, actions, features) if t.row_count]
+    return Group(header, *(body or [Text("waiting for traffic…", style="dim")]))
