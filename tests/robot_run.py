@@ -48,8 +48,8 @@ class Proc:
                  extra_env: dict[str, str] | None = None) -> None:
         self.name = name
         self.log = workdir / f"{name}.log"
-        env = {**os.environ, "UMLBOT_BROKER": broker_url, "UMLBOT_LOG_LEVEL": "DEBUG", **(extra_env or {})}
-        env.pop("UMLBOT_ROBOT", None)
+        inherited = {k: v for k, v in os.environ.items() if k != "UMLBOT_ROBOT"}
+        env = {**inherited, "UMLBOT_BROKER": broker_url, "UMLBOT_LOG_LEVEL": "DEBUG", **(extra_env or {})}
         with self.log.open("wb") as err:
             self.popen = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=err, cwd=workdir, env=env)
         self.lines: queue.Queue[str] = queue.Queue()
