@@ -132,6 +132,9 @@ class Orchestrator:
         self._running = False
         self._control: BusConnection | None = None
         self._client: BusClient | None = None
+        self._status_reason: str | None = None
+        #: `time.perf_counter()` when the lanes started and when the last one ended (or was cancelled).
+        self.lane_window: tuple[float, float] = (0.0, 0.0)
 
     @property
     def stats(self) -> EngineStats:
@@ -232,6 +235,8 @@ class Orchestrator:
         control.subscribe(self.topics.orchestrator_exit, self._on_exit_message)
         control.add_on_disconnect(self._on_connection_lost)
         client.connection.add_on_disconnect(self._on_connection_lost)
+        control.add_on_connect(self._on_connected)
+        client.connection.add_on_connect(self._on_connected)
         try:
             await asyncio.gather(
                 asyncio.to_thread(control.start, CONNECT_TIMEOUT_S),
@@ -251,9 +256,16 @@ class Orchestrator:
         deadline = loop.time() + self.startup_timeout_s
         while True:
             missing = [c for c in self.required if self.availability.get(c) != "online"]
-            if not missing or self.failure is not None or self.exit_reason is not None:
+            if self.failure is not None or self.exit_reason is not None:
+                return
+            if not missing and self._connected():
                 return
             remaining = deadline - loop.time()
+            if remaining <= 0 and not self._connected():
+                raise OrchestratorError(
+                    f"lost the connection to the MQTT broker at {self.settings.url} during start-up "
+                    f"and it did not come back within {self.startup_timeout_s:g} s"
+                )
             if remaining <= 0:
                 raise OrchestratorError(
                     f"component(s) not online after {self.startup_timeout_s:g} s: "
@@ -265,6 +277,10 @@ class Orchestrator:
             with contextlib.suppress(TimeoutError):
                 await asyncio.wait_for(changed.wait(), remaining)
 
+    def _connected(self) -> bool:
+        return (self._control is not None and self._control.connected
+                and self._client is not None and self._client.connected)
+
     def _describe_component(self, name: str) -> str:
         component = self.model.components.get(name)
         state = self.availability.get(name, "no status")
@@ -274,6 +290,13 @@ class Orchestrator:
     # --- running ------------------------------------------------------------------------------------
 
     async def _supervise(self) -> None:
+        try:
+            self.lane_window = (time.perf_counter(), 0.0)
+            await self._supervise_lanes()
+        finally:
+            self.lane_window = (self.lane_window[0], time.perf_counter())
+
+    async def _supervise_lanes(self) -> None:
         loop, changed = self._runtime()
         for name in self.engine.component_lanes():
             task = asyncio.create_task(self._run_lane(name), name=f"lane:{name}")
@@ -355,7 +378,7 @@ class Orchestrator:
             self._publish_status(final, self.failure or self.exit_reason or "every lane ended")
         self._closing = True
         if self.recorder is not None:
-            await asyncio.to_thread(self.recorder.close)
+            self.recorder.close()
         await asyncio.to_thread(self._close_connections)
         return EXIT_FAULT if self.failure is not None else EXIT_OK
 
@@ -481,13 +504,36 @@ class Orchestrator:
         self.request_exit(reason)
 
     def _on_connection_lost(self) -> None:
-        if not self._closing:
-            self._to_loop(self._fault, "connection to the MQTT broker lost")
+        self._to_loop(self._connection_lost)
+
+    def _connection_lost(self) -> None:
+        # before the lanes run, a lost connection is only a delay (the bus reconnects on its own
+        # and the start-up keeps waiting, bounded); afterwards it is a fault
+        # what the components said before is stale now: their fresh retained status comes after
+        # the reconnect (and a restarted broker may have forgotten it until they republish)
+        self.availability.clear()
+        if self.state in ("running", "stopping"):
+            self._fault("connection to the MQTT broker lost")
+        else:
+            log.warning("connection to the broker lost during start-up; waiting for it", state=self.state)
+        if self._changed is not None:
+            self._changed.set()
+
+    def _on_connected(self) -> None:
+        self._to_loop(self._connected_again)
+
+    def _connected_again(self) -> None:
+        # a broker without persistence forgets retained messages: say again where we are
+        if self._control is not None and self._control.connected and self.state != "offline":
+            self._publish_status(self.state, self._status_reason)
+        if self._changed is not None:
+            self._changed.set()
 
     # --- publishing ---------------------------------------------------------------------------------
 
     def _publish_status(self, state: str, reason: str | None = None) -> None:
         self.state = state
+        self._status_reason = reason
         control = self._control
         if control is None:
             return
