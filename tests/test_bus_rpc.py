@@ -327,3 +327,22 @@ def test_handlers_run_off_the_network_thread(broker: BrokerProcess) -> None:
         bus.call("Threads", "where")
     assert threads and threads[0].startswith("bus-dispatch")
     assert wait_until(lambda: not srv.connected, 2.0)
+
+
+def test_start_returns_once_the_subscriptions_are_confirmed(
+    broker: BrokerProcess, probe: Probe, raw_client: Callable[..., RawClient]
+) -> None:
+    raw = raw_client(broker)
+    raw.subscribe("raw/early")
+    for attempt in range(5):
+        srv = ComponentServer(BrokerSettings.from_url(broker.url), ROBOT, f"Early{attempt}", "l298n",
+                              probe.features())
+        srv.start(5.0)
+        try:
+            # published the moment start() returns: the broker must already route it to the server
+            raw.publish(TOPICS.call(f"Early{attempt}", "value"),
+                        json.dumps({"id": attempt, "reply_to": "raw/early"}))
+            assert json.loads(raw.get(5.0, "raw/early").payload) == {"id": attempt, "ok": True, "value": 42}
+        finally:
+            srv.stop()
+    assert srv.connection.wait_subscribed(0.1)

@@ -14,6 +14,7 @@ import random
 import socket
 import ssl
 import threading
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -152,6 +153,8 @@ class BusConnection:
         self._mqtt5 = settings.protocol == "5"
         self._client = self._make_client()
         self._lock = threading.RLock()
+        self._subacks = threading.Condition(self._lock)
+        self._pending_subacks: set[int] = set()
         self._subscriptions: list[_Subscription] = []
         self._route_cache: dict[str, tuple[list[_Subscription], list[_Subscription]]] = {}
         self._on_connect: list[Callback] = []
@@ -204,6 +207,7 @@ class BusConnection:
         client.on_disconnect = self._handle_disconnect
         client.on_message = self._handle_message
         client.on_socket_open = self._handle_socket_open
+        client.on_subscribe = self._handle_subscribe
         return client
 
     # -- public API -----------------------------------------------------------------------------
@@ -234,13 +238,27 @@ class BusConnection:
             target=self._supervise, name=f"bus-connect-{self.role}", daemon=True
         )
         self._supervisor.start()
-        if timeout is not None and not self._connected.wait(timeout):
+        if timeout is None:
+            return
+        deadline = time.monotonic() + timeout
+        if not self._connected.wait(timeout):
             reason = self._last_error or "no answer"
             self.close()
             raise NotConnected(
                 f"cannot connect to the MQTT broker at {self.settings.url} within {timeout:g} s "
                 f"({reason}); is it running? (umlbot broker, or --broker / UMLBOT_BROKER)"
             )
+        if not self.wait_subscribed(max(0.0, deadline - time.monotonic())):
+            self.close()
+            raise NotConnected(
+                f"the MQTT broker at {self.settings.url} did not confirm the subscriptions "
+                f"within {timeout:g} s"
+            )
+
+    def wait_subscribed(self, timeout: float) -> bool:
+        """Wait until the broker acknowledged every subscription sent so far; False on time-out."""
+        with self._subacks:
+            return self._subacks.wait_for(lambda: not self._pending_subacks, timeout)
 
     def close(self, timeout: float = 5.0) -> None:
         """Disconnect cleanly (no last will) and stop the threads; safe to call twice."""
@@ -300,12 +318,18 @@ class BusConnection:
             with contextlib.suppress(RuntimeError, ValueError):
                 info.wait_for_publish(wait_s)
 
-    def subscribe(self, topic_filter: str, handler: Handler, qos: int = 1) -> None:
+    def subscribe(
+        self, topic_filter: str, handler: Handler, qos: int = 1, wait_s: float | None = None
+    ) -> None:
         """Call `handler(message)` on the dispatcher thread for every message matching the filter.
 
-        The subscription survives reconnects. Several handlers may share a filter.
+        The subscription survives reconnects. Several handlers may share a filter. Subscriptions
+        made before `start()` are confirmed by the broker before `start()` returns; for later
+        ones, `wait_s` waits that long at most for the broker's confirmation.
         """
         self._add_subscription(_Subscription(topic_filter, handler, qos))
+        if wait_s is not None and self._connected.is_set():
+            self.wait_subscribed(wait_s)
 
     def _subscribe_inline(self, topic_filter: str, handler: Handler, qos: int = 0) -> None:
         """Internal: a handler run on the network thread itself; it must return at once."""
@@ -316,8 +340,11 @@ class BusConnection:
             already = any(s.topic_filter == subscription.topic_filter for s in self._subscriptions)
             self._subscriptions.append(subscription)
             self._route_cache.clear()
-        if not already and self._connected.is_set():
-            self._client.subscribe(subscription.topic_filter, subscription.qos)
+            if not already and self._connected.is_set():
+                # under the lock, so that the SUBACK cannot be handled before its mid is noted
+                rc, mid = self._client.subscribe(subscription.topic_filter, subscription.qos)
+                if rc == mqtt.MQTT_ERR_SUCCESS and mid is not None:
+                    self._pending_subacks.add(mid)
 
     def unsubscribe(self, topic_filter: str) -> None:
         """Drop every handler of this filter and tell the broker."""
@@ -367,8 +394,11 @@ class BusConnection:
             for sub in self._subscriptions:
                 filters[sub.topic_filter] = max(filters.get(sub.topic_filter, 0), sub.qos)
             callbacks = list(self._on_connect)
-        if filters:
-            client.subscribe([(f, q) for f, q in filters.items()])
+            self._pending_subacks.clear()
+            if filters:
+                rc, mid = client.subscribe([(f, q) for f, q in filters.items()])
+                if rc == mqtt.MQTT_ERR_SUCCESS and mid is not None:
+                    self._pending_subacks.add(mid)
         self.counters.connects += 1
         self._last_error = None
         self._accepted = True
@@ -378,11 +408,26 @@ class BusConnection:
         log.info("mqtt_connected", broker=self.settings.url, client_id=self.client_id,
                  reconnect=self.counters.connects > 1)
 
+    def _handle_subscribe(
+        self, client: mqtt.Client, userdata: Any, mid: int, reasons: Any, properties: Any = None
+    ) -> None:
+        with self._subacks:
+            self._pending_subacks.discard(mid)
+            self._subacks.notify_all()
+        refused = [str(r) for r in reasons if getattr(r, "is_failure", False)]
+        if refused:
+            # typically the broker's ACL: the handlers of this filter will never be called
+            log.warning("mqtt_subscription_refused", broker=self.settings.url, client_id=self.client_id,
+                        reasons=refused)
+
     def _handle_disconnect(
         self, client: mqtt.Client, userdata: Any, flags: Any, reason: Any, properties: Any = None
     ) -> None:
         was_connected = self._connected.is_set()
         self._connected.clear()
+        with self._subacks:
+            self._pending_subacks.clear()
+            self._subacks.notify_all()
         self._lost.set()
         if was_connected:
             self.counters.disconnects += 1
