@@ -346,3 +346,16 @@ def test_start_returns_once_the_subscriptions_are_confirmed(
         finally:
             srv.stop()
     assert srv.connection.wait_subscribed(0.1)
+
+
+def test_cancelled_async_calls_are_forgotten(client: BusClient) -> None:
+    async def main() -> None:
+        task = asyncio.ensure_future(client.acall("Nobody", "value", timeout=30.0))
+        await asyncio.sleep(0.05)
+        task.cancel()
+        with pytest.raises(asyncio.CancelledError):
+            await task
+
+    asyncio.run(main())
+    assert client._pending == {}
+    assert client.call("Motor", "value") == 42

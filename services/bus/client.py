@@ -124,10 +124,9 @@ class BusClient:
             with self._pending_lock:
                 self._pending.pop(request_id, None)
             raise CallTimeout(component, feature, timeout) from None
-        finally:
-            if not future.done():
-                with self._pending_lock:
-                    self._pending.pop(request_id, None)
+        finally:  # also when the awaiting task is cancelled: forget the call
+            with self._pending_lock:
+                self._pending.pop(request_id, None)
         return _unwrap(reply, component, feature)
 
     def send(self, component: str, feature: str, *args: Any) -> None:
