@@ -496,7 +496,7 @@ class BusConnection:
     def _network_loop(self) -> None:
         """paho's network loop on this thread until the connection is lost or closed."""
         client = self._client
-        while not self._lost.is_set():
+        while not self._lost.is_set() and not self._closing.is_set():
             try:
                 rc = client.loop(timeout=1.0)
             except Exception:  # a bug in a callback must not kill the connection thread
@@ -504,6 +504,9 @@ class BusConnection:
                 rc = mqtt.MQTT_ERR_UNKNOWN
             if rc != mqtt.MQTT_ERR_SUCCESS:
                 break
+        if self._closing.is_set():  # close() raced with a (re)connect: say goodbye here
+            with contextlib.suppress(Exception):
+                client.disconnect()
         if self._connected.is_set():  # lost without paho calling on_disconnect
             self._handle_disconnect(client, None, None, "connection lost")
         # the next reconnect() closes the old socket and drops unsent packets
