@@ -4,10 +4,12 @@ For each broker (started by this script, in its own process on a free port) one 
 service runs as its own process (`umlbot service motor --driver mock`, as on the robot), and:
 
 (a) latency: a model whose lane is a loop of `LeftActuator.dutycycle(50)` actions, run by the
-    orchestrator (tracing on, as in production), against a raw paho requester sending the same
-    envelope to the same service, in alternating blocks so that machine load hits both alike:
-    `raw_p50_ms`/`raw_p99_ms`, `action_p50_ms`/`action_p99_ms` and their ratios;
-(b) throughput: a loop over a fork of `--window` actions (half on each motor) then a join
+    orchestrator, against a raw paho requester sending the same envelope to the same service, in
+    rotating blocks so that machine load hits every variant alike: `raw_p50_ms`/`raw_p99_ms`,
+    `action_p50_ms`/`action_p99_ms` (`--no-trace`: the same MQTT traffic as the raw requester)
+    and their ratios; `action_traced_…` and `ratio_traced_…` with the trace published (three
+    more broker messages per loop iteration);
+(b) throughput: a loop over a fork of `--window` actions (half on each motor) then a join, untraced
     (`fork_actions_per_s`, completed actions per second) against the raw requester keeping the
     same number of requests in flight (`raw_publish_per_s`, completed request/replies per second);
 (c) `node_steps_per_s`: datastore + decision nodes in a loop, no I/O, tracing off (the engine
@@ -18,7 +20,7 @@ The last output line is one JSON object: {"results": [{"broker", "raw_p50_ms", "
 "action_p50_ms", "action_p99_ms", "ratio_p50", "ratio_p99", "fork_actions_per_s",
 "raw_publish_per_s", "node_steps_per_s", …}, …]}.
 
-    python bench/orchestrator.py [--n 2000] [--blocks 10] [--window 8] [--brokers amqtt,mosquitto]
+    python bench/orchestrator.py [--n 2000] [--blocks 12] [--window 8] [--brokers amqtt,mosquitto]
 """
 
 from __future__ import annotations
@@ -309,13 +311,16 @@ def measure(kind: str, n: int, blocks: int, window: int, steps: int) -> dict[str
             run_model(url, compile_text(LOOP.format(n=100)))  # warm-up
             raw_samples: list[float] = []
             action_samples: list[float] = []
+            traced_samples: list[float] = []
+            variants = ["raw", "model", "traced"]
             for block in range(blocks):
-                order = ("raw", "model") if block % 2 == 0 else ("model", "raw")
-                for variant in order:
+                for variant in variants[block % 3:] + variants[:block % 3]:
                     if variant == "raw":
                         raw_samples.extend(raw.round_trip() for _ in range(per_block))
                     else:
-                        action_samples.extend(run_model(url, loop_model).stats.action_latency_s)
+                        stats = run_model(url, loop_model, trace=variant == "traced").stats
+                        (traced_samples if variant == "traced" else action_samples).extend(
+                            stats.action_latency_s)
             iterations = max(1, n // window)
             raw_rates: list[float] = []
             fork_rates: list[float] = []
@@ -323,7 +328,7 @@ def measure(kind: str, n: int, blocks: int, window: int, steps: int) -> dict[str
             for _ in range(3):
                 raw_rates.append(raw.throughput(window, iterations * window))
                 began = time.perf_counter()
-                orchestrator = run_model(url, fork)
+                orchestrator = run_model(url, fork, trace=False)
                 # run_model includes start-up and shut-down; count only the lanes' time
                 fork_rates.append(orchestrator.stats.actions / _lane_seconds(orchestrator, began))
         finally:
@@ -337,6 +342,8 @@ def measure(kind: str, n: int, blocks: int, window: int, steps: int) -> dict[str
         "raw_p99_ms": round(percentile(raw_samples, 99) * 1000, 4),
         "action_p50_ms": round(percentile(action_samples, 50) * 1000, 4),
         "action_p99_ms": round(percentile(action_samples, 99) * 1000, 4),
+        "action_traced_p50_ms": round(percentile(traced_samples, 50) * 1000, 4),
+        "action_traced_p99_ms": round(percentile(traced_samples, 99) * 1000, 4),
         "fork_window": window,
         "fork_actions_per_s": round(max(fork_rates)),
         "raw_publish_per_s": round(max(raw_rates)),
@@ -346,6 +353,8 @@ def measure(kind: str, n: int, blocks: int, window: int, steps: int) -> dict[str
     }
     result["ratio_p50"] = round(result["action_p50_ms"] / result["raw_p50_ms"], 3)
     result["ratio_p99"] = round(result["action_p99_ms"] / result["raw_p99_ms"], 3)
+    result["ratio_traced_p50"] = round(result["action_traced_p50_ms"] / result["raw_p50_ms"], 3)
+    result["ratio_traced_p99"] = round(result["action_traced_p99_ms"] / result["raw_p99_ms"], 3)
     result["fork_vs_raw"] = round(result["fork_actions_per_s"] / result["raw_publish_per_s"], 3)
     return result
 
@@ -359,7 +368,7 @@ def _lane_seconds(orchestrator: Orchestrator, began: float) -> float:
 def main() -> None:
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
     parser.add_argument("--n", type=int, default=2000, help="actions per variant and broker")
-    parser.add_argument("--blocks", type=int, default=10, help="alternating measurement blocks")
+    parser.add_argument("--blocks", type=int, default=12, help="rotating measurement blocks")
     parser.add_argument("--window", type=int, default=8, help="actions in one fork")
     parser.add_argument("--steps", type=int, default=100_000, help="loop iterations for node_steps_per_s")
     parser.add_argument("--brokers", default="amqtt,mosquitto")
@@ -370,7 +379,8 @@ def main() -> None:
         print(
             f"{kind:10s} raw p50 {result['raw_p50_ms']:.3f} p99 {result['raw_p99_ms']:.3f} ms | "
             f"action p50 {result['action_p50_ms']:.3f} p99 {result['action_p99_ms']:.3f} ms | "
-            f"ratio p50 {result['ratio_p50']:.2f} p99 {result['ratio_p99']:.2f} | "
+            f"ratio p50 {result['ratio_p50']:.2f} p99 {result['ratio_p99']:.2f} "
+            f"(traced {result['ratio_traced_p50']:.2f}/{result['ratio_traced_p99']:.2f}) | "
             f"fork {result['fork_actions_per_s']}/s vs raw {result['raw_publish_per_s']}/s | "
             f"nodes {result['node_steps_per_s']}/s (traced {result['node_steps_traced_per_s']}/s)",
             flush=True,

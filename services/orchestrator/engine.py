@@ -18,6 +18,7 @@ decision with plain expressions) run without an `await`; the walker yields to th
 from __future__ import annotations
 
 import asyncio
+import collections
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -138,13 +139,20 @@ class Activation:
     finished: asyncio.Future[None] | None = None
 
 
+#: feature-call latencies kept for statistics (the newest; a long run must not grow without bound).
+LATENCIES_KEPT = 100_000
+
+
 @dataclass(slots=True)
 class EngineStats:
     """What the engine executed: node count and the latency of each feature-call action."""
 
     nodes: int = 0
     actions: int = 0
-    action_latency_s: list[float] = field(default_factory=list)
+    #: seconds per feature-call action, the newest `LATENCIES_KEPT`.
+    action_latency_s: collections.deque[float] = field(
+        default_factory=lambda: collections.deque(maxlen=LATENCIES_KEPT)
+    )
     #: nodes skipped because a flow stopped (decision without a match).
     stopped_flows: int = 0
 
