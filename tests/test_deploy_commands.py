@@ -8,6 +8,7 @@ as one word, `$VAR` split on white space) with `/etc/umlbot/umlbot.env` and the 
 
 from __future__ import annotations
 
+import json
 import os
 import pwd
 import re
@@ -15,10 +16,12 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from urllib.parse import urlsplit
 
 import pytest
 from conftest import find_mosquitto, free_port, port_accepts
 from robot_run import CAR_COMPONENTS, CAR_DEPLOYMENT, Proc, compile_car, processes, umlbot_argv
+from secured_brokers import connect_client
 
 REPO = Path(__file__).resolve().parent.parent
 KINDS = ("motor", "sonar", "servo", "gpio")
@@ -121,5 +124,15 @@ def test_installed_units_run_the_car(tmp_path: Path, broker_kind: str) -> None:
         assert run.stop() == 0, run.log_text()[-3000:]  # SIGTERM, as `systemctl stop` sends
         for service in services:
             assert service.stop() == 0, service.log_text()[-2000:]
-        stopped = mon.wait_line(lambda e: e["type"] == "orchestrator" and e["state"] == "stopped", 15)
-        assert stopped["robot"] == "car"
+        # The orchestrator's retained status says how it ended.
+        watcher = connect_client(port, "umlbot-monitor", urlsplit(monitor_env["UMLBOT_BROKER"]).password)
+        try:
+            assert watcher.subscribe("umlbot/car/orchestrator/status")
+            messages = watcher.received("umlbot/car/orchestrator/status", 1.0)
+            retained = [json.loads(m.payload) for m in messages]
+        finally:
+            watcher.client.disconnect()
+            watcher.client.loop_stop()
+        seen = [e.get("state") for e in mon.events() + mon.drain(1.0) if e["type"] == "orchestrator"]
+        assert retained and retained[-1]["state"] == "stopped", (retained, seen)
+        assert "stopped" in seen, (retained, seen)
