@@ -31,6 +31,8 @@ Side = Literal["left", "right"]
 #: it has moved free of every wall for this long (sim seconds).
 CONTACT_SETTLE_S = 0.1
 
+SPEED_OF_SOUND_MPS = 343.0
+
 
 @dataclass(frozen=True)
 class CarSpec:
@@ -55,6 +57,8 @@ class CarSpec:
     sonar_max_cm: int = 400
     sonar_beam_deg: float = 15.0
     sonar_rays: int = 7
+    sonar_interval_s: float = 0.06  # the HC-SR04 needs 60 ms between pings
+    sonar_timeout_s: float = 0.038  # no echo: the sensor gives up after ~38 ms
     servo_deg_per_s: float = 600.0  # 0.1 s per 60°
     servo_max_deg: float = 180.0
 
@@ -141,6 +145,7 @@ class World:
         self._collisions = 0
         self._in_contact = False
         self._last_contact_s = -math.inf
+        self._last_ping_s = -math.inf
         self._goal_reached = track.goal.contains(self._pose.x, self._pose.y)
         self._trace = _Trace()
         self._trace.path.append((0.0, self._pose.x, self._pose.y))
@@ -190,9 +195,16 @@ class World:
             return self._servo.angle_deg
 
     def read_sonar_cm(self) -> int | None:
-        """One HC-SR04 ping: whole centimetres within 2..400, or None when no echo returns."""
+        """One HC-SR04 ping: whole centimetres within 2..400, or None when no echo returns.
+
+        With a clock that can be charged (`SimClock`), the ping takes its robot time: the wait for
+        the 60 ms ping interval, then the echo's flight (or the 38 ms time-out).
+        """
         with self._lock:
             self._sync()
+            since = self._time - self._last_ping_s
+            if since < self.car.sonar_interval_s:
+                self._charge(self.car.sonar_interval_s - since)
             origin, bearing = self._sonar_origin()
             half = math.radians(self.car.sonar_beam_deg) / 2
             n = max(1, self.car.sonar_rays)
@@ -206,15 +218,25 @@ class World:
                 if cm <= self.car.sonar_max_cm:
                     result = max(self.car.sonar_min_cm, round(cm))
             self._trace.pings.append(Ping(self._time, origin, bearing, result))
+            self._last_ping_s = self._time
+            echo_s = self.car.sonar_timeout_s if result is None else 2 * result / 100.0 / SPEED_OF_SOUND_MPS
+            self._charge(echo_s)
             return result
 
     # --- integration ---------------------------------------------------------------------------
 
     def advance_to(self, time_s: float) -> None:
-        """Integrate in fixed steps until the world's time reaches `time_s`."""
+        """Integrate in fixed steps, then one partial step, until the world's time is `time_s`.
+
+        The partial step puts the world exactly at the time a command arrives, so a motor runs
+        for exactly as long as it was told to, not rounded to the step.
+        """
         with self._lock:
             while self._time + self.step_s <= time_s + 1e-12:
                 self.step(self.step_s)
+            rest = time_s - self._time
+            if rest > 1e-9:
+                self.step(rest)
 
     def step(self, dt: float) -> None:
         """Advance the world by `dt` sim seconds: motors, servo, pose, collision, goal."""
@@ -264,6 +286,13 @@ class World:
     def _sync(self) -> None:
         if self.clock is not None:
             self.advance_to(self.clock.now())
+
+    def _charge(self, sim_seconds: float) -> None:
+        """Let `sim_seconds` pass for something the robot spends time on (only with a SimClock)."""
+        charge = getattr(self.clock, "charge", None)
+        if charge is not None:
+            charge(sim_seconds)
+            self._sync()
 
     # --- queries -------------------------------------------------------------------------------
 
