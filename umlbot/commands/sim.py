@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import signal
 import sys
 import threading
@@ -42,8 +43,14 @@ def command(model: Path, track: Path | None, speed: float, broker_url: str | Non
             max_collisions: int, as_json: bool) -> None:
     """Run MODEL on a track: embedded broker, world, services, orchestrator; exit 0 only when the
     goal was reached without a collision."""
+    from umlbot.logs import configure_logging
     from umlbot.sim.runner import Progress, SimOptions, run_sim
 
+    # the progress line and the summary are the output; logs only for warnings unless asked for
+    if click.get_current_context().find_root().params.get("log_level") is None and not os.environ.get(
+        "UMLBOT_LOG_LEVEL"
+    ):
+        configure_logging("WARNING")
     options = SimOptions(
         model=model, track=track or Path(DEFAULT_TRACK), speed=speed, broker_url=broker_url, port=port,
         timeout_s=timeout_s, plot=plot, processes=processes, seed=seed, sonar_noise_cm=noise_cm,

@@ -195,13 +195,55 @@ class _Services:
         self._tmp = tempfile.TemporaryDirectory(prefix="umlbot-sim-")
         deploy_file = Path(self._tmp.name) / "deployment.yaml"
         deploy_file.write_text(_deployment_yaml(self.deployment), encoding="utf-8")
-        env = {**os.environ, **self.server.env, "UMLBOT_BROKER": self.broker_url}
+        import logging
+
+        level = logging.getLevelName(logging.getLogger().getEffectiveLevel())
+        env = {**os.environ, **self.server.env, "UMLBOT_BROKER": self.broker_url, "UMLBOT_LOG_LEVEL": level}
         for kind in self.kinds:
             argv = [sys.executable, "-c", "from umlbot.cli import main; main()", "service", kind,
                     "--deploy", str(deploy_file), "--broker", self.broker_url,
                     "--robot", str(self.deployment.robot)]
             self.children[kind] = subprocess.Popen(argv, env=env, stdin=subprocess.DEVNULL)
             log.info("service_process_started", kind=kind, pid=self.children[kind].pid)
+
+    def wait_online(self, timeout_s: float = 30.0) -> None:
+        """Wait until every served component's retained status says `online` (child processes)."""
+        if not self.children:
+            return
+        from services.bus import BrokerSettings, BusConnection, Message, Topics
+
+        topics = Topics(str(self.deployment.robot))
+        pending = set(self.deployment.components)
+        done = threading.Event()
+        lock = threading.Lock()
+
+        def on_status(message: Message) -> None:
+            try:
+                state = message.json().get("state")
+            except (ValueError, AttributeError):
+                return
+            component = message.topic.rsplit("/", 2)[-2]
+            with lock:
+                if state == "online":
+                    pending.discard(component)
+                if not pending:
+                    done.set()
+
+        connection = BusConnection(BrokerSettings.from_url(self.broker_url), "sim-runner",
+                                   robot=str(self.deployment.robot))
+        try:
+            connection.start(timeout_s)
+            for name in list(pending):
+                connection.subscribe(topics.status(name), on_status)
+            deadline = time.monotonic() + timeout_s
+            while not done.wait(0.05):
+                dead = self.check_children()
+                if dead is not None:
+                    raise SimError(dead)
+                if time.monotonic() > deadline:
+                    raise SimError(f"service processes not online within {timeout_s:g} s: {sorted(pending)}")
+        finally:
+            connection.close()
 
     def check_children(self) -> str | None:
         """The first child service that died, as a message, or None."""
@@ -295,6 +337,7 @@ def run_sim(
     failure: str | None = None
     try:
         services.start()
+        services.wait_online()
         # the world moves with the clock from now on: start-up time is not sim time
         clock = SimClock(options.speed)
         world.clock = clock
