@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import os
 import signal
+import socket
 import subprocess
 import sys
 import time
@@ -19,6 +20,7 @@ from orchestrator_support import Rig, rig, wait_for
 from ruamel.yaml import YAML
 
 from services.bus import OrchestratorStatus
+from services.host import ServiceHost
 
 pytestmark = pytest.mark.network
 
@@ -155,3 +157,25 @@ def test_broker_gone_for_good_ends_the_run_anyway(broker: BrokerProcess) -> None
         assert running.wait(timeout=15.0) == 1
         assert time.monotonic() - began < 8.0
         assert wait_for(lambda: not motors_running(r), 3.0)
+
+
+def test_connection_dropped_during_start_up_is_only_a_delay(broker: BrokerProcess) -> None:
+    # amqtt 0.12.1 drops a client now and then when others connect and disconnect at the same
+    # moment; before the lanes run that must only delay the start, never lose what was learnt
+    with rig(broker.url, "sensor_decision.yaml", services=["motor"]) as r:
+        running = r.start(startup_timeout_s=15.0)
+        orch = running.orchestrator
+        assert wait_for(lambda: orch.availability.get("LeftActuator") == "online", 5.0)
+        calls = orch._client
+        assert calls is not None
+        # cut the socket under paho (what a broker dropping the client looks like); the bus
+        # reconnects on its own
+        sock = calls.connection._client.socket()
+        assert isinstance(sock, socket.socket)
+        sock.shutdown(socket.SHUT_RDWR)
+        assert wait_for(lambda: calls.connection.counters.connects >= 2 and calls.connected, 5.0)
+        sonar = ServiceHost("sonar", r.deployment, r.settings, r.robot, driver="mock")
+        r.hosts["sonar"] = sonar
+        sonar.start()
+        assert running.wait(15.0) == 0, orch.failure
+        assert r.driver("DistanceRead").reads == 3

@@ -233,8 +233,8 @@ class Orchestrator:
         control.subscribe(f"{self.topics.base}/+/status", self._on_status_message)
         control.subscribe(self.topics.signals, self._on_signal_message)
         control.subscribe(self.topics.orchestrator_exit, self._on_exit_message)
-        control.add_on_disconnect(self._on_connection_lost)
-        client.connection.add_on_disconnect(self._on_connection_lost)
+        control.add_on_disconnect(lambda: self._to_loop(self._connection_lost, True))
+        client.connection.add_on_disconnect(lambda: self._to_loop(self._connection_lost, False))
         control.add_on_connect(self._on_connected)
         client.connection.add_on_connect(self._on_connected)
         try:
@@ -503,15 +503,13 @@ class Orchestrator:
                 reason = f"exit requested over MQTT: {request.reason}"
         self.request_exit(reason)
 
-    def _on_connection_lost(self) -> None:
-        self._to_loop(self._connection_lost)
-
-    def _connection_lost(self) -> None:
+    def _connection_lost(self, control: bool) -> None:
         # before the lanes run, a lost connection is only a delay (the bus reconnects on its own
         # and the start-up keeps waiting, bounded); afterwards it is a fault
-        # what the components said before is stale now: their fresh retained status comes after
-        # the reconnect (and a restarted broker may have forgotten it until they republish)
-        self.availability.clear()
+        if control:
+            # what the components said is stale now: the control connection (which carries the
+            # status subscription) gets their retained status again after its reconnect
+            self.availability.clear()
         if self.state in ("running", "stopping"):
             self._fault("connection to the MQTT broker lost")
         else:
