@@ -66,6 +66,8 @@ class Progress:
     snapshot: WorldSnapshot
     action: str
     actions: int
+    #: service kind -> process id, with `processes=True` (empty otherwise).
+    service_pids: dict[str, int] = field(default_factory=dict)
 
 
 @dataclass
@@ -384,7 +386,8 @@ def run_sim(
                 next_report = now + options.progress_interval_s
                 with watch.lock:
                     action = watch.action
-                on_progress(Progress(snap, action, orchestrator.stats.actions))
+                pids = {kind: child.pid for kind, child in services.children.items()}
+                on_progress(Progress(snap, action, orchestrator.stats.actions, pids))
     except KeyboardInterrupt:
         reason = "interrupted"
     finally:
