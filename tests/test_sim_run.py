@@ -1,0 +1,131 @@
+"""End to end through real brokers: the reference robot car on every track, `umlbot sim` itself."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from conftest import BrokerProcess
+
+from umlbot.errors import SimError
+from umlbot.sim.runner import Progress, SimOptions, SimResult, run_sim
+from umlbot.sim.track import tracks_dir
+
+pytestmark = [pytest.mark.network, pytest.mark.slow]
+
+ROOT = Path(__file__).resolve().parents[1]
+MODEL = ROOT / "models" / "robot_car"
+TRACKS = sorted(tracks_dir().glob("*.yaml"))
+SPEED = 10.0
+
+
+def simulate(track: Path, **kwargs: object) -> SimResult:
+    options = SimOptions(model=MODEL, track=track, speed=SPEED, port=0, timeout_s=300.0, **kwargs)  # type: ignore[arg-type]
+    return run_sim(options)
+
+
+@pytest.mark.timeout(120)
+@pytest.mark.parametrize("track", TRACKS, ids=[t.stem for t in TRACKS])
+def test_reference_model_completes_every_track_without_collision(track: Path, tmp_path: Path) -> None:
+    result = simulate(track, plot=tmp_path / "run.png")
+    assert result.reason == "goal", result
+    assert result.ok and result.collisions == 0
+    assert result.actions > 10
+    assert result.action_p50_ms is not None and result.action_p99_ms is not None
+    assert result.wall_s < result.sim_s  # it really ran faster than real time
+    assert result.plot is not None and result.plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.mark.timeout(120)
+def test_runs_on_an_external_mosquitto(mosquitto_broker: BrokerProcess) -> None:
+    result = simulate(tracks_dir() / "left_bend.yaml", broker_url=mosquitto_broker.url)
+    assert result.ok, result
+
+
+def _cli(*args: str, timeout: float = 150.0) -> subprocess.CompletedProcess[str]:
+    env = {k: v for k, v in os.environ.items() if k != "UMLBOT_BROKER"}
+    return subprocess.run(
+        [sys.executable, "-c", "from umlbot.cli import main; main()", "sim", str(MODEL), *args],
+        capture_output=True, text=True, timeout=timeout, env=env, cwd=ROOT, check=False,
+    )
+
+
+@pytest.mark.timeout(180)
+def test_cli_with_service_processes_reaches_the_goal_and_draws_the_picture(tmp_path: Path) -> None:
+    picture = tmp_path / "sim.svg"
+    done = _cli("--track", str(tracks_dir() / "s_bend.yaml"), "--port", "0", "--processes",
+                "--plot", str(picture), "--json")
+    assert done.returncode == 0, done.stderr[-2000:]
+    summary = json.loads(done.stdout.strip().splitlines()[-1])
+    assert summary["goal"] is True and summary["collisions"] == 0
+    assert summary["track"] == "s_bend" and summary["actions"] > 10
+    assert picture.read_text(encoding="utf-8").lstrip().startswith("<?xml")
+
+
+BOXED_IN = """
+name: boxed_in
+start: {x: 0.0, y: 1.84, heading_deg: 90}
+goal: {x_min: 2.0, x_max: 3.0, y_min: 0.0, y_max: 1.0}
+walls:
+  - [[-0.18, 1.68], [-0.18, 2.0], [0.18, 2.0], [0.18, 1.68], [-0.18, 1.68]]
+"""
+
+
+@pytest.mark.timeout(120)
+def test_a_collision_ends_the_run_with_exit_1_and_the_summary(tmp_path: Path) -> None:
+    # walls ahead and on both sides within 20 cm: the model backs up into the wall behind it
+    track = tmp_path / "boxed_in.yaml"
+    track.write_text(BOXED_IN, encoding="utf-8")
+    done = _cli("--track", str(track), "--port", "0", "--speed", "20")
+    assert done.returncode == 1, done.stderr[-2000:]
+    assert "goal NOT reached (collision)" in done.stdout
+    assert "collisions      1" in done.stdout
+
+
+@pytest.mark.timeout(120)
+def test_timeout_stops_a_run_that_cannot_reach_its_goal(tmp_path: Path) -> None:
+    track = tmp_path / "room.yaml"
+    track.write_text(BOXED_IN.replace("boxed_in", "room").replace(
+        "[[-0.18, 1.68], [-0.18, 2.0], [0.18, 2.0], [0.18, 1.68], [-0.18, 1.68]]",
+        "[[-1.0, 0.0], [-1.0, 3.0], [1.0, 3.0], [1.0, 0.0], [-1.0, 0.0]]",
+    ).replace("y: 1.84", "y: 1.0"), encoding="utf-8")
+    result = run_sim(SimOptions(model=MODEL, track=track, speed=20.0, port=0, timeout_s=8.0))
+    assert result.reason == "timeout"
+    assert not result.ok
+    assert 8.0 <= result.sim_s < 12.0
+
+
+def test_a_taken_port_names_the_way_out() -> None:
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        with pytest.raises(SimError) as excinfo:
+            run_sim(SimOptions(model=MODEL, track=tracks_dir() / "corridor.yaml", port=port))
+    message = str(excinfo.value)
+    assert f"--broker mqtt://127.0.0.1:{port}" in message
+    assert "--port 0" in message
+
+
+@pytest.mark.timeout(120)
+def test_killing_the_motor_service_process_ends_the_run(tmp_path: Path) -> None:
+    killed: list[int] = []
+
+    def kill_motor_service(progress: Progress) -> None:
+        if not killed and progress.snapshot.distance_m > 0.2:
+            pid = progress.service_pids["motor"]
+            os.kill(pid, signal.SIGKILL)
+            killed.append(pid)
+
+    options = SimOptions(model=MODEL, track=tracks_dir() / "corridor.yaml", speed=SPEED, port=0,
+                         processes=True, timeout_s=300.0, progress_interval_s=0.05)
+    result = run_sim(options, kill_motor_service)
+    assert killed, "the car never moved"
+    assert result.reason in ("service failed", "orchestrator failed"), result
+    assert not result.ok
