@@ -21,6 +21,7 @@ Grammar, loosest binding first::
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 
 from compiler.diagnostics import Location
@@ -32,10 +33,13 @@ MAX_LENGTH = 10_000
 
 KEYWORDS = {"and", "or", "not", "true", "false", "True", "False"}
 COMPARISONS = ("==", "!=", "<=", ">=", "<", ">")
+DIGITS = frozenset("0123456789")
 SYMBOLS = ("==", "!=", "<=", ">=", "<", ">", "+", "-", "*", "/", "%", "(", ")", ",", ".")
+SYMBOL_SET = frozenset(SYMBOLS)
+TWO_CHAR_SYMBOLS = frozenset(s for s in SYMBOLS if len(s) == 2)
 
 
-@dataclass(frozen=True)
+@dataclass(slots=True)
 class Token:
     kind: str  # "num", "str", "name", "op", "end"
     text: str
@@ -43,13 +47,13 @@ class Token:
     value: object = None
 
 
-@dataclass(frozen=True)
+@dataclass(slots=True)
 class RConst:
     value: bool | int | float | str
     offset: int
 
 
-@dataclass(frozen=True)
+@dataclass(slots=True)
 class RName:
     """`name` or `Prefix.name`; `offsets` holds where each part starts."""
 
@@ -65,21 +69,21 @@ class RName:
         return ".".join(self.parts)
 
 
-@dataclass(frozen=True)
+@dataclass(slots=True)
 class RCall:
     name: RName
     args: tuple[RawExpr, ...]
     offset: int
 
 
-@dataclass(frozen=True)
+@dataclass(slots=True)
 class RUnary:
     operator: str
     operand: RawExpr
     offset: int
 
 
-@dataclass(frozen=True)
+@dataclass(slots=True)
 class RBinary:
     operator: str
     left: RawExpr
@@ -109,96 +113,88 @@ class SourceText:
         return ModelError(message, loc.file, loc.line, loc.column)
 
 
+_TOKEN = re.compile(
+    r"""(?P<ws>[ \t\r\n]+)
+      | (?P<num>(?:[0-9]+(?:\.[0-9]+)?|\.[0-9]+)(?:[eE][-+]?[0-9]+)?)
+      | (?P<name>[A-Za-z_][A-Za-z0-9_]*)
+      | (?P<str>'(?:[^'\\]|\\.)*'|"(?:[^"\\]|\\.)*")
+      | (?P<op>==|!=|<=|>=|[<>+\-*/%(),.])""",
+    re.VERBOSE | re.DOTALL,
+)
+_ESCAPES = {"n": "\n", "t": "\t", "\\": "\\", "'": "'", '"': '"'}
+_HINTS = {"&": " (write 'and')", "|": " (write 'or')", "!": " (write 'not')", "=": " (write '==')"}
+_NAME_CHAR = re.compile(r"[A-Za-z0-9_]")
+
+
+def _unescape(src: SourceText, literal: str, offset: int) -> str:
+    body = literal[1:-1]
+    if "\\" not in body:
+        return body
+    out: list[str] = []
+    i = 0
+    while i < len(body):
+        c = body[i]
+        if c == "\\":
+            escape = body[i + 1]
+            mapped = _ESCAPES.get(escape)
+            if mapped is None:
+                raise src.error(f"unknown escape '\\{escape}' in string", offset + 1 + i)
+            out.append(mapped)
+            i += 2
+        else:
+            out.append(c)
+            i += 1
+    return "".join(out)
+
+
 def tokenize(src: SourceText) -> list[Token]:
     """Split the text into tokens; raises `ModelError` at the first character that fits nothing."""
     text = src.text
     tokens: list[Token] = []
     i, n = 0, len(text)
+    match = _TOKEN.match
     while i < n:
-        ch = text[i]
-        if ch in " \t\r\n":
-            i += 1
-            continue
-        if ch.isdigit() or (ch == "." and i + 1 < n and text[i + 1].isdigit()):
-            start = i
-            while i < n and text[i].isdigit():
-                i += 1
-            is_float = False
-            if i < n and text[i] == "." and i + 1 < n and text[i + 1].isdigit():
-                is_float = True
-                i += 1
-                while i < n and text[i].isdigit():
-                    i += 1
-            if i < n and text[i] in "eE":
-                j = i + 1
-                if j < n and text[j] in "+-":
-                    j += 1
-                if j < n and text[j].isdigit():
-                    is_float = True
-                    i = j
-                    while i < n and text[i].isdigit():
-                        i += 1
-            if i < n and (text[i].isalnum() or text[i] == "_"):
-                raise src.error(f"invalid number {text[start:i + 1]!r}", start)
-            literal = text[start:i]
+        m = match(text, i)
+        if m is None:
+            ch = text[i]
+            if ch in "'\"":
+                raise src.error("string not closed", i)
+            raise src.error(f"unexpected character {ch!r}{_HINTS.get(ch, '')}", i)
+        kind = m.lastgroup
+        end = m.end()
+        if kind == "name" or kind == "op":
+            tokens.append(Token(kind, m.group(), i))
+        elif kind == "num":
+            literal = m.group()
+            if end < n and _NAME_CHAR.match(text, end):
+                raise src.error(f"invalid number {text[i:end + 1]!r}", i)
             if len(literal) > 40:
-                raise src.error("number too long", start)
-            value: object = float(literal) if is_float else int(literal)
-            tokens.append(Token("num", literal, start, value))
-            continue
-        if ch.isascii() and (ch.isalpha() or ch == "_"):
-            start = i
-            while i < n and text[i].isascii() and (text[i].isalnum() or text[i] == "_"):
-                i += 1
-            tokens.append(Token("name", text[start:i], start))
-            continue
-        if ch in "'\"":
-            start = i
-            i += 1
-            chars: list[str] = []
-            while True:
-                if i >= n:
-                    raise src.error("string not closed", start)
-                c = text[i]
-                if c == ch:
-                    i += 1
-                    break
-                if c == "\\":
-                    if i + 1 >= n:
-                        raise src.error("string not closed", start)
-                    escape = text[i + 1]
-                    mapped = {"n": "\n", "t": "\t", "\\": "\\", "'": "'", '"': '"'}.get(escape)
-                    if mapped is None:
-                        raise src.error(f"unknown escape '\\{escape}' in string", i)
-                    chars.append(mapped)
-                    i += 2
-                    continue
-                chars.append(c)
-                i += 1
-            tokens.append(Token("str", text[start:i], start, "".join(chars)))
-            continue
-        for symbol in SYMBOLS:
-            if text.startswith(symbol, i):
-                tokens.append(Token("op", symbol, i))
-                i += len(symbol)
-                break
-        else:
-            hint = {"&": " (write 'and')", "|": " (write 'or')", "!": " (write 'not')", "=": " (write '==')"}
-            raise src.error(f"unexpected character {ch!r}{hint.get(ch, '')}", i)
+                raise src.error("number too long", i)
+            is_float = "." in literal or "e" in literal or "E" in literal
+            tokens.append(Token("num", literal, i, float(literal) if is_float else int(literal)))
+        elif kind == "str":
+            literal = m.group()
+            tokens.append(Token("str", literal, i, _unescape(src, literal, i)))
+        i = end
     tokens.append(Token("end", "", n))
     return tokens
 
 
+#: binding power of each binary operator: a higher one binds tighter.
+_BINARY_POWER = {"or": 1, "and": 2, "==": 4, "!=": 4, "<": 4, "<=": 4, ">": 4, ">=": 4,
+                 "+": 5, "-": 5, "*": 6, "/": 6, "%": 6}
+_NOT_POWER = 3  # `not a == b` is `not (a == b)`; `not a and b` is `(not a) and b`
+_NEG_POWER = 7  # `-a * b` is `(-a) * b`
+
+
 class _Parser:
+    """A Pratt parser: one loop per binding power instead of one function per level."""
+
     def __init__(self, src: SourceText) -> None:
         self.src = src
         self.tokens = tokenize(src)
         self.pos = 0
         self.depth = 0
-
-    @property
-    def tok(self) -> Token:
-        return self.tokens[self.pos]
 
     def advance(self) -> Token:
         tok = self.tokens[self.pos]
@@ -206,17 +202,8 @@ class _Parser:
             self.pos += 1
         return tok
 
-    def at(self, *texts: str) -> bool:
-        tok = self.tok
-        return tok.kind in ("op", "name") and tok.text in texts
-
-    def expect(self, text: str) -> Token:
-        if not (self.tok.kind == "op" and self.tok.text == text):
-            raise self.unexpected(f"expected '{text}'")
-        return self.advance()
-
     def unexpected(self, wanted: str) -> ModelError:
-        tok = self.tok
+        tok = self.tokens[self.pos]
         found = "end of expression" if tok.kind == "end" else repr(tok.text)
         return self.src.error(f"{wanted}, found {found}", tok.offset)
 
@@ -224,101 +211,86 @@ class _Parser:
         self.depth += 1
         if self.depth > MAX_DEPTH:
             raise self.src.error(f"expression nested too deeply (more than {MAX_DEPTH} levels)",
-                                 self.tok.offset)
+                                 self.tokens[self.pos].offset)
 
     def parse(self) -> RawExpr:
-        if self.tok.kind == "end":
+        if self.tokens[0].kind == "end":
             raise self.src.error("empty expression", 0)
-        expr = self.parse_or()
-        if self.tok.kind != "end":
+        expr = self.expression(0)
+        if self.tokens[self.pos].kind != "end":
             raise self.unexpected("expected an operator or the end of the expression")
         return expr
 
-    def parse_or(self) -> RawExpr:
-        left = self.parse_and()
-        while self.tok.kind == "name" and self.tok.text == "or":
-            op = self.advance()
-            left = RBinary("or", left, self.parse_and(), op.offset)
-        return left
+    def binary_power(self, tok: Token) -> int:
+        if tok.kind == "op" or (tok.kind == "name" and tok.text in ("and", "or")):
+            return _BINARY_POWER.get(tok.text, 0)
+        return 0
 
-    def parse_and(self) -> RawExpr:
-        left = self.parse_not()
-        while self.tok.kind == "name" and self.tok.text == "and":
-            op = self.advance()
-            left = RBinary("and", left, self.parse_not(), op.offset)
-        return left
-
-    def parse_not(self) -> RawExpr:
-        if self.tok.kind == "name" and self.tok.text == "not":
-            op = self.advance()
+    def expression(self, min_power: int) -> RawExpr:
+        left = self.prefix()
+        while True:
+            tok = self.tokens[self.pos]
+            power = self.binary_power(tok)
+            if power <= min_power:
+                return left
+            self.advance()
             self.enter()
-            operand = self.parse_not()
+            right = self.expression(power)
             self.depth -= 1
-            return RUnary("not", operand, op.offset)
-        return self.parse_compare()
-
-    def parse_compare(self) -> RawExpr:
-        left = self.parse_sum()
-        if self.tok.kind == "op" and self.tok.text in COMPARISONS:
-            op = self.advance()
-            right = self.parse_sum()
-            if self.tok.kind == "op" and self.tok.text in COMPARISONS:
+            left = RBinary(tok.text, left, right, tok.offset)
+            if power == 4 and self.binary_power(self.tokens[self.pos]) == 4:
                 raise self.src.error("comparisons cannot be chained; combine them with 'and'",
-                                     self.tok.offset)
-            return RBinary(op.text, left, right, op.offset)
-        return left
+                                     self.tokens[self.pos].offset)
 
-    def parse_sum(self) -> RawExpr:
-        left = self.parse_product()
-        while self.tok.kind == "op" and self.tok.text in ("+", "-"):
-            op = self.advance()
-            left = RBinary(op.text, left, self.parse_product(), op.offset)
-        return left
-
-    def parse_product(self) -> RawExpr:
-        left = self.parse_unary()
-        while self.tok.kind == "op" and self.tok.text in ("*", "/", "%"):
-            op = self.advance()
-            left = RBinary(op.text, left, self.parse_unary(), op.offset)
-        return left
-
-    def parse_unary(self) -> RawExpr:
-        if self.tok.kind == "op" and self.tok.text == "-":
-            op = self.advance()
-            self.enter()
-            operand = self.parse_unary()
-            self.depth -= 1
-            return RUnary("-", operand, op.offset)
-        return self.parse_primary()
-
-    def parse_primary(self) -> RawExpr:
-        tok = self.tok
-        if tok.kind in ("num", "str"):
-            self.advance()
-            assert isinstance(tok.value, bool | int | float | str)
-            return RConst(tok.value, tok.offset)
-        if tok.kind == "op" and tok.text == "(":
-            self.advance()
-            self.enter()
-            inner = self.parse_or()
-            self.depth -= 1
-            self.expect(")")
-            return inner
-        if tok.kind == "name":
-            if tok.text in ("true", "True", "false", "False"):
+    def prefix(self) -> RawExpr:
+        tok = self.tokens[self.pos]
+        kind = tok.kind
+        if kind == "name":
+            text = tok.text
+            if text == "not":
                 self.advance()
-                return RConst(tok.text.lower() == "true", tok.offset)
-            if tok.text in KEYWORDS:
+                self.enter()
+                operand = self.expression(_NOT_POWER)
+                self.depth -= 1
+                return RUnary("not", operand, tok.offset)
+            if text in ("true", "True", "false", "False"):
+                self.advance()
+                return RConst(text in ("true", "True"), tok.offset)
+            if text in KEYWORDS:
                 raise self.unexpected("expected a value")
-            return self.parse_name()
+            return self.name()
+        if kind == "num" or kind == "str":
+            self.advance()
+            assert isinstance(tok.value, int | float | str)
+            return RConst(tok.value, tok.offset)
+        if kind == "op":
+            if tok.text == "-":
+                self.advance()
+                self.enter()
+                operand = self.expression(_NEG_POWER)
+                self.depth -= 1
+                return RUnary("-", operand, tok.offset)
+            if tok.text == "(":
+                self.advance()
+                self.enter()
+                inner = self.expression(0)
+                self.depth -= 1
+                if not (self.tokens[self.pos].kind == "op" and self.tokens[self.pos].text == ")"):
+                    raise self.unexpected("expected ')'")
+                self.advance()
+                return inner
         raise self.unexpected("expected a value")
 
-    def parse_name(self) -> RawExpr:
+    def is_op(self, text: str) -> bool:
+        tok = self.tokens[self.pos]
+        return tok.kind == "op" and tok.text == text
+
+    def name(self) -> RawExpr:
         first = self.advance()
         parts, offsets = [first.text], [first.offset]
-        while self.tok.kind == "op" and self.tok.text == ".":
+        while self.is_op("."):
             self.advance()
-            tok = self.tok
+            tok = self.tokens[self.pos]
             if tok.kind != "name" or tok.text in KEYWORDS:
                 raise self.unexpected("expected a name after '.'")
             self.advance()
@@ -329,18 +301,18 @@ class _Parser:
                 f"'{'.'.join(parts)}' has too many parts: write name, Lane.name or "
                 "Component.feature(...)", first.offset)
         name = RName(tuple(parts), tuple(offsets))
-        if not (self.tok.kind == "op" and self.tok.text == "("):
+        if not self.is_op("("):
             return name
         self.advance()
         self.enter()
         args: list[RawExpr] = []
-        if not (self.tok.kind == "op" and self.tok.text == ")"):
-            args.append(self.parse_or())
-            while self.tok.kind == "op" and self.tok.text == ",":
+        if not self.is_op(")"):
+            args.append(self.expression(0))
+            while self.is_op(","):
                 self.advance()
-                args.append(self.parse_or())
+                args.append(self.expression(0))
         self.depth -= 1
-        if not (self.tok.kind == "op" and self.tok.text == ")"):
+        if not self.is_op(")"):
             raise self.unexpected("expected ',' or ')'")
         self.advance()
         return RCall(name, tuple(args), first.offset)
@@ -355,7 +327,8 @@ def parse_expression(text: str, where: Location | None = None) -> RawExpr:
     if len(text) > MAX_LENGTH:
         raise src.error(f"expression too long ({len(text)} characters, at most {MAX_LENGTH})", 0)
     expr = _Parser(src).parse()
-    _check_height(expr, src)
+    if len(text) > MAX_TREE_DEPTH:  # a tree deeper than MAX_TREE_DEPTH needs more characters
+        _check_height(expr, src)
     return expr
 
 
