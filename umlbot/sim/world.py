@@ -345,7 +345,7 @@ class World:
 class WorldLoop:
     """A named thread that keeps the world's time up with the clock (fixed steps, catch-up)."""
 
-    def __init__(self, world: World, clock: Clock, period_wall_s: float = 0.002) -> None:
+    def __init__(self, world: World, clock: Clock, period_wall_s: float = 0.01) -> None:
         self.world = world
         self.clock = clock
         self.period_wall_s = period_wall_s
