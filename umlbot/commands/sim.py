@@ -24,8 +24,9 @@ DEFAULT_TRACK = "models/tracks/s_bend.yaml"
               help="Sim seconds per wall second (model sleeps and the world).")
 @click.option("--broker", "broker_url", default=None, metavar="URL",
               help="Use this broker instead of starting the embedded one.")
-@click.option("--port", type=click.IntRange(0, 65535), default=1883, show_default=True,
-              help="Port of the embedded broker (0 = any free port).")
+@click.option("--port", type=click.IntRange(0, 65535), default=None,
+              help="Port of the embedded broker (default 1883, or a free one when 1883 is taken; "
+              "0 = any free port).")
 @click.option("--timeout", "timeout_s", type=click.FloatRange(min=1), default=600.0, show_default=True,
               help="Give up after this many sim seconds.")
 @click.option("--plot", type=click.Path(dir_okay=False, path_type=Path), default=None,
@@ -38,7 +39,7 @@ DEFAULT_TRACK = "models/tracks/s_bend.yaml"
 @click.option("--max-collisions", type=click.IntRange(min=1), default=1, show_default=True,
               help="Stop after this many collisions.")
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as one JSON object.")
-def command(model: Path, track: Path | None, speed: float, broker_url: str | None, port: int,
+def command(model: Path, track: Path | None, speed: float, broker_url: str | None, port: int | None,
             timeout_s: float, plot: Path | None, processes: bool, seed: int | None, noise_cm: float,
             max_collisions: int, as_json: bool) -> None:
     """Run MODEL on a track: embedded broker, world, services, orchestrator; exit 0 only when the
@@ -57,8 +58,13 @@ def command(model: Path, track: Path | None, speed: float, broker_url: str | Non
         max_collisions=max_collisions,
     )
     live = sys.stdout.isatty() and not as_json
+    announced: list[str] = []
 
     def show(progress: Progress) -> None:
+        if not announced and not as_json:
+            announced.append(progress.broker_url)
+            url = progress.broker_url
+            click.echo(f"broker {url}  (watch it: umlbot monitor --broker {url})")
         s = progress.snapshot
         line = (f"t={s.time_s:7.1f}s  x={s.pose.x:6.2f} y={s.pose.y:6.2f} "
                 f"heading={math.degrees(s.pose.heading) % 360:5.1f}°  dist={s.distance_m:5.2f} m  "

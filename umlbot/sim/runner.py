@@ -49,7 +49,8 @@ class SimOptions:
     track: Path
     speed: float = 10.0
     broker_url: str | None = None
-    port: int = DEFAULT_PORT
+    #: embedded broker port; None = 1883, or any free port when 1883 is taken (0 = any free port)
+    port: int | None = None
     timeout_s: float = DEFAULT_TIMEOUT_S  # sim seconds
     plot: Path | None = None
     processes: bool = False
@@ -66,6 +67,7 @@ class Progress:
     snapshot: WorldSnapshot
     action: str
     actions: int
+    broker_url: str = ""
     #: service kind -> process id, with `processes=True` (empty otherwise).
     service_pids: dict[str, int] = field(default_factory=dict)
 
@@ -87,6 +89,7 @@ class SimResult:
     plot: Path | None = None
     failure: str | None = None
     final_pose: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    broker_url: str = ""
 
     @property
     def ok(self) -> bool:
@@ -282,21 +285,29 @@ class _Services:
 
 
 def _start_broker(options: SimOptions) -> tuple[Any, str]:
-    """The embedded broker (or None) and the URL everybody connects to."""
+    """The embedded broker (or None) and the URL everybody connects to.
+
+    An explicitly requested port that is taken is an error naming the way out; the default port
+    (1883, so any MQTT client can watch) falls back to a free one when it is taken.
+    """
     if options.broker_url is not None:
         return None, options.broker_url
     from services.bus.broker import EmbeddedBroker
 
-    port = options.port or _free_port()
+    port = DEFAULT_PORT if options.port is None else (options.port or _free_port())
     broker = EmbeddedBroker("127.0.0.1", port)
     try:
         broker.start()
     except ConfigError as exc:
-        raise SimError(
-            f"cannot start the embedded broker on 127.0.0.1:{port} ({exc}). "
-            f"If a broker already runs there, use it: --broker mqtt://127.0.0.1:{port}; "
-            "or pick another port: --port 0 (any free port)"
-        ) from exc
+        if options.port is not None:
+            raise SimError(
+                f"cannot start the embedded broker on 127.0.0.1:{port}: {exc}. If a broker already "
+                f"runs there, use it: --broker mqtt://127.0.0.1:{port}; or pick another port: "
+                "--port 0 (any free port)"
+            ) from exc
+        log.warning("default broker port taken, using a free one", port=port, reason=str(exc))
+        broker = EmbeddedBroker("127.0.0.1", _free_port())
+        broker.start()
     return broker, broker.url
 
 
@@ -387,7 +398,7 @@ def run_sim(
                 with watch.lock:
                     action = watch.action
                 pids = {kind: child.pid for kind, child in services.children.items()}
-                on_progress(Progress(snap, action, orchestrator.stats.actions, pids))
+                on_progress(Progress(snap, action, orchestrator.stats.actions, url, pids))
     except KeyboardInterrupt:
         reason = "interrupted"
     finally:
@@ -420,6 +431,7 @@ def run_sim(
         action_p50_ms=_ms(statistics.median(latencies)) if latencies else None,
         action_p99_ms=_ms(percentile(latencies, 99)),
         failure=failure,
+        broker_url=url,
         final_pose=(final.pose.x, final.pose.y, math.degrees(final.pose.heading)),
     )
     if options.plot is not None:
