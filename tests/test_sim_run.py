@@ -129,3 +129,20 @@ def test_killing_the_motor_service_process_ends_the_run(tmp_path: Path) -> None:
     assert killed, "the car never moved"
     assert result.reason in ("service failed", "orchestrator failed"), result
     assert not result.ok
+
+
+@pytest.mark.timeout(120)
+def test_default_port_taken_falls_back_to_a_free_one() -> None:
+    holder = socket.socket()
+    try:
+        try:
+            holder.bind(("127.0.0.1", 1883))
+            holder.listen()
+        except OSError:
+            pass  # already taken by another broker: just as good
+        result = run_sim(SimOptions(model=MODEL, track=tracks_dir() / "dead_end.yaml", speed=SPEED))
+    finally:
+        holder.close()
+    assert result.ok, result
+    assert result.broker_url.startswith("mqtt://127.0.0.1:")
+    assert not result.broker_url.endswith(":1883")
