@@ -346,6 +346,8 @@ def run_sim(
     orch_outcome: dict[str, Any] = {}
     watch = _Watch(frozenset(compiled.components))
     wall_start = time.monotonic()
+    # sim time stands still while calls are in flight: a hung call must not hang the run forever
+    wall_limit_s = options.timeout_s / options.speed * 10 + 60
     reason = "interrupted"
     failure: str | None = None
     try:
@@ -381,7 +383,7 @@ def run_sim(
             if snap.collisions >= options.max_collisions:
                 reason = "collision"
                 break
-            if snap.time_s >= options.timeout_s:
+            if snap.time_s >= options.timeout_s or time.monotonic() - wall_start > wall_limit_s:
                 reason = "timeout"
                 break
             if not orch_thread.is_alive():
