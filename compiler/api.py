@@ -7,6 +7,7 @@ problems. Both never raise anything but `ModelError` for a bad model.
 
 from __future__ import annotations
 
+import gc
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -43,12 +44,19 @@ def check_model(path: str | Path, deployment: str | Path | None = None) -> Check
     diagnostics = Diagnostics()
     source: SourceModel | None = None
     model: CompiledModel | None = None
+    # A compile makes many small objects and no reference cycles worth collecting: without the
+    # cyclic collector walking the growing heap, 10 000 nodes compile about a third faster.
+    collecting = gc.isenabled()
+    gc.disable()
     try:
         source = load_source(path, diagnostics, deployment)
         model = check_source(source, diagnostics)
     except ModelError as exc:
         diagnostics.add_model_error(exc)
         model = None
+    finally:
+        if collecting:
+            gc.enable()
     if diagnostics.has_errors:
         model = None
     return CheckResult(diagnostics.sorted(), model, source)

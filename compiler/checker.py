@@ -25,7 +25,8 @@ from umlbot.library import KIND_FEATURES, ComponentKind, FeatureSpec, Implementa
 Type = Literal["int", "float", "bool", "str", "none", "any", "unknown"]
 
 KINDS: tuple[ComponentKind, ...] = ("system", "actuator", "sensor")
-RESERVED = {"Application", "usleep", "msleep", "and", "or", "not", "true", "false", "True", "False"}
+RESERVED = {"Application", "usleep", "msleep", "and", "or", "not", "true", "false", "True", "False",
+            "null"}
 SLEEP_BUILTINS = {"usleep": "us", "msleep": "ms"}
 NEXT_KINDS = ("start", "action", "datastore", "join", "send", "accept")
 ARITHMETIC = ("+", "-", "*", "/", "%")
@@ -56,6 +57,8 @@ def _builtin(name: str, args: list[Data] | None = None) -> Data:
 
 
 def _type_of_const(value: object) -> Type:
+    if value is None:
+        return "any"  # `null`: what an unwritten datastore reads as
     if isinstance(value, bool):
         return "bool"
     if isinstance(value, int):

@@ -9,6 +9,7 @@ component carries its implementation, service, driver and settings from the depl
 
 from __future__ import annotations
 
+import gc
 import json
 from pathlib import Path
 from typing import Annotated, Any, Literal
@@ -182,9 +183,16 @@ class CompiledModel(_Frozen):
 def dump_compiled(model: CompiledModel) -> bytes:
     """The compiled file's bytes: compact JSON with sorted keys, UTF-8, one newline at the end;
     deterministic (same model, same bytes). `python -m json.tool FILE` shows it indented."""
-    data = model.model_dump(mode="json")
-    # compact: with `indent` the json module falls back to its pure-Python encoder (5x slower)
-    text = json.dumps(data, sort_keys=True, separators=(",", ":"), ensure_ascii=False, allow_nan=False)
+    collecting = gc.isenabled()
+    gc.disable()  # many short-lived dicts, no cycles: the collector would only slow this down
+    try:
+        data = model.model_dump(mode="json")
+        # compact: with `indent` the json module falls back to its pure-Python encoder (5x slower)
+        text = json.dumps(data, sort_keys=True, separators=(",", ":"), ensure_ascii=False,
+                          allow_nan=False)
+    finally:
+        if collecting:
+            gc.enable()
     return (text + "\n").encode("utf-8")
 
 

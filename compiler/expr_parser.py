@@ -15,7 +15,7 @@ Grammar, loosest binding first::
     sum      := product (("+" | "-") product)*
     product  := unary (("*" | "/" | "%") unary)*
     unary    := "-" unary | primary
-    primary  := NUMBER | STRING | "true" | "false" | "(" expr ")"
+    primary  := NUMBER | STRING | "true" | "false" | "null" | "(" expr ")"
               | NAME ("." NAME)? ("(" [expr ("," expr)*] ")")?
 """
 
@@ -31,7 +31,7 @@ MAX_DEPTH = 64
 MAX_TREE_DEPTH = 100
 MAX_LENGTH = 10_000
 
-KEYWORDS = {"and", "or", "not", "true", "false", "True", "False"}
+KEYWORDS = {"and", "or", "not", "true", "false", "True", "False", "null"}
 COMPARISONS = ("==", "!=", "<=", ">=", "<", ">")
 DIGITS = frozenset("0123456789")
 SYMBOLS = ("==", "!=", "<=", ">=", "<", ">", "+", "-", "*", "/", "%", "(", ")", ",", ".")
@@ -49,7 +49,7 @@ class Token:
 
 @dataclass(slots=True)
 class RConst:
-    value: bool | int | float | str
+    value: bool | int | float | str | None
     offset: int
 
 
@@ -256,6 +256,9 @@ class _Parser:
             if text in ("true", "True", "false", "False"):
                 self.advance()
                 return RConst(text in ("true", "True"), tok.offset)
+            if text == "null":
+                self.advance()
+                return RConst(None, tok.offset)
             if text in KEYWORDS:
                 raise self.unexpected("expected a value")
             return self.name()

@@ -170,3 +170,20 @@ def test_compiled_types_validate_what_they_load() -> None:
                            "nodes": {"s": {"id": "s", "kind": "teleport"}}}}
     with pytest.raises(CompiledModelError, match="corrupt compiled model"):
         load_compiled(json.dumps(data).encode())
+
+
+def test_null_literal_compares_with_an_unwritten_datastore(tmp_path: Path) -> None:
+    text = HEADER + """\
+  - lane: Pi
+    nodes:
+      - {id: start, kind: start}
+      - {id: wait, kind: accept, signal: go, store: speed}
+      - {id: d, kind: decision, branches: [{if: speed == null, then: end}, {else: set}]}
+      - {id: set, kind: action, call: Motor.dutycycle(speed)}
+      - {id: end, kind: end}
+"""
+    model = compile_model(write(tmp_path, text))
+    decision = model.lanes["Pi"].nodes["d"]
+    assert isinstance(decision, DecisionNode)
+    assert decision.branches[0].guard == Binary(operator="==", left=Ref(lane="Pi", name="speed"),
+                                                right=Const(value=None))

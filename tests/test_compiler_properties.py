@@ -64,7 +64,7 @@ def _raw_trees() -> st.SearchStrategy[str]:
     leaves = st.one_of(
         st.integers(0, 10**6).map(str),
         st.floats(0, 1e6, allow_nan=False).map(lambda f: repr(float(f))),
-        st.sampled_from(["true", "false", "'text'", '"q\\"uote"']),
+        st.sampled_from(["true", "false", "null", "'text'", '"q\\"uote"']),
         _names(),
     )
 
@@ -83,6 +83,8 @@ def _raw_trees() -> st.SearchStrategy[str]:
 
 def _show(expr: RawExpr) -> str:
     if isinstance(expr, RConst):
+        if expr.value is None:
+            return "null"
         if isinstance(expr.value, bool):
             return "true" if expr.value else "false"
         if isinstance(expr.value, str):
