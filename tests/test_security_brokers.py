@@ -10,6 +10,7 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -207,3 +208,43 @@ def test_recipe_keeps_passwords_and_hides_them(tmp_path: Path) -> None:
     hashed = (tmp_path / "mosquitto.passwd").read_text() + (tmp_path / "amqtt.passwd").read_text()
     for password in first.values():
         assert password not in hashed
+
+
+def test_no_message_lost_while_other_clients_subscribe(tmp_path: Path, connect: Any, auth: AuthFiles) -> None:
+    """The embedded broker with the ACL plugin delivers every message while subscriptions churn.
+
+    amqtt 0.12 iterates its subscription table across an await per subscriber; a subscribe or
+    unsubscribe meanwhile made it drop the message being broadcast.
+    """
+    broker = start_secured("amqtt", tmp_path, auth)
+    stop = threading.Event()
+    try:
+        receiver = as_role(broker, connect, "monitor")
+        assert receiver.subscribe(f"umlbot/{ROBOT}/signal/#")
+        sender = as_role(broker, connect, "operator")
+        churners = [as_role(broker, connect, "operator") for _ in range(3)]
+
+        def churn(client: Client) -> None:
+            n = 0
+            while not stop.is_set():
+                topic = f"umlbot/{ROBOT}/churn/{client.client_id}/{n % 50}"
+                client.client.subscribe(topic, 1)
+                client.client.unsubscribe(topic)
+                n += 1
+                time.sleep(0.001)
+
+        threads = [threading.Thread(target=churn, args=(c,), daemon=True) for c in churners]
+        for thread in threads:
+            thread.start()
+        count = 300
+        for i in range(count):
+            sender.client.publish(f"umlbot/{ROBOT}/signal/tick", str(i), qos=1)
+        sender.publish(f"umlbot/{ROBOT}/signal/done", "done")
+        seen = receiver.wait_for(f"umlbot/{ROBOT}/signal/done", "done", timeout=30)
+        stop.set()
+        ticks = {int(m.payload) for m in seen if m.topic.endswith("/tick")}
+        assert ticks == set(range(count)), f"lost {count - len(ticks)} of {count}"
+        assert "dictionary changed size" not in broker.log_text()
+    finally:
+        stop.set()
+        stop_broker(broker)

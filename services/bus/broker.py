@@ -14,7 +14,7 @@ import errno
 import socket
 import threading
 import warnings
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -96,6 +96,21 @@ def broker_config(
         "timeout_disconnect_delay": 0,
         "plugins": plugins,
     }
+
+
+class _SnapshotSubscriptions(dict[str, list[Any]]):
+    """amqtt's subscription table, iterated over snapshots.
+
+    amqtt 0.12 loops over this table across an `await` per subscriber (`Broker._run_broadcast`);
+    a client subscribing, unsubscribing or disconnecting meanwhile raised "dictionary changed size
+    during iteration" and the message being broadcast was lost for the remaining subscribers.
+    """
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(list(super().keys()))
+
+    def items(self) -> list[tuple[str, list[Any]]]:  # type: ignore[override]
+        return [(key, list(value)) for key, value in super().items()]
 
 
 def _check_port_free(host: str, port: int) -> None:
@@ -204,6 +219,7 @@ class EmbeddedBroker:
             # amqtt 0.12 calls `acl` deprecated yet its config accepts no other name for it
             warnings.filterwarnings("ignore", "The 'acl' option is deprecated", DeprecationWarning)
             self._broker = Broker(config)
+            self._broker._subscriptions = _SnapshotSubscriptions(self._broker._subscriptions)
             await self._broker.start()
 
     async def _shutdown(self) -> None:
