@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import click
@@ -12,8 +13,7 @@ import click
 @click.option("--deployment", type=click.Path(exists=True, dir_okay=False, path_type=Path), default=None,
               help="Deployment file to use instead of the model's own.")
 @click.option("--warnings-as-errors", "-W", is_flag=True, help="Fail on warnings too.")
-@click.pass_context
-def command(ctx: click.Context, model: Path, deployment: Path | None, warnings_as_errors: bool) -> None:
+def command(model: Path, deployment: Path | None, warnings_as_errors: bool) -> None:
     """Validate MODEL (a model folder or file): print every problem, exit 1 on any error."""
     from compiler.api import check_model
 
@@ -29,4 +29,4 @@ def command(ctx: click.Context, model: Path, deployment: Path | None, warnings_a
         summary = f"{model}: {errors} error(s), {warnings} warning(s)"
     click.echo(summary, err=True)
     if errors or (warnings_as_errors and warnings):
-        ctx.exit(1)
+        sys.exit(1)  # not ctx.exit: umlbot's main() runs click non-standalone, which drops it

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import sys
 import tempfile
 from pathlib import Path
 
@@ -15,8 +16,7 @@ import click
               help="Compiled file to write ('-' for stdout). Default: <model name>.compiled.json.")
 @click.option("--deployment", type=click.Path(exists=True, dir_okay=False, path_type=Path), default=None,
               help="Deployment file to use instead of the model's own.")
-@click.pass_context
-def command(ctx: click.Context, model: Path, output: Path | None, deployment: Path | None) -> None:
+def command(model: Path, output: Path | None, deployment: Path | None) -> None:
     """Compile MODEL (a model folder or file) into a compiled model file for `umlbot run`."""
     from compiler.api import check_model
     from compiler.compiled import dump_compiled
@@ -26,7 +26,7 @@ def command(ctx: click.Context, model: Path, output: Path | None, deployment: Pa
         click.echo(str(diagnostic), err=True)
     if result.model is None:
         click.echo(f"{model}: {len(result.errors)} error(s); nothing written", err=True)
-        ctx.exit(1)
+        sys.exit(1)  # not ctx.exit: umlbot's main() runs click non-standalone, which drops it
     data = dump_compiled(result.model)
     if output is not None and str(output) == "-":
         click.echo(data.decode("utf-8"), nl=False)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import click
@@ -15,8 +16,7 @@ import click
               default="all", show_default=True, help="Which notation to write.")
 @click.option("--deployment", type=click.Path(exists=True, dir_okay=False, path_type=Path), default=None,
               help="Deployment file to use instead of the model's own.")
-@click.pass_context
-def command(ctx: click.Context, model: Path, out_dir: Path | None, fmt: str,
+def command(model: Path, out_dir: Path | None, fmt: str,
             deployment: Path | None) -> None:
     """Draw MODEL's diagrams (SVG needs Graphviz's `dot`)."""
     from compiler.api import check_model
@@ -27,7 +27,7 @@ def command(ctx: click.Context, model: Path, out_dir: Path | None, fmt: str,
         click.echo(str(diagnostic), err=True)
     if result.model is None:
         click.echo(f"{model}: {len(result.errors)} error(s); nothing drawn", err=True)
-        ctx.exit(1)
+        sys.exit(1)  # not ctx.exit: umlbot's main() runs click non-standalone, which drops it
     formats: tuple[Format, ...] = FORMATS if fmt == "all" else (fmt,)  # type: ignore[assignment]
     target = out_dir or Path(f"{result.model.name}-diagrams")
     for path in render_model(result.model, target, formats):
