@@ -8,9 +8,9 @@ import sys
 from pathlib import Path
 
 from click.testing import CliRunner
+from compiler_support import HEADER, MAIN
 
 from compiler.compiled import load_compiled
-from compiler_support import HEADER, MAIN
 from umlbot.cli import cli
 
 ROBOT_CAR = Path(__file__).resolve().parent.parent / "models" / "robot_car"
