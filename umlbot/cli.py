@@ -73,7 +73,10 @@ def cli(log_level: str | None, log_json: bool | None) -> None:
 def main() -> None:
     """Console entry point: run the CLI; an UmlbotError becomes a one-line message and exit 1."""
     try:
-        cli.main(standalone_mode=False)
+        # Non-standalone so that UmlbotError reaches us; click then returns ctx.exit() codes.
+        code = cli.main(standalone_mode=False)
+        if isinstance(code, int) and code != 0:
+            sys.exit(code)
     except click.exceptions.Abort:
         click.echo("aborted", err=True)
         sys.exit(130)

@@ -29,4 +29,4 @@ def command(model: Path, deployment: Path | None, warnings_as_errors: bool) -> N
         summary = f"{model}: {errors} error(s), {warnings} warning(s)"
     click.echo(summary, err=True)
     if errors or (warnings_as_errors and warnings):
-        sys.exit(1)  # not ctx.exit: umlbot's main() runs click non-standalone, which drops it
+        sys.exit(1)

@@ -26,7 +26,7 @@ def command(model: Path, output: Path | None, deployment: Path | None) -> None:
         click.echo(str(diagnostic), err=True)
     if result.model is None:
         click.echo(f"{model}: {len(result.errors)} error(s); nothing written", err=True)
-        sys.exit(1)  # not ctx.exit: umlbot's main() runs click non-standalone, which drops it
+        sys.exit(1)
     data = dump_compiled(result.model)
     if output is not None and str(output) == "-":
         click.echo(data.decode("utf-8"), nl=False)

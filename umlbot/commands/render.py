@@ -27,7 +27,7 @@ def command(model: Path, out_dir: Path | None, fmt: str,
         click.echo(str(diagnostic), err=True)
     if result.model is None:
         click.echo(f"{model}: {len(result.errors)} error(s); nothing drawn", err=True)
-        sys.exit(1)  # not ctx.exit: umlbot's main() runs click non-standalone, which drops it
+        sys.exit(1)
     formats: tuple[Format, ...] = FORMATS if fmt == "all" else (fmt,)  # type: ignore[assignment]
     target = out_dir or Path(f"{result.model.name}-diagrams")
     for path in render_model(result.model, target, formats):
