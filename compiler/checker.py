@@ -174,6 +174,8 @@ class _ExprChecker:
         self.lane = lane
         self.src = src
         self.lane_calls: list[_LaneCall] = []
+        #: whether a datastore was read (type inference needs another pass only then)
+        self.read_datastore = False
 
     def fail(self, message: str, offset: int) -> ModelError:
         return self.src.error(message, offset)
@@ -239,6 +241,7 @@ class _ExprChecker:
             name = raw.parts[0]
             t = self.datastore_type(self.lane, name)
             if t is not None:
+                self.read_datastore = True
                 return {"op": "ref", "lane": self.lane, "name": name}, t
             if name in scope.lanes and scope.lanes[name].virtual:
                 return self.lane_call(name, raw.offset, action)
@@ -259,6 +262,7 @@ class _ExprChecker:
         if owner in scope.lanes or owner in scope.kinds:
             t = self.datastore_type(owner, name)
             if t is not None:
+                self.read_datastore = True
                 return {"op": "ref", "lane": owner, "name": name}, t
             hint = ""
             if owner in scope.kinds and name in KIND_FEATURES[scope.kinds[owner]]:
@@ -601,6 +605,7 @@ class _Checker:
                 self.scope.datastore_types[(lane.name, name)] = "unknown"
         for _ in range(50):
             changed = False
+            read_datastore = False
             for lane in self.lanes:
                 for name, values in lane.writes.items():
                     t: Type = "unknown"
@@ -618,18 +623,20 @@ class _Checker:
                         if entry is None:
                             t = _join(t, "any")
                             continue
+                        checker = _ExprChecker(self.scope, lane.name, entry[1])
                         try:
-                            _, value_type = _ExprChecker(self.scope, lane.name, entry[1]).resolve(entry[0])
+                            _, value_type = checker.resolve(entry[0])
                         except ModelError:
                             value_type = "any"
+                        read_datastore = read_datastore or checker.read_datastore
                         if value_type == "none":
                             value_type = "any"
                         t = _join(t, value_type)
                     if t != self.scope.datastore_types[(lane.name, name)]:
                         self.scope.datastore_types[(lane.name, name)] = t
                         changed = True
-            if not changed:
-                break
+            if not changed or not read_datastore:
+                break  # no value read a datastore: the types cannot change in another pass
         for store, t in self.scope.datastore_types.items():
             if t == "unknown":
                 self.scope.datastore_types[store] = "any"

@@ -355,3 +355,26 @@ def test_compile_model_raises_model_errors_with_every_diagnostic(tmp_path: Path)
     assert caught.value.message == "unknown component 'Motr' (and 1 more error(s))"
     assert (caught.value.line, caught.value.column) == (20, 37)
     assert len(caught.value.diagnostics) == 2
+
+
+def test_datastore_types_are_inferred_from_every_write(tmp_path: Path) -> None:
+    text = HEADER + main_with(
+        "{id: a, kind: datastore, name: a, value: b}",          # reads b before b is written
+        "{id: b, kind: datastore, name: b, value: 1}",
+        "{id: c0, kind: datastore, name: count, value: 0}",
+        "{id: c1, kind: datastore, name: count, value: count + 1.5}",
+        "{id: ok, kind: action, call: Motor.dutycycle(a)}",
+        "{id: bad, kind: action, call: Motor.dutycycle(count)}",
+    )
+    errors = errors_of(check_text(tmp_path, text))
+    assert [(e.message, at(e)) for e in errors] == [
+        ("argument 1 (percent) of Motor.dutycycle must be int, got float", position(text, "count)}"))]
+
+
+def test_an_accepted_payload_can_be_anything(tmp_path: Path) -> None:
+    text = HEADER + main_with(
+        "{id: w, kind: accept, signal: speed, store: speed}",
+        "{id: set, kind: action, call: Motor.dutycycle(speed)}",
+        "{id: d, kind: decision, branches: [{if: speed, then: end}, {else: end}]}",
+    )
+    assert check_text(tmp_path, text).ok
