@@ -163,13 +163,13 @@ def activity_mermaid(name: str, lanes: list[Lane]) -> str:
         for node in lane.nodes.values():
             ident = _ident(lane.name, node.id)
             if isinstance(node, StartNode):
-                lines.append(f"    {ident}(( )):::start")
+                lines.append(f'    {ident}((" ")):::start')
             elif isinstance(node, EndNode):
-                lines.append(f"    {ident}((( ))):::stop")
+                lines.append(f'    {ident}(((" "))):::stop')
             elif isinstance(node, DecisionNode):
-                lines.append(f"    {ident}{{ }}")
+                lines.append(f'    {ident}{{" "}}')
             elif isinstance(node, ForkNode | JoinNode):
-                lines.append(f"    {ident}[ ]:::bar")
+                lines.append(f'    {ident}[" "]:::bar')
             elif isinstance(node, SendNode):
                 lines.append(f"    {ident}>{_mm_str(_label(node))}]")
             elif isinstance(node, DatastoreNode):
