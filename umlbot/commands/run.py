@@ -30,7 +30,7 @@ class RunFailed(click.ClickException):
               "(default: $UMLBOT_BROKER or mqtt://127.0.0.1:1883).")
 @click.option("--ca-file", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="CA certificate file for mqtts:// brokers.")
-@click.option("--robot", default=lambda: os.environ.get("UMLBOT_ROBOT") or None,
+@click.option("--robot", metavar="ID", default=lambda: os.environ.get("UMLBOT_ROBOT") or None,
               show_default="$UMLBOT_ROBOT or the model's name",
               help="Robot id (the topic base is umlbot/<robot>/).")
 @click.option("--call-timeout", "call_timeout_s", type=click.FloatRange(min=0.001, min_open=False),
