@@ -16,6 +16,7 @@ from conftest import BrokerProcess, RawClient
 from orchestrator_support import rig, wait_for
 
 from services.bus import OrchestratorStatus, TraceEvent
+from services.orchestrator import run_orchestrator
 from umlbot.errors import OrchestratorError
 
 pytestmark = pytest.mark.network
@@ -201,3 +202,13 @@ def test_start_up_names_the_components_that_are_not_online(broker: BrokerProcess
         assert "LeftActuator" not in str(caught.value)
         # the online actuators are stopped on this exit path too
         assert r.driver("LeftActuator").commands_named("set_enabled") == [(False,)]
+
+
+def test_run_orchestrator_helper_runs_to_the_end(broker: BrokerProcess) -> None:
+    with rig(broker.url, "fork.yaml") as r:
+        seen: list[dict[str, object]] = []
+        code = run_orchestrator(r.model, r.settings, robot="test", handle_signals=False,
+                                trace_listener=seen.append)
+        assert code == 0
+        assert [e["node"] for e in seen][-1] == "end"
+        assert r.driver("LeftActuator").commands_named("set_duty_cycle") == [(10,)]
