@@ -102,6 +102,7 @@ class BrokerProcess:
                 f"listener {self.port} 127.0.0.1\n"
                 "allow_anonymous true\n"
                 "persistence false\n"
+                "set_tcp_nodelay true\n"
                 "log_dest stderr\n"
                 "log_type error\n"
                 "log_type warning\n",

@@ -61,7 +61,7 @@ def test_compile_writes_a_loadable_file(tmp_path: Path) -> None:
     result = CliRunner().invoke(cli, ["compile", str(ROBOT_CAR), "-o", str(out)])
     assert result.exit_code == 0, result.output
     model = load_compiled(out)
-    assert model.name == "robot_car" and "RaspberryPI" in model.lanes
+    assert model.name == "car" and "RaspberryPI" in model.lanes
     assert result.stderr.startswith(f"wrote {out} (sha256:")
     assert [p.name for p in out.parent.iterdir()] == ["car.json"]  # no temporary file left
 

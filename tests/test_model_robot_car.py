@@ -46,7 +46,7 @@ def test_components_and_both_deployments() -> None:
     assert settings["RightActuator"]["in1"] == 24 and settings["RightActuator"]["in2"] == 25
     assert settings["Sensor"] == {"gpio": 18}
     assert settings["DistanceRead"] == {"trigger": 8, "echo": 7}
-    assert rich.name == "robot_car"
+    assert rich.name == "car"
     assert [(link.source_component, link.target_component) for link in rich.links] == [
         ("Sensor", "DistanceRead")]
 

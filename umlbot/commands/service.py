@@ -18,8 +18,8 @@ from services.registry import SERVICE_KINDS
 
 
 def resolve_robot(cli_value: str | None, deployment_robot: str | None) -> str:
-    """Robot id: `--robot`, else the deployment's `robot`, else `UMLBOT_ROBOT`, else `car`."""
-    return cli_value or deployment_robot or os.environ.get("UMLBOT_ROBOT") or "car"
+    """Robot id: `--robot`, else `UMLBOT_ROBOT`, else the deployment's `robot`, else `car`."""
+    return cli_value or os.environ.get("UMLBOT_ROBOT") or deployment_robot or "car"
 
 
 @click.command(name="service")
@@ -37,7 +37,7 @@ def resolve_robot(cli_value: str | None, deployment_robot: str | None) -> str:
 @click.option("--ca-file", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="CA certificate file for mqtts:// brokers.")
 @click.option("--robot", default=None, metavar="ID",
-              help="Robot id (default: the deployment's robot, $UMLBOT_ROBOT, or car).")
+              help="Robot id (default: $UMLBOT_ROBOT, the deployment's robot, or car).")
 @click.option("--connect-timeout", default=10.0, show_default=True, type=click.FloatRange(min=0.1),
               help="Seconds to wait for the broker at start-up.")
 def command(
