@@ -405,8 +405,11 @@ class BusConnection:
         self._connected.set()
         for callback in callbacks:
             self._dispatch_queue.put((callback, ()))
-        log.info("mqtt_connected", broker=self.settings.url, client_id=self.client_id,
-                 reconnect=self.counters.connects > 1)
+        # The first connect is routine (debug); a reconnect is worth an info line.
+        reconnect = self.counters.connects > 1
+        (log.info if reconnect else log.debug)(
+            "mqtt_connected", broker=self.settings.url, client_id=self.client_id, reconnect=reconnect
+        )
 
     def _handle_subscribe(
         self, client: mqtt.Client, userdata: Any, mid: int, reasons: Any, properties: Any = None
