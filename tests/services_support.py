@@ -13,6 +13,9 @@ from services.bus import BrokerSettings, BusClient, Topics
 from services.host import ServiceHost
 from umlbot.deployment import Deployment
 from umlbot.library import ServiceKind
+from umlbot.sim.sharing import attach_local_world
+from umlbot.sim.track import parse_track
+from umlbot.sim.world import World
 
 ROBOT = "car"
 
@@ -37,6 +40,27 @@ def deployment(driver: str = "mock", **settings: dict[str, Any]) -> Deployment:
     for component, extra in settings.items():
         data["components"][component]["settings"].update(extra)
     return Deployment.model_validate(data)
+
+
+#: A 2 m x 3 m room with the car in the middle facing +y: side walls 1 m away, front wall 2 m.
+ROOM = """
+name: room
+start: {x: 0.0, y: 0.0, heading_deg: 90}
+goal: {x_min: -0.2, x_max: 0.2, y_min: 1.5, y_max: 1.9}
+walls:
+  - [[-1.0, -1.0], [1.0, -1.0], [1.0, 2.0], [-1.0, 2.0], [-1.0, -1.0]]
+"""
+
+
+@contextmanager
+def sim_world(track: str = ROOM) -> Iterator[World]:
+    """A simulated world attached to this process, so services on the sim driver act on it."""
+    world = World(parse_track(track))
+    attach_local_world(world)
+    try:
+        yield world
+    finally:
+        attach_local_world(None)
 
 
 def broker_settings(url: str) -> BrokerSettings:

@@ -1,5 +1,6 @@
-"""Contract suite for motor channel drivers: mock, and pigpio (with and without an enable pin) on
-the fake pigpio.pi. The observable is the signed drive in percent (+ clockwise, - anticlockwise)."""
+"""Contract suite for motor channel drivers: mock, pigpio (with and without an enable pin) on the
+fake pigpio.pi, and sim on a small simulated world. The observable is the signed drive in percent
+(+ clockwise, - anticlockwise): for sim, the command the world holds for the channel's side."""
 
 from __future__ import annotations
 
@@ -12,8 +13,21 @@ from services.fake_pigpio import FakePi
 from services.motor.driver import L298NSettings, MotorChannel
 from services.motor.mock import MockMotorChannel, MockMotorSettings
 from services.motor.pigpio import PWM_RANGE, PigpioL298NChannel
+from services.motor.sim import SimMotorChannel
 from services.registry import create_driver
 from umlbot.errors import DriverError
+from umlbot.sim.sharing import attach_local_world
+from umlbot.sim.track import parse_track
+from umlbot.sim.world import CarSpec, World
+
+#: A 2 m x 3 m room with the car in the middle, facing +y.
+ROOM = """
+name: room
+start: {x: 0.0, y: 0.0, heading_deg: 90}
+goal: {x_min: -0.2, x_max: 0.2, y_min: 1.5, y_max: 1.9}
+walls:
+  - [[-1.0, -1.0], [1.0, -1.0], [1.0, 2.0], [-1.0, 2.0], [-1.0, -1.0]]
+"""
 
 
 @dataclass
@@ -35,12 +49,32 @@ def _pigpio_rig(fake: FakePi, enable: int | None) -> Rig:
     return Rig(driver, drive)
 
 
-@pytest.fixture(params=["mock", "pigpio-fake", "pigpio-fake-enable"])
+def _sim_drive(world: World) -> float:
+    left = world.motor("left")
+    return (1 if left.forward else -1) * left.duty_percent * left.enabled
+
+
+@pytest.fixture
+def world() -> Iterator[World]:
+    """A room attached as this process's world, so `create_driver(..., "sim", ...)` drives it."""
+    room = World(parse_track(ROOM))
+    attach_local_world(room)
+    yield room
+    attach_local_world(None)
+
+
+@pytest.fixture(params=["mock", "pigpio-fake", "pigpio-fake-enable", "sim"])
 def rig(request: pytest.FixtureRequest) -> Iterator[Rig]:
     if request.param == "mock":
         mock = MockMotorChannel("LeftActuator")
         yield Rig(mock, lambda: (1 if mock.clockwise else -1) * mock.duty_cycle_percent * mock.enabled)
         mock.close()
+        return
+    if request.param == "sim":
+        world: World = request.getfixturevalue("world")
+        channel = create_driver("motor", "sim", "LeftActuator", {"in1": 22, "in2": 23})
+        yield Rig(channel, lambda: _sim_drive(world))
+        channel.close()
         return
     fake = FakePi()
     rig = _pigpio_rig(fake, 24 if request.param.endswith("enable") else None)
@@ -103,6 +137,45 @@ def test_close_twice_is_safe_and_leaves_motor_stopped(rig: Rig) -> None:
 
 def test_is_a_motor_channel(rig: Rig) -> None:
     assert isinstance(rig.driver, MotorChannel)
+
+
+# --- sim specifics -----------------------------------------------------------------------------
+
+
+def test_sim_side_speed_follows_the_command_and_the_car_turns(world: World) -> None:
+    car = CarSpec()
+    left = create_driver("motor", "sim", "LeftActuator", {"in1": 22, "in2": 23})
+    assert isinstance(left, SimMotorChannel) and left.side == "left"
+    left.set_duty_cycle(60)
+    left.set_enabled(True)
+    world.advance_to(0.5)  # many motor time constants
+    assert world.motor("left").speed_mps == pytest.approx(car.top_speed_mps * 0.6, rel=1e-3)
+    assert world.motor("right").speed_mps == 0, "the other side is untouched"
+    assert world.snapshot().pose.heading < world.track.start.pose.heading, "left side only: turns right"
+    left.set_direction(False)
+    world.advance_to(1.0)
+    assert world.motor("left").speed_mps == pytest.approx(-car.top_speed_mps * 0.6, rel=1e-3)
+    left.close()
+    world.advance_to(1.5)
+    assert world.motor("left").speed_mps == pytest.approx(0, abs=1e-6), "closing stops the side"
+
+
+def test_sim_duty_below_the_dead_band_does_not_move_the_car(world: World) -> None:
+    right = create_driver("motor", "sim", "RightActuator", {"in1": 24, "in2": 25})
+    right.set_duty_cycle(CarSpec().dead_band_percent - 1)
+    right.set_enabled(True)
+    world.advance_to(0.5)
+    assert world.motor("right").enabled and world.motor("right").speed_mps == 0
+    assert world.snapshot().distance_m == 0
+    right.close()
+
+
+def test_sim_closed_channel_refuses_commands(world: World) -> None:
+    channel = create_driver("motor", "sim", "LeftActuator", {"in1": 22, "in2": 23})
+    channel.close()
+    with pytest.raises(DriverError, match="LeftActuator: driver is closed"):
+        channel.set_enabled(True)
+    assert not world.motor("left").enabled
 
 
 # --- pigpio specifics --------------------------------------------------------------------------

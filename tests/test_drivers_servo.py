@@ -1,4 +1,6 @@
-"""Contract suite for servo drivers: mock, and pigpio on the fake pigpio.pi."""
+"""Contract suite for servo drivers: mock, pigpio on the fake pigpio.pi, and sim turning the sonar
+of a simulated world. Pulses are a pin-level notion: whether a servo sends them is checked on mock
+and pigpio; for sim the observable is the world's servo angle once its turning time has passed."""
 
 from __future__ import annotations
 
@@ -8,9 +10,25 @@ from dataclasses import dataclass
 import pytest
 
 from services.fake_pigpio import FakePi
+from services.registry import create_driver
 from services.servo.driver import Servo, ServoSettings
 from services.servo.mock import MockServo
 from services.servo.pigpio import PigpioServo
+from umlbot.errors import ConfigError, DriverError
+from umlbot.sim.sharing import attach_local_world
+from umlbot.sim.track import parse_track
+from umlbot.sim.world import CarSpec, World
+
+#: A 2 m x 3 m room with the car in the middle, facing +y.
+ROOM = """
+name: room
+start: {x: 0.0, y: 0.0, heading_deg: 90}
+goal: {x_min: -0.2, x_max: 0.2, y_min: 1.5, y_max: 1.9}
+walls:
+  - [[-1.0, -1.0], [1.0, -1.0], [1.0, 2.0], [-1.0, 2.0], [-1.0, -1.0]]
+"""
+#: Sim seconds the servo needs for its whole range.
+FULL_TURN_S = CarSpec().servo_max_deg / CarSpec().servo_deg_per_s
 
 
 @dataclass
@@ -19,9 +37,29 @@ class Rig:
     angle: Callable[[], float | None]  # None = no pulses
 
 
-@pytest.fixture(params=["mock", "pigpio-fake"])
-def rig(request: pytest.FixtureRequest) -> Iterator[Rig]:
-    if request.param == "mock":
+@pytest.fixture
+def world() -> Iterator[World]:
+    """A room attached as this process's world, so `create_driver(..., "sim", ...)` turns its servo."""
+    room = World(parse_track(ROOM))
+    attach_local_world(room)
+    yield room
+    attach_local_world(None)
+
+
+def _settled_angle(world: World) -> float:
+    """The world's servo angle after the turning time of a full sweep."""
+    world.advance_to(world.snapshot().time_s + FULL_TURN_S)
+    return world.servo_angle_deg()
+
+
+def _make_rig(name: str, request: pytest.FixtureRequest) -> Iterator[Rig]:
+    if name == "sim":
+        world: World = request.getfixturevalue("world")
+        sim = create_driver("servo", "sim", "Sensor", {"gpio": 18})
+        yield Rig(sim, lambda: _settled_angle(world))
+        sim.close()
+        return
+    if name == "mock":
         mock = MockServo("Sensor")
         yield Rig(mock, lambda: mock.angle_deg if mock.pulsing else None)
         mock.close()
@@ -38,8 +76,19 @@ def rig(request: pytest.FixtureRequest) -> Iterator[Rig]:
     driver.close()
 
 
-def test_starts_without_pulses(rig: Rig) -> None:
-    assert rig.angle() is None
+@pytest.fixture(params=["mock", "pigpio-fake", "sim"])
+def rig(request: pytest.FixtureRequest) -> Iterator[Rig]:
+    yield from _make_rig(request.param, request)
+
+
+@pytest.fixture(params=["mock", "pigpio-fake"])
+def pulse_rig(request: pytest.FixtureRequest) -> Iterator[Rig]:
+    """The backends whose servo is driven by pulses that can be switched off."""
+    yield from _make_rig(request.param, request)
+
+
+def test_starts_without_pulses(pulse_rig: Rig) -> None:
+    assert pulse_rig.angle() is None
 
 
 @pytest.mark.parametrize("degrees", [0, 45, 90, 180])
@@ -50,19 +99,70 @@ def test_turns_to_angle(rig: Rig, degrees: float) -> None:
 
 @pytest.mark.parametrize("degrees", [-1, 180.5, 360])
 def test_out_of_range_is_refused(rig: Rig, degrees: float) -> None:
+    before = rig.angle()
     with pytest.raises(ValueError, match="angle"):
         rig.driver.set_angle(degrees)
-    assert rig.angle() is None
+    assert rig.angle() == before, "the servo is not moved"
 
 
-def test_stop_and_close_switch_pulses_off(rig: Rig) -> None:
-    rig.driver.set_angle(90)
-    rig.driver.stop()
-    assert rig.angle() is None
-    rig.driver.set_angle(30)
-    rig.driver.close()
-    rig.driver.close()
-    assert rig.angle() is None
+@pytest.mark.parametrize("degrees", [-1, 180.5, 360])
+def test_out_of_range_sends_no_pulses(pulse_rig: Rig, degrees: float) -> None:
+    with pytest.raises(ValueError, match="angle"):
+        pulse_rig.driver.set_angle(degrees)
+    assert pulse_rig.angle() is None
+
+
+def test_declares_its_range_and_is_a_servo(rig: Rig) -> None:
+    assert rig.driver.max_angle_deg == 180
+    assert isinstance(rig.driver, Servo)
+
+
+def test_stop_and_close_switch_pulses_off(pulse_rig: Rig) -> None:
+    pulse_rig.driver.set_angle(90)
+    pulse_rig.driver.stop()
+    assert pulse_rig.angle() is None
+    pulse_rig.driver.set_angle(30)
+    pulse_rig.driver.close()
+    pulse_rig.driver.close()
+    assert pulse_rig.angle() is None
+
+
+# --- sim specifics -----------------------------------------------------------------------------
+
+
+def test_sim_starts_looking_ahead_and_turns_at_the_servo_speed(world: World) -> None:
+    car = CarSpec()
+    servo = create_driver("servo", "sim", "Sensor", {"gpio": 18})
+    assert world.servo_angle_deg() == 90
+    servo.set_angle(180)
+    half_way_s = 45 / car.servo_deg_per_s
+    world.advance_to(half_way_s)
+    assert world.servo_angle_deg() == pytest.approx(135), "half way after half the turning time"
+    world.advance_to(2 * half_way_s)
+    assert world.servo_angle_deg() == pytest.approx(180)
+    servo.close()
+
+
+def test_sim_stop_holds_the_angle_and_close_refuses_commands(world: World) -> None:
+    servo = create_driver("servo", "sim", "Sensor", {"gpio": 18})
+    servo.set_angle(30)
+    servo.stop()
+    assert _settled_angle(world) == pytest.approx(30), "no pulses to stop: the mount stays where it is"
+    servo.close()
+    servo.close()
+    with pytest.raises(DriverError, match="Sensor: driver is closed"):
+        servo.set_angle(60)
+    assert _settled_angle(world) == pytest.approx(30)
+
+
+def test_sim_initial_angle_and_narrower_range(world: World) -> None:
+    servo = create_driver("servo", "sim", "Sensor", {"gpio": 18, "max_angle_deg": 120,
+                                                     "initial_angle_deg": 0})
+    assert _settled_angle(world) == 0
+    with pytest.raises(ValueError, match=r"0\.\.120"):
+        servo.set_angle(150)
+    with pytest.raises(ConfigError, match="initial_angle_deg must be <= max_angle_deg"):
+        create_driver("servo", "sim", "Sensor", {"gpio": 18, "max_angle_deg": 90, "initial_angle_deg": 120})
 
 
 def test_pulse_calibration() -> None:

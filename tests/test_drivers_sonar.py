@@ -1,8 +1,11 @@
-"""Contract suite for distance sensor drivers: mock, and pigpio on the fake pigpio.pi with a
-simulated HC-SR04 (echo edges with ticks, 32-bit wrap-around, no echo)."""
+"""Contract suite for distance sensor drivers: mock, pigpio on the fake pigpio.pi with a simulated
+HC-SR04 (echo edges with ticks, 32-bit wrap-around, no echo), and sim pinging a simulated world
+(a wall at the distance asked for). The sim sensor reads whole centimetres and cannot see a wall
+closer than its bumper, so sub-centimetre and 2 cm readings are checked on mock and pigpio only."""
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
@@ -14,6 +17,13 @@ from services.registry import create_driver
 from services.sonar.driver import DistanceSensor, HCSR04Settings
 from services.sonar.mock import MockDistanceSensor, MockSonarSettings
 from services.sonar.pigpio import PigpioHCSR04, tick_diff
+from services.sonar.sim import SimDistanceSensor
+from umlbot.errors import DriverError
+from umlbot.sim.sharing import attach_local_world
+from umlbot.sim.track import Track
+from umlbot.sim.world import CarSpec, Side, World
+
+CAR = CarSpec()
 
 
 @dataclass
@@ -22,9 +32,50 @@ class Rig:
     set_distance: Callable[[float | None], None]
 
 
-@pytest.fixture(params=["mock", "pigpio-fake"])
-def rig(request: pytest.FixtureRequest) -> Iterator[Rig]:
-    if request.param == "mock":
+def wall_world(cm: float | None, *walls: list[tuple[float, float]]) -> World:
+    """The car at the origin facing +x, a long wall `cm` ahead of its sonar (None: no wall in
+    front, only one behind the car), plus any further `walls`."""
+    x = -1.0 if cm is None else CAR.sonar_forward_m + cm / 100
+    track = Track.model_validate({
+        "name": "wall", "start": {"x": 0.0, "y": 0.0, "heading_deg": 0.0},
+        "goal": {"x_min": -0.6, "x_max": -0.5, "y_min": -0.05, "y_max": 0.05},
+        "walls": [[(x, -5.0), (x, 5.0)], *walls],
+    })
+    return World(track)
+
+
+class MovingWall:
+    """A `WorldHandle` whose world is rebuilt with the wall at each new distance, so one sim
+    sensor sees the distance change, as when the car drives towards a wall."""
+
+    def __init__(self) -> None:
+        self.world = wall_world(100)
+
+    def set_distance(self, cm: float | None) -> None:
+        self.world = wall_world(cm)
+
+    def set_motor(self, side: Side, *, enabled: bool | None = None, forward: bool | None = None,
+                  duty_percent: float | None = None) -> None:
+        self.world.set_motor(side, enabled=enabled, forward=forward, duty_percent=duty_percent)
+
+    def set_servo(self, degrees: float) -> None:
+        self.world.set_servo(degrees)
+
+    def servo_angle_deg(self) -> float:
+        return self.world.servo_angle_deg()
+
+    def read_sonar_cm(self) -> int | None:
+        return self.world.read_sonar_cm()
+
+
+def _make_rig(name: str) -> Iterator[Rig]:
+    if name == "sim":
+        wall = MovingWall()
+        sim = SimDistanceSensor("DistanceRead", wall)
+        yield Rig(sim, wall.set_distance)
+        sim.close()
+        return
+    if name == "mock":
         mock = MockDistanceSensor("DistanceRead")
         yield Rig(mock, mock.set_distance)
         mock.close()
@@ -40,10 +91,27 @@ def rig(request: pytest.FixtureRequest) -> Iterator[Rig]:
     driver.close()
 
 
-@pytest.mark.parametrize("cm", [2.0, 15.5, 57.0, 399.0])
+@pytest.fixture(params=["mock", "pigpio-fake", "sim"])
+def rig(request: pytest.FixtureRequest) -> Iterator[Rig]:
+    yield from _make_rig(request.param)
+
+
+@pytest.fixture(params=["mock", "pigpio-fake"])
+def fine_rig(request: pytest.FixtureRequest) -> Iterator[Rig]:
+    """The backends that read fractions of a centimetre and down to 2 cm."""
+    yield from _make_rig(request.param)
+
+
+@pytest.mark.parametrize("cm", [3.0, 57.0, 399.0])
 def test_reads_the_distance(rig: Rig, cm: float) -> None:
     rig.set_distance(cm)
     assert rig.driver.read_distance_cm() == pytest.approx(cm, abs=0.05)
+
+
+@pytest.mark.parametrize("cm", [2.0, 15.5])
+def test_reads_fractions_and_the_minimum(fine_rig: Rig, cm: float) -> None:
+    fine_rig.set_distance(cm)
+    assert fine_rig.driver.read_distance_cm() == pytest.approx(cm, abs=0.05)
 
 
 def test_no_echo_is_none(rig: Rig) -> None:
@@ -61,6 +129,89 @@ def test_close_twice_is_safe(rig: Rig) -> None:
     rig.driver.close()
     rig.driver.close()
     assert isinstance(rig.driver, DistanceSensor)
+
+
+# --- sim specifics -----------------------------------------------------------------------------
+
+
+@pytest.fixture
+def attached() -> Iterator[Callable[[World], World]]:
+    """Attach a world as this process's, so `create_driver(..., "sim", ...)` reads it."""
+
+    def attach(world: World) -> World:
+        attach_local_world(world)
+        return world
+
+    yield attach
+    attach_local_world(None)
+
+
+def test_sim_reads_whole_centimetres_and_no_closer_than_the_bumper() -> None:
+    wall = MovingWall()
+    sensor = SimDistanceSensor("S", wall)
+    for cm, expected in [(15.4, 15), (15.6, 16), (2.4, 2)]:
+        wall.set_distance(cm)
+        assert sensor.read_distance_cm() == expected
+    bumper_cm = (CAR.length_m / 2 - CAR.sonar_forward_m) * 100
+    with pytest.raises(ValueError, match="overlaps a wall"):
+        wall.set_distance(bumper_cm)
+
+
+def _post(bearing_deg: float, metres: float) -> list[tuple[float, float]]:
+    """A 4 cm post `metres` from the sonar at a bearing from straight ahead (left > 0)."""
+    x = CAR.sonar_forward_m + metres * math.cos(math.radians(bearing_deg))
+    y = metres * math.sin(math.radians(bearing_deg))
+    return [(x, y - 0.02), (x, y + 0.02)]
+
+
+def test_sim_sees_a_post_within_the_beam_and_not_beside_it(attached: Callable[[World], World]) -> None:
+    half_beam = CAR.sonar_beam_deg / 2
+    attached(wall_world(None, _post(half_beam - 2.5, 1.0)))
+    sensor = create_driver("sonar", "sim", "DistanceRead", {"trigger": 8, "echo": 7})
+    assert sensor.read_distance_cm() == 100, "a post inside the 15° beam echoes"
+    world = attached(wall_world(None, _post(half_beam + 5, 1.0)))
+    beside = create_driver("sonar", "sim", "DistanceRead", {"trigger": 8, "echo": 7})
+    assert beside.read_distance_cm() is None, "outside the beam: no echo"
+    servo = create_driver("servo", "sim", "Sensor", {"gpio": 18})
+    servo.set_angle(90 + half_beam + 5)  # turn the sonar towards the post
+    world.advance_to(1.0)
+    assert beside.read_distance_cm() == 100
+
+
+def test_sim_far_echo_is_clamped_to_max_range(attached: Callable[[World], World]) -> None:
+    attached(wall_world(350))
+    sensor = create_driver("sonar", "sim", "DistanceRead", {"trigger": 8, "echo": 7, "max_range_cm": 300})
+    assert sensor.max_range_cm == 300
+    assert sensor.read_distance_cm() == 300
+
+
+class ScriptedPings(MovingWall):
+    """A world handle whose pings return the given readings in order."""
+
+    def __init__(self, readings: list[int | None]) -> None:
+        super().__init__()
+        self.readings = iter(readings)
+
+    def read_sonar_cm(self) -> int | None:
+        return next(self.readings)
+
+
+@pytest.mark.parametrize(("readings", "expected"), [
+    ([10, None, 30], 20.0),
+    ([None, None, 30], 30.0),  # like the real driver: the median of the pings that got an echo
+    ([None, None, None], None),
+])
+def test_sim_median_of_samples_ignores_no_echo(readings: list[int | None], expected: float | None) -> None:
+    sensor = SimDistanceSensor("S", ScriptedPings(readings), samples=3)
+    assert sensor.read_distance_cm() == expected
+
+
+def test_sim_closed_sensor_refuses_to_read(attached: Callable[[World], World]) -> None:
+    attached(wall_world(50))
+    sensor = create_driver("sonar", "sim", "DistanceRead", {"trigger": 8, "echo": 7})
+    sensor.close()
+    with pytest.raises(DriverError, match="DistanceRead: driver is closed"):
+        sensor.read_distance_cm()
 
 
 # --- pigpio specifics --------------------------------------------------------------------------

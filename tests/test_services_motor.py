@@ -1,6 +1,6 @@
 """The motor service over real brokers: features via the bus and via raw bare payloads, error
 replies, retained state, and every safety stop (service stop, SIGTERM/SIGINT of the process,
-orchestrator last will, broker loss, watchdog)."""
+orchestrator last will, broker loss, watchdog), and the sim driver driving a simulated world."""
 
 from __future__ import annotations
 
@@ -16,7 +16,7 @@ from typing import Any
 
 import pytest
 from conftest import BrokerProcess, RawClient
-from services_support import ROBOT, StateWatch, client, deployment, raw_state, running, wait_for
+from services_support import ROBOT, StateWatch, client, deployment, raw_state, running, sim_world, wait_for
 
 from services import pigpio_connection
 from services.bus import Topics
@@ -304,3 +304,18 @@ def _status(bus: Any, component: str) -> bool:
         return True
     except Exception:
         return False
+
+
+def test_sim_driver_calls_over_the_bus_drive_the_world(mosquitto_broker: BrokerProcess) -> None:
+    url = mosquitto_broker.url
+    with sim_world() as world, running("motor", deployment("sim"), url), client(url) as bus:
+        assert bus.call("LeftActuator", "dutycycle", 60) is None
+        assert bus.call("LeftActuator", "direction", False) is None
+        assert bus.call("LeftActuator", "enabled", True) is None
+        left = world.motor("left")
+        assert (left.enabled, left.forward, left.duty_percent) == (True, False, 60)
+        assert not world.motor("right").enabled, "the other side untouched"
+        world.advance_to(0.5)
+        assert world.snapshot().distance_m > 0, "the car moves"
+    left = world.motor("left")
+    assert (left.enabled, left.duty_percent) == (False, 0), "stopping the service stops the side"

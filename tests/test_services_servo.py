@@ -1,5 +1,5 @@
 """The servo service over real brokers: angle via the bus and raw payloads, range errors, state,
-pulses off on stop, pigpio on the fake."""
+pulses off on stop, pigpio on the fake, and the sim driver turning a simulated world's servo."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from collections.abc import Callable
 
 import pytest
 from conftest import BrokerProcess, RawClient
-from services_support import ROBOT, StateWatch, client, deployment, raw_state, running
+from services_support import ROBOT, StateWatch, client, deployment, raw_state, running, sim_world
 
 from services import pigpio_connection
 from services.bus import Topics
@@ -78,3 +78,17 @@ def test_pigpio_on_the_fake_over_the_bus(mosquitto_broker: BrokerProcess) -> Non
         assert fake.pin(18).servo_pulsewidth == 0, "pulses off on stop"
     finally:
         pigpio_connection.install_fake(None)
+
+
+def test_sim_driver_angle_over_the_bus_turns_the_world_servo(mosquitto_broker: BrokerProcess) -> None:
+    url = mosquitto_broker.url
+    with sim_world() as world, running("servo", deployment("sim"), url), client(url) as bus:
+        assert world.servo_angle_deg() == 90
+        assert bus.call("Sensor", "angle", 180) is None
+        world.advance_to(1.0)  # the servo turns at 600°/s
+        assert world.servo_angle_deg() == 180
+        with pytest.raises(RemoteError) as caught:
+            bus.call("Sensor", "angle", 200)
+        assert caught.value.code == "out_of_range"
+        world.advance_to(2.0)
+        assert world.servo_angle_deg() == 180, "a refused angle does not move the servo"

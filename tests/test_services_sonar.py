@@ -1,5 +1,6 @@
 """The sonar service over real brokers: `value()` via the bus and raw payloads, no echo, state,
-pigpio on the fake, and a scriptable mock service in its own process."""
+pigpio on the fake, a scriptable mock service in its own process, and the sim driver pinging a
+simulated world."""
 
 from __future__ import annotations
 
@@ -12,13 +13,14 @@ from pathlib import Path
 
 import pytest
 from conftest import BrokerProcess, RawClient
-from services_support import ROBOT, StateWatch, client, deployment, raw_state, running, wait_for
+from services_support import ROBOT, StateWatch, client, deployment, raw_state, running, sim_world, wait_for
 
 from services import pigpio_connection
 from services.bus import Topics
 from services.fake_pigpio import FakePi
 from services.sonar.mock import MockDistanceSensor
 from umlbot.errors import RemoteError
+from umlbot.sim.world import CarSpec
 
 pytestmark = pytest.mark.network
 TOPICS = Topics(ROBOT)
@@ -118,3 +120,13 @@ def test_mock_service_process_is_scriptable(mosquitto_broker: BrokerProcess, tmp
     finally:
         proc.terminate()
         assert proc.wait(10) == 0
+
+
+def test_sim_driver_value_over_the_bus_pings_the_world(mosquitto_broker: BrokerProcess) -> None:
+    url = mosquitto_broker.url
+    ahead_cm = round((2.0 - CarSpec().sonar_forward_m) * 100)  # the front wall
+    with sim_world() as world, running("sonar", deployment("sim"), url), client(url) as bus:
+        watch = StateWatch(bus, "DistanceRead")
+        assert bus.call("DistanceRead", "value") == ahead_cm
+        assert watch.wait("DistanceRead", lambda s: s["echo"]) == {"distance_cm": ahead_cm, "echo": True}
+        assert [ping.distance_cm for ping in world.pings] == [ahead_cm], "one ping in the world"

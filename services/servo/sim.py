@@ -6,7 +6,7 @@ the servo's finite speed (0.1 s per 60°); 90° looks ahead, 180° left, 0° rig
 
 from __future__ import annotations
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from services.registry import DriverFactory
 from umlbot.errors import DriverError, SimError
@@ -20,6 +20,12 @@ class SimServoSettings(BaseModel):
 
     max_angle_deg: float = Field(default=180.0, gt=0, le=180, description="mechanical range")
     initial_angle_deg: float | None = Field(default=None, ge=0, le=180, description="angle at start-up")
+
+    @model_validator(mode="after")
+    def _initial_within_range(self) -> SimServoSettings:
+        if self.initial_angle_deg is not None and self.initial_angle_deg > self.max_angle_deg:
+            raise ValueError(f"initial_angle_deg must be <= max_angle_deg ({self.max_angle_deg:g})")
+        return self
 
 
 class SimServo:

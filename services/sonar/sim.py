@@ -1,7 +1,9 @@
 """The sim sonar driver: an HC-SR04 whose pings are cast into the simulated world.
 
 Same deployment settings as the real sensor (pins ignored). The world does the physics (beam,
-2..400 cm, 1 cm resolution, optional noise); `samples` > 1 takes the median like the real driver.
+2..400 cm, 1 cm resolution, optional noise); as in the real driver, `samples` > 1 takes the median
+of the pings that got an echo (None when none did) and an echo beyond `max_range_cm` reads
+`max_range_cm`.
 """
 
 from __future__ import annotations
@@ -42,9 +44,9 @@ class SimDistanceSensor:
             readings = [self._world.read_sonar_cm() for _ in range(self._samples)]
         except SimError as exc:
             raise DriverError(f"{self.component}: {exc}") from exc
-        echoes = [r for r in readings if r is not None]
-        if not echoes or len(echoes) * 2 < len(readings):
-            return None  # most pings heard nothing
+        echoes = [min(float(r), self.max_range_cm) for r in readings if r is not None]
+        if not echoes:
+            return None
         return float(statistics.median(echoes))
 
     def close(self) -> None:
