@@ -1,0 +1,854 @@
+"""The docs, tested: the examples in README.md and docs/*.md are checked against the code.
+
+Convention for fenced code blocks: an HTML comment `<!-- doc-test: KIND ARGS -->` on the line
+right before a fence (invisible on the rendered page) says what the fence is and how it is
+checked. Every ```yaml fence of docs/model-format.md must carry one. Kinds:
+
+- `model [run]`: a complete one-file model; it compiles with no error and no warning. With `run`
+  it also runs to its end in the orchestrator against mock services on a real broker.
+- `nodes`: a fragment of a lane's node list; it compiles inside `wrapped_model` (the reference
+  car's components and deployment, a component lane that sets `clearance_cm` and calls the
+  virtual lane `Measure`, which stores `center`, `left` and `right`), with a stub action for
+  every node id the fragment names but does not define. Inline spans `{id: …}` in
+  docs/model-format.md are single nodes and are checked the same way.
+- `activity-file`: an activity file, where `[ ... ]` stands for a node list (the test puts
+  start → end there); it compiles as `activities/doc.yaml` of a folder model of the car.
+- `deployment`: a deployment file, plain or YAML; it compiles as the deployment of a model whose
+  components are those it names, each of its implementation's kind.
+- `layout DIR`: a folder tree; each file or glob it lists exists under DIR.
+- `check-output DIR FILE "OLD" -> "NEW"`: `umlbot check DIR`, run on a copy of DIR where FILE
+  has OLD replaced by NEW, prints exactly the fence: the problems on stdout, the summary (the
+  fence's last line) on stderr.
+- `track`: a track file; `umlbot.sim.track.parse_track` loads it.
+- `CallRequest`, `Reply`, `OrchestratorStatus`, `TraceEvent`: each JSON object of the fence (the
+  whole fence, else one per line) validates against that envelope of `services.bus.envelopes`
+  and uses no key the envelope does not declare (`OrchestratorStatus`: no key the orchestrator
+  does not publish).
+"""
+
+from __future__ import annotations
+
+import importlib
+import itertools
+import json
+import re
+import shlex
+import shutil
+from collections.abc import Iterator
+from dataclasses import dataclass
+from functools import cache
+from pathlib import Path
+from typing import Any, get_args
+
+import click
+import pytest
+import yaml
+from click.testing import CliRunner
+from conftest import BrokerProcess, RawClient
+from orchestrator_support import rig
+from pydantic import BaseModel
+
+from compiler.api import CheckResult, check_model
+from compiler.diagnostics import Diagnostics
+from compiler.expr_parser import RBinary, RUnary, parse_expression
+from compiler.yamlsrc import parse_yaml, to_python
+from services.bus.envelopes import (
+    ERROR_CODES,
+    CallRequest,
+    ExitRequest,
+    OrchestratorStatus,
+    Reply,
+    Status,
+    TraceEvent,
+)
+from services.bus.server import check_args
+from umlbot.cli import COMMANDS, cli
+from umlbot.errors import ModelError
+from umlbot.library import IMPLEMENTATIONS, resolve_implementation
+from umlbot.sim.track import parse_track
+
+ROOT = Path(__file__).resolve().parent.parent
+DOCS = sorted([ROOT / "README.md", *(ROOT / "docs").glob("*.md")])
+MODEL_FORMAT = ROOT / "docs" / "model-format.md"
+MQTT = ROOT / "docs" / "mqtt.md"
+SEMANTICS = ROOT / "docs" / "semantics.md"
+SIMULATOR = ROOT / "docs" / "simulator.md"
+
+
+# --- reading Markdown ----------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Fence:
+    """A fenced code block: its info string, its `doc-test` marker (if any) and its text."""
+
+    path: Path
+    line: int  # of the opening fence, 1-based
+    info: str
+    marker: str | None
+    body: str
+    section: str  # the heading above it
+
+    def where(self) -> str:
+        return f"{self.path.relative_to(ROOT)}:{self.line}"
+
+
+@dataclass(frozen=True)
+class Span:
+    """An inline code span outside fences, with its line and the heading above it."""
+
+    path: Path
+    line: int
+    text: str
+    section: str
+    source_line: str
+
+    def where(self) -> str:
+        return f"{self.path.relative_to(ROOT)}:{self.line}"
+
+
+FENCE_RE = re.compile(r"^(\s*)(```+)\s*(\S*)\s*$")
+MARKER_RE = re.compile(r"^\s*<!-- doc-test: (.*) -->\s*$")
+SPAN_RE = re.compile(r"(?<!`)`([^`\n]+)`(?!`)")
+HEADING_RE = re.compile(r"^#+ ")
+
+
+@cache
+def parse_markdown(path: Path) -> tuple[tuple[Fence, ...], tuple[Span, ...]]:
+    """The fences and the inline code spans of a Markdown file."""
+    lines = path.read_text(encoding="utf-8").splitlines()
+    found_fences: list[Fence] = []
+    found_spans: list[Span] = []
+    section = ""
+    i = 0
+    while i < len(lines):
+        line = lines[i]
+        opening = FENCE_RE.match(line)
+        if opening:
+            indent, ticks, info = opening.groups()
+            previous = i - 1
+            while previous >= 0 and not lines[previous].strip():
+                previous -= 1
+            marker = MARKER_RE.match(lines[previous]) if previous >= 0 else None
+            body: list[str] = []
+            j = i + 1
+            while j < len(lines) and lines[j].strip() != ticks:
+                body.append(lines[j][len(indent):] if lines[j].startswith(indent) else lines[j])
+                j += 1
+            found_fences.append(Fence(path, i + 1, info, marker.group(1) if marker else None,
+                                      "\n".join(body) + "\n", section))
+            i = j + 1
+            continue
+        if HEADING_RE.match(line):
+            section = line.strip()
+        for span in SPAN_RE.finditer(line):
+            found_spans.append(Span(path, i + 1, span.group(1), section, line))
+        i += 1
+    return tuple(found_fences), tuple(found_spans)
+
+
+def fences(path: Path) -> tuple[Fence, ...]:
+    return parse_markdown(path)[0]
+
+
+def spans(path: Path) -> tuple[Span, ...]:
+    return parse_markdown(path)[1]
+
+
+def marked(path: Path, kind: str) -> list[Fence]:
+    """The fences of `path` whose marker starts with `kind`."""
+    return [f for f in fences(path) if f.marker is not None and f.marker.split()[0] == kind]
+
+
+def section_text(path: Path, heading: str) -> str:
+    """The text under the heading that starts with `heading`, up to the next heading of its level."""
+    lines = path.read_text(encoding="utf-8").splitlines()
+    start = next(i for i, line in enumerate(lines) if line.startswith(heading))
+    level = len(heading) - len(heading.lstrip("#"))
+    end = next((i for i in range(start + 1, len(lines))
+                if HEADING_RE.match(lines[i]) and len(lines[i]) - len(lines[i].lstrip("#")) <= level),
+               len(lines))
+    return "\n".join(lines[start:end])
+
+
+def table_rows(text: str) -> list[list[str]]:
+    """The cells of every Markdown table row in `text` (header and separator rows left out)."""
+    rows: list[list[str]] = []
+    for line in text.splitlines():
+        if not line.startswith("|") or re.fullmatch(r"[|\-\s:]+", line):
+            continue
+        cells = [cell.strip() for cell in re.split(r"(?<!\\)\|", line.strip())[1:-1]]
+        rows.append(cells)
+    return rows[1:] if rows else rows  # drop the header
+
+
+def code_spans(text: str) -> list[str]:
+    return SPAN_RE.findall(text)
+
+
+# --- compiling examples ------------------------------------------------------------------------
+
+CAR_COMPONENTS = """\
+components:
+  RaspberryPI: {kind: system}
+  LeftActuator: {kind: actuator}
+  RightActuator: {kind: actuator}
+  Sensor: {kind: actuator}
+  DistanceRead: {kind: sensor}
+"""
+
+CAR_DEPLOYMENT = """\
+driver: mock
+components:
+  RaspberryPI: {impl: raspberrypi}
+  LeftActuator: {impl: l298n}
+  RightActuator: {impl: l298n}
+  Sensor: {impl: servo}
+  DistanceRead: {impl: hcsr04}
+"""
+
+MEASURE_LANE = """\
+  - lane: Measure
+    nodes:
+      - {id: start, kind: start}
+      - {id: read_center, kind: datastore, name: center, value: DistanceRead.value()}
+      - {id: read_left, kind: datastore, name: left, value: DistanceRead.value()}
+      - {id: read_right, kind: datastore, name: right, value: DistanceRead.value()}
+      - {id: end, kind: end}
+"""
+
+CONTEXT_NODES = """\
+      - {id: ctx_clearance, kind: datastore, name: clearance_cm, value: 20}
+      - {id: ctx_measure, kind: action, call: Measure}
+"""
+
+
+def read_yaml(text: str) -> Any:
+    """YAML as the compiler reads it (YAML 1.2 scalars: `on` and `off` are strings, not booleans)."""
+    diagnostics = Diagnostics()
+    loaded = to_python(parse_yaml(text, "<doc>", diagnostics))
+    assert not diagnostics.has_errors, text
+    return loaded
+
+
+def _node_list(fragment: str) -> list[dict[str, Any]]:
+    loaded = read_yaml(fragment)
+    nodes = loaded if isinstance(loaded, list) else [loaded]
+    assert all(isinstance(node, dict) for node in nodes), fragment
+    return nodes
+
+
+def _referenced(node: dict[str, Any]) -> list[str]:
+    names: list[str] = []
+    if isinstance(node.get("next"), str):
+        names.append(node["next"])
+    names.extend(str(t) for t in node.get("targets") or [])
+    for branch in node.get("branches") or []:
+        names.extend(str(branch[key]) for key in ("then", "else") if key in branch)
+    return names
+
+
+def wrapped_model(fragment: str) -> str:
+    """A one-file model of the car whose component lane holds `fragment` (YAML node list text)."""
+    nodes = _node_list(fragment)
+    defined = {str(node.get("id")) for node in nodes} | {"ctx_clearance", "ctx_measure"}
+    text = _dedent(fragment)
+    if not text.startswith("-"):  # a single node, `{id: …}`
+        text = "- " + text
+    indented = "".join("      " + line + "\n" if line.strip() else "\n" for line in text.splitlines())
+    has_start = any(node.get("kind") == "start" for node in nodes)
+    lane = ""
+    if has_start:
+        lane += indented + CONTEXT_NODES
+    else:
+        lane += "      - {id: start, kind: start}\n" + CONTEXT_NODES + indented
+        defined.add("start")
+    if "end" not in defined:
+        lane += "      - {id: end, kind: end}\n"
+        defined.add("end")
+    missing = sorted({name for node in nodes for name in _referenced(node)} - defined)
+    forked = {str(t) for node in nodes if node.get("kind") == "fork" for t in node.get("targets") or []}
+    for name in missing:  # a fork's flows meet again at a join
+        after = "stub_join" if name in forked else "end"
+        lane += f"      - {{id: {name}, kind: action, call: msleep(1), next: {after}}}\n"
+    if forked & set(missing):
+        lane += "      - {id: stub_join, kind: join, next: end}\n"
+    return ("name: doc\n" + CAR_COMPONENTS + "deployment:\n" + _indent(CAR_DEPLOYMENT, 2)
+            + "lanes:\n" + MEASURE_LANE + "  - lane: RaspberryPI\n    nodes:\n" + lane)
+
+
+def _dedent(text: str) -> str:
+    lines = [line for line in text.splitlines() if line.strip()]
+    width = min(len(line) - len(line.lstrip(" ")) for line in lines)
+    return "\n".join(line[width:] for line in text.splitlines()) + "\n"
+
+
+def _indent(text: str, width: int) -> str:
+    return "".join(" " * width + line + "\n" for line in text.splitlines())
+
+
+def _check_file(tmp_path: Path, text: str, name: str = "doc.yaml") -> CheckResult:
+    path = tmp_path / name
+    path.write_text(text, encoding="utf-8")
+    return check_model(path)
+
+
+def _problems(result: CheckResult) -> list[str]:
+    return [f"{d.location.line}:{d.location.column}: {d.severity}: {d.message}" for d in result.diagnostics]
+
+
+def _errors(result: CheckResult) -> list[str]:
+    return [f"{d.location.line}:{d.location.column}: {d.message}" for d in result.errors]
+
+
+def test_every_yaml_example_of_the_model_format_is_marked() -> None:
+    unmarked = [f.where() for f in fences(MODEL_FORMAT) if f.info == "yaml" and f.marker is None]
+    assert unmarked == []
+    kinds = {f.marker.split()[0] for f in fences(MODEL_FORMAT) if f.marker}
+    assert kinds == {"model", "nodes", "activity-file", "deployment", "layout", "check-output"}
+
+
+@pytest.mark.parametrize("fence", marked(MODEL_FORMAT, "model"), ids=Fence.where)
+def test_complete_model_examples_compile_cleanly(fence: Fence, tmp_path: Path) -> None:
+    result = _check_file(tmp_path, fence.body)
+    assert _problems(result) == []
+    assert result.model is not None
+
+
+@pytest.mark.parametrize("fence", marked(MODEL_FORMAT, "nodes"), ids=Fence.where)
+def test_node_fragments_compile_in_a_wrapper(fence: Fence, tmp_path: Path) -> None:
+    result = _check_file(tmp_path, wrapped_model(fence.body))
+    assert _errors(result) == [], wrapped_model(fence.body)
+
+
+NODE_SPANS = [s for s in spans(MODEL_FORMAT) if s.text.startswith("{id:") and "kind:" in s.text]
+
+
+def test_the_node_table_shows_every_kind_with_its_keys() -> None:
+    from compiler.source import NODE_FIELDS
+
+    rows = [row for row in table_rows(section_text(MODEL_FORMAT, "## Swimlanes"))
+            if row[0].strip("`") in NODE_FIELDS]
+    documented: dict[str, tuple[str, ...]] = {}
+    for kind_cell, keys_cell, example_cell in rows:
+        kind = kind_cell.strip("`")
+        keys = tuple(k.strip("`") for k in re.findall(r"`(\w+)`", keys_cell))
+        documented[kind] = keys
+        examples = code_spans(example_cell)
+        if kind != "decision":  # "see below": the decision fence
+            assert len(examples) == 1, example_cell
+            node = read_yaml(examples[0])
+            assert node["kind"] == kind
+            assert set(node) - {"id", "kind"} <= set(keys), examples[0]
+    assert documented == NODE_FIELDS
+
+
+@pytest.mark.parametrize("span", NODE_SPANS, ids=Span.where)
+def test_single_node_examples_compile_in_a_wrapper(span: Span, tmp_path: Path) -> None:
+    result = _check_file(tmp_path, wrapped_model(span.text))
+    assert _errors(result) == [], wrapped_model(span.text)
+
+
+def _folder_model(root: Path, components: dict[str, str], deployment: str, deployment_name: str,
+                  activities: dict[str, str]) -> Path:
+    (root / "activities").mkdir(parents=True)
+    lines = "".join(f"  {name}: {{kind: {kind}}}\n" for name, kind in components.items())
+    (root / "model.yaml").write_text(f"name: doc\ncomponents:\n{lines}", encoding="utf-8")
+    (root / deployment_name).write_text(deployment, encoding="utf-8")
+    for name, text in activities.items():
+        (root / "activities" / name).write_text(text, encoding="utf-8")
+    return root
+
+
+@pytest.mark.parametrize("fence", marked(MODEL_FORMAT, "activity-file"), ids=Fence.where)
+def test_activity_file_examples_compile(fence: Fence, tmp_path: Path) -> None:
+    text = fence.body.replace("[ ... ]", "[{id: start, kind: start}, {id: end, kind: end}]")
+    components = {name: spec["kind"] for name, spec in read_yaml(CAR_COMPONENTS)["components"].items()}
+    path = _folder_model(tmp_path / "doc", components, CAR_DEPLOYMENT, "deployment.yaml",
+                         {"doc.yaml": text})
+    result = check_model(path)
+    assert _errors(result) == []
+    assert result.model is not None
+    lanes = read_yaml(text)
+    names = [lanes["lane"]] if "lane" in lanes else [lane["lane"] for lane in lanes["lanes"]]
+    assert sorted(names) == sorted(result.model.lanes)
+
+
+@pytest.mark.parametrize("fence", marked(MODEL_FORMAT, "deployment"), ids=Fence.where)
+def test_deployment_examples_compile(fence: Fence, tmp_path: Path) -> None:
+    loaded = read_yaml(fence.body)
+    if isinstance(loaded, dict):
+        entries = {name: entry["impl"] for name, entry in loaded["components"].items()}
+        name = "deployment.yaml"
+    else:
+        entries = dict(line.split("=", 1) for line in fence.body.splitlines() if line.strip())
+        name = "deployment.txt"
+    components: dict[str, str] = {}
+    for component, impl_id in entries.items():
+        impl = resolve_implementation(impl_id)
+        assert impl is not None, impl_id
+        components[component] = impl.kind
+    first = next(iter(components))
+    main = f"lane: {first}\nnodes: [{{id: start, kind: start}}, {{id: end, kind: end}}]\n"
+    path = _folder_model(tmp_path / "doc", components, fence.body, name, {"main.yaml": main})
+    result = check_model(path)
+    assert _errors(result) == []
+    assert result.model is not None
+    assert {c: comp.impl for c, comp in result.model.components.items()} == {
+        c: resolve_implementation(i).id for c, i in entries.items()  # type: ignore[union-attr]
+    }
+
+
+def test_the_implementation_table_is_the_library() -> None:
+    rows = [row for row in table_rows(section_text(MODEL_FORMAT, "## The deployment")) if len(row) == 5]
+    documented = {}
+    for impl_cell, alias_cell, kind, service, features in rows:
+        impl = IMPLEMENTATIONS[impl_cell.strip("`")]
+        assert alias_cell.strip("`") in impl.aliases
+        assert (kind, service) == (impl.kind, impl.service)
+        names = re.findall(r"([A-Za-z]+)(?: \((\d+)\.\.(\d+)\))?", features)
+        documented[impl.id] = [name for name, _, _ in names]
+        for name, low, high in names:
+            if low:
+                (param,) = impl.features[name].params
+                assert (param.minimum, param.maximum) == (int(low), int(high))
+    assert documented == {i.id: list(i.features) for i in IMPLEMENTATIONS.values()}
+
+
+@pytest.mark.parametrize("fence", marked(MODEL_FORMAT, "layout"), ids=Fence.where)
+def test_layout_examples_exist(fence: Fence) -> None:
+    base = ROOT / fence.marker.split()[1]  # type: ignore[union-attr]
+    listed = [line.split("#")[0].strip() for line in fence.body.splitlines()[1:]]
+    for entry in filter(None, listed):
+        assert list(base.glob(entry)), f"{entry} is not in {base}"
+
+
+@pytest.mark.parametrize("fence", marked(MODEL_FORMAT, "check-output"), ids=Fence.where)
+def test_check_output_example_is_what_check_prints(
+    fence: Fence, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    _, folder, file, old, arrow, new = shlex.split(fence.marker or "")
+    assert arrow == "->"
+    shutil.copytree(ROOT / folder, tmp_path / folder)
+    edited = tmp_path / folder / file
+    text = edited.read_text(encoding="utf-8")
+    assert text.count(old) == 1
+    edited.write_text(text.replace(old, new), encoding="utf-8")
+    monkeypatch.chdir(tmp_path)
+    result = CliRunner().invoke(cli, ["check", folder])
+    expected = fence.body.splitlines()
+    assert result.exit_code == 1
+    assert result.stdout.splitlines() == expected[:-1]
+    assert result.stderr.splitlines()[-1] == expected[-1]
+
+
+# --- running the complete example --------------------------------------------------------------
+
+
+RUNNABLE = [f for f in marked(MODEL_FORMAT, "model") if "run" in (f.marker or "").split()]
+
+
+@pytest.mark.parametrize("fence", RUNNABLE, ids=Fence.where)
+def test_complete_example_runs_against_mock_services(
+    fence: Fence, broker: BrokerProcess, raw_client: Any, tmp_path: Path
+) -> None:
+    result = _check_file(tmp_path, fence.body)
+    assert result.model is not None
+    lanes = read_yaml(fence.body)["lanes"]
+    with rig(broker.url, result.model) as running:
+        code, _ = running.run(timeout=15.0)
+        assert code == 0
+        for lane in lanes:
+            written = [node["id"] for node in lane["nodes"]]
+            assert running.nodes(lane["lane"]) == written  # a sequence: every node once, in order
+        for component, comp in result.model.components.items():
+            if comp.service == "motor":
+                commands = [c for c in running.driver(component).commands if c[0] == "set_enabled"]
+                assert ("set_enabled", (True,)) in commands
+                assert commands[-1] == ("set_enabled", (False,))  # and stopped at the end
+        sleeps = [e for e in running.trace(kind="action") if str(e.get("detail", "")).startswith("msleep(")]
+        for event in sleeps:
+            asked_ms = float(str(event["detail"])[len("msleep("):-1])
+            assert event["duration_ms"] >= asked_ms * 0.95
+        # the orchestrator's retained status has the keys docs/semantics.md shows
+        client: RawClient = raw_client(broker)
+        client.subscribe(f"umlbot/{running.robot}/orchestrator/status")
+        published = json.loads(client.get(timeout=5.0).payload)
+    (status_fence,) = marked(SEMANTICS, "OrchestratorStatus")
+    documented = json.loads(status_fence.body)
+    assert published["state"] == "stopped"
+    assert set(published) - {"reason"} == set(documented) - {"reason"}
+
+
+# --- expressions ---------------------------------------------------------------------------------
+
+
+def _operator_parses(operator: str) -> bool:
+    for text in (f"a {operator} b", f"{operator} a"):
+        try:
+            tree = parse_expression(text)
+        except ModelError:
+            continue  # not this form of the operator: try the next
+        if isinstance(tree, RBinary | RUnary) and tree.operator == operator:
+            return True
+    return False
+
+
+def _parses(text: str) -> bool:
+    try:
+        parse_expression(text)
+    except ModelError:
+        return False
+    return True
+
+
+EXPRESSION_ROWS = table_rows(section_text(MODEL_FORMAT, "## Expressions"))
+
+
+@pytest.mark.parametrize("row", EXPRESSION_ROWS, ids=lambda row: row[0])
+def test_expressions_in_the_table_parse(row: list[str]) -> None:
+    examples = code_spans(row[1])
+    assert examples
+    for example in examples:
+        tokens = example.split()
+        if all(_operator_parses(token) for token in tokens):
+            continue  # a list of operators, each a working operator
+        if all(token.startswith("\\") for token in tokens):  # a list of string escapes
+            for escape in tokens:
+                assert any(_parses(f"{quote}x{escape}{quote}") for quote in "'\""), escape
+            continue
+        parse_expression(example)  # raises ModelError when the example does not parse
+
+
+def test_precedence_is_as_documented() -> None:
+    sentence = re.search(r"Precedence, loosest first: (.*?)\. ", section_text(MODEL_FORMAT, "## Expressions"),
+                         re.S)
+    assert sentence is not None
+    parts = sentence.group(1).split(", ")
+    assert parts[3] == "comparisons" and parts[-1] == "unary `-`"
+    levels = [code_spans(part) for part in parts[:-1]]
+    levels[3] = ["=="]
+    binary = [level[0].split()[0] for level in levels if level != ["not"]]
+    assert binary == ["or", "and", "==", "+", "*"]
+    # every binary level binds looser than the next one
+    for loose, tight in itertools.pairwise(binary):
+        tree = parse_expression(f"a {loose} b {tight} c")
+        assert isinstance(tree, RBinary) and tree.operator == loose, (loose, tight)
+        tree = parse_expression(f"a {tight} b {loose} c")
+        assert isinstance(tree, RBinary) and tree.operator == loose, (loose, tight)
+    # `not` sits between `and` and the comparisons; unary minus binds tightest
+    tree = parse_expression("not a == b and c")
+    assert isinstance(tree, RBinary) and tree.operator == "and"
+    assert isinstance(tree.left, RUnary) and isinstance(tree.left.operand, RBinary)
+    tree = parse_expression("-a * b")
+    assert isinstance(tree, RBinary) and isinstance(tree.left, RUnary)
+
+
+def test_guard_and_value_examples_in_the_text_parse() -> None:
+    for span in spans(MODEL_FORMAT):
+        if span.section in ("## Expressions",) and re.fullmatch(r"[\w.]+\(.*\)", span.text):
+            parse_expression(span.text)
+    parse_expression("Measure.center > clearance_cm")
+
+
+# --- the simulator's track format ----------------------------------------------------------------
+
+
+def test_track_example_loads() -> None:
+    (fence,) = marked(SIMULATOR, "track")
+    track = parse_track(fence.body, "docs/simulator.md")
+    raw = yaml.safe_load(fence.body)
+    assert track.name == raw["name"]
+    assert len(track.walls) == len(raw["walls"])
+
+
+def test_bundled_tracks_table_lists_the_bundled_tracks() -> None:
+    rows = table_rows(section_text(SIMULATOR, "## Track files"))
+    documented = sorted(row[0].strip("`") for row in rows)
+    assert documented == sorted(p.stem for p in (ROOT / "models" / "tracks").glob("*.yaml"))
+
+
+# --- MQTT payloads -------------------------------------------------------------------------------
+
+ENVELOPES: dict[str, type[BaseModel]] = {
+    "CallRequest": CallRequest,
+    "Reply": Reply,
+    "OrchestratorStatus": OrchestratorStatus,
+    "TraceEvent": TraceEvent,
+}
+#: what the orchestrator publishes beyond OrchestratorStatus's fields (the model allows extras).
+ORCHESTRATOR_STATUS_EXTRAS = {"robot", "source_hash", "since"}
+
+
+def _json_objects(body: str) -> list[dict[str, Any]]:
+    try:
+        return [json.loads(body)]
+    except json.JSONDecodeError:
+        return [json.loads(line) for line in body.splitlines() if line.strip()]
+
+
+def _validate(model: type[BaseModel], payload: dict[str, Any]) -> BaseModel:
+    allowed = set(model.model_fields)
+    if model is OrchestratorStatus:
+        allowed |= ORCHESTRATOR_STATUS_EXTRAS
+    assert set(payload) <= allowed, f"{model.__name__} has no {sorted(set(payload) - allowed)}"
+    return model.model_validate(payload)
+
+
+JSON_FENCES = [f for path in DOCS for f in fences(path) if f.marker in ENVELOPES]
+
+
+def test_every_envelope_has_a_marked_example() -> None:
+    assert {f.marker for f in JSON_FENCES} == set(ENVELOPES)
+
+
+@pytest.mark.parametrize("fence", JSON_FENCES, ids=Fence.where)
+def test_json_examples_validate(fence: Fence) -> None:
+    objects = _json_objects(fence.body)
+    assert objects
+    for payload in objects:
+        _validate(ENVELOPES[fence.marker or ""], payload)
+
+
+def test_reply_examples_are_what_the_server_answers() -> None:
+    (fence,) = marked(MQTT, "Reply")
+    failure = [Reply.model_validate(obj) for obj in _json_objects(fence.body) if not obj["ok"]]
+    assert failure and failure[0].error is not None
+    with pytest.raises(Exception) as raised:  # the server's own argument check
+        check_args(IMPLEMENTATIONS["l298n"].features["dutycycle"], [150])
+    assert (raised.value.code, raised.value.message) == (  # type: ignore[attr-defined]
+        failure[0].error.code, failure[0].error.message)
+    # `umlbot call Sensor.angle 200   # stderr: out_of_range: degrees=200 is outside 0..180 °`
+    shown = re.search(r"Sensor\.angle 200 .*# stderr: (\w+): (.*)$", MQTT.read_text(encoding="utf-8"), re.M)
+    assert shown is not None
+    with pytest.raises(Exception) as raised:
+        check_args(IMPLEMENTATIONS["servo"].features["angle"], [200])
+    assert (raised.value.code, raised.value.message) == shown.groups()  # type: ignore[attr-defined]
+
+
+TOPIC_ROWS = table_rows(section_text(MQTT, "## Topics"))
+
+
+def test_topic_table_payloads_validate() -> None:
+    by_topic = {code_spans(row[0])[0]: row for row in TOPIC_ROWS}
+    status_row = by_topic["umlbot/<robot>/<Component>/status"]
+    online, offline = (json.loads(s) for s in code_spans(status_row[2]))
+    status = _validate(Status, online)
+    assert isinstance(status, Status) and status.impl is not None
+    assert status.features == sorted(IMPLEMENTATIONS[status.impl].features)
+    assert _validate(Status, offline).model_dump(exclude_defaults=True) == {"state": "offline"}
+
+    assert isinstance(json.loads(code_spans(by_topic["umlbot/<robot>/<Component>/state"][2])[0]), dict)
+
+    orchestrator_row = by_topic["umlbot/<robot>/orchestrator/status"][2]
+    example, *states = code_spans(orchestrator_row)
+    _validate(OrchestratorStatus, json.loads(example))
+    assert states == list(get_args(OrchestratorStatus.model_fields["state"].annotation))
+
+    trace_keys = re.findall(r'"(\w+)"', code_spans(by_topic["umlbot/<robot>/orchestrator/trace"][2])[0])
+    assert trace_keys == list(TraceEvent.model_fields)
+
+    _validate(ExitRequest, json.loads(code_spans(by_topic["umlbot/<robot>/orchestrator/exit"][2])[0]))
+
+
+def test_error_codes_are_the_stable_codes() -> None:
+    rows = table_rows(section_text(MQTT, "## Calls"))
+    documented = [code_spans(row[0])[0] for row in rows]
+    assert documented == list(ERROR_CODES)
+
+
+# --- commands and options ------------------------------------------------------------------------
+
+
+@cache
+def command_of(name: str) -> click.Command:
+    module = importlib.import_module(f"umlbot.commands.{name}")
+    command: click.Command = module.command
+    return command
+
+
+def options_of(command: click.Command) -> dict[str, click.Parameter]:
+    found: dict[str, click.Parameter] = {"-h": click.Option(["-h"], is_flag=True),
+                                         "--help": click.Option(["--help"], is_flag=True)}
+    for param in command.params:
+        if isinstance(param, click.Option):
+            for name in (*param.opts, *param.secondary_opts):
+                found[name] = param
+    return found
+
+
+STOP_TOKENS = {"#", "|", "&", "&&", "||", ">", ">>", "2>", ";", "<"}
+OPTION_RE = re.compile(r"^(--?[A-Za-z][\w-]*)")
+
+
+def _takes_value(param: click.Parameter) -> bool:
+    return isinstance(param, click.Option) and not param.is_flag and not param.count
+
+
+def _check_invocation(tokens: list[str], where: str, problems: list[str]) -> None:
+    """Check `umlbot [group options] COMMAND args…` (tokens start after `umlbot`)."""
+    group = options_of(cli)
+    i = 0
+    while i < len(tokens) and tokens[i].startswith("-"):
+        name = tokens[i].split("=")[0]
+        if name not in group:
+            problems.append(f"{where}: umlbot has no option {name}")
+            return
+        i += 2 if _takes_value(group[name]) and "=" not in tokens[i] else 1
+    if i >= len(tokens):
+        return
+    name = tokens[i]
+    if name not in COMMANDS:
+        if re.fullmatch(r"[a-z][a-z-]*", name):
+            problems.append(f"{where}: umlbot has no command {name!r}")
+        return
+    options = options_of(command_of(name))
+    rest = tokens[i + 1:]
+    for k, token in enumerate(rest):
+        if token in STOP_TOKENS or token.startswith(("#", "(", "`")):
+            break
+        match = OPTION_RE.match(token.strip("[]"))
+        if not match:
+            continue
+        option = match.group(1)
+        param = options.get(option)
+        if param is None:
+            problems.append(f"{where}: umlbot {name} has no option {option}")
+            continue
+        if isinstance(param.type, click.Choice) and k + 1 < len(rest):
+            value = rest[k + 1].strip("[]")
+            if re.fullmatch(r"[a-z0-9|]+", value):
+                for choice in value.split("|"):
+                    if choice not in param.type.choices:
+                        problems.append(f"{where}: umlbot {name} {option} has no choice {choice!r}")
+
+
+def _command_lines(path: Path) -> Iterator[tuple[str, str]]:
+    """(where, text) of every inline span and every line of a shell or plain fence."""
+    for span in spans(path):
+        yield span.where(), span.text
+    for fence in fences(path):
+        if fence.info in ("", "sh", "bash", "console"):
+            for offset, line in enumerate(fence.body.splitlines(), start=1):
+                yield f"{fence.path.relative_to(ROOT)}:{fence.line + offset}", line
+
+
+@pytest.mark.parametrize("path", DOCS, ids=lambda p: str(p.relative_to(ROOT)))
+def test_umlbot_invocations_use_existing_commands_and_options(path: Path) -> None:
+    problems: list[str] = []
+    for where, text in _command_lines(path):
+        tokens = text.split()
+        comment = next((i for i, token in enumerate(tokens) if token.startswith("#")), len(tokens))
+        tokens = tokens[:comment]
+        for i, token in enumerate(tokens):
+            if token == "umlbot" or token.endswith("/bin/umlbot"):
+                _check_invocation(tokens[i + 1:], where, problems)
+        # `check -W`, `render --format svg`: a command name and its option in one span
+        if tokens and tokens[0] in COMMANDS and len(tokens) > 1 and tokens[1].startswith("-"):
+            _check_invocation(tokens, where, problems)
+    assert problems == []
+
+
+#: Prose that documents one command's options: (file, heading it starts with or "" for the whole
+#: file) -> the commands that must all have every option a code span there starts with.
+OPTION_SECTIONS: dict[tuple[str, str], tuple[str, ...]] = {
+    ("docs/model-format.md", "# The model format"): ("check", "compile", "render"),
+    ("docs/semantics.md", ""): ("run",),
+    ("docs/monitor.md", ""): ("monitor",),
+    ("docs/services.md", "# Hardware services"): ("service",),
+    ("docs/services.md", "## Drivers"): ("service",),
+    ("docs/simulator.md", "## Command"): ("sim",),
+    ("docs/mqtt.md", "## The embedded broker"): ("broker",),
+    ("docs/mqtt.md", "## One call from the shell"): ("call",),
+    ("docs/security.md", "## The embedded broker"): ("broker",),
+}
+#: Spans in those sections that name another command's option on purpose.
+OPTION_EXCEPTIONS = {
+    # "use the broker that is already there with `--broker mqtt://host:port`" (other commands)
+    ("docs/mqtt.md", "--broker mqtt://host:port"),
+}
+
+
+@pytest.mark.parametrize("key", list(OPTION_SECTIONS), ids=lambda key: f"{key[0]} {key[1]}")
+def test_documented_options_exist(key: tuple[str, str]) -> None:
+    file, heading = key
+    path = ROOT / file
+    chosen = [s for s in spans(path) if not heading or s.section.startswith(heading)]
+    named = [s for s in chosen if s.text.startswith("-") and (file, s.text) not in OPTION_EXCEPTIONS]
+    assert named, "the section names no option any more: update OPTION_SECTIONS"
+    problems = []
+    for span in named:
+        option = OPTION_RE.match(span.text)
+        assert option is not None, span.text
+        for command in OPTION_SECTIONS[key]:
+            if option.group(1) not in options_of(command_of(command)):
+                problems.append(f"{span.where()}: umlbot {command} has no option {option.group(1)}")
+    assert problems == []
+
+
+#: Options of other programs the docs show, by program.
+OTHER_PROGRAMS_OPTIONS = {
+    "systemctl": {"--now"},
+    "journalctl": {"--since"},
+    "mosquitto_sub": {"--cafile"},
+}
+
+
+def _script_options() -> set[str]:
+    """The options of the project's scripts: deploy/install.sh, deploy/*.py and bench/*.py."""
+    found = set(re.findall(r"^\s*(?:-h\|)?(--[\w-]+)\)", (ROOT / "deploy" / "install.sh").read_text(), re.M))
+    for script in [*(ROOT / "deploy").glob("*.py"), *(ROOT / "bench").glob("*.py")]:
+        found |= set(re.findall(r'add_argument\(\s*"(--[\w-]+)"', script.read_text(encoding="utf-8")))
+    return found
+
+
+@pytest.mark.parametrize("path", DOCS, ids=lambda p: str(p.relative_to(ROOT)))
+def test_every_option_named_anywhere_exists_somewhere(path: Path) -> None:
+    known = set(options_of(cli)) | _script_options()
+    for name in COMMANDS:
+        known |= set(options_of(command_of(name)))
+    for options in OTHER_PROGRAMS_OPTIONS.values():
+        known |= options
+    named = {(where, option) for where, text in _command_lines(path)
+             for option in re.findall(r"(?<![\w-])(--[a-z][\w-]*)", text)}
+    assert sorted(f"{where}: {option}" for where, option in named if option not in known) == []
+
+
+def test_commands_that_connect_take_a_ca_file() -> None:
+    text = section_text(MQTT, "## Connecting")
+    claim = re.search(r"The commands that connect, (.*?) also take `--ca-file`", text.replace("\n", " "))
+    assert claim is not None
+    connecting = sorted(name for name in COMMANDS if "--broker" in options_of(command_of(name)))
+    with_ca = sorted(name for name in connecting if "--ca-file" in options_of(command_of(name)))
+    assert sorted(code_spans(claim.group(1))) == with_ca
+
+
+def test_the_command_tables_list_every_command() -> None:
+    for path in (ROOT / "README.md",):
+        rows = table_rows(section_text(path, "## Commands"))
+        documented = [code_spans(row[0])[0].split()[1] for row in rows]
+        assert documented == list(COMMANDS)
+
+
+def test_the_examples_are_found() -> None:
+    """The parametrised tests above run on something: an empty list would silently test nothing."""
+    assert RUNNABLE and NODE_SPANS and EXPRESSION_ROWS and JSON_FENCES and TOPIC_ROWS
+    for kind in ("model", "nodes", "activity-file", "deployment", "layout", "check-output"):
+        assert marked(MODEL_FORMAT, kind), kind
+
+
+# --- links ---------------------------------------------------------------------------------------
+
+LINK_RE = re.compile(r"\[[^\]]*\]\(([^)\s]+)\)")
+
+
+@pytest.mark.parametrize("path", DOCS, ids=lambda p: str(p.relative_to(ROOT)))
+def test_relative_links_point_to_existing_files(path: Path) -> None:
+    text = path.read_text(encoding="utf-8")
+    for fence in fences(path):
+        text = text.replace(fence.body, "")
+    targets = [t for t in LINK_RE.findall(text) if not re.match(r"[a-z]+:", t) and not t.startswith("#")]
+    missing = [t for t in targets if not (path.parent / t.split("#")[0]).exists()]
+    assert missing == []
+    if path.name == "README.md":
+        assert len(targets) >= len(list((ROOT / "docs").glob("*.md")))  # every doc page is linked
