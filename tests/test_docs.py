@@ -48,9 +48,11 @@ from conftest import BrokerProcess, RawClient
 from orchestrator_support import rig
 from pydantic import BaseModel
 
-from compiler.api import CheckResult, check_model
+from compiler.api import CheckResult, check_model, compile_model
+from compiler.compiled import dump_compiled
 from compiler.diagnostics import Diagnostics
 from compiler.expr_parser import RBinary, RUnary, parse_expression
+from compiler.source import MODEL_KEYS, NODE_FIELDS
 from compiler.yamlsrc import parse_yaml, to_python
 from services.bus.envelopes import (
     ERROR_CODES,
@@ -64,7 +66,7 @@ from services.bus.envelopes import (
 from services.bus.server import check_args
 from umlbot.cli import COMMANDS, cli
 from umlbot.errors import ModelError
-from umlbot.library import IMPLEMENTATIONS, resolve_implementation
+from umlbot.library import IMPLEMENTATIONS, KIND_FEATURES, FeatureSpec, resolve_implementation
 from umlbot.sim.track import parse_track
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -287,10 +289,14 @@ def _indent(text: str, width: int) -> str:
     return "".join(" " * width + line + "\n" for line in text.splitlines())
 
 
-def _check_file(tmp_path: Path, text: str, name: str = "doc.yaml") -> CheckResult:
+def _write(tmp_path: Path, text: str, name: str = "doc.yaml") -> Path:
     path = tmp_path / name
     path.write_text(text, encoding="utf-8")
-    return check_model(path)
+    return path
+
+
+def _check_file(tmp_path: Path, text: str, name: str = "doc.yaml") -> CheckResult:
+    return check_model(_write(tmp_path, text, name))
 
 
 def _problems(result: CheckResult) -> list[str]:
@@ -325,8 +331,6 @@ NODE_SPANS = [s for s in spans(MODEL_FORMAT) if s.text.startswith("{id:") and "k
 
 
 def test_the_node_table_shows_every_kind_with_its_keys() -> None:
-    from compiler.source import NODE_FIELDS
-
     rows = [row for row in table_rows(section_text(MODEL_FORMAT, "## Swimlanes"))
             if row[0].strip("`") in NODE_FIELDS]
     documented: dict[str, tuple[str, ...]] = {}
@@ -413,6 +417,47 @@ def test_the_implementation_table_is_the_library() -> None:
                 (param,) = impl.features[name].params
                 assert (param.minimum, param.maximum) == (int(low), int(high))
     assert documented == {i.id: list(i.features) for i in IMPLEMENTATIONS.values()}
+
+
+SIGNATURE_RE = re.compile(r"^(\w+)\((.*)\)(?: -> (\w+))?$")
+
+
+def _signature(spec: FeatureSpec) -> str:
+    """`name(param: type low..high, …) -> returns` as the docs write a feature."""
+    params = []
+    for param in spec.params:
+        text = f"{param.name}: {param.type}"
+        if param.minimum is not None and param.maximum is not None:
+            text += f" {param.minimum:g}..{param.maximum:g}"
+        params.append(text)
+    returns = "" if spec.returns == "none" else f" -> {spec.returns}"
+    return f"{spec.name}({', '.join(params)}){returns}"
+
+
+def test_the_kinds_table_is_the_library() -> None:
+    rows = table_rows(section_text(MODEL_FORMAT, "## `model.yaml`"))
+    rows = [row for row in rows if row[0] in KIND_FEATURES]
+    documented = {kind: code_spans(features) for kind, features in rows}
+    assert documented == {kind: [_signature(spec) for spec in specs.values()]
+                          for kind, specs in KIND_FEATURES.items()}
+
+
+def test_the_model_keys_table_is_what_the_loader_reads() -> None:
+    rows = table_rows(section_text(MODEL_FORMAT, "## `model.yaml`"))
+    keys = [row[0].strip("`") for row in rows if row[0].startswith("`")]
+    assert keys == list(MODEL_KEYS)
+
+
+def test_the_compiled_file_holds_what_the_docs_list(tmp_path: Path) -> None:
+    (fence,) = marked(MODEL_FORMAT, "model")
+    model = compile_model(_write(tmp_path, fence.body))
+    data = json.loads(dump_compiled(model))
+    text = section_text(MODEL_FORMAT, "## The compiled model file").replace("\n", " ")
+    listed = re.search(r"It holds (.*?)\. The robot", text)
+    assert listed is not None
+    documented = [name for name in code_spans(listed.group(1)) if re.fullmatch(r"[a-z_]+", name)]
+    assert sorted(documented) == sorted(data)
+    assert data["format_version"] == int(re.search(r"`format_version` \((\d+)\)", text).group(1))  # type: ignore[union-attr]
 
 
 @pytest.mark.parametrize("fence", marked(MODEL_FORMAT, "layout"), ids=Fence.where)
@@ -812,6 +857,18 @@ def test_every_option_named_anywhere_exists_somewhere(path: Path) -> None:
     named = {(where, option) for where, text in _command_lines(path)
              for option in re.findall(r"(?<![\w-])(--[a-z][\w-]*)", text)}
     assert sorted(f"{where}: {option}" for where, option in named if option not in known) == []
+
+
+def test_the_sim_options_table_has_the_defaults() -> None:
+    options = options_of(command_of("sim"))
+    checked = 0
+    for cells in table_rows(section_text(SIMULATOR, "## Command")):
+        for span, default in zip(code_spans(cells[0]), cells[1].split(" / "), strict=False):
+            param = options[span.split()[0]]
+            if isinstance(param.default, int | float) and not isinstance(param.default, bool):
+                assert float(default) == param.default, span
+                checked += 1
+    assert checked >= 4
 
 
 def test_commands_that_connect_take_a_ca_file() -> None:
