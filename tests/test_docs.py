@@ -29,6 +29,7 @@ checked. Every ```yaml fence of docs/model-format.md must carry one. Kinds:
 from __future__ import annotations
 
 import importlib
+import inspect
 import itertools
 import json
 import re
@@ -165,11 +166,16 @@ def marked(path: Path, kind: str) -> list[Fence]:
 def section_text(path: Path, heading: str) -> str:
     """The text under the heading that starts with `heading`, up to the next heading of its level."""
     lines = path.read_text(encoding="utf-8").splitlines()
-    start = next(i for i, line in enumerate(lines) if line.startswith(heading))
+    in_fence = [False] * len(lines)  # a `# comment` in a fence is no heading
+    inside = False
+    for i, line in enumerate(lines):
+        if FENCE_RE.match(line):
+            inside = not inside
+        in_fence[i] = inside
+    start = next(i for i, line in enumerate(lines) if line.startswith(heading) and not in_fence[i])
     level = len(heading) - len(heading.lstrip("#"))
-    end = next((i for i in range(start + 1, len(lines))
-                if HEADING_RE.match(lines[i]) and len(lines[i]) - len(lines[i].lstrip("#")) <= level),
-               len(lines))
+    end = next((i for i in range(start + 1, len(lines)) if not in_fence[i] and HEADING_RE.match(lines[i])
+                and len(lines[i]) - len(lines[i].lstrip("#")) <= level), len(lines))
     return "\n".join(lines[start:end])
 
 
@@ -908,3 +914,83 @@ def test_relative_links_point_to_existing_files(path: Path) -> None:
     assert missing == []
     if path.name == "README.md":
         assert len(targets) >= len(list((ROOT / "docs").glob("*.md")))  # every doc page is linked
+
+
+REPO_PATH_RE = re.compile(r"^(?:models|deploy|services|umlbot|compiler|bench|docs|tests)/[\w./@*-]*$")
+
+
+@pytest.mark.parametrize("path", DOCS, ids=lambda p: str(p.relative_to(ROOT)))
+def test_repository_paths_in_code_spans_exist(path: Path) -> None:
+    named = [s for s in spans(path) if REPO_PATH_RE.match(s.text)]
+    missing = [f"{s.where()}: {s.text}" for s in named if not list(ROOT.glob(s.text.rstrip("/")))]
+    assert missing == []
+
+
+PYTHON_NAME_RE = re.compile(r"^((?:umlbot|compiler|services)(?:\.\w+)+)(?:\(.*\))?(?: -> \w+)?$")
+#: `umlbot.target`, `umlbot.acl`, …: files and systemd units, not Python names.
+FILE_SUFFIXES = {"target", "acl", "passwd", "env", "conf", "service"}
+
+
+def _resolves(dotted: str) -> bool:
+    parts = dotted.split(".")
+    for i in range(len(parts), 0, -1):
+        try:
+            found: object = importlib.import_module(".".join(parts[:i]))
+        except ModuleNotFoundError:
+            continue
+        for attr in parts[i:]:
+            if not hasattr(found, attr):
+                return False
+            found = getattr(found, attr)
+        return True
+    return False
+
+
+@pytest.mark.parametrize("path", DOCS, ids=lambda p: str(p.relative_to(ROOT)))
+def test_python_names_in_code_spans_exist(path: Path) -> None:
+    named = [(s, m.group(1)) for s in spans(path) if (m := PYTHON_NAME_RE.match(s.text))]
+    named = [(s, name) for s, name in named if name.rsplit(".", 1)[1] not in FILE_SUFFIXES]
+    assert [f"{s.where()}: {name}" for s, name in named if not _resolves(name)] == []
+
+
+PYTHON_FENCES = [f for path in DOCS for f in fences(path) if f.info == "python"]
+
+
+@pytest.mark.parametrize("fence", PYTHON_FENCES, ids=Fence.where)
+def test_python_examples_import_what_exists(fence: Fence) -> None:
+    imports = re.findall(r"^from ([\w.]+) import (.+)$", fence.body, re.M)
+    assert imports, "a Python example without imports: nothing to check"
+    for module_name, names in imports:
+        module = importlib.import_module(module_name)
+        for name in names.split(","):
+            assert hasattr(module, name.strip()), f"{module_name} has no {name.strip()}"
+
+
+def _parameters(function: Any) -> list[str]:
+    return [name for name in inspect.signature(function).parameters if name != "self"]
+
+
+def test_python_api_signatures_are_as_documented() -> None:
+    from services.host import ServiceHost
+    from services.orchestrator import Orchestrator
+
+    options = section_text(SEMANTICS, "## Running the orchestrator from Python").replace("\n", " ")
+    listed = re.search(r"Options: (.*?)\. `run\(\)`", options)
+    assert listed is not None
+    keywords = code_spans(listed.group(1))
+    # the options are the keyword parameters after (model, settings, robot=…, clock=…)
+    assert sorted(keywords) == sorted(_parameters(Orchestrator.__init__)[4:])
+
+    shown = re.search(r"`(ServiceHost\(.*?\))`", (ROOT / "docs" / "services.md").read_text(encoding="utf-8")
+                      .replace("\n", " "))
+    assert shown is not None
+    documented = re.sub(r"\s+", " ", shown.group(1))
+    signature = inspect.signature(ServiceHost.__init__)
+    params = [p for p in signature.parameters.values() if p.name != "self"]
+    actual = []
+    for param in params:
+        if param.kind is inspect.Parameter.KEYWORD_ONLY and "*" not in actual:
+            actual.append("*")
+        actual.append(param.name if param.default is inspect.Parameter.empty
+                      else f"{param.name}={param.default!r}")
+    assert documented == f"ServiceHost({', '.join(actual)})"
