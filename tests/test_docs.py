@@ -701,6 +701,35 @@ def test_topic_table_payloads_validate() -> None:
     _validate(ExitRequest, json.loads(code_spans(by_topic["umlbot/<robot>/orchestrator/exit"][2])[0]))
 
 
+def test_broker_url_examples_parse(tmp_path: Path) -> None:
+    from services.bus import BrokerSettings
+
+    rows = table_rows(section_text(MQTT, "## Connecting"))
+    assert len(rows) >= 5
+    for url_cell, meaning in rows:
+        (url,) = code_spans(url_cell)
+
+        def local(match: re.Match[str]) -> str:  # file parameters must name existing files
+            made = tmp_path / Path(match.group(2)).name
+            made.write_text("", encoding="utf-8")
+            return f"{match.group(1)}={made}"
+
+        settings = BrokerSettings.from_url(re.sub(r"\b(ca|cert|key)=([^&]+)", local, url))
+        default_port = re.search(r"default port (\d+)", meaning)
+        if default_port:
+            assert settings.port == int(default_port.group(1)), url
+        default_keepalive = re.search(r"keep-alive in seconds \(default (\d+)\)", meaning)
+        if default_keepalive:
+            assert BrokerSettings.from_url("mqtt://host").keepalive_s == int(default_keepalive.group(1))
+            assert settings.keepalive_s == int(re.search(r"keepalive=(\d+)", url).group(1))  # type: ignore[union-attr]
+        if "user name and password" in meaning:
+            assert settings.username == "user"
+        if "insecure" in url:
+            assert settings.insecure
+        if "protocol=5" in url:
+            assert settings.protocol == "5"
+
+
 def test_error_codes_are_the_stable_codes() -> None:
     rows = table_rows(section_text(MQTT, "## Calls"))
     documented = [code_spans(row[0])[0] for row in rows]
