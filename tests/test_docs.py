@@ -1023,3 +1023,20 @@ def test_python_api_signatures_are_as_documented() -> None:
         actual.append(param.name if param.default is inspect.Parameter.empty
                       else f"{param.name}={param.default!r}")
     assert documented == f"ServiceHost({', '.join(actual)})"
+
+
+def test_make_sim_is_as_documented() -> None:
+    makefile = (ROOT / "Makefile").read_text(encoding="utf-8")
+    variables = dict(re.findall(r"^(\w+)\s*\??=\s*(\S+)", makefile, re.M))
+    recipe = re.search(r"^sim:.*\n((?:\t.*\n)+)", makefile, re.M)
+    assert recipe is not None
+    command = "umlbot sim models/robot_car --track $(TRACK) --speed $(SPEED) --plot $(OUT)/sim.png"
+    assert command in recipe.group(1)
+    readme = (ROOT / "README.md").read_text(encoding="utf-8").replace("\n", " ")
+    said = re.search(r"`make sim` drives the reference robot car \(`(.*?)`\) through `(.*?)` at ten times "
+                     r"real speed and writes the picture of the run to `(.*?)`", readme)
+    assert said is not None
+    assert said.groups() == ("models/robot_car", variables["TRACK"], f"{variables['OUT']}/sim.png")
+    assert variables["SPEED"] == "10"
+    for name in re.findall(r"`make sim ((?:\w+=\S+ ?)+)`", readme)[0].split():
+        assert name.split("=")[0] in variables
