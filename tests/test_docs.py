@@ -19,7 +19,8 @@ checked. Every ```yaml fence of docs/model-format.md must carry one. Kinds:
 - `check-output DIR FILE "OLD" -> "NEW"`: `umlbot check DIR`, run on a copy of DIR where FILE
   has OLD replaced by NEW, prints exactly the fence: the problems on stdout, the summary (the
   fence's last line) on stderr.
-- `track`: a track file; `umlbot.sim.track.parse_track` loads it.
+- `track [FILE]`: a track file; `umlbot.sim.track.parse_track` loads it, giving the same track as
+  FILE when one is named.
 - `CallRequest`, `Reply`, `OrchestratorStatus`, `TraceEvent`: each JSON object of the fence (the
   whole fence, else one per line) validates against that envelope of `services.bus.envelopes`
   and uses no key the envelope does not declare (`OrchestratorStatus`: no key the orchestrator
@@ -68,7 +69,7 @@ from services.bus.server import check_args
 from umlbot.cli import COMMANDS, cli
 from umlbot.errors import ModelError
 from umlbot.library import IMPLEMENTATIONS, KIND_FEATURES, FeatureSpec, resolve_implementation
-from umlbot.sim.track import parse_track
+from umlbot.sim.track import load_track, parse_track
 
 ROOT = Path(__file__).resolve().parent.parent
 DOCS = sorted([ROOT / "README.md", *(ROOT / "docs").glob("*.md")])
@@ -613,6 +614,9 @@ def test_track_example_loads() -> None:
     raw = yaml.safe_load(fence.body)
     assert track.name == raw["name"]
     assert len(track.walls) == len(raw["walls"])
+    bundled = (fence.marker or "").split()[1:]  # the example is that bundled track
+    if bundled:
+        assert track == load_track(ROOT / bundled[0])
 
 
 def test_bundled_tracks_table_lists_the_bundled_tracks() -> None:
