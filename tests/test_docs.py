@@ -467,6 +467,39 @@ def test_the_compiled_file_holds_what_the_docs_list(tmp_path: Path) -> None:
     assert data["format_version"] == int(re.search(r"`format_version` \((\d+)\)", text).group(1))  # type: ignore[union-attr]
 
 
+def test_the_reference_car_is_as_described() -> None:
+    text = section_text(MODEL_FORMAT, "## The reference robot car")
+    result = check_model(ROOT / "models" / "robot_car")
+    assert result.model is not None and result.source is not None
+    components = result.model.components
+    described = re.search(r"Components: (.*?)\n\n", text, re.S)
+    assert described is not None
+    assert sorted(code_spans(described.group(1))) == sorted(components)
+    assert components["RaspberryPI"].kind == "system"
+    flat = re.sub(r"\s+", " ", text)
+    pins = re.search(r"inputs (\d+)/(\d+) and (\d+)/(\d+)", flat)
+    assert pins is not None
+    left, right = components["LeftActuator"].settings, components["RightActuator"].settings
+    assert [left["in1"], left["in2"], right["in1"], right["in2"]] == [int(p) for p in pins.groups()]
+    assert components["Sensor"].impl == "servo" and f"GPIO {components['Sensor'].settings['gpio']}" in flat
+    sonar = components["DistanceRead"]
+    assert f"trigger {sonar.settings['trigger']}, echo {sonar.settings['echo']}" in flat
+    # each bullet names an activity file and the lanes in it
+    files: dict[str, set[str]] = {}
+    for lane in result.source.lanes:
+        files.setdefault(lane.file, set()).add(lane.name)
+    for bullet in re.findall(r"^- `(activities/[\w.]+)`: (.*?)(?=^- |\Z)", text, re.S | re.M):
+        file, description = bullet
+        lanes = files.pop(file)
+        named = {span for span in code_spans(description) if span in lanes}
+        assert named == lanes, file
+    assert files == {}
+    main = next(lane for lane in result.source.lanes if lane.file == "activities/main.yaml")
+    datastores = [to_python(n.fields) for n in main.nodes if n.kind == "datastore"]
+    clearance = next(d["value"] for d in datastores if d["name"] == "clearance_cm")
+    assert f"({clearance} cm)" in flat
+
+
 @pytest.mark.parametrize("fence", marked(MODEL_FORMAT, "layout"), ids=Fence.where)
 def test_layout_examples_exist(fence: Fence) -> None:
     base = ROOT / fence.marker.split()[1]  # type: ignore[union-attr]
