@@ -631,11 +631,12 @@ def test_precedence_is_as_documented() -> None:
     assert isinstance(tree, RBinary) and isinstance(tree.left, RUnary)
 
 
-def test_guard_and_value_examples_in_the_text_parse() -> None:
-    for span in spans(MODEL_FORMAT):
-        if span.section in ("## Expressions",) and re.fullmatch(r"[\w.]+\(.*\)", span.text):
-            parse_expression(span.text)
-    parse_expression("Measure.center > clearance_cm")
+def test_calls_named_in_the_docs_parse() -> None:
+    """`Component.feature(args)`-shaped spans anywhere in the docs are valid expressions."""
+    named = [s for path in DOCS for s in spans(path)
+             if re.fullmatch(r"[A-Z]\w*\.\w+\(.*\)|(?:usleep|msleep)\(\w*\)", s.text)]
+    assert len(named) >= 5
+    assert [f"{s.where()}: {s.text}" for s in named if not _parses(s.text)] == []
 
 
 # --- the simulator's track format ----------------------------------------------------------------
@@ -1077,3 +1078,67 @@ def test_make_sim_is_as_documented() -> None:
     assert variables["SPEED"] == "10"
     for name in re.findall(r"`make sim ((?:\w+=\S+ ?)+)`", readme)[0].split():
         assert name.split("=")[0] in variables
+
+
+def _settings_tables() -> dict[str, list[list[str]]]:
+    """The settings tables of docs/services.md by their bold title's first word."""
+    text = section_text(ROOT / "docs" / "services.md", "### Settings")
+    tables: dict[str, list[list[str]]] = {}
+    for title, body in re.findall(r"^\*\*(.+?)\*\*.*?\n(.*?)(?=^\*\*|\Z)", text, re.S | re.M):
+        tables[title.split()[0]] = table_rows(body)
+    return tables
+
+
+def _default_shown(field: Any) -> str:
+    if field.is_required():
+        return "required"
+    default = field.get_default(call_default_factory=True)
+    if default is None:
+        return "none"
+    if isinstance(default, bool):
+        return str(default).lower()
+    if isinstance(default, float | int):
+        return f"{default:g}"
+    if isinstance(default, str):
+        return default
+    return json.dumps(default)
+
+
+def _same_default(shown: str, expected: str) -> bool:
+    shown, expected = shown.strip("`"), expected.strip("`")
+    try:
+        return float(shown) == float(expected)
+    except ValueError:
+        return shown == expected
+
+
+def test_driver_settings_tables_are_the_settings_models() -> None:
+    from services.gpio.driver import GpioSettings
+    from services.gpio.mock import MockGpioSettings
+    from services.motor.driver import L298NSettings
+    from services.servo.driver import ServoSettings
+    from services.servo.mock import MockServoSettings
+    from services.sonar.driver import HCSR04Settings
+    from services.sonar.mock import MockSonarSettings
+
+    models: dict[str, type[BaseModel]] = {"L298N": L298NSettings, "HC-SR04": HCSR04Settings,
+                                          "Servo": ServoSettings, "Raspberry": GpioSettings}
+    tables = _settings_tables()
+    assert set(models) | {"Mock"} == set(tables)
+    #: documented elsewhere (`host`/`port`: "the settings `host`/`port`") or internal.
+    not_in_tables = {"host", "port", "reserved_pins"}
+    for title, model in models.items():
+        rows = {code_spans(row[0])[0]: row[1] for row in tables[title]}
+        assert set(rows) == set(model.model_fields) - not_in_tables, title
+        for key, shown in rows.items():
+            expected = _default_shown(model.model_fields[key])
+            if expected == "none" and shown == "all":  # gpio `pins`: none = every pin
+                continue
+            assert _same_default(shown, expected), f"{title} {key}: {shown} != {expected}"
+    mock_fields = {**MockSonarSettings.model_fields, **MockGpioSettings.model_fields,
+                   **MockServoSettings.model_fields}
+    for key_cell, _kinds, shown, _meaning in tables["Mock"]:
+        key = code_spans(key_cell)[0]
+        assert key in mock_fields, key
+        expected = _default_shown(mock_fields[key])
+        assert _same_default(shown, expected), f"mock {key}: {shown} != {expected}"
