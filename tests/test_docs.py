@@ -24,7 +24,12 @@ checked. Every ```yaml fence of docs/model-format.md must carry one. Kinds:
 - `CallRequest`, `Reply`, `OrchestratorStatus`, `TraceEvent`: each JSON object of the fence (the
   whole fence, else one per line) validates against that envelope of `services.bus.envelopes`
   and uses no key the envelope does not declare (`OrchestratorStatus`: no key the orchestrator
-  does not publish).
+  does not publish). `MonitorEvent`: a line of `umlbot monitor --json`
+  (`services.monitor.state.MonitorEvent`).
+
+Tables and prose are checked where the code has the same list: node kinds and keys, component
+kinds and features, implementations, model keys, error codes, topics, driver settings, command
+options (every `umlbot COMMAND --option` in README.md and docs/*.md exists), and relative links.
 """
 
 from __future__ import annotations
@@ -1142,3 +1147,24 @@ def test_driver_settings_tables_are_the_settings_models() -> None:
         assert key in mock_fields, key
         expected = _default_shown(mock_fields[key])
         assert _same_default(shown, expected), f"mock {key}: {shown} != {expected}"
+
+
+def test_monitor_json_events_are_as_documented() -> None:
+    from services.monitor.state import MonitorEvent
+
+    monitor = ROOT / "docs" / "monitor.md"
+    rows = table_rows(section_text(monitor, "## `--json`"))
+    documented: dict[str, list[str]] = {}
+    for type_cell, _when, fields_cell in rows:
+        documented[code_spans(type_cell)[0]] = [f for f in code_spans(fields_cell) if re.fullmatch(r"\w+", f)]
+    assert list(documented) == list(get_args(MonitorEvent.model_fields["type"].annotation))
+    common = re.search(r"Every line also has (.*?)\. Example", section_text(monitor, "## `--json`"), re.S)
+    assert common is not None
+    common_fields = [f for f in code_spans(common.group(1)) if f in MonitorEvent.model_fields]
+    assert common_fields == ["type", "time", "robot", "topic"]
+    named = set(common_fields) | {field for fields in documented.values() for field in fields}
+    assert named == set(MonitorEvent.model_fields)
+    (fence,) = marked(monitor, "MonitorEvent")
+    for payload in _json_objects(fence.body):
+        event = MonitorEvent.model_validate(payload)  # extra="forbid": no undeclared key
+        assert set(payload) <= {"type", "time", "robot", "topic", *documented[event.type]}
