@@ -851,8 +851,16 @@ def _command_lines(path: Path) -> Iterator[tuple[str, str]]:
         yield span.where(), span.text
     for fence in fences(path):
         if fence.info in ("", "sh", "bash", "console"):
-            for offset, line in enumerate(fence.body.splitlines(), start=1):
-                yield f"{fence.path.relative_to(ROOT)}:{fence.line + offset}", line
+            lines = fence.body.splitlines()
+            offset = 0
+            while offset < len(lines):
+                start = offset
+                line = lines[offset]
+                while line.endswith("\\") and offset + 1 < len(lines):  # a continued command
+                    offset += 1
+                    line = line[:-1] + " " + lines[offset].strip()
+                yield f"{fence.path.relative_to(ROOT)}:{fence.line + 1 + start}", line
+                offset += 1
 
 
 @pytest.mark.parametrize("path", DOCS, ids=lambda p: str(p.relative_to(ROOT)))
@@ -916,12 +924,64 @@ OTHER_PROGRAMS_OPTIONS = {
 }
 
 
-def _script_options() -> set[str]:
-    """The options of the project's scripts: deploy/install.sh, deploy/*.py and bench/*.py."""
-    found = set(re.findall(r"^\s*(?:-h\|)?(--[\w-]+)\)", (ROOT / "deploy" / "install.sh").read_text(), re.M))
+@cache
+def options_of_scripts() -> dict[str, frozenset[str]]:
+    """The options of the project's scripts (deploy/install.sh, deploy/*.py, bench/*.py) by path."""
+    install = (ROOT / "deploy" / "install.sh").read_text(encoding="utf-8")
+    found = {"deploy/install.sh": frozenset(re.findall(r"^\s*(?:-h\|)?(--[\w-]+)\)", install, re.M))}
     for script in [*(ROOT / "deploy").glob("*.py"), *(ROOT / "bench").glob("*.py")]:
-        found |= set(re.findall(r'add_argument\(\s*"(--[\w-]+)"', script.read_text(encoding="utf-8")))
+        options = re.findall(r'add_argument\(\s*"(--[\w-]+)"', script.read_text(encoding="utf-8"))
+        found[str(script.relative_to(ROOT))] = frozenset({*options, "-h", "--help"})
     return found
+
+
+def _script_options() -> set[str]:
+    return {option for options in options_of_scripts().values() for option in options}
+
+
+def _script_named(token: str) -> str | None:
+    for script in options_of_scripts():
+        if token == script or token.endswith("/" + script) or token == Path(script).name:
+            return script
+    return None
+
+
+@pytest.mark.parametrize("path", DOCS, ids=lambda p: str(p.relative_to(ROOT)))
+def test_script_invocations_use_existing_options(path: Path) -> None:
+    problems = []
+    for where, text in _command_lines(path):
+        tokens = text.split()
+        for i, token in enumerate(tokens):
+            script = _script_named(token)
+            if script is None:
+                continue
+            for option_token in tokens[i + 1:]:
+                if option_token in STOP_TOKENS or option_token.startswith(("#", "(")):
+                    break
+                match = OPTION_RE.match(option_token.strip("[]"))
+                if match and match.group(1) not in options_of_scripts()[script]:
+                    problems.append(f"{where}: {script} has no option {match.group(1)}")
+    assert problems == []
+
+
+#: "Options: …" paragraphs about a script: (file, heading) -> the script.
+SCRIPT_OPTION_PARAGRAPHS = {
+    ("docs/deploy-pi.md", "## 4. Install"): "deploy/install.sh",
+    ("docs/performance.md", "## RPC"): "bench/rpc.py",
+    ("docs/performance.md", "## Orchestrator"): "bench/orchestrator.py",
+}
+
+
+@pytest.mark.parametrize("key", list(SCRIPT_OPTION_PARAGRAPHS), ids=lambda key: f"{key[0]} {key[1]}")
+def test_script_option_paragraphs_name_existing_options(key: tuple[str, str]) -> None:
+    text = section_text(ROOT / key[0], key[1])
+    paragraph = re.search(r"Options: (.*?)(?:\n\n|\Z)", text, re.S)
+    assert paragraph is not None
+    named = [OPTION_RE.match(span) for span in code_spans(paragraph.group(1)) if span.startswith("--")]
+    assert len(named) >= 3
+    script = SCRIPT_OPTION_PARAGRAPHS[key]
+    missing = [m.group(1) for m in named if m and m.group(1) not in options_of_scripts()[script]]
+    assert missing == []
 
 
 @pytest.mark.parametrize("path", DOCS, ids=lambda p: str(p.relative_to(ROOT)))
