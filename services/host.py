@@ -108,6 +108,7 @@ class ServiceHost:
         self._stop = threading.Event()
         self._ticker: threading.Thread | None = None
         self._started = False
+        self._serving = False  # start() succeeded
         self._stopped = False
 
     # -- lifecycle ----------------------------------------------------------------------------------
@@ -155,6 +156,7 @@ class ServiceHost:
         except BaseException:
             self.stop()
             raise
+        self._serving = True
         log.info("service_started", kind=self.kind, robot=self.robot,
                  components={n: self.driver_name(n) for n in self.services}, broker=self.settings.url)
 
@@ -257,7 +259,8 @@ class ServiceHost:
                     log.exception("driver_close_failed", component=name)
         if self._ticker is not None and self._ticker is not threading.current_thread():
             self._ticker.join(timeout=2.0)
-        log.info("service_stopped", kind=self.kind, robot=self.robot)
+        if self._serving:  # a failed start says why in its error, not in a "stopped" line
+            log.info("service_stopped", kind=self.kind, robot=self.robot)
 
     def __enter__(self) -> ServiceHost:
         self.start()

@@ -71,7 +71,7 @@ def cli(log_level: str | None, log_json: bool | None) -> None:
 
 
 def main() -> None:
-    """Console entry point: run the CLI; an UmlbotError becomes a one-line message and exit 1."""
+    """Console entry point: run the CLI; an UmlbotError or OSError becomes one line and exit 1."""
     try:
         # Non-standalone so that UmlbotError reaches us; click then returns ctx.exit() codes.
         code = cli.main(standalone_mode=False)
@@ -87,6 +87,10 @@ def main() -> None:
         sys.exit(exc.exit_code)
     except UmlbotError as exc:
         click.echo(f"error: {exc}", err=True)
+        sys.exit(1)
+    except OSError as exc:  # a file or folder the user named cannot be read or written
+        where = f"{exc.filename}: " if exc.filename else ""
+        click.echo(f"error: {where}{exc.strerror or exc}", err=True)
         sys.exit(1)
     except KeyboardInterrupt:
         sys.exit(130)

@@ -26,7 +26,8 @@ from typing import Any
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from umlbot.errors import ConfigError
-from umlbot.library import Implementation, ServiceKind, resolve_implementation
+from umlbot.files import read_text, yaml_error
+from umlbot.library import IMPLEMENTATIONS, Implementation, ServiceKind, resolve_implementation
 
 
 class ComponentDeployment(BaseModel):
@@ -93,6 +94,15 @@ def is_plain_format(text: str) -> bool:
 
 def parse_deployment(text: str, source: str = "<deployment>") -> Deployment:
     """Parse either format; errors name the source and say what is wrong."""
+    deployment = _parse_either(text, source)
+    for name, comp in deployment.components.items():
+        if resolve_implementation(comp.impl) is None:
+            raise ConfigError(f"{source}: component {name!r}: unknown implementation id {comp.impl!r} "
+                              f"(known: {', '.join(sorted(IMPLEMENTATIONS))})")
+    return deployment
+
+
+def _parse_either(text: str, source: str) -> Deployment:
     if is_plain_format(text):
         return parse_plain(text, source)
     from ruamel.yaml import YAML
@@ -101,7 +111,7 @@ def parse_deployment(text: str, source: str = "<deployment>") -> Deployment:
     try:
         data = YAML(typ="safe").load(text)
     except YAMLError as exc:
-        raise ConfigError(f"{source}: not valid YAML: {exc}") from exc
+        raise ConfigError(yaml_error(source, exc)) from exc
     if not isinstance(data, dict):
         raise ConfigError(f"{source}: a deployment is a mapping with 'components'")
     if "deployment" in data and isinstance(data["deployment"], dict):
@@ -117,9 +127,4 @@ def parse_deployment(text: str, source: str = "<deployment>") -> Deployment:
 
 def load_deployment(path: str | Path) -> Deployment:
     """Read a deployment file in either format."""
-    p = Path(path)
-    try:
-        text = p.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise ConfigError(f"cannot read deployment {p}: {exc.strerror}") from exc
-    return parse_deployment(text, str(p))
+    return parse_deployment(read_text(path, "deployment"), str(path))

@@ -23,6 +23,7 @@ from ruamel.yaml import YAML
 from ruamel.yaml.error import YAMLError
 
 from umlbot.errors import ConfigError
+from umlbot.files import read_text, yaml_error
 from umlbot.logs import get_logger
 
 log = get_logger(__name__)
@@ -45,18 +46,16 @@ def load_acl(path: str | Path) -> BrokerAcl:
     """Read an ACL file (YAML or JSON with the keys `acl` and `publish_acl`)."""
     file = Path(path)
     try:
-        data = YAML(typ="safe").load(file.read_text(encoding="utf-8"))
-    except OSError as exc:
-        raise ConfigError(f"cannot read ACL file {file}: {exc.strerror or exc}") from exc
+        data = YAML(typ="safe").load(read_text(file, "ACL file"))
     except YAMLError as exc:
-        raise ConfigError(f"ACL file {file} is not valid YAML: {exc}") from exc
+        raise ConfigError(f"ACL file {yaml_error(str(file), exc)}") from exc
     try:
         acl = BrokerAcl.model_validate(data or {})
     except ValidationError as exc:
         first = exc.errors()[0]
-        where = ".".join(str(p) for p in first["loc"])
+        where = ".".join(str(p) for p in first["loc"]) + ": " if first["loc"] else ""
         raise ConfigError(
-            f"ACL file {file}: {where}: {first['msg']} (allowed keys: acl, publish_acl)"
+            f"ACL file {file}: {where}{first['msg']} (allowed keys: acl, publish_acl)"
         ) from exc
     if not acl.acl:
         # amqtt treats a missing or empty `acl` as "nobody may subscribe to anything"
@@ -75,6 +74,21 @@ def password_line(user: str, password: str) -> str:
     if not user or ":" in user:
         raise ConfigError("a user name must be non-empty and contain no ':'")
     return f"{user}:{PasswordHash((Argon2Hasher(),)).hash(password)}"
+
+
+def check_password_file(path: Path) -> None:
+    """Raise ConfigError naming the file (and line) unless it is a readable `user:hash` file.
+
+    amqtt reports every problem with this file as "Plugin init failed", which says neither what
+    nor where.
+    """
+    if not path.is_file():
+        raise ConfigError(f"password file {path} does not exist")
+    for lineno, raw in enumerate(read_text(path, "password file").splitlines(), start=1):
+        line = raw.strip()
+        if line and not line.startswith("#") and not line.partition(":")[2]:
+            raise ConfigError(f"password file {path}:{lineno}: expected 'user:<argon2 hash>' "
+                              "(umlbot broker --hash-password USER prints one)")
 
 
 def broker_config(
@@ -172,8 +186,8 @@ class EmbeddedBroker:
         """Start listening; raise ConfigError for a taken port or a bad password file."""
         if self._thread is not None:
             return
-        if self.passwd_file is not None and not self.passwd_file.is_file():
-            raise ConfigError(f"password file {self.passwd_file} does not exist")
+        if self.passwd_file is not None:
+            check_password_file(self.passwd_file)
         _check_port_free(self.host, self.port)
         self._started.clear()
         self._start_error = None

@@ -170,6 +170,7 @@ class BusConnection:
         self._dispatcher: threading.Thread | None = None
         self._closed = False
         self._last_error: str | None = None
+        self._start_waiting = False  # start() waits for the first connection
         self._accepted = False
 
     # -- set-up ---------------------------------------------------------------------------------
@@ -237,11 +238,16 @@ class BusConnection:
         self._supervisor = threading.Thread(
             target=self._supervise, name=f"bus-connect-{self.role}", daemon=True
         )
+        self._start_waiting = timeout is not None
         self._supervisor.start()
         if timeout is None:
             return
         deadline = time.monotonic() + timeout
-        if not self._connected.wait(timeout):
+        try:
+            connected = self._connected.wait(timeout)
+        finally:
+            self._start_waiting = False
+        if not connected:
             reason = self._last_error or "no answer"
             self.close()
             raise NotConnected(
@@ -529,8 +535,9 @@ class BusConnection:
             except (OSError, ssl.SSLError) as exc:
                 self._last_error = f"{type(exc).__name__}: {exc}"
                 failures += 1
-                # one warning per outage; the retries of the same outage only at debug level
-                (log.warning if failures == 1 else log.debug)(
+                # one warning per outage; the retries of the same outage only at debug level, and
+                # while start() waits only at debug level (its NotConnected says the same)
+                (log.warning if failures == 1 and not self._start_waiting else log.debug)(
                     "mqtt_connect_failed", broker=self.settings.url, client_id=self.client_id,
                     error=self._last_error, attempt=failures)
             else:

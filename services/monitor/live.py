@@ -8,14 +8,15 @@ from collections.abc import Callable
 
 from services.bus.connection import BusConnection, Message
 from services.bus.settings import BrokerSettings
+from services.bus.topics import check_name
 from services.monitor.state import MonitorEvent, MonitorState
 
 EventSink = Callable[[MonitorEvent], None]
 
 
 def topic_filter(robot: str | None) -> str:
-    """Everything of one robot, or of every robot when `robot` is None."""
-    return f"umlbot/{robot}/#" if robot else "umlbot/+/#"
+    """Everything of one robot, or of every robot when `robot` is None (ConfigError for a bad id)."""
+    return f"umlbot/{check_name('robot id', robot)}/#" if robot else "umlbot/+/#"
 
 
 class LiveMonitor:

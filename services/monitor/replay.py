@@ -18,7 +18,7 @@ def read_trace(path: str | Path) -> Iterator[TraceEvent]:
     """The events of a trace file in order; a bad line raises ConfigError naming file and line."""
     file = Path(path)
     try:
-        handle = file.open(encoding="utf-8")
+        handle = file.open("rb")  # bytes: a line that is not UTF-8 fails in json.loads, named
     except OSError as exc:
         raise ConfigError(f"cannot read trace file {file}: {exc.strerror or exc}") from exc
     with handle:
@@ -28,8 +28,15 @@ def read_trace(path: str | Path) -> Iterator[TraceEvent]:
             try:
                 yield TraceEvent.model_validate(json.loads(line))
             except (ValueError, ValidationError) as exc:
-                first = exc.errors()[0]["msg"] if isinstance(exc, ValidationError) else str(exc)
-                raise ConfigError(f"{file}:{lineno}: not a trace event: {first}") from exc
+                raise ConfigError(f"{file}:{lineno}: not a trace event: {_first_problem(exc)}") from exc
+
+
+def _first_problem(exc: ValueError | ValidationError) -> str:
+    if not isinstance(exc, ValidationError):
+        return str(exc)
+    first = exc.errors()[0]
+    where = ".".join(str(p) for p in first["loc"])
+    return f"{where}: {first['msg']}" if where else str(first["msg"])
 
 
 def replay(

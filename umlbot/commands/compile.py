@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import errno
 import os
 import sys
 import tempfile
 from pathlib import Path
 
 import click
+
+from umlbot.errors import ConfigError
 
 
 @click.command(name="compile")
@@ -32,12 +35,18 @@ def command(model: Path, output: Path | None, deployment: Path | None) -> None:
         click.echo(data.decode("utf-8"), nl=False)
         return
     target = output or Path(f"{result.model.name}.compiled.json")
-    _write_atomically(target, data)
+    try:
+        _write_atomically(target, data)
+    except OSError as exc:
+        raise ConfigError(f"cannot write {target}: {exc.strerror or exc}") from exc
     click.echo(f"wrote {target} ({result.model.source_hash})", err=True)
 
 
 def _write_atomically(path: Path, data: bytes) -> None:
     """Write through a temporary file and rename, so a reader never sees half a file."""
+    for folder in (path.parent, *path.parent.parents):
+        if folder.exists() and not folder.is_dir():
+            raise NotADirectoryError(errno.ENOTDIR, f"{folder} is not a folder")
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
     umask = os.umask(0)

@@ -4,16 +4,16 @@ from __future__ import annotations
 
 import contextlib
 import os
-import signal
 import sys
 import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
-from types import FrameType
 from typing import TYPE_CHECKING
 
 import click
+
+from umlbot.stopsignals import StopSignals
 
 if TYPE_CHECKING:
     from services.monitor import MonitorEvent, MonitorState
@@ -62,12 +62,6 @@ def command(
     """
     from services.monitor import MonitorState
 
-    stop = threading.Event()
-
-    def on_signal(signum: int, frame: FrameType | None) -> None:
-        stop.set()
-
-    previous = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
     out_lock = threading.Lock()
 
     def print_line(event: MonitorEvent) -> None:
@@ -76,14 +70,13 @@ def command(
             sys.stdout.flush()
 
     state = MonitorState(call_timeout_s=call_timeout)
-    try:
+    with StopSignals() as signals:
         if replay_file is not None:
-            _run_replay(replay_file, state, robot or "robot", as_json, print_line, speed, stop)
+            signals.running()
+            _run_replay(replay_file, state, robot or "robot", as_json, print_line, speed, signals.stop)
         else:
-            _run_live(state, robot, broker_url, ca_file, as_json, print_line, duration, connect_timeout, stop)
-    finally:
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
+            _run_live(state, robot, broker_url, ca_file, as_json, print_line, duration, connect_timeout,
+                      signals)
 
 
 class _Stopped(Exception):
@@ -128,7 +121,7 @@ def _run_replay(path: Path, state: MonitorState, robot: str, as_json: bool, prin
 
 def _run_live(state: MonitorState, robot: str | None, broker_url: str | None, ca_file: Path | None,
               as_json: bool, print_line: Sink, duration: float | None, connect_timeout: float,
-              stop: threading.Event) -> None:
+              signals: StopSignals) -> None:
     from rich.console import Console
     from rich.live import Live
 
@@ -143,8 +136,10 @@ def _run_live(state: MonitorState, robot: str | None, broker_url: str | None, ca
     sink = print_line if as_json else ignore
     monitor = LiveMonitor(settings, robot, sink, state)
     deadline = None if duration is None else time.monotonic() + duration
+    stop = signals.stop
     try:
-        monitor.start(connect_timeout)
+        monitor.start(connect_timeout)  # a signal meanwhile interrupts the start (exit 130)
+        signals.running()
         if as_json:
             while not stop.wait(REFRESH_S) and (deadline is None or time.monotonic() < deadline):
                 monitor.tick()

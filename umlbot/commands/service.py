@@ -7,14 +7,12 @@ path (signal, error, broker loss) the motors are stopped before the process ends
 from __future__ import annotations
 
 import os
-import signal
-import threading
 from pathlib import Path
-from types import FrameType
 
 import click
 
 from services.registry import SERVICE_KINDS
+from umlbot.stopsignals import StopSignals
 
 
 def resolve_robot(cli_value: str | None, deployment_robot: str | None) -> str:
@@ -68,16 +66,10 @@ def command(
         components=list(components) or None,
         connect_timeout_s=connect_timeout,
     )
-    stop = threading.Event()
-
-    def on_signal(signum: int, frame: FrameType | None) -> None:
-        stop.set()
-
-    previous = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGTERM, signal.SIGINT)}
-    try:
-        host.start()
-        host.wait(stop)
-    finally:
-        host.stop()  # motors stop here on every path: signal, error, KeyboardInterrupt
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
+    with StopSignals() as signals:
+        try:
+            host.start()  # a signal meanwhile interrupts the start (exit 130)
+            signals.running()
+            host.wait(signals.stop)
+        finally:
+            host.stop()  # motors stop here on every path: signal, error, KeyboardInterrupt

@@ -5,13 +5,12 @@ from __future__ import annotations
 import json
 import math
 import os
-import signal
 import sys
-import threading
 from pathlib import Path
-from types import FrameType
 
 import click
+
+from umlbot.stopsignals import StopSignals
 
 DEFAULT_TRACK = "models/tracks/s_bend.yaml"
 
@@ -60,7 +59,10 @@ def command(model: Path, track: Path | None, speed: float, broker_url: str | Non
     live = sys.stdout.isatty() and not as_json
     announced: list[str] = []
 
+    signals = StopSignals()
+
     def show(progress: Progress) -> None:
+        signals.running()  # the robot runs: from now on a signal ends the run in order
         if not announced and not as_json:
             announced.append(progress.broker_url)
             url = progress.broker_url
@@ -74,17 +76,8 @@ def command(model: Path, track: Path | None, speed: float, broker_url: str | Non
         elif not as_json:
             click.echo(line)
 
-    stop = threading.Event()
-
-    def on_signal(signum: int, frame: FrameType | None) -> None:
-        stop.set()
-
-    previous = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
-    try:
-        result = run_sim(options, show, stop)
-    finally:
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
+    with signals:  # while it starts, a signal interrupts it (the run is then "interrupted")
+        result = run_sim(options, show, signals.stop)
     if live:
         click.echo()
     if as_json:

@@ -13,6 +13,14 @@ from umlbot.sim.world import World
 MAX_PINGS = 1500
 
 
+def check_plot_path(path: str | Path) -> Path:
+    """The plot file as a Path; SimError unless it ends in .png, .svg or .pdf."""
+    out = Path(path)
+    if out.suffix.lower() not in (".png", ".svg", ".pdf"):
+        raise SimError(f"plot file {out} must end in .png, .svg or .pdf")
+    return out
+
+
 def plot_run(world: World, path: str | Path, title: str = "") -> Path:
     """Draw the run into `path` (PNG or SVG by its suffix) and return the path."""
     import matplotlib
@@ -21,9 +29,7 @@ def plot_run(world: World, path: str | Path, title: str = "") -> Path:
     import matplotlib.pyplot as plt
     from matplotlib.patches import Polygon, Rectangle
 
-    out = Path(path)
-    if out.suffix.lower() not in (".png", ".svg", ".pdf"):
-        raise SimError(f"plot file {out} must end in .png, .svg or .pdf")
+    out = check_plot_path(path)
     out.parent.mkdir(parents=True, exist_ok=True)
     track = world.track
     snap = world.snapshot()

@@ -330,6 +330,10 @@ def run_sim(
     from services.bus.settings import BrokerSettings
     if not options.speed > 0:
         raise SimError(f"--speed must be > 0, got {options.speed}")
+    if options.plot is not None:  # before the run, not after it
+        from umlbot.sim.plot import check_plot_path
+
+        check_plot_path(options.plot)
     track = load_track(options.track)
     compiled = compile_model(options.model)
     try:

@@ -21,6 +21,7 @@ from pathlib import Path
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from umlbot.errors import SimError
+from umlbot.files import read_text, yaml_error
 from umlbot.sim.geometry import Point, Pose, Segment
 
 
@@ -100,7 +101,7 @@ def parse_track(text: str, source: str = "<track>") -> Track:
     try:
         data = YAML(typ="safe").load(text)
     except YAMLError as exc:
-        raise SimError(f"{source}: not valid YAML: {exc}") from exc
+        raise SimError(yaml_error(source, exc)) from exc
     if not isinstance(data, dict):
         raise SimError(f"{source}: a track is a mapping with name, start, goal and walls")
     try:
@@ -112,12 +113,7 @@ def parse_track(text: str, source: str = "<track>") -> Track:
 
 def load_track(path: str | Path) -> Track:
     """Read a track file."""
-    file = Path(path)
-    try:
-        text = file.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise SimError(f"cannot read track {file}: {exc.strerror or exc}") from exc
-    return parse_track(text, str(file))
+    return parse_track(read_text(path, "track", SimError), str(path))
 
 
 def tracks_dir() -> Path:

@@ -1,0 +1,388 @@
+"""Bad input on every `umlbot` command, run as a user runs it: the console script in a subprocess.
+
+Each case expects its documented exit status (docs/cli.md), exactly one message line on stderr
+that says what is wrong and where (structured log lines and click's usage preamble aside), no
+traceback, no password, and an end within CASE_TIMEOUT_S. The table runs a few cases at a time
+(they are independent processes) so that the whole file stays well under a minute.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import signal
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Iterator
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+from conftest import BrokerProcess, _broker, free_port
+
+from services.bus import BrokerSettings
+from services.host import ServiceHost
+from umlbot.deployment import load_deployment
+
+pytestmark = pytest.mark.network
+
+UMLBOT = str(Path(sys.executable).with_name("umlbot"))
+REPO = Path(__file__).resolve().parents[1]
+MODEL = str(REPO / "models" / "robot_car")
+DEPLOYMENT = str(REPO / "models" / "robot_car" / "deployment.yaml")
+TRACK = str(REPO / "models" / "tracks" / "corridor.yaml")
+CASE_TIMEOUT_S = 15.0
+PASSWORD = "hunter2"
+
+
+@dataclass(frozen=True)
+class Outcome:
+    code: int
+    stdout: str
+    stderr: str
+    seconds: float
+
+
+def user_env(**extra: str) -> dict[str, str]:
+    """The environment of a user who set nothing for umlbot."""
+    env = {k: v for k, v in os.environ.items() if not k.startswith("UMLBOT_")}
+    return {**env, **extra}
+
+
+def run_umlbot(args: list[str], cwd: Path, env: dict[str, str] | None = None) -> Outcome:
+    started = time.monotonic()
+    try:
+        done = subprocess.run([UMLBOT, *args], capture_output=True, text=True, cwd=cwd,
+                              env=env or user_env(), timeout=CASE_TIMEOUT_S, check=False)
+    except subprocess.TimeoutExpired as exc:
+        pytest.fail(f"umlbot {' '.join(args)} still ran after {CASE_TIMEOUT_S} s: {exc.stderr!r}")
+    return Outcome(done.returncode, done.stdout, done.stderr, time.monotonic() - started)
+
+
+#: a model problem: check, compile and render print every one of them, then one summary line
+DIAGNOSTIC = re.compile(r"^\S+:\d+:\d+: (error|warning): ")
+
+
+def message_lines(stderr: str) -> list[str]:
+    """stderr without structured log lines (JSON), click's usage preamble and model diagnostics."""
+    return [
+        line for line in stderr.splitlines()
+        if line.strip() and not line.startswith(("{", "Usage: ", "Try '")) and not DIAGNOSTIC.match(line)
+    ]
+
+
+def assert_one_clear_line(outcome: Outcome, code: int, *expected: str) -> str:
+    assert "Traceback" not in outcome.stderr, outcome.stderr
+    assert PASSWORD not in outcome.stderr + outcome.stdout
+    assert outcome.code == code, (outcome.code, outcome.stderr)
+    lines = message_lines(outcome.stderr)
+    assert len(lines) == 1, outcome.stderr
+    for text in expected:
+        assert text in outcome.stderr or text in outcome.stdout, (text, outcome.stderr, outcome.stdout)
+    assert outcome.seconds < CASE_TIMEOUT_S
+    return lines[0]
+
+
+# --- the files a careless user hands over ------------------------------------------------------------
+
+def make_files(folder: Path) -> None:
+    (folder / "adir").mkdir()
+    (folder / "wrong.json").write_text('{"a": 1}\n')
+    (folder / "list.json").write_text("[1, 2]\n")
+    (folder / "newer.json").write_text('{"format_version": 999}\n')
+    (folder / "garbage.txt").write_text("not json at all\n")
+    (folder / "binary.bin").write_bytes(b"\xff\xfe\x00\x81 binary")
+    (folder / "bad.yaml").write_text("components: [\n")
+    (folder / "unknown_impl.yaml").write_text("components:\n  LeftActuator: {impl: warpdrive}\n")
+    (folder / "unknown_impl.txt").write_text("LeftActuator=CModelWarpDrive\n")
+    (folder / "unknown_driver.yaml").write_text(
+        "components:\n  LeftActuator: {impl: l298n, driver: steam, settings: {in1: 22, in2: 23}}\n")
+    (folder / "only_motor.yaml").write_text(
+        "components:\n  LeftActuator: {impl: l298n, settings: {in1: 22, in2: 23}}\n")
+    (folder / "track_wrong.yaml").write_text("name: t\nstart: {x: 0, y: 0}\n")
+    (folder / "trace_no_node.jsonl").write_text('{"lane": "LeftActuator"}\n')
+    (folder / "passwd").write_text("robot-without-a-hash\n")
+    (folder / "acl_wrong.yaml").write_text("[1, 2]\n")
+    compiled = subprocess.run([UMLBOT, "compile", MODEL, "-o", "-"], capture_output=True, check=True,
+                              env=user_env()).stdout
+    (folder / "good.json").write_bytes(compiled)
+    (folder / "truncated.json").write_bytes(compiled[: len(compiled) // 2])
+
+
+DEAD = "mqtt://127.0.0.1:{dead}"  # a port nothing listens on
+SECRET_DEAD = f"mqtt://robot:{PASSWORD}@127.0.0.1:{{dead}}"
+
+#: id, arguments ({f} = the folder of bad files), exit status, texts the message line must hold
+CASES: list[tuple[str, list[str], int, list[str]]] = [
+    # check
+    ("check-missing", ["check", "{f}/nope"], 2, ["MODEL", "nope", "does not exist"]),
+    ("check-folder-without-model", ["check", "{f}/adir"], 1, ["adir:1:1", "no model.yaml"]),
+    ("check-binary", ["check", "{f}/binary.bin"], 1, ["binary.bin:1:1", "not UTF-8"]),
+    ("check-unknown-impl", ["check", MODEL, "--deployment", "{f}/unknown_impl.yaml"], 1,
+     ["unknown_impl.yaml:2", "unknown implementation id 'warpdrive'"]),
+    # compile
+    ("compile-missing", ["compile", "{f}/nope", "-o", "{f}/x.json"], 2, ["does not exist"]),
+    ("compile-output-is-folder", ["compile", MODEL, "-o", "{f}/adir"], 2, ["adir' is a directory"]),
+    ("compile-output-unwritable", ["compile", MODEL, "-o", "{f}/binary.bin/x.json"], 1,
+     ["cannot write", "binary.bin/x.json", "binary.bin is not a folder"]),
+    ("compile-bad-model", ["compile", "{f}/wrong.json", "-o", "{f}/x.json"], 1, ["nothing written"]),
+    # render
+    ("render-missing", ["render", "{f}/nope"], 2, ["does not exist"]),
+    ("render-output-is-file", ["render", MODEL, "-o", "{f}/wrong.json"], 2, ["is a file"]),
+    ("render-output-unwritable", ["render", MODEL, "--format", "mermaid", "-o", "{f}/binary.bin/d"], 1,
+     ["binary.bin", "Not a directory"]),
+    # run
+    ("run-missing", ["run", "{f}/nope"], 2, ["COMPILED", "does not exist"]),
+    ("run-folder", ["run", "{f}/adir"], 2, ["is a directory"]),
+    ("run-wrong-shape", ["run", "{f}/wrong.json"], 1, ["wrong.json", "not a compiled model"]),
+    ("run-json-list", ["run", "{f}/list.json"], 1, ["list.json", "not a compiled model"]),
+    ("run-newer-version", ["run", "{f}/newer.json"], 1, ["newer.json", "version 999", "upgrade"]),
+    ("run-truncated", ["run", "{f}/truncated.json"], 1, ["truncated.json", "not JSON"]),
+    ("run-source-not-compiled", ["run", "{f}/bad.yaml"], 1, ["bad.yaml", "not a compiled model"]),
+    ("run-url-no-host", ["run", "{f}/good.json", "--broker", "mqtt://"], 1, ["mqtt://", "no host"]),
+    ("run-url-http", ["run", "{f}/good.json", "--broker", f"http://u:{PASSWORD}@x"], 1, ["scheme"]),
+    ("run-url-port", ["run", "{f}/good.json", "--broker", "mqtt://h:99999"], 1, ["mqtt://h:99999"]),
+    ("run-bad-robot", ["run", "{f}/good.json", "--robot", "car/#"], 1, ["robot id 'car/#'"]),
+    ("run-unreachable", ["run", "{f}/good.json", "--broker", SECRET_DEAD], 1,
+     ["cannot connect", "127.0.0.1"]),
+    # call
+    ("call-no-dot", ["call", "Foo"], 2, ["Component.feature", "'Foo'"]),
+    ("call-no-component", ["call", ".x"], 2, ["Component.feature", "'.x'"]),
+    ("call-no-feature", ["call", "A."], 2, ["Component.feature", "'A.'"]),
+    ("call-url-http", ["call", "A.b", "--broker", f"http://u:{PASSWORD}@x"], 1, ["scheme"]),
+    ("call-url-port", ["call", "A.b", "--broker", "mqtt://h:99999"], 1, ["mqtt://h:99999"]),
+    ("call-bad-robot", ["call", "A.b", "--robot", "a+b"], 1, ["robot id 'a+b'"]),
+    ("call-unreachable", ["call", "A.b", "--broker", SECRET_DEAD, "--connect-timeout", "0.5"], 4,
+     ["not_connected", "cannot connect"]),
+    # service
+    ("service-unknown-kind", ["service", "laser", "--deploy", DEPLOYMENT], 2, ["'laser' is not one of"]),
+    ("service-no-deploy", ["service", "motor"], 2, ["--deploy"]),
+    ("service-deploy-missing", ["service", "motor", "--deploy", "{f}/nope"], 1,
+     ["cannot read deployment", "nope"]),
+    ("service-deploy-folder", ["service", "motor", "--deploy", "{f}/adir"], 2, ["is a directory"]),
+    ("service-deploy-binary", ["service", "motor", "--deploy", "{f}/binary.bin"], 1,
+     ["binary.bin", "not UTF-8"]),
+    ("service-deploy-bad-yaml", ["service", "motor", "--deploy", "{f}/bad.yaml"], 1,
+     ["bad.yaml:2:1: not valid YAML"]),
+    ("service-deploy-wrong-shape", ["service", "motor", "--deploy", "{f}/wrong.json"], 1,
+     ["wrong.json", "invalid deployment"]),
+    ("service-unknown-impl", ["service", "motor", "--deploy", "{f}/unknown_impl.yaml"], 1,
+     ["unknown_impl.yaml", "'LeftActuator'", "unknown implementation id 'warpdrive'"]),
+    ("service-unknown-impl-plain", ["service", "motor", "--deploy", "{f}/unknown_impl.txt"], 1,
+     ["unknown_impl.txt", "'CModelWarpDrive'"]),
+    ("service-no-such-kind-deployed", ["service", "sonar", "--deploy", "{f}/only_motor.yaml"], 1,
+     ["no component served by the sonar service"]),
+    ("service-unknown-driver", ["service", "motor", "--deploy", DEPLOYMENT, "--driver", "steam"], 1,
+     ["unknown motor driver 'steam'", "mock"]),
+    ("service-unknown-driver-deployed", ["service", "motor", "--deploy", "{f}/unknown_driver.yaml",
+                                         "--broker", DEAD], 1, ["unknown motor driver 'steam'"]),
+    ("service-unknown-component", ["service", "motor", "--deploy", DEPLOYMENT, "--component", "Sensor"],
+     1, ["no motor component(s) ['Sensor']"]),
+    ("service-unreachable", ["service", "motor", "--deploy", DEPLOYMENT, "--driver", "mock",
+                             "--broker", SECRET_DEAD, "--connect-timeout", "0.5"], 1, ["cannot connect"]),
+    # sim
+    ("sim-missing-model", ["sim", "{f}/nope"], 2, ["does not exist"]),
+    ("sim-not-a-model", ["sim", "{f}/adir", "--track", TRACK, "--port", "0"], 1, ["adir", "no model.yaml"]),
+    ("sim-missing-track", ["sim", MODEL, "--track", "{f}/nope.yaml", "--port", "0"], 1,
+     ["cannot read track", "nope.yaml"]),
+    ("sim-track-folder", ["sim", MODEL, "--track", "{f}/adir"], 2, ["is a directory"]),
+    ("sim-track-bad-yaml", ["sim", MODEL, "--track", "{f}/bad.yaml", "--port", "0"], 1,
+     ["bad.yaml:2:1: not valid YAML"]),
+    ("sim-track-wrong-shape", ["sim", MODEL, "--track", "{f}/track_wrong.yaml", "--port", "0"], 1,
+     ["track_wrong.yaml", "invalid track", "walls"]),
+    ("sim-track-binary", ["sim", MODEL, "--track", "{f}/binary.bin", "--port", "0"], 1, ["not UTF-8"]),
+    ("sim-plot-suffix", ["sim", MODEL, "--track", TRACK, "--port", "0", "--plot", "{f}/run.txt"], 1,
+     ["run.txt", ".png"]),
+    ("sim-url-http", ["sim", MODEL, "--track", TRACK, "--broker", "http://x"], 1, ["scheme"]),
+    # broker
+    ("broker-port", ["broker", "--port", "99999"], 2, ["--port", "99999"]),
+    ("broker-bind", ["broker", "--bind", "256.0.0.1", "--port", "0"], 1, ["cannot listen on 256.0.0.1"]),
+    ("broker-passwd-missing", ["broker", "--passwd", "{f}/nope", "--port", "0"], 1, ["does not exist"]),
+    ("broker-passwd-malformed", ["broker", "--passwd", "{f}/passwd", "--port", "0"], 1,
+     ["passwd:1", "user:<argon2 hash>"]),
+    ("broker-acl-bad-yaml", ["broker", "--acl", "{f}/bad.yaml", "--port", "0"], 1,
+     ["bad.yaml:2:1: not valid YAML"]),
+    ("broker-acl-wrong-shape", ["broker", "--acl", "{f}/acl_wrong.yaml", "--port", "0"], 1,
+     ["acl_wrong.yaml", "publish_acl"]),
+    # monitor
+    ("monitor-replay-missing", ["monitor", "--replay", "{f}/nope", "--json"], 1, ["cannot read trace file"]),
+    ("monitor-replay-folder", ["monitor", "--replay", "{f}/adir"], 2, ["is a directory"]),
+    ("monitor-replay-garbage", ["monitor", "--replay", "{f}/garbage.txt", "--json"], 1,
+     ["garbage.txt:1: not a trace event"]),
+    ("monitor-replay-no-node", ["monitor", "--replay", "{f}/trace_no_node.jsonl", "--json"], 1,
+     ["trace_no_node.jsonl:1", "node: Field required"]),
+    ("monitor-replay-binary", ["monitor", "--replay", "{f}/binary.bin", "--json"], 1,
+     ["binary.bin:1: not a trace event"]),
+    ("monitor-url-http", ["monitor", "--broker", "http://x"], 1, ["scheme"]),
+    ("monitor-bad-robot", ["monitor", "--robot", "car/#", "--broker", DEAD, "--json"], 1,
+     ["robot id 'car/#'"]),
+    ("monitor-unreachable", ["monitor", "--broker", SECRET_DEAD, "--json", "--connect-timeout", "0.5"], 1,
+     ["cannot connect"]),
+]
+
+
+@pytest.fixture(scope="module")
+def outcomes(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Outcome]:
+    """Every case of the table, run three at a time."""
+    folder = tmp_path_factory.mktemp("bad-input")
+    make_files(folder)
+    dead = str(free_port())
+
+    def one(case: tuple[str, list[str], int, list[str]]) -> tuple[str, Outcome]:
+        name, args = case[0], [a.format(f=folder, dead=dead) for a in case[1]]
+        return name, run_umlbot(args, folder)
+
+    with ThreadPoolExecutor(max_workers=3) as pool:
+        return dict(pool.map(one, CASES))
+
+
+@pytest.mark.parametrize(("name", "code", "expected"), [(c[0], c[2], c[3]) for c in CASES],
+                         ids=[c[0] for c in CASES])
+def test_bad_input(outcomes: dict[str, Outcome], name: str, code: int, expected: list[str]) -> None:
+    assert_one_clear_line(outcomes[name], code, *expected)
+
+
+def test_a_failed_compile_keeps_the_previous_output(tmp_path: Path) -> None:
+    target = tmp_path / "car.json"
+    target.write_text("the previous compiled model\n")
+    (tmp_path / "broken").mkdir()
+    outcome = run_umlbot(["compile", str(tmp_path / "broken"), "-o", str(target)], tmp_path)
+    assert outcome.code == 1 and "nothing written" in outcome.stderr
+    assert target.read_text() == "the previous compiled model\n"
+    outcome = run_umlbot(["compile", MODEL, "-o", str(tmp_path / "car.json" / "x")], tmp_path)
+    assert outcome.code == 1
+    assert target.read_text() == "the previous compiled model\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["broken", "car.json"]  # no temporary left
+
+
+# --- with a broker: bad calls, taken ports, nothing online -------------------------------------------
+
+@pytest.fixture(scope="module")
+def shared_broker(tmp_path_factory: pytest.TempPathFactory) -> Iterator[BrokerProcess]:
+    yield from _broker("amqtt", tmp_path_factory)
+
+
+@pytest.fixture(scope="module")
+def motor_service(shared_broker: BrokerProcess) -> Iterator[str]:
+    """The real motor service with mock drivers for robot `badinput`."""
+    host = ServiceHost("motor", load_deployment(DEPLOYMENT), BrokerSettings.from_url(shared_broker.url),
+                       "badinput", "mock", connect_timeout_s=5.0)
+    host.start()
+    yield shared_broker.url
+    host.stop()
+
+
+@pytest.mark.parametrize(
+    ("args", "code"),
+    [
+        (["LeftActuator.dutycycle", "{bad"], "bad_args"),        # not JSON: sent as a string
+        (["LeftActuator.dutycycle", "150"], "out_of_range"),
+        (["LeftActuator.dutycycle", "1", "2"], "bad_args"),
+        (["LeftActuator.fly"], "unknown_feature"),
+    ],
+    ids=["not-json", "out-of-range", "too-many", "unknown-feature"],
+)
+def test_bad_call_gets_an_error_reply(motor_service: str, args: list[str], code: str) -> None:
+    outcome = run_umlbot(["call", "--robot", "badinput", "--broker", motor_service, *args], REPO)
+    line = assert_one_clear_line(outcome, 1, code)
+    assert line.startswith(f"{code}: ")
+    reply = json.loads(outcome.stdout)
+    assert reply["ok"] is False and reply["error"]["code"] == code
+    # the service took no harm: a good call still works
+    good = run_umlbot(["call", "--robot", "badinput", "--broker", motor_service, "LeftActuator.enabled",
+                       "false"], REPO)
+    assert good.code == 0, good.stderr
+    assert json.loads(good.stdout) == {"ok": True, "value": None}
+
+
+def test_call_nobody_answers(shared_broker: BrokerProcess) -> None:
+    outcome = run_umlbot(["call", "--robot", "nobody", "--broker", shared_broker.url, "--timeout", "0.5",
+                          "Ghost.value"], REPO)
+    assert_one_clear_line(outcome, 3, "timeout", "Ghost.value")
+
+
+@pytest.mark.parametrize("command", ["broker", "sim"])
+def test_taken_port(shared_broker: BrokerProcess, command: str) -> None:
+    args = ["broker"] if command == "broker" else ["sim", MODEL, "--track", TRACK]
+    outcome = run_umlbot([*args, "--port", str(shared_broker.port)], REPO)
+    assert_one_clear_line(outcome, 1, f"port {shared_broker.port}", "already in use", "--broker")
+
+
+def test_run_with_no_service_online(shared_broker: BrokerProcess, tmp_path: Path) -> None:
+    compiled = tmp_path / "car.json"
+    subprocess.run([UMLBOT, "compile", MODEL, "-o", str(compiled)], check=True, capture_output=True)
+    outcome = run_umlbot(["run", str(compiled), "--broker", shared_broker.url, "--robot", "lonely",
+                          "--startup-timeout", "1"], tmp_path)
+    assert_one_clear_line(outcome, 1, "not online", "LeftActuator", "umlbot service")
+
+
+# --- Ctrl-C at start-up ------------------------------------------------------------------------------
+
+def interrupt_at(args: list[str], marker: str, cwd: Path) -> tuple[Outcome, float]:
+    """Start umlbot, send SIGINT once `marker` appeared in its output; (outcome, seconds after SIGINT)."""
+    proc = subprocess.Popen([UMLBOT, *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            cwd=cwd, env=user_env(UMLBOT_LOG_LEVEL="DEBUG"))
+    seen = threading.Event()
+    chunks: dict[str, list[str]] = {"out": [], "err": []}
+
+    def read(stream: object, key: str) -> None:
+        for line in stream:  # type: ignore[attr-defined]
+            chunks[key].append(line)
+            if marker in line:
+                seen.set()
+
+    readers = [threading.Thread(target=read, args=(proc.stdout, "out"), daemon=True),
+               threading.Thread(target=read, args=(proc.stderr, "err"), daemon=True)]
+    for reader in readers:
+        reader.start()
+    try:
+        assert seen.wait(CASE_TIMEOUT_S), f"no {marker!r} from umlbot {args}: {''.join(chunks['err'])}"
+        time.sleep(0.3)  # the line is logged a moment before the command leaves the step it names
+        proc.send_signal(signal.SIGINT)
+        sent = time.monotonic()
+        code = proc.wait(CASE_TIMEOUT_S)
+        waited = time.monotonic() - sent
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    for reader in readers:
+        reader.join(5)
+    return Outcome(code, "".join(chunks["out"]), "".join(chunks["err"]), waited), waited
+
+
+@pytest.mark.parametrize(
+    ("args", "marker", "code", "message"),
+    [
+        (["broker", "--port", "0"], "listening on", 0, None),
+        (["service", "motor", "--deploy", DEPLOYMENT, "--driver", "mock", "--broker", DEAD,
+          "--connect-timeout", "12"], "mqtt_connect_failed", 130, "aborted"),
+        (["monitor", "--json", "--broker", DEAD, "--connect-timeout", "12"], "mqtt_connect_failed", 130,
+         "aborted"),
+        (["run", "{compiled}", "--broker", "{broker}", "--robot", "sigint", "--startup-timeout", "12"],
+         "mqtt_connected", 0, None),
+        (["service", "motor", "--deploy", DEPLOYMENT, "--driver", "mock", "--broker", "{broker}",
+          "--robot", "sigint"], "service_started", 0, None),
+        (["sim", MODEL, "--track", TRACK, "--port", "0", "--speed", "1"], "broker mqtt://", 1, None),
+    ],
+    ids=["broker", "service-connecting", "monitor-connecting", "run-waiting-for-services",
+         "service-running", "sim"],
+)
+def test_ctrl_c_at_start_up(shared_broker: BrokerProcess, tmp_path: Path, args: list[str], marker: str,
+                            code: int, message: str | None) -> None:
+    compiled = tmp_path / "car.json"
+    if "{compiled}" in args:
+        subprocess.run([UMLBOT, "compile", MODEL, "-o", str(compiled)], check=True, capture_output=True)
+    argv = [a.format(dead=free_port(), broker=shared_broker.url, compiled=compiled) for a in args]
+    outcome, waited = interrupt_at(argv, marker, tmp_path)
+    assert "Traceback" not in outcome.stderr, outcome.stderr
+    assert outcome.code == code, outcome.stderr
+    assert waited < 5.0, f"took {waited:.1f} s to stop after SIGINT"
+    if message is not None:
+        assert message_lines(outcome.stderr) == [message]
+    if argv[0] == "sim":
+        assert "interrupted" in outcome.stdout
