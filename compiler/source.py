@@ -217,6 +217,9 @@ def _read_model_file(reader: _Reader, path: Path, default_name: str) -> SourceMo
     if not isinstance(root, YMap):
         raise ModelError("a model file is a mapping with 'components' and 'lanes'", shown,
                          root.loc.line, root.loc.column)
+    if root.get("format_version") is not None:
+        raise ModelError("this is a compiled model file (`umlbot run` runs it); "
+                         "give the model's folder or its model.yaml", shown, 1, 1)
     d = reader.diagnostics
     _unknown_keys(root, MODEL_KEYS, "model", d)
     name = root.get("name")

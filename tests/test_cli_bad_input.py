@@ -2,7 +2,7 @@
 
 Each case expects its documented exit status (docs/cli.md), exactly one message line on stderr
 that says what is wrong and where (structured log lines and click's usage preamble aside), no
-traceback, no password, and an end within CASE_TIMEOUT_S. The table runs a few cases at a time
+traceback, no password, and an end within CASE_TIMEOUT_S. The table runs four cases at a time
 (they are independent processes) so that the whole file stays well under a minute.
 """
 
@@ -122,6 +122,7 @@ CASES: list[tuple[str, list[str], int, list[str]]] = [
     ("check-missing", ["check", "{f}/nope"], 2, ["MODEL", "nope", "does not exist"]),
     ("check-folder-without-model", ["check", "{f}/adir"], 1, ["adir:1:1", "no model.yaml"]),
     ("check-binary", ["check", "{f}/binary.bin"], 1, ["binary.bin:1:1", "not UTF-8"]),
+    ("check-compiled-file", ["check", "{f}/good.json"], 1, ["good.json:1:1", "compiled model file"]),
     ("check-unknown-impl", ["check", MODEL, "--deployment", "{f}/unknown_impl.yaml"], 1,
      ["unknown_impl.yaml:2", "unknown implementation id 'warpdrive'"]),
     # compile
@@ -187,6 +188,8 @@ CASES: list[tuple[str, list[str], int, list[str]]] = [
     # sim
     ("sim-missing-model", ["sim", "{f}/nope"], 2, ["does not exist"]),
     ("sim-not-a-model", ["sim", "{f}/adir", "--track", TRACK, "--port", "0"], 1, ["adir", "no model.yaml"]),
+    ("sim-compiled-file", ["sim", "{f}/good.json", "--track", TRACK, "--port", "0"], 1,
+     ["good.json:1:1", "compiled model file", "umlbot run"]),
     ("sim-missing-track", ["sim", MODEL, "--track", "{f}/nope.yaml", "--port", "0"], 1,
      ["cannot read track", "nope.yaml"]),
     ("sim-track-folder", ["sim", MODEL, "--track", "{f}/adir"], 2, ["is a directory"]),
@@ -227,7 +230,7 @@ CASES: list[tuple[str, list[str], int, list[str]]] = [
 
 @pytest.fixture(scope="module")
 def outcomes(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Outcome]:
-    """Every case of the table, run three at a time."""
+    """Every case of the table, run four at a time."""
     folder = tmp_path_factory.mktemp("bad-input")
     make_files(folder)
     dead = str(free_port())
@@ -236,7 +239,7 @@ def outcomes(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Outcome]:
         name, args = case[0], [a.format(f=folder, dead=dead) for a in case[1]]
         return name, run_umlbot(args, folder)
 
-    with ThreadPoolExecutor(max_workers=3) as pool:
+    with ThreadPoolExecutor(max_workers=4) as pool:
         return dict(pool.map(one, CASES))
 
 
@@ -363,14 +366,16 @@ def interrupt_at(args: list[str], marker: str, cwd: Path) -> tuple[Outcome, floa
           "--connect-timeout", "12"], "mqtt_connect_failed", 130, "aborted"),
         (["monitor", "--json", "--broker", DEAD, "--connect-timeout", "12"], "mqtt_connect_failed", 130,
          "aborted"),
+        (["run", "{compiled}", "--broker", DEAD], "mqtt_connect_failed", 0, None),
         (["run", "{compiled}", "--broker", "{broker}", "--robot", "sigint", "--startup-timeout", "12"],
          "mqtt_connected", 0, None),
         (["service", "motor", "--deploy", DEPLOYMENT, "--driver", "mock", "--broker", "{broker}",
           "--robot", "sigint"], "service_started", 0, None),
+        (["sim", MODEL, "--track", TRACK, "--broker", DEAD], "mqtt_connect_failed", 1, None),
         (["sim", MODEL, "--track", TRACK, "--port", "0", "--speed", "1"], "broker mqtt://", 1, None),
     ],
-    ids=["broker", "service-connecting", "monitor-connecting", "run-waiting-for-services",
-         "service-running", "sim"],
+    ids=["broker", "service-connecting", "monitor-connecting", "run-connecting", "run-waiting-for-services",
+         "service-running", "sim-connecting", "sim-running"],
 )
 def test_ctrl_c_at_start_up(shared_broker: BrokerProcess, tmp_path: Path, args: list[str], marker: str,
                             code: int, message: str | None) -> None:

@@ -244,9 +244,11 @@ class BusConnection:
             return
         deadline = time.monotonic() + timeout
         try:
-            connected = self._connected.wait(timeout)
+            connected = self._wait_connected_or_closed(deadline)
         finally:
             self._start_waiting = False
+        if self._closing.is_set() and not connected:  # close() from another thread: give up now
+            raise NotConnected(f"closed while connecting to the MQTT broker at {self.settings.url}")
         if not connected:
             reason = self._last_error or "no answer"
             self.close()
@@ -260,6 +262,13 @@ class BusConnection:
                 f"the MQTT broker at {self.settings.url} did not confirm the subscriptions "
                 f"within {timeout:g} s"
             )
+
+    def _wait_connected_or_closed(self, deadline: float) -> bool:
+        """Wait for the first connection until `deadline`; False as soon as close() was called."""
+        while not self._connected.wait(min(0.1, max(0.0, deadline - time.monotonic()))):
+            if self._closing.is_set() or time.monotonic() >= deadline:
+                return False
+        return True
 
     def wait_subscribed(self, timeout: float) -> bool:
         """Wait until the broker acknowledged every subscription sent so far; False on time-out."""

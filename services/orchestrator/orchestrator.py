@@ -73,6 +73,10 @@ EXIT_OK = 0
 EXIT_FAULT = 1
 
 
+class _ExitWhileConnecting(Exception):
+    """Termination was requested before the broker answered."""
+
+
 class Orchestrator:
     """Executes one compiled model; `await run()` returns the exit code (0 ok, 1 fault).
 
@@ -129,6 +133,7 @@ class Orchestrator:
         self._pending_exit: str | None = None
         self._lane_tasks: dict[str, asyncio.Task[None]] = {}
         self._closing = False
+        self._connecting = False  # _connect() waits for the broker
         self._running = False
         self._control: BusConnection | None = None
         self._client: BusClient | None = None
@@ -177,7 +182,13 @@ class Orchestrator:
         started = time.monotonic()
         start_error: OrchestratorError | None = None
         try:
-            await self._connect()
+            try:
+                await self._connect()
+            except _ExitWhileConnecting:  # nothing ran and no actuator was reached: nothing to stop
+                log.info("orchestrator_finished", exit_code=EXIT_OK, failure=None,
+                         exit_reason=self.exit_reason, nodes=0, actions=0,
+                         wall_s=round(time.monotonic() - started, 3))
+                return EXIT_OK
             try:
                 if self._pending_exit is not None:
                     self._on_exit_request(self._pending_exit)
@@ -237,6 +248,7 @@ class Orchestrator:
         client.connection.add_on_disconnect(lambda: self._to_loop(self._connection_lost, False))
         control.add_on_connect(self._on_connected)
         client.connection.add_on_connect(self._on_connected)
+        self._connecting = True
         try:
             await asyncio.gather(
                 asyncio.to_thread(control.start, CONNECT_TIMEOUT_S),
@@ -244,7 +256,14 @@ class Orchestrator:
             )
         except NotConnected as exc:
             await asyncio.to_thread(self._close_connections)
+            if self.exit_reason is not None:
+                raise _ExitWhileConnecting from exc
             raise OrchestratorError(str(exc)) from exc
+        finally:
+            self._connecting = False
+        if self._closing:  # the exit request came as the connections were made
+            await asyncio.to_thread(self._close_connections)
+            raise _ExitWhileConnecting
         if self.trace_to_mqtt or self.trace_file is not None or self.trace_listener is not None:
             self.recorder = TraceRecorder(
                 self._publish_trace if self.trace_to_mqtt else None, self.trace_file, self.trace_listener
@@ -347,6 +366,9 @@ class Orchestrator:
             self.engine.exit_requested = True
             self._exit_deadline = loop.time() + self.grace_s
             log.info("exit_requested", reason=reason, grace_s=self.grace_s)
+            if self._connecting:  # do not wait for a broker that may never answer
+                self._closing = True
+                loop.run_in_executor(None, self._close_connections)
             if self.state == "running":
                 self._publish_status("stopping", reason)
         else:

@@ -45,6 +45,7 @@ def command(model: Path, track: Path | None, speed: float, broker_url: str | Non
     goal was reached without a collision."""
     from umlbot.logs import configure_logging
     from umlbot.sim.runner import Progress, SimOptions, run_sim
+    from umlbot.sim.track import default_track
 
     # the progress line and the summary are the output; logs only for warnings unless asked for
     if click.get_current_context().find_root().params.get("log_level") is None and not os.environ.get(
@@ -52,8 +53,8 @@ def command(model: Path, track: Path | None, speed: float, broker_url: str | Non
     ):
         configure_logging("WARNING")
     options = SimOptions(
-        model=model, track=track or Path(DEFAULT_TRACK), speed=speed, broker_url=broker_url, port=port,
-        timeout_s=timeout_s, plot=plot, processes=processes, seed=seed, sonar_noise_cm=noise_cm,
+        model=model, track=track or default_track(DEFAULT_TRACK), speed=speed, broker_url=broker_url,
+        port=port, timeout_s=timeout_s, plot=plot, processes=processes, seed=seed, sonar_noise_cm=noise_cm,
         max_collisions=max_collisions,
     )
     live = sys.stdout.isatty() and not as_json

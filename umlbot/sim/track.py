@@ -119,3 +119,10 @@ def load_track(path: str | Path) -> Track:
 def tracks_dir() -> Path:
     """The folder of the bundled tracks (`models/tracks/` in the source tree)."""
     return Path(__file__).resolve().parents[2] / "models" / "tracks"
+
+
+def default_track(relative: str = "models/tracks/s_bend.yaml") -> Path:
+    """`relative` when it exists from here, else the bundled one (so `umlbot sim` works anywhere)."""
+    here = Path(relative)
+    bundled = tracks_dir() / here.name
+    return here if here.is_file() or not bundled.is_file() else bundled
