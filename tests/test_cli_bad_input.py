@@ -118,6 +118,9 @@ SECRET_DEAD = f"mqtt://robot:{PASSWORD}@127.0.0.1:{{dead}}"
 
 #: id, arguments ({f} = the folder of bad files), exit status, texts the message line must hold
 CASES: list[tuple[str, list[str], int, list[str]]] = [
+    # the group
+    ("unknown-command", ["launch"], 2, ["No such command 'launch'"]),
+    ("bad-log-level", ["--log-level", "LOUD", "check", MODEL], 2, ["--log-level", "'LOUD'"]),
     # check
     ("check-missing", ["check", "{f}/nope"], 2, ["MODEL", "nope", "does not exist"]),
     ("check-folder-without-model", ["check", "{f}/adir"], 1, ["adir:1:1", "no model.yaml"]),

@@ -63,7 +63,9 @@ def _not_yet(name: str) -> click.Command:
 
 @click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(__version__, prog_name="umlbot")
-@click.option("--log-level", default=None, help="DEBUG, INFO, WARNING or ERROR (env UMLBOT_LOG_LEVEL).")
+@click.option("--log-level", default=None, metavar="LEVEL",
+              type=click.Choice(["DEBUG", "INFO", "WARNING", "ERROR"], case_sensitive=False),
+              help="DEBUG, INFO, WARNING or ERROR (env UMLBOT_LOG_LEVEL).")
 @click.option("--log-json/--no-log-json", default=None, help="JSON log lines (default: when not a terminal).")
 def cli(log_level: str | None, log_json: bool | None) -> None:
     """umlbot: build a robot from UML models."""
