@@ -311,6 +311,13 @@ def test_call_nobody_answers(shared_broker: BrokerProcess) -> None:
     assert_one_clear_line(outcome, 3, "timeout", "Ghost.value")
 
 
+def test_tls_url_to_a_plain_broker_gives_up_in_time(shared_broker: BrokerProcess) -> None:
+    outcome = run_umlbot(["call", "--broker", f"mqtts://127.0.0.1:{shared_broker.port}", "--connect-timeout",
+                          "1", "A.b"], REPO)
+    assert_one_clear_line(outcome, 4, "not_connected", "mqtts://127.0.0.1")
+    assert outcome.seconds < 4.0  # the TLS handshake that never ends is not waited for
+
+
 @pytest.mark.parametrize("command", ["broker", "sim"])
 def test_taken_port(shared_broker: BrokerProcess, command: str) -> None:
     args = ["broker"] if command == "broker" else ["sim", MODEL, "--track", TRACK]

@@ -251,7 +251,8 @@ class BusConnection:
             raise NotConnected(f"closed while connecting to the MQTT broker at {self.settings.url}")
         if not connected:
             reason = self._last_error or "no answer"
-            self.close()
+            # the connect thread may sit in a TCP or TLS handshake: do not wait for it long
+            self.close(timeout=0.5)
             raise NotConnected(
                 f"cannot connect to the MQTT broker at {self.settings.url} within {timeout:g} s "
                 f"({reason}); is it running? (umlbot broker, or --broker / UMLBOT_BROKER)"
@@ -543,6 +544,8 @@ class BusConnection:
                     self._client.reconnect()
             except (OSError, ssl.SSLError) as exc:
                 self._last_error = f"{type(exc).__name__}: {exc}"
+                if self._closing.is_set():  # start() gave up meanwhile and said why
+                    break
                 failures += 1
                 # one warning per outage; the retries of the same outage only at debug level, and
                 # while start() waits only at debug level (its NotConnected says the same)
