@@ -57,7 +57,8 @@ def run_umlbot(args: list[str], cwd: Path, env: dict[str, str] | None = None) ->
     started = time.monotonic()
     try:
         done = subprocess.run([UMLBOT, *args], capture_output=True, text=True, cwd=cwd,
-                              env=env or user_env(), timeout=CASE_TIMEOUT_S, check=False)
+                              stdin=subprocess.DEVNULL, env=env or user_env(), timeout=CASE_TIMEOUT_S,
+                              check=False)
     except subprocess.TimeoutExpired as exc:
         pytest.fail(f"umlbot {' '.join(args)} still ran after {CASE_TIMEOUT_S} s: {exc.stderr!r}")
     return Outcome(done.returncode, done.stdout, done.stderr, time.monotonic() - started)
@@ -207,6 +208,7 @@ CASES: list[tuple[str, list[str], int, list[str]]] = [
     # broker
     ("broker-port", ["broker", "--port", "99999"], 2, ["--port", "99999"]),
     ("broker-bind", ["broker", "--bind", "256.0.0.1", "--port", "0"], 1, ["cannot listen on 256.0.0.1"]),
+    ("broker-hash-bad-user", ["broker", "--hash-password", "robot:1"], 1, ["'robot:1'", "no ':'"]),
     ("broker-passwd-missing", ["broker", "--passwd", "{f}/nope", "--port", "0"], 1, ["does not exist"]),
     ("broker-passwd-malformed", ["broker", "--passwd", "{f}/passwd", "--port", "0"], 1,
      ["passwd:1", "user:<argon2 hash>"]),

@@ -71,9 +71,14 @@ def password_line(user: str, password: str) -> str:
     from pwdlib import PasswordHash
     from pwdlib.hashers.argon2 import Argon2Hasher
 
+    return f"{check_user_name(user)}:{PasswordHash((Argon2Hasher(),)).hash(password)}"
+
+
+def check_user_name(user: str) -> str:
+    """`user` if it can be a password-file user name; ConfigError otherwise."""
     if not user or ":" in user:
-        raise ConfigError("a user name must be non-empty and contain no ':'")
-    return f"{user}:{PasswordHash((Argon2Hasher(),)).hash(password)}"
+        raise ConfigError(f"user name {user!r}: a user name must be non-empty and contain no ':'")
+    return user
 
 
 def check_password_file(path: Path) -> None:

@@ -32,9 +32,10 @@ def command(
 
     It listens on loopback only, unless --bind says otherwise.
     """
-    from services.bus.broker import EmbeddedBroker, password_line
+    from services.bus.broker import EmbeddedBroker, check_user_name, password_line
 
     if hash_user is not None:
+        check_user_name(hash_user)  # before asking for the password
         password = click.prompt(f"password for {hash_user}", hide_input=True, confirmation_prompt=True,
                                 err=True)
         click.echo(password_line(hash_user, password))
