@@ -155,7 +155,7 @@ def parse_yaml(text: str, file: str, diagnostics: Diagnostics) -> YNode | None:
         raise ModelError(f"invalid YAML: {exc}", file, 1, 1) from None
 
 
-# YAML 1.2 core schema, as ruamel.yaml and the deployment loader read it.
+# YAML 1.2 core schema: `on`, `yes` and `off` stay strings (PyYAML's own resolver is YAML 1.1).
 _NULL = re.compile(r"~|null|Null|NULL|")
 _BOOL = re.compile(r"true|True|TRUE|false|False|FALSE")
 _INT = re.compile(r"[-+]?[0-9]+|0o[0-7]+|0x[0-9a-fA-F]+")

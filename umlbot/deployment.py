@@ -26,7 +26,7 @@ from typing import Any
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from umlbot.errors import ConfigError
-from umlbot.files import read_text, yaml_error
+from umlbot.files import load_yaml, read_text
 from umlbot.library import IMPLEMENTATIONS, Implementation, ServiceKind, resolve_implementation
 
 
@@ -105,13 +105,7 @@ def parse_deployment(text: str, source: str = "<deployment>") -> Deployment:
 def _parse_either(text: str, source: str) -> Deployment:
     if is_plain_format(text):
         return parse_plain(text, source)
-    from ruamel.yaml import YAML
-    from ruamel.yaml.error import YAMLError
-
-    try:
-        data = YAML(typ="safe").load(text)
-    except YAMLError as exc:
-        raise ConfigError(yaml_error(source, exc)) from exc
+    data = load_yaml(text, source)
     if not isinstance(data, dict):
         raise ConfigError(f"{source}: a deployment is a mapping with 'components'")
     if "deployment" in data and isinstance(data["deployment"], dict):

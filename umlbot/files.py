@@ -2,14 +2,17 @@
 
 Every reader of a user's file needs the same two things: an unreadable, binary or non-UTF-8 file
 named in one clear line instead of a traceback, and a YAML syntax error as `file:line:col:` with
-the problem in one line (ruamel's own message spans several lines with a source excerpt).
+the problem in one line. There is one YAML reader in umlbot, the compiler's positioned reader
+(`compiler.yamlsrc`: libyaml events, YAML 1.2 core schema, size and depth limits); `load_yaml`
+puts it behind the same one-line errors for the small files.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
-from umlbot.errors import ConfigError, UmlbotError
+from umlbot.errors import ConfigError, ModelError, UmlbotError
 
 
 def read_text(path: str | Path, what: str, error: type[UmlbotError] = ConfigError) -> str:
@@ -23,9 +26,22 @@ def read_text(path: str | Path, what: str, error: type[UmlbotError] = ConfigErro
         raise error(f"cannot read {what} {file}: not UTF-8 text (byte {exc.start})") from exc
 
 
-def yaml_error(source: str, exc: Exception) -> str:
-    """A YAML syntax error as one line, `source:line:col: not valid YAML: problem`."""
-    mark = getattr(exc, "problem_mark", None) or getattr(exc, "context_mark", None)
-    where = f"{source}:{mark.line + 1}:{mark.column + 1}" if mark is not None else source
-    problem = getattr(exc, "problem", None) or getattr(exc, "context", None) or str(exc)
-    return f"{where}: not valid YAML: {' '.join(str(problem).split())}"
+def load_yaml(text: str, source: str, error: type[UmlbotError] = ConfigError) -> Any:
+    """The plain Python value of a YAML document (None when empty).
+
+    A syntax error, a duplicate key or an over-large document raises `error` with one line,
+    `source:line:col: not valid YAML: problem`.
+    """
+    from compiler.diagnostics import Diagnostics
+    from compiler.yamlsrc import parse_yaml, to_python
+
+    diagnostics = Diagnostics()
+    try:
+        node = parse_yaml(text, source, diagnostics)
+    except ModelError as exc:
+        problem = " ".join(exc.message.removeprefix("invalid YAML: ").split())
+        raise error(f"{exc.file}:{exc.line}:{exc.column}: not valid YAML: {problem}") from None
+    for item in diagnostics.errors:
+        where = item.location
+        raise error(f"{where.file}:{where.line}:{where.column}: not valid YAML: {item.message}")
+    return to_python(node)

@@ -19,11 +19,9 @@ from pathlib import Path
 from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
-from ruamel.yaml import YAML
-from ruamel.yaml.error import YAMLError
 
 from umlbot.errors import ConfigError
-from umlbot.files import read_text, yaml_error
+from umlbot.files import load_yaml, read_text
 from umlbot.logs import get_logger
 
 log = get_logger(__name__)
@@ -45,10 +43,7 @@ class BrokerAcl(BaseModel):
 def load_acl(path: str | Path) -> BrokerAcl:
     """Read an ACL file (YAML or JSON with the keys `acl` and `publish_acl`)."""
     file = Path(path)
-    try:
-        data = YAML(typ="safe").load(read_text(file, "ACL file"))
-    except YAMLError as exc:
-        raise ConfigError(f"ACL file {yaml_error(str(file), exc)}") from exc
+    data = load_yaml(read_text(file, "ACL file"), f"ACL file {file}")
     try:
         acl = BrokerAcl.model_validate(data or {})
     except ValidationError as exc:

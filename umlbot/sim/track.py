@@ -21,7 +21,7 @@ from pathlib import Path
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from umlbot.errors import SimError
-from umlbot.files import read_text, yaml_error
+from umlbot.files import load_yaml, read_text
 from umlbot.sim.geometry import Point, Pose, Segment
 
 
@@ -95,13 +95,7 @@ class Track(BaseModel):
 
 def parse_track(text: str, source: str = "<track>") -> Track:
     """Read a track from YAML text; errors name the source and the field."""
-    from ruamel.yaml import YAML
-    from ruamel.yaml.error import YAMLError
-
-    try:
-        data = YAML(typ="safe").load(text)
-    except YAMLError as exc:
-        raise SimError(yaml_error(source, exc)) from exc
+    data = load_yaml(text, source, SimError)
     if not isinstance(data, dict):
         raise SimError(f"{source}: a track is a mapping with name, start, goal and walls")
     try:
