@@ -8,6 +8,7 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
 import pytest
+from services_support import ROOM  # 2 m x 3 m room, car in the middle facing +y
 
 from services.fake_pigpio import FakePi
 from services.motor.driver import L298NSettings, MotorChannel
@@ -19,15 +20,6 @@ from umlbot.errors import DriverError
 from umlbot.sim.sharing import attach_local_world
 from umlbot.sim.track import parse_track
 from umlbot.sim.world import CarSpec, World
-
-#: A 2 m x 3 m room with the car in the middle, facing +y.
-ROOM = """
-name: room
-start: {x: 0.0, y: 0.0, heading_deg: 90}
-goal: {x_min: -0.2, x_max: 0.2, y_min: 1.5, y_max: 1.9}
-walls:
-  - [[-1.0, -1.0], [1.0, -1.0], [1.0, 2.0], [-1.0, 2.0], [-1.0, -1.0]]
-"""
 
 
 @dataclass

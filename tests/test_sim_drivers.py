@@ -9,6 +9,7 @@ from collections.abc import Iterator
 from typing import Any
 
 import pytest
+from services_support import ROOM  # 2 m x 3 m room, car in the middle facing +y
 
 from services.registry import create_driver
 from umlbot.errors import ConfigError, DriverError, SimError
@@ -16,13 +17,6 @@ from umlbot.sim.sharing import ENV_ADDRESS, ENV_KEY, RemoteWorld, WorldServer, a
 from umlbot.sim.track import parse_track
 from umlbot.sim.world import CarSpec, World
 
-BOX = """
-name: box
-start: {x: 0.0, y: 0.0, heading_deg: 90}
-goal: {x_min: -0.2, x_max: 0.2, y_min: 1.5, y_max: 1.9}
-walls:
-  - [[-1.0, -1.0], [1.0, -1.0], [1.0, 2.0], [-1.0, 2.0], [-1.0, -1.0]]
-"""
 AHEAD_CM = round((2.0 - CarSpec().sonar_forward_m) * 100)
 PINS: dict[str, dict[str, Any]] = {"LeftActuator": {"in1": 22, "in2": 23, "watchdog_s": 2.0},
         "RightActuator": {"in1": 24, "in2": 25}}
@@ -30,7 +24,7 @@ PINS: dict[str, dict[str, Any]] = {"LeftActuator": {"in1": 22, "in2": 23, "watch
 
 @pytest.fixture
 def world() -> Iterator[World]:
-    w = World(parse_track(BOX))
+    w = World(parse_track(ROOM))
     attach_local_world(w)
     yield w
     attach_local_world(None)
@@ -80,7 +74,7 @@ def test_sonar_and_servo_see_the_world(world: World) -> None:
 
 
 def test_sonar_without_echo_reports_none() -> None:
-    far = World(parse_track(BOX.replace("2.0], [-1.0, 2.0]", "9.0], [-1.0, 9.0]")))
+    far = World(parse_track(ROOM.replace("2.0], [-1.0, 2.0]", "9.0], [-1.0, 9.0]")))
     attach_local_world(far)
     try:
         sonar = create_driver("sonar", "sim", "DistanceRead", {"trigger": 8, "echo": 7})

@@ -6,25 +6,18 @@ import math
 from pathlib import Path
 
 import pytest
+from services_support import ROOM  # 2 m x 3 m room, car in the middle facing +y
 
 from umlbot.errors import SimError
 from umlbot.sim.geometry import Point, Segment, cast, rectangle_corners, rectangle_hits
 from umlbot.sim.track import load_track, parse_track, tracks_dir
 from umlbot.sim.world import CarSpec, World
 
-BOX = """
-name: box
-start: {x: 0.0, y: 0.0, heading_deg: 90}
-goal: {x_min: -0.2, x_max: 0.2, y_min: 1.5, y_max: 1.9}
-walls:
-  - [[-1.0, -1.0], [1.0, -1.0], [1.0, 2.0], [-1.0, 2.0], [-1.0, -1.0]]
-"""
-
 # no lag: speeds follow the command at once, so the expected motion is exact
 IDEAL = CarSpec(motor_time_constant_s=0.0)
 
 
-def world(text: str = BOX, **kwargs: object) -> World:
+def world(text: str = ROOM, **kwargs: object) -> World:
     return World(parse_track(text), IDEAL, **kwargs)  # type: ignore[arg-type]
 
 
@@ -76,7 +69,7 @@ def test_spin_in_place_turns_at_the_documented_rate_without_moving() -> None:
 
 
 def test_motor_lag_reaches_the_commanded_speed() -> None:
-    w = World(parse_track(BOX), CarSpec(motor_time_constant_s=0.05))
+    w = World(parse_track(ROOM), CarSpec(motor_time_constant_s=0.05))
     drive(w, 100, 100, 0.5)
     assert w.snapshot().left_speed_mps == pytest.approx(0.5, rel=1e-3)
     assert w.snapshot().pose.y < 0.25  # it had to speed up first
@@ -201,7 +194,7 @@ def test_rectangle_overlap_detects_crossing_and_inside_walls() -> None:
 
 def test_start_inside_a_wall_is_refused() -> None:
     with pytest.raises(ValueError, match="overlaps a wall"):
-        world(BOX.replace("x: 0.0, y: 0.0", "x: 0.95, y: 0.0"))
+        world(ROOM.replace("x: 0.0, y: 0.0", "x: 0.95, y: 0.0"))
 
 
 def test_bad_track_files_raise_sim_error_naming_the_field(tmp_path: Path) -> None:
