@@ -38,27 +38,13 @@ class LazyGroup(click.Group):
     def get_command(self, ctx: click.Context, cmd_name: str) -> click.Command | None:
         if cmd_name not in COMMANDS:
             return None
-        try:
-            module = importlib.import_module(f"umlbot.commands.{cmd_name}")
-        except ModuleNotFoundError as exc:
-            if exc.name != f"umlbot.commands.{cmd_name}":
-                raise
-            return _not_yet(cmd_name)
+        module = importlib.import_module(f"umlbot.commands.{cmd_name}")
         command: click.Command = module.command
         return command
 
     def format_commands(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
         with formatter.section("Commands"):
             formatter.write_dl([(name, COMMANDS[name]) for name in self.list_commands(ctx)])
-
-
-def _not_yet(name: str) -> click.Command:
-    @click.command(name=name, help=COMMANDS[name], context_settings={"ignore_unknown_options": True})
-    @click.argument("args", nargs=-1, type=click.UNPROCESSED)
-    def missing(args: tuple[str, ...]) -> None:
-        raise click.ClickException(f"'umlbot {name}' is not available in this version yet")
-
-    return missing
 
 
 @click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})
