@@ -397,8 +397,6 @@ class _Checker:
     def check_deployment(self) -> None:
         dep = self.source.deployment
         if dep is None:
-            if not self.source.complete:
-                return  # the model file's own error says enough
             self.d.error("the model has no deployment (deployment.yaml or deployment.txt beside "
                          "model.yaml, or a 'deployment' section)", self.source.loc)
             return
@@ -927,6 +925,10 @@ class _Checker:
 
 def check_source(source: SourceModel, diagnostics: Diagnostics) -> CompiledModel | None:
     """Run every check; the compiled model when there is no error, else None."""
+    if not source.complete:
+        # The model file could not be read (its error is reported): every check against its
+        # components would only report follow-on errors ("unknown component", "never called").
+        return None
     checker = _Checker(source, diagnostics)
     checker.check_components()
     checker.check_deployment()

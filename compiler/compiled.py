@@ -1,23 +1,27 @@
 """The compiled model: everything the orchestrator needs to run a robot, without the source files.
 
-`umlbot compile` writes it with `dump_compiled` (deterministic JSON: same model, same bytes; no
-timestamps), the orchestrator reads it with `load_compiled`, which refuses a file written by a
-newer format version with a clear message. Graphs are resolved (every edge names an existing node
-id), expressions are parsed trees (`compiler.expr`), every name is lane-resolved, and every
-component carries its implementation, service, driver and settings from the deployment.
+`umlbot compile` writes it with `write_compiled` (atomically: a reader never sees half a file) as
+the bytes of `dump_compiled` (deterministic JSON: same model, same bytes; no timestamps); the
+orchestrator reads it with `load_compiled`, which refuses a file written by a newer format version
+with a clear message. Graphs are resolved (every edge names an existing node id), expressions are
+parsed trees (`compiler.expr`), every name is lane-resolved, and every component carries its
+implementation, service, driver and settings from the deployment.
 """
 
 from __future__ import annotations
 
+import errno
 import gc
 import json
+import os
+import tempfile
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from compiler.expr import Call, Expr
-from umlbot.errors import CompiledModelError
+from umlbot.errors import CompiledModelError, ConfigError
 from umlbot.library import ComponentKind, ServiceKind
 
 #: The version of the compiled file's shape; bumped on any incompatible change.
@@ -196,6 +200,35 @@ def dump_compiled(model: CompiledModel) -> bytes:
     return (text + "\n").encode("utf-8")
 
 
+def write_compiled(model: CompiledModel, path: str | Path) -> None:
+    """Write the compiled file at `path` (its folders made as needed) through a temporary file and
+    a rename, so that a reader, e.g. a running orchestrator's restart, never sees half a file and a
+    failed write keeps the previous file. `ConfigError` names the path when it cannot be written."""
+    target = Path(path)
+    try:
+        _write_atomically(target, dump_compiled(model))
+    except OSError as exc:
+        raise ConfigError(f"cannot write {target}: {exc.strerror or exc}") from exc
+
+
+def _write_atomically(path: Path, data: bytes) -> None:
+    for folder in (path.parent, *path.parent.parents):
+        if folder.exists() and not folder.is_dir():
+            raise NotADirectoryError(errno.ENOTDIR, f"{folder} is not a folder")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    umask = os.umask(0)
+    os.umask(umask)
+    try:
+        os.fchmod(fd, 0o666 & ~umask)  # mkstemp makes 0600; a compiled model is an ordinary file
+        with os.fdopen(fd, "wb") as handle:
+            handle.write(data)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
 def load_compiled(source: str | Path | bytes) -> CompiledModel:
     """Read a compiled model from a path or from the file's bytes.
 
@@ -257,4 +290,5 @@ __all__ = [
     "StartNode",
     "dump_compiled",
     "load_compiled",
+    "write_compiled",
 ]

@@ -5,6 +5,11 @@ not resolved yet; the checker resolves names and types and produces `compiler.ex
 Errors are `ModelError`s pointing at the exact line and column; nesting is bounded so hostile
 input gives a `ModelError`, never a `RecursionError`. Nothing is ever eval'd.
 
+Limits: `MAX_LENGTH` characters; `MAX_DEPTH` levels of nesting (parentheses, `not`, `-`, call
+arguments, an operand of a tighter operator); and `MAX_TREE_HEIGHT` operators one inside the other,
+where a chain `a + b + c` is not nesting but still one level per operator (the compiled tree is
+binary, and the compiled file's reader takes about 250 levels).
+
 Grammar, loosest binding first::
 
     expr     := or
@@ -28,7 +33,7 @@ from compiler.diagnostics import Location
 from umlbot.errors import ModelError
 
 MAX_DEPTH = 64
-MAX_TREE_DEPTH = 100
+MAX_TREE_HEIGHT = 200
 MAX_LENGTH = 10_000
 
 KEYWORDS = {"and", "or", "not", "true", "false", "True", "False", "null"}
@@ -330,7 +335,7 @@ def parse_expression(text: str, where: Location | None = None) -> RawExpr:
     if len(text) > MAX_LENGTH:
         raise src.error(f"expression too long ({len(text)} characters, at most {MAX_LENGTH})", 0)
     expr = _Parser(src).parse()
-    if len(text) > MAX_TREE_DEPTH:  # a tree deeper than MAX_TREE_DEPTH needs more characters
+    if len(text) > MAX_TREE_HEIGHT:  # a tree higher than MAX_TREE_HEIGHT needs more characters
         _check_height(expr, src)
     return expr
 
@@ -346,11 +351,14 @@ def _children(expr: RawExpr) -> tuple[RawExpr, ...]:
 
 
 def _check_height(expr: RawExpr, src: SourceText) -> None:
-    """Refuse trees deeper than MAX_TREE_DEPTH (long operator chains nest too), without recursion."""
-    stack: list[tuple[RawExpr, int]] = [(expr, 1)]
+    """Refuse trees higher than MAX_TREE_HEIGHT, without recursion. Nesting is bounded by the
+    parser already; what is left are long operator chains (`a + b + c + ...`)."""
+    stack: list[tuple[RawExpr, int]] = [(expr, 0)]  # (node, operators above it)
     while stack:
-        node, depth = stack.pop()
-        if depth > MAX_TREE_DEPTH:
-            raise src.error(f"expression nested too deeply (more than {MAX_TREE_DEPTH} levels)",
-                            node.offset)
-        stack.extend((child, depth + 1) for child in _children(node))
+        node, above = stack.pop()
+        children = _children(node)
+        if children and above >= MAX_TREE_HEIGHT:
+            raise src.error(f"expression too long a chain of operators: more than {MAX_TREE_HEIGHT} "
+                            "operators in a row (a + b + c has 2); split it with a "
+                            "datastore", node.offset)
+        stack.extend((child, above + 1) for child in children)

@@ -41,6 +41,14 @@ class RenderError(UmlbotError, RuntimeError):
     """A diagram could not be drawn (Graphviz missing or failing)."""
 
 
+class SvgNotDrawn(RenderError):
+    """The SVG diagrams could not be drawn; every other format asked for was written (`written`)."""
+
+    def __init__(self, reason: str, written: list[Path]) -> None:
+        super().__init__(f"SVG not drawn: {reason}")
+        self.written = written
+
+
 def diagrams(model: CompiledModel) -> dict[str, list[Lane]]:
     """The activity diagrams: name -> its swimlanes (one diagram per activity source file)."""
     result: dict[str, list[Lane]] = {}
@@ -298,12 +306,20 @@ def render_texts(model: CompiledModel, fmt: Format) -> dict[str, str | bytes]:
 
 def render_model(model: CompiledModel, out_dir: str | Path, formats: tuple[Format, ...] = FORMATS
                  ) -> list[Path]:
-    """Write the diagrams in `formats` into `out_dir` (created); the paths written, sorted."""
+    """Write the diagrams in `formats` into `out_dir` (created); the paths written, sorted.
+
+    SVG comes last: when Graphviz cannot draw it, `SvgNotDrawn` carries the files of the other
+    formats, which are written.
+    """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     written: list[Path] = []
-    for fmt in formats:
-        for name, content in render_texts(model, fmt).items():
+    for fmt in sorted(formats, key=lambda f: f == "svg"):
+        try:
+            texts = render_texts(model, fmt)
+        except RenderError as exc:
+            raise SvgNotDrawn(str(exc), sorted(written)) from exc
+        for name, content in texts.items():
             path = out / name
             if isinstance(content, bytes):
                 path.write_bytes(content)

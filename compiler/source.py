@@ -141,7 +141,7 @@ class _Reader:
         try:
             size = path.stat().st_size
             if size > MAX_FILE_BYTES:
-                raise ModelError(f"file too large ({size} bytes)", shown, 1, 1)
+                raise ModelError(f"file too large ({size} bytes, at most {MAX_FILE_BYTES})", shown, 1, 1)
             data = path.read_bytes()
         except OSError as exc:
             raise ModelError(f"cannot read: {exc.strerror}", shown, 1, 1) from None
@@ -149,7 +149,9 @@ class _Reader:
         try:
             return data.decode("utf-8")
         except UnicodeDecodeError as exc:
-            raise ModelError(f"not UTF-8 text: {exc.reason}", shown, 1, 1) from None
+            line, column = byte_position(data, exc.start)
+            raise ModelError(f"not UTF-8 text: byte 0x{data[exc.start]:02x}: {exc.reason}",
+                             shown, line, column) from None
 
     def source_hash(self) -> str:
         digest = hashlib.sha256()
@@ -158,6 +160,14 @@ class _Reader:
             digest.update(f"{rel}\0{len(data)}\0".encode())
             digest.update(data)
         return "sha256:" + digest.hexdigest()
+
+
+def byte_position(data: bytes, offset: int) -> tuple[int, int]:
+    """1-based (line, column) of byte `offset`; the column counts the characters before it (the
+    bytes before the first bad one are valid UTF-8)."""
+    line_start = data.rfind(b"\n", 0, offset) + 1
+    before = data[line_start:offset].decode("utf-8", "replace")
+    return data.count(b"\n", 0, offset) + 1, len(before) + 1
 
 
 def load_source(path: str | Path, diagnostics: Diagnostics,

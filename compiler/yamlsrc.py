@@ -191,6 +191,7 @@ def _build(yaml: Any, events: Iterator[Any], file: str, diagnostics: Diagnostics
     root: YNode | None = None
     documents = 0
     total = 0
+    aliased = 0  # how many of the `total` nodes come from expanding aliases
     anchors: dict[str, tuple[YNode, int]] = {}
     # open collections: [collection, pending mapping key, expanded size, anchor]
     stack: list[list[Any]] = []
@@ -207,7 +208,8 @@ def _build(yaml: Any, events: Iterator[Any], file: str, diagnostics: Diagnostics
             anchor = event.anchor
         elif cls is seq_start or cls is map_start:
             if len(stack) >= MAX_DEPTH:
-                raise ModelError("document nested too deeply", file, mark.line + 1, mark.column + 1)
+                raise ModelError(f"document nested too deeply (more than {MAX_DEPTH} levels of "
+                                 "lists and mappings)", file, mark.line + 1, mark.column + 1)
             loc = Location(file, mark.line + 1, mark.column + 1)
             collection: YNode = YSeq([], loc) if cls is seq_start else YMap({}, {}, loc)
             stack.append([collection, None, 1, event.anchor])
@@ -221,6 +223,7 @@ def _build(yaml: Any, events: Iterator[Any], file: str, diagnostics: Diagnostics
                 raise ModelError(f"unknown alias '*{event.anchor}'", file, mark.line + 1, mark.column + 1)
             node, size = target
             total += size
+            aliased += size
             anchor = None
         elif cls is doc_start:
             documents += 1
@@ -231,7 +234,7 @@ def _build(yaml: Any, events: Iterator[Any], file: str, diagnostics: Diagnostics
         else:
             continue
         if total > MAX_NODES:
-            raise ModelError("document too large (aliases expand too far?)", file, 1, 1)
+            raise _too_large(aliased, file, mark.line + 1, mark.column + 1)
         if anchor:
             anchors[anchor] = (node, size)
         if not stack:
@@ -257,3 +260,12 @@ def _build(yaml: Any, events: Iterator[Any], file: str, diagnostics: Diagnostics
         parent.items[key.text] = node
         parent.order.append(key.text)
     return root
+
+
+def _too_large(aliased: int, file: str, line: int, column: int) -> ModelError:
+    """The error for a document past `MAX_NODES`, saying whether aliases made it so."""
+    if aliased * 2 > MAX_NODES:
+        return ModelError(f"document too large: its aliases expand it to more than {MAX_NODES} YAML "
+                          "nodes (lists, mappings and scalars)", file, line, column)
+    return ModelError(f"document too large: more than {MAX_NODES} YAML nodes (lists, mappings and "
+                      "scalars); split it into more files", file, line, column)

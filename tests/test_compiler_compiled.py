@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import json
+import os
 import shutil
+import stat
 from pathlib import Path
 
 import pytest
@@ -22,9 +24,10 @@ from compiler.compiled import (
     SendNode,
     dump_compiled,
     load_compiled,
+    write_compiled,
 )
 from compiler.expr import Binary, BuiltinTarget, Call, Const, FeatureTarget, LaneTarget, Ref
-from umlbot.errors import CompiledModelError
+from umlbot.errors import CompiledModelError, ConfigError
 
 ROBOT_CAR = Path(__file__).resolve().parent.parent / "models" / "robot_car"
 
@@ -187,3 +190,24 @@ def test_null_literal_compares_with_an_unwritten_datastore(tmp_path: Path) -> No
     assert isinstance(decision, DecisionNode)
     assert decision.branches[0].guard == Binary(operator="==", left=Ref(lane="Pi", name="speed"),
                                                 right=Const(value=None))
+
+
+def test_write_compiled_replaces_the_file_whole(tmp_path: Path) -> None:
+    model = compile_model(ROBOT_CAR)
+    target = tmp_path / "new" / "car.json"  # its folder is made
+    write_compiled(model, target)
+    assert target.read_bytes() == dump_compiled(model)
+    umask = os.umask(0)
+    os.umask(umask)
+    assert stat.S_IMODE(target.stat().st_mode) == 0o666 & ~umask  # an ordinary file, not 0600
+    target.write_bytes(b"old")
+    write_compiled(model, target)
+    assert load_compiled(target) == model
+    assert sorted(p.name for p in target.parent.iterdir()) == ["car.json"]  # no temporary left
+
+
+def test_write_compiled_names_a_path_it_cannot_write(tmp_path: Path) -> None:
+    (tmp_path / "file").write_text("x", encoding="utf-8")
+    with pytest.raises(ConfigError, match=r"cannot write .*file/car.json: .*file is not a folder"):
+        write_compiled(compile_model(ROBOT_CAR), tmp_path / "file" / "car.json")
+    assert (tmp_path / "file").read_text(encoding="utf-8") == "x"

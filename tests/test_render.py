@@ -9,7 +9,7 @@ import pytest
 from click.testing import CliRunner
 
 from compiler.api import compile_model
-from compiler.render import RenderError, dot_to_svg, render_model, render_texts
+from compiler.render import RenderError, SvgNotDrawn, dot_to_svg, render_model, render_texts
 from umlbot.cli import cli
 
 ROBOT_CAR = Path(__file__).resolve().parent.parent / "models" / "robot_car"
@@ -82,3 +82,26 @@ def test_render_command_one_format(tmp_path: Path) -> None:
     assert result.exit_code == 0, result.output
     assert sorted(p.name for p in out.iterdir()) == [
         "activity-main.mmd", "activity-measure.mmd", "activity-motion.mmd", "components.mmd"]
+
+
+def test_render_without_dot_writes_the_other_formats_and_exits_3(monkeypatch: pytest.MonkeyPatch,
+                                                                tmp_path: Path) -> None:
+    monkeypatch.setenv("PATH", str(tmp_path / "empty"))
+    out = tmp_path / "pictures"
+    result = CliRunner().invoke(cli, ["render", str(ROBOT_CAR), "-o", str(out)])
+    assert result.exit_code == 3, result.output
+    written = sorted(p.name for p in out.iterdir())
+    assert len(written) == 12 and {Path(name).suffix for name in written} == {".dot", ".mmd", ".puml"}
+    assert sorted(Path(line).name for line in result.stdout.splitlines()) == written
+    assert result.stderr.splitlines() == [
+        "error: SVG not drawn: Graphviz's 'dot' program was not found on PATH; install Graphviz "
+        "(Debian: apt-get install graphviz) or render with --format mermaid, plantuml or dot"]
+
+
+def test_render_model_writes_svg_last(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    monkeypatch.setenv("PATH", str(tmp_path / "empty"))
+    with pytest.raises(SvgNotDrawn) as caught:
+        render_model(compile_model(ROBOT_CAR), tmp_path / "d", ("svg", "mermaid"))
+    assert [p.name for p in caught.value.written] == [
+        "activity-main.mmd", "activity-measure.mmd", "activity-motion.mmd", "components.mmd"]
+    assert all(p.is_file() for p in caught.value.written)

@@ -7,6 +7,9 @@ from pathlib import Path
 
 import click
 
+#: exit status when every other format was written but the SVG could not be drawn (no `dot`).
+SVG_NOT_DRAWN = 3
+
 
 @click.command(name="render")
 @click.argument("model", type=click.Path(exists=True, path_type=Path))
@@ -18,9 +21,10 @@ import click
               help="Deployment file to use instead of the model's own.")
 def command(model: Path, out_dir: Path | None, fmt: str,
             deployment: Path | None) -> None:
-    """Draw MODEL's diagrams (SVG needs Graphviz's `dot`)."""
+    """Draw MODEL's diagrams (SVG needs Graphviz's `dot`: without it the other formats are
+    written and the command exits 3)."""
     from compiler.api import check_model
-    from compiler.render import FORMATS, Format, render_model
+    from compiler.render import FORMATS, Format, SvgNotDrawn, render_model
 
     result = check_model(model, deployment)
     for diagnostic in result.diagnostics:
@@ -30,5 +34,12 @@ def command(model: Path, out_dir: Path | None, fmt: str,
         sys.exit(1)
     formats: tuple[Format, ...] = FORMATS if fmt == "all" else (fmt,)  # type: ignore[assignment]
     target = out_dir or Path(f"{result.model.name}-diagrams")
-    for path in render_model(result.model, target, formats):
+    try:
+        written = render_model(result.model, target, formats)
+    except SvgNotDrawn as exc:
+        for path in exc.written:
+            click.echo(str(path))
+        click.echo(f"error: {exc}", err=True)
+        sys.exit(SVG_NOT_DRAWN)
+    for path in written:
         click.echo(str(path))
