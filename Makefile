@@ -1,4 +1,6 @@
 # Two commands on a fresh machine with Python 3.11+: `make sim` and `make test`.
+# `make test` first installs the Debian packages the tests start (scripts/system-packages.sh);
+# `make sim` needs none of them.
 PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
@@ -7,7 +9,7 @@ TRACK  ?= models/tracks/s_bend.yaml
 SPEED  ?= 10
 OUT    ?= out
 
-.PHONY: all install test lint typecheck pytest sim bench clean
+.PHONY: all install system-packages test lint typecheck pytest sim bench clean
 
 all: test
 
@@ -20,16 +22,19 @@ $(STAMP): pyproject.toml
 
 install: $(STAMP)
 
+system-packages:
+	@scripts/system-packages.sh
+
 lint: $(STAMP)
 	$(BIN)/ruff check .
 
 typecheck: $(STAMP)
 	$(BIN)/mypy umlbot compiler services tests bench
 
-pytest: $(STAMP)
+pytest: system-packages $(STAMP)
 	$(BIN)/pytest
 
-test: lint typecheck pytest
+test: system-packages lint typecheck pytest
 
 sim: $(STAMP)
 	@mkdir -p $(OUT)

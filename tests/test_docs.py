@@ -926,9 +926,13 @@ OTHER_PROGRAMS_OPTIONS = {
 
 @cache
 def options_of_scripts() -> dict[str, frozenset[str]]:
-    """The options of the project's scripts (deploy/install.sh, deploy/*.py, bench/*.py) by path."""
-    install = (ROOT / "deploy" / "install.sh").read_text(encoding="utf-8")
-    found = {"deploy/install.sh": frozenset(re.findall(r"^\s*(?:-h\|)?(--[\w-]+)\)", install, re.M))}
+    """The options of the project's scripts (deploy/install.sh, scripts/*.sh, deploy/*.py, bench/*.py)
+    by path."""
+    found: dict[str, frozenset[str]] = {}
+    for shell in [ROOT / "deploy" / "install.sh", *(ROOT / "scripts").glob("*.sh")]:
+        text = shell.read_text(encoding="utf-8")
+        found[str(shell.relative_to(ROOT))] = frozenset(
+            re.findall(r"^\s*(?:-h\|)?(--[\w-]+)\)", text, re.M))
     for script in [*(ROOT / "deploy").glob("*.py"), *(ROOT / "bench").glob("*.py")]:
         options = re.findall(r'add_argument\(\s*"(--[\w-]+)"', script.read_text(encoding="utf-8"))
         found[str(script.relative_to(ROOT))] = frozenset({*options, "-h", "--help"})
