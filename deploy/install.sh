@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Install umlbot on a robot: a virtual environment under /opt, the compiled model and the
-# deployment, /etc/umlbot/umlbot.env, the unprivileged `umlbot` user and the systemd units,
-# enabled so the car drives on boot. Run as root on the Raspberry Pi:
+# deployment, /etc/umlbot/umlbot.env, the unprivileged `umlbot` user, the systemd units, enabled so
+# the car drives on boot, and Mosquitto's conf.d/umlbot-nodelay.conf (set_tcp_nodelay true).
+# Run as root on the Raspberry Pi:
 #
 #   sudo deploy/install.sh --model out/robot_car.json --deployment models/robot_car/deployment.yaml
 #
@@ -145,7 +146,10 @@ for f in "$SOURCE"/deploy/amqtt/*; do
 done
 if [ -f "$SOURCE/deploy/broker_auth.py" ]; then install -m 0755 "$SOURCE/deploy/broker_auth.py" "$DEST/share/broker_auth.py"; fi
 
-# 5. Broker users and ACLs (--secure): per-role env files with each role's own MQTT user.
+# 5. Mosquitto, always: send small packets at once (see umlbot-nodelay.conf). Then broker users
+#    and ACLs (--secure): per-role env files with each role's own MQTT user.
+install -d -m 0755 "$ROOT/etc/mosquitto/conf.d"
+install -m 0644 "$SOURCE/deploy/mosquitto/umlbot-nodelay.conf" "$ROOT/etc/mosquitto/conf.d/umlbot-nodelay.conf"
 BROKER_ARGS="--bind 127.0.0.1 --port 1883"
 if [ "$SECURE" -eq 1 ]; then
     AUTH="$ETC/auth"
@@ -161,7 +165,6 @@ if [ "$SECURE" -eq 1 ]; then
     for role in motor sonar servo gpio orchestrator; do
         install -m 0640 "$AUTH/$role.env" "$ETC/$role.env"
     done
-    install -d -m 0755 "$ROOT/etc/mosquitto/conf.d"
     sed "s#^listener 1883 127.0.0.1#listener $port 127.0.0.1#" "$SOURCE/deploy/mosquitto/umlbot.conf" \
         >"$ROOT/etc/mosquitto/conf.d/umlbot.conf"
     install -m 0644 "$AUTH/mosquitto.acl" "$ROOT/etc/mosquitto/umlbot.acl"

@@ -7,9 +7,11 @@ import shutil
 import stat
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
+from conftest import find_mosquitto, free_port, port_accepts
 
 REPO = Path(__file__).resolve().parent.parent
 INSTALL = REPO / "deploy" / "install.sh"
@@ -180,3 +182,44 @@ def test_secure_needs_a_deployment_and_no_password_in_the_url(tmp_path: Path) ->
     result = run_install("--root", str(tmp_path / "r2"), "--no-venv", "--secure", "--deployment",
                          str(deployment), "--broker", "mqtt://me:secret@host:1883")
     assert result.returncode != 0 and "without user:password" in result.stderr
+
+
+def test_mosquitto_gets_tcp_nodelay_without_secure(tmp_path: Path, robot_files: tuple[Path, Path]) -> None:
+    model, deployment = robot_files
+    root = tmp_path / "root"
+    result = run_install("--root", str(root), "--no-venv", "--model", str(model), "--deployment",
+                         str(deployment))
+    assert result.returncode == 0, result.stderr
+    conf_d = root / "etc" / "mosquitto" / "conf.d"
+    assert sorted(p.name for p in conf_d.iterdir()) == ["umlbot-nodelay.conf"]  # no users, no ACL
+    settings = [line for line in (conf_d / "umlbot-nodelay.conf").read_text(encoding="utf-8").splitlines()
+                if line and not line.startswith("#")]
+    assert settings == ["set_tcp_nodelay true"]
+    # Mosquitto takes the file as it is (it refuses a setting it does not know).
+    binary = find_mosquitto()
+    assert binary, "the mosquitto binary is required"
+    port = free_port()
+    main_conf = tmp_path / "mosquitto.conf"
+    main_conf.write_text(f"include_dir {conf_d}\nlistener {port} 127.0.0.1\nallow_anonymous true\n"
+                         "persistence false\n", encoding="utf-8")
+    broker = subprocess.Popen([binary, "-c", str(main_conf), "-v"], stdout=subprocess.PIPE,
+                              stderr=subprocess.STDOUT, text=True)
+    try:
+        deadline = time.monotonic() + 10
+        while not port_accepts(port):
+            assert broker.poll() is None, broker.communicate()[0]
+            assert time.monotonic() < deadline, "mosquitto did not start"
+            time.sleep(0.05)
+    finally:
+        broker.terminate()
+        log = broker.communicate(timeout=10)[0]
+    assert "umlbot-nodelay.conf" in log
+
+
+def test_secure_adds_users_beside_tcp_nodelay(tmp_path: Path) -> None:
+    root = tmp_path / "root"
+    result = run_install("--root", str(root), "--no-venv", "--python", sys.executable, "--deployment",
+                         str(REPO / "models" / "robot_car" / "deployment.yaml"), "--secure")
+    assert result.returncode == 0, result.stderr
+    conf_d = root / "etc" / "mosquitto" / "conf.d"
+    assert sorted(p.name for p in conf_d.iterdir()) == ["umlbot-nodelay.conf", "umlbot.conf"]
