@@ -234,7 +234,7 @@ def _build(yaml: Any, events: Iterator[Any], file: str, diagnostics: Diagnostics
         else:
             continue
         if total > MAX_NODES:
-            raise _too_large(aliased, file, mark.line + 1, mark.column + 1)
+            raise _too_large(total, aliased, file, mark.line + 1, mark.column + 1)
         if anchor:
             anchors[anchor] = (node, size)
         if not stack:
@@ -262,9 +262,10 @@ def _build(yaml: Any, events: Iterator[Any], file: str, diagnostics: Diagnostics
     return root
 
 
-def _too_large(aliased: int, file: str, line: int, column: int) -> ModelError:
-    """The error for a document past `MAX_NODES`, saying whether aliases made it so."""
-    if aliased * 2 > MAX_NODES:
+def _too_large(total: int, aliased: int, file: str, line: int, column: int) -> ModelError:
+    """The error for a document past `MAX_NODES`, saying whether aliases made it so (most of its
+    `total` nodes are `aliased` ones)."""
+    if aliased * 2 > total:
         return ModelError(f"document too large: its aliases expand it to more than {MAX_NODES} YAML "
                           "nodes (lists, mappings and scalars)", file, line, column)
     return ModelError(f"document too large: more than {MAX_NODES} YAML nodes (lists, mappings and "
