@@ -110,11 +110,13 @@ def test_dropped_events_leave_a_gap_in_seq() -> None:
 
 
 @pytest.mark.parametrize("value", [float("nan"), float("inf"), object()])
-def test_a_value_that_is_not_strict_json_goes_as_text(value: Any) -> None:
+@pytest.mark.parametrize("with_file", [False, True])
+def test_a_value_that_is_not_strict_json_goes_as_text(value: Any, with_file: bool, tmp_path: Path) -> None:
     sink = Sink()
+    trace_file = tmp_path / "t.jsonl" if with_file else None
 
     async def run() -> None:
-        recorder = TraceRecorder(sink)
+        recorder = TraceRecorder(sink, trace_file)
         recorder.record(rec(1, value))
         recorder.record(rec(2, [1, 2]))
         recorder.close()
@@ -122,6 +124,9 @@ def test_a_value_that_is_not_strict_json_goes_as_text(value: Any) -> None:
     asyncio.run(run())
     [(_, batch)] = sink.messages
     assert batch[0]["value"] == repr(value) and batch[1]["value"] == [1, 2]
+    if trace_file is not None:
+        assert [strict(line.encode())["value"] for line in trace_file.read_text().splitlines()] == [
+            repr(value), [1, 2]]
 
 
 def test_a_failing_publish_does_not_stop_the_file(tmp_path: Path) -> None:

@@ -71,15 +71,31 @@ def event_dict(record: TraceRecord, seq: int | None = None) -> dict[str, Any]:
     return event
 
 
-def encode_event(record: TraceRecord, seq: int) -> tuple[dict[str, Any], str]:
-    """The event's dict and its compact JSON; a value that is not strict JSON goes as its repr."""
-    event = event_dict(record, seq)
+def _repair(events: list[dict[str, Any]]) -> None:
+    """Replace every value that is not strict JSON (NaN, an object) by its repr."""
+    for event in events:
+        if "value" in event:
+            try:
+                _ENCODER.encode(event["value"])
+            except (TypeError, ValueError) as exc:
+                log.debug("trace value not JSON", node=event["node"], error=str(exc))
+                event["value"] = repr(event["value"])
+
+
+def encode_events(events: list[dict[str, Any]], lines: bool) -> tuple[str, list[str]]:
+    """(the JSON array of `events`, each event's JSON when `lines`); values repaired if need be."""
     try:
-        return event, _ENCODER.encode(event)
-    except (TypeError, ValueError) as exc:
-        log.debug("trace value not JSON", error=str(exc))
-        event["value"] = repr(event["value"])
-        return event, _ENCODER.encode(event)
+        return _encode(events, lines)
+    except (TypeError, ValueError):
+        _repair(events)
+        return _encode(events, lines)
+
+
+def _encode(events: list[dict[str, Any]], lines: bool) -> tuple[str, list[str]]:
+    if not lines:  # one call of the C encoder for the whole batch: half the cost
+        return _ENCODER.encode(events), []
+    texts = [_ENCODER.encode(event) for event in events]
+    return "[" + ",".join(texts) + "]", texts
 
 
 class TraceRecorder:
@@ -178,24 +194,19 @@ class TraceRecorder:
         count = min(limit, len(pending))
         if not count:
             return
-        seq = self.recorded - len(pending)  # the seq of the first pending event, minus one
-        events: list[dict[str, Any]] = []
-        texts: list[str] = []
+        first = self.recorded - len(pending) + 1  # the seq of the oldest pending event
         popleft = pending.popleft
-        for _ in range(count):
-            seq += 1
-            event, text = encode_event(popleft(), seq)
-            events.append(event)
-            texts.append(text)
+        events = [event_dict(popleft(), seq) for seq in range(first, first + count)]
+        array, lines = encode_events(events, lines=self._file is not None)
         if self._publish is not None:
             try:
-                self._publish(("[" + ",".join(texts) + "]").encode("utf-8"))
+                self._publish(array.encode("utf-8"))
                 self.messages += 1
             except Exception as exc:  # tracing must never take the orchestrator down
                 log.warning("trace events not published", events=count, error=str(exc))
         try:
             if self._file is not None:
-                self._file.write("\n".join(texts) + "\n")
+                self._file.write("\n".join(lines) + "\n")
             if self._listener is not None:
                 for event in events:
                     self._listener(event)
