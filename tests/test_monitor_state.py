@@ -184,8 +184,8 @@ def test_a_malformed_replay_line_is_a_config_error(tmp_path: Path, line: str) ->
 def test_wire_values_are_shown_as_text_never_as_rich_markup() -> None:
     state = MonitorState()
     reply_to = "umlbot/car/_reply/orch-1"
-    state.observe("umlbot/car/LeftActuator/call/enabled", j({"id": "1", "reply_to": reply_to, "args": [True]}),
-                  1.0)
+    request = {"id": "1", "reply_to": reply_to, "args": [True]}
+    state.observe("umlbot/car/LeftActuator/call/enabled", j(request), 1.0)
     state.observe(reply_to, j({"id": "1", "ok": True, "value": "[bold]done[/bold]"}), 1.005)
     state.observe("umlbot/car/LeftActuator/status", j({"state": "online", "impl": "[red]l298n"}), 1.0)
     state.observe_trace(trace("[b]Main", "[i]n", "action", 1.0, 1.0, detail="Sensor.angle([90])"), "car")
