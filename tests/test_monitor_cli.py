@@ -208,8 +208,8 @@ def test_malformed_messages_are_counted_never_a_traceback(
         raw.publish(f"{base}/orchestrator/trace", json.dumps(good[:2]))  # the batched form
         raw.publish(f"{base}/orchestrator/trace", json.dumps(good[2]))  # the single-event form
         # none of the malformed trace payloads made an event; the good ones after them all did
-        seen = [mon.wait_line(lambda e: e["type"] == "trace")["node"] for _ in range(3)]
-        assert seen == ["n1", "n2", "n3"]
+        seen = [mon.wait_line(lambda e: e["type"] == "trace") for _ in range(3)]
+        assert [(e["node"], e["seq"]) for e in seen] == [("n1", 1), ("n2", 2), ("n3", 3)]
         assert mon.stop() == 0
         raw.publish(f"{base}/Probe/status", b"", retain=True)
         raw.publish(f"{base}/M/status", b"", retain=True)

@@ -9,6 +9,7 @@ from __future__ import annotations
 import asyncio
 import itertools
 import json
+import re
 from pathlib import Path
 from typing import Any
 
@@ -140,3 +141,17 @@ def test_a_failing_publish_does_not_stop_the_file(tmp_path: Path) -> None:
 
     asyncio.run(run())
     assert json.loads((tmp_path / "t.jsonl").read_text(encoding="utf-8"))["seq"] == 1
+
+
+def test_the_trace_section_of_mqtt_md_matches_the_wire_format() -> None:
+    text = (Path(__file__).parents[1] / "docs" / "mqtt.md").read_text(encoding="utf-8")
+    section = text.split("\n## The trace\n", 1)[1].split("\n## ", 1)[0]
+    example = json.loads(section.split("```json\n", 1)[1].split("```", 1)[0])
+    assert isinstance(example, list) and len(example) >= 2
+    for item in example:
+        assert set(item) <= set(TraceEvent.model_fields)
+        TraceEvent.model_validate(item)
+    assert [e["seq"] for e in example] == sorted(e["seq"] for e in example)
+    rows = [line for line in section.splitlines() if line.startswith("| `")]
+    documented = [name for row in rows for name in re.findall(r"`(\w+)`", row.split("|")[1])]
+    assert documented == list(TraceEvent.model_fields)

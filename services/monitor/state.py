@@ -65,6 +65,7 @@ class MonitorEvent(BaseModel):
     duration_ms: float | None = None
     level: str | None = None
     detail: str | None = None
+    seq: int | None = None  # a trace event's number in its orchestrator run
     payload: Any = None
 
     def line(self) -> str:
@@ -223,7 +224,7 @@ class MonitorState:
         return MonitorEvent(
             type="trace", time=trace.end, robot=robot, topic=topic, lane=trace.lane, node=trace.node,
             kind=trace.kind, duration_ms=trace.duration_ms, value=trace.value, error=trace.error,
-            level=trace.level, detail=trace.detail,
+            level=trace.level, detail=trace.detail, seq=trace.seq,
         )
 
     def expire(self, now: float) -> list[MonitorEvent]:
