@@ -164,6 +164,7 @@ def test_trace_on_mqtt_and_in_a_file(
 ) -> None:
     raw = raw_client(broker)
     raw.subscribe("umlbot/test/orchestrator/trace")
+    raw.subscribe("umlbot/test/orchestrator/status")
     trace_file = tmp_path / "trace.jsonl"
     with rig(broker.url, "fork.yaml") as r:
         code, _ = r.run(trace_file=trace_file)
@@ -175,8 +176,13 @@ def test_trace_on_mqtt_and_in_a_file(
     assert [e.seq for e in from_file] == list(range(1, 9))
     received: list[TraceEvent] = []
     messages = 0
-    while len(received) < len(from_file):  # batches: JSON arrays of events in recording order
-        batch = json.loads(raw.get(topic="umlbot/test/orchestrator/trace").payload)
+    while True:  # batches: JSON arrays of events in recording order, all before the final status
+        message = raw.get(topic="umlbot/test/orchestrator/+")
+        if message.topic.endswith("/status"):
+            if OrchestratorStatus.model_validate_json(message.payload).state == "stopped":
+                break
+            continue
+        batch = json.loads(message.payload)
         assert isinstance(batch, list) and batch
         received += [TraceEvent.model_validate(item) for item in batch]
         messages += 1
