@@ -8,7 +8,8 @@ service runs as its own process (`umlbot service motor --driver mock`, as on the
     rotating blocks so that machine load hits every variant alike: `raw_p50_ms`/`raw_p99_ms`,
     `action_p50_ms`/`action_p99_ms` (`--no-trace`: the same MQTT traffic as the raw requester)
     and their ratios; `action_traced_…` and `ratio_traced_…` with the trace published (three
-    more broker messages per loop iteration);
+    events per loop iteration, batched into one JSON-array message per 20 ms window:
+    `trace_events_per_message`);
 (b) throughput: a loop over a fork of `--window` actions (half on each motor) then a join, untraced
     (`fork_actions_per_s`, completed actions per second) against the raw requester keeping the
     same number of requests in flight (`raw_publish_per_s`, completed request/replies per second);
@@ -17,8 +18,9 @@ service runs as its own process (`umlbot service motor --driver mock`, as on the
     on the broker (events beyond its queue are dropped and counted, never waited for).
 
 The last output line is one JSON object: {"results": [{"broker", "raw_p50_ms", "raw_p99_ms",
-"action_p50_ms", "action_p99_ms", "ratio_p50", "ratio_p99", "fork_actions_per_s",
-"raw_publish_per_s", "node_steps_per_s", …}, …]}.
+"action_p50_ms", "action_p99_ms", "ratio_p50", "ratio_p99", "action_traced_p50_ms",
+"action_traced_p99_ms", "ratio_traced_p50", "ratio_traced_p99", "trace_events_per_message",
+"fork_actions_per_s", "raw_publish_per_s", "node_steps_per_s", …}, …]}.
 
     python bench/orchestrator.py [--n 2000] [--blocks 12] [--window 8] [--brokers amqtt,mosquitto]
 """
@@ -312,15 +314,19 @@ def measure(kind: str, n: int, blocks: int, window: int, steps: int) -> dict[str
             raw_samples: list[float] = []
             action_samples: list[float] = []
             traced_samples: list[float] = []
+            trace_events = trace_messages = 0
             variants = ["raw", "model", "traced"]
             for block in range(blocks):
                 for variant in variants[block % 3:] + variants[:block % 3]:
                     if variant == "raw":
                         raw_samples.extend(raw.round_trip() for _ in range(per_block))
                     else:
-                        stats = run_model(url, loop_model, trace=variant == "traced").stats
+                        orchestrator = run_model(url, loop_model, trace=variant == "traced")
                         (traced_samples if variant == "traced" else action_samples).extend(
-                            stats.action_latency_s)
+                            orchestrator.stats.action_latency_s)
+                        if orchestrator.recorder is not None:
+                            trace_events += orchestrator.recorder.shipped
+                            trace_messages += orchestrator.recorder.messages
             iterations = max(1, n // window)
             raw_rates: list[float] = []
             fork_rates: list[float] = []
@@ -344,6 +350,7 @@ def measure(kind: str, n: int, blocks: int, window: int, steps: int) -> dict[str
         "action_p99_ms": round(percentile(action_samples, 99) * 1000, 4),
         "action_traced_p50_ms": round(percentile(traced_samples, 50) * 1000, 4),
         "action_traced_p99_ms": round(percentile(traced_samples, 99) * 1000, 4),
+        "trace_events_per_message": round(trace_events / max(1, trace_messages), 1),
         "fork_window": window,
         "fork_actions_per_s": round(max(fork_rates)),
         "raw_publish_per_s": round(max(raw_rates)),
@@ -380,7 +387,8 @@ def main() -> None:
             f"{kind:10s} raw p50 {result['raw_p50_ms']:.3f} p99 {result['raw_p99_ms']:.3f} ms | "
             f"action p50 {result['action_p50_ms']:.3f} p99 {result['action_p99_ms']:.3f} ms | "
             f"ratio p50 {result['ratio_p50']:.2f} p99 {result['ratio_p99']:.2f} "
-            f"(traced {result['ratio_traced_p50']:.2f}/{result['ratio_traced_p99']:.2f}) | "
+            f"(traced {result['ratio_traced_p50']:.2f}/{result['ratio_traced_p99']:.2f}, "
+            f"{result['trace_events_per_message']} events/message) | "
             f"fork {result['fork_actions_per_s']}/s vs raw {result['raw_publish_per_s']}/s | "
             f"nodes {result['node_steps_per_s']}/s (traced {result['node_steps_traced_per_s']}/s)",
             flush=True,

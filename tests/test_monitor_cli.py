@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import time
 from pathlib import Path
@@ -171,9 +172,47 @@ def test_live_view_renders(mosquitto_broker: BrokerProcess, raw_client: Any, tmp
                            robot_arg: list[str]) -> None:
     raw = raw_client(mosquitto_broker)
     raw.publish(f"umlbot/{ROBOT}/Sensor/status", '{"state":"online","impl":"servo"}', retain=True)
-    result = subprocess.run(
-        umlbot_argv("monitor", "--broker", mosquitto_broker.url, "--duration", "1.5", *robot_arg),
-        capture_output=True, text=True, timeout=60, check=False,
+    view = subprocess.Popen(
+        umlbot_argv("monitor", "--broker", mosquitto_broker.url, "--duration", "2", *robot_arg),
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env={**os.environ, "COLUMNS": "200"},
     )
-    assert result.returncode == 0, result.stderr
-    assert "Components" in result.stdout and "Sensor" in result.stdout and "online" in result.stdout
+    deadline = time.monotonic() + 30
+    while view.poll() is None and time.monotonic() < deadline:  # until the view has seen some
+        raw.publish(f"umlbot/{ROBOT}/LeftActuator/call/enabled", "true")  # fire-and-forget
+        time.sleep(0.2)
+    stdout, stderr = view.communicate(timeout=30)
+    assert view.returncode == 0, stderr
+    assert "Components" in stdout and "Sensor" in stdout and "online" in stdout
+    # rich must not read the arguments [true] as markup
+    assert any("LeftActuator.enabled" in line and "[true]" in line for line in stdout.splitlines())
+
+
+def test_malformed_messages_are_counted_never_a_traceback(
+    broker: BrokerProcess, raw_client: Any, tmp_path: Path
+) -> None:
+    raw = raw_client(broker)
+    base = f"umlbot/{ROBOT}"
+    with processes() as made:
+        mon = monitor(tmp_path, broker)
+        made.append(mon)
+        wait_subscribed(raw, mon)
+        bad_payloads = [b"[" * 5000, b"\xff\xfe{", b'{"lane": NaN, "state": NaN}',
+                        b'{"state": [1], "impl": 7, "reason": {}, "ok": "yes"}', b"[1, {}, null]"]
+        for topic in ("M/status", "M/state", "signal/go", "orchestrator/status", "orchestrator/trace",
+                      "orchestrator/exit", "_reply/x", "M/call/enabled"):
+            for payload in bad_payloads:
+                raw.publish(f"{base}/{topic}", payload)
+        good = [{"lane": "Main", "node": f"n{i}", "kind": "action", "start": 1.0, "end": 1.01,
+                 "duration_ms": 10.0, "level": "info", "detail": "M.enabled(true)", "seq": i}
+                for i in (1, 2, 3)]
+        raw.publish(f"{base}/orchestrator/trace", json.dumps(good[:2]))  # the batched form
+        raw.publish(f"{base}/orchestrator/trace", json.dumps(good[2]))  # the single-event form
+        # none of the malformed trace payloads made an event; the good ones after them all did
+        seen = [mon.wait_line(lambda e: e["type"] == "trace") for _ in range(3)]
+        assert [(e["node"], e["seq"]) for e in seen] == [("n1", 1), ("n2", 2), ("n3", 3)]
+        assert mon.stop() == 0
+        raw.publish(f"{base}/Probe/status", b"", retain=True)
+        raw.publish(f"{base}/M/status", b"", retain=True)
+    log = mon.log_text()
+    assert "Traceback" not in log and "bus_handler_failed" not in log
+    assert log.count("malformed message skipped") == 1, log[-3000:]

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import io
 import json
+import logging
 import math
 from pathlib import Path
 
@@ -145,3 +146,81 @@ def test_datastores_count_only_when_set_from_a_call() -> None:
     state.observe_trace(trace("Main", "k", "datastore", 1.0, 0.0, detail="speed_percent = 70"), "car")
     assert ("car", "Measure", "c") in state.actions
     assert ("car", "Main", "k") not in state.actions
+
+
+def test_a_trace_message_may_be_one_event_or_an_array_of_them() -> None:
+    state = MonitorState()
+    one = trace("Main", "a", "action", 1.0, 2.0, seq=1).model_dump()
+    batch = [trace("Main", f"b{i}", "action", 2.0 + i, 2.0, seq=2 + i).model_dump() for i in range(3)]
+    [single] = state.observe("umlbot/car/orchestrator/trace", j(one), 5.0)
+    events = state.observe("umlbot/car/orchestrator/trace", j(batch), 5.0)
+    assert single.node == "a" and [e.node for e in events] == ["b0", "b1", "b2"]
+    assert state.actions[("car", "Main", "b2")].count == 1
+    # a bad item in a batch is skipped and counted; its neighbours still count
+    mixed = [batch[0], {"lane": 1}, 5, batch[1]]
+    assert [e.node for e in state.observe("umlbot/car/orchestrator/trace", j(mixed), 6.0)] == ["b0", "b1"]
+    assert state.malformed == 2 and state.messages == 3
+
+
+def test_replay_accepts_lines_with_arrays_and_old_lines_without_seq(tmp_path: Path) -> None:
+    path = tmp_path / "trace.jsonl"
+    old = trace("L", "n0", "action", 1.0, 1.0)  # recorded before seq existed
+    batch = [trace("L", f"n{i}", "action", 1.0 + i, 1.0, seq=i) for i in (1, 2)]
+    path.write_text(old.model_dump_json(exclude_none=True) + "\n"
+                    + json.dumps([e.model_dump() for e in batch]) + "\n", encoding="utf-8")
+    events = list(read_trace(path))
+    assert [(e.node, e.seq) for e in events] == [("n0", None), ("n1", 1), ("n2", 2)]
+
+
+@pytest.mark.parametrize("line", ["[" * 5000, '{"lane": "L"', "\udcff"])
+def test_a_malformed_replay_line_is_a_config_error(tmp_path: Path, line: str) -> None:
+    path = tmp_path / "trace.jsonl"
+    path.write_bytes(trace("L", "n", "action", 1.0, 1.0).model_dump_json().encode() + b"\n"
+                     + line.encode("utf-8", errors="surrogateescape") + b"\n")
+    with pytest.raises(ConfigError, match=r"trace.jsonl:2: not a trace event"):
+        list(read_trace(path))
+
+
+def test_wire_values_are_shown_as_text_never_as_rich_markup() -> None:
+    state = MonitorState()
+    reply_to = "umlbot/car/_reply/orch-1"
+    request = {"id": "1", "reply_to": reply_to, "args": [True]}
+    state.observe("umlbot/car/LeftActuator/call/enabled", j(request), 1.0)
+    state.observe(reply_to, j({"id": "1", "ok": True, "value": "[bold]done[/bold]"}), 1.005)
+    state.observe("umlbot/car/LeftActuator/status", j({"state": "online", "impl": "[red]l298n"}), 1.0)
+    state.observe_trace(trace("[b]Main", "[i]n", "action", 1.0, 1.0, detail="Sensor.angle([90])"), "car")
+    console = Console(record=True, width=200, file=io.StringIO())
+    console.print(render(state, now=2.0))
+    screen = console.export_text()
+    row = next(line for line in screen.splitlines() if "LeftActuator.enabled" in line)
+    assert "[true]" in row and "[bold]done[/bold]" in row
+    for text in ("[red]l298n", "[b]Main", "[i]n", "Sensor.angle([90])"):
+        assert text in screen
+
+
+MALFORMED: list[tuple[str, bytes]] = [
+    (topic, payload)
+    for topic in ("umlbot/car/M/status", "umlbot/car/M/state", "umlbot/car/signal/go",
+                  "umlbot/car/orchestrator/status", "umlbot/car/orchestrator/trace",
+                  "umlbot/car/orchestrator/exit", "umlbot/car/_reply/x")
+    for payload in (b"[" * 5000, b"\xff\xfe{", b'{"lane": NaN}', b'{"state": [1], "impl": 7, "reason": {}}',
+                    b"[" * 150 + b"1" + b"]" * 150)
+] + [("umlbot/car/M/call/enabled", b"[" * 5000), ("umlbot/car/M/call/enabled", b'{"id": [], "reply_to": 5}')]
+
+
+def test_malformed_wire_input_is_counted_never_raised(caplog: pytest.LogCaptureFixture,
+                                                     capsys: pytest.CaptureFixture[str]) -> None:
+    caplog.set_level(logging.DEBUG)
+    state = MonitorState()
+    for topic, payload in MALFORMED:
+        for event in state.observe(topic, payload, 1.0):
+            event.line()  # every event can still be printed
+    console = Console(record=True, width=160, file=io.StringIO())
+    console.print(render(state, now=2.0))
+    assert state.malformed >= 10
+    assert f"{state.malformed} malformed skipped" in console.export_text()
+    # the log goes through stdlib logging once configured (caplog), else structlog prints it
+    printed = capsys.readouterr()
+    logged = printed.out + printed.err + "\n".join(str(r.msg) for r in caplog.records)
+    assert logged.count("malformed message skipped") == 1
+    assert "Traceback" not in logged and not any(r.exc_info for r in caplog.records)

@@ -164,18 +164,31 @@ def test_trace_on_mqtt_and_in_a_file(
 ) -> None:
     raw = raw_client(broker)
     raw.subscribe("umlbot/test/orchestrator/trace")
+    raw.subscribe("umlbot/test/orchestrator/status")
     trace_file = tmp_path / "trace.jsonl"
     with rig(broker.url, "fork.yaml") as r:
         code, _ = r.run(trace_file=trace_file)
         assert code == 0
     lines = [json.loads(line) for line in trace_file.read_text(encoding="utf-8").splitlines()]
-    from_file = [TraceEvent.model_validate(line) for line in lines]
+    from_file = [TraceEvent.model_validate(line) for line in lines]  # one event a line
     assert [e.node for e in from_file] == r.nodes()
     assert len(from_file) == 8  # start, before, fork, left, right, join, after, end
-    received = []
-    for _ in from_file:
-        received.append(TraceEvent.model_validate_json(raw.get(topic="umlbot/test/orchestrator/trace").payload))
-    assert sorted(e.node for e in received) == sorted(e.node for e in from_file)
+    assert [e.seq for e in from_file] == list(range(1, 9))
+    received: list[TraceEvent] = []
+    messages = 0
+    while True:  # batches: JSON arrays of events in recording order, all before the final status
+        message = raw.get(topic="umlbot/test/orchestrator/+")
+        if message.topic.endswith("/status"):
+            if OrchestratorStatus.model_validate_json(message.payload).state == "stopped":
+                break
+            continue
+        batch = json.loads(message.payload)
+        assert isinstance(batch, list) and batch
+        received += [TraceEvent.model_validate(item) for item in batch]
+        messages += 1
+    assert received == from_file
+    # the 100 ms action splits the run into two 20 ms windows at least, never one message per event
+    assert 2 <= messages < len(from_file)
     left = next(e for e in from_file if e.node == "left")
     assert (left.lane, left.kind, left.detail) == ("RaspberryPI", "action", "LeftActuator.dutycycle(10)")
     assert left.end >= left.start and left.duration_ms >= 95

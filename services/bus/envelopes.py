@@ -98,7 +98,11 @@ class Status(BaseModel):
 
 
 class TraceEvent(BaseModel):
-    """One executed activity node, published on `…/orchestrator/trace`."""
+    """One executed activity node, published on `…/orchestrator/trace` (alone or in a JSON array).
+
+    `seq` numbers the events of one orchestrator run 1, 2, 3 … in recording order; a gap means
+    events were dropped. Files recorded before it existed have no `seq`.
+    """
 
     lane: str
     node: str
@@ -110,6 +114,7 @@ class TraceEvent(BaseModel):
     error: str | None = None
     level: Literal["info", "warning", "error"] = "info"
     detail: str | None = None
+    seq: int | None = None
 
 
 class OrchestratorStatus(BaseModel):

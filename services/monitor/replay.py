@@ -1,16 +1,18 @@
-"""Reading a recorded trace (`umlbot run --trace FILE`: JSON lines of `TraceEvent`) for replay."""
+"""Reading a recorded trace for replay: JSON lines, each one `TraceEvent` object (what
+`umlbot run --trace FILE` writes) or a JSON array of them (a copy of the trace topic's messages)."""
 
 from __future__ import annotations
 
-import json
+import math
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
 from pydantic import ValidationError
+from pydantic_core import from_json
 
 from services.bus.envelopes import TraceEvent
-from services.monitor.state import MonitorEvent, MonitorState
+from services.monitor.state import MonitorEvent, MonitorState, first_problem, trace_items
 from umlbot.errors import ConfigError
 
 
@@ -26,17 +28,10 @@ def read_trace(path: str | Path) -> Iterator[TraceEvent]:
             if not line.strip():
                 continue
             try:
-                yield TraceEvent.model_validate(json.loads(line))
+                events = [TraceEvent.model_validate(item) for item in trace_items(from_json(line))]
             except (ValueError, ValidationError) as exc:
-                raise ConfigError(f"{file}:{lineno}: not a trace event: {_first_problem(exc)}") from exc
-
-
-def _first_problem(exc: ValueError | ValidationError) -> str:
-    if not isinstance(exc, ValidationError):
-        return str(exc)
-    first = exc.errors()[0]
-    where = ".".join(str(p) for p in first["loc"])
-    return f"{where}: {first['msg']}" if where else str(first["msg"])
+                raise ConfigError(f"{file}:{lineno}: not a trace event: {first_problem(exc)}") from exc
+            yield from events
 
 
 def replay(
@@ -54,9 +49,14 @@ def replay(
     played = 0
     previous_end: float | None = None
     for trace in read_trace(path):
-        if speed > 0 and previous_end is not None and trace.end > previous_end:
-            sleep((trace.end - previous_end) / speed)
-        previous_end = trace.end if previous_end is None else max(previous_end, trace.end)
+        if not math.isfinite(trace.end):  # nothing to pace by
+            pass
+        elif previous_end is None:
+            previous_end = trace.end
+        elif trace.end > previous_end:
+            if speed > 0:
+                sleep((trace.end - previous_end) / speed)
+            previous_end = trace.end
         emit(state.observe_trace(trace, robot))
         played += 1
     return played

@@ -5,19 +5,26 @@ more `MonitorEvent`s and updates the picture the live view draws: availability p
 the last calls with their latency (a request on `…/call/<feature>` paired by `reply_to` and `id`
 with its reply), the node each lane executes, and per-action counts with p50/p99 durations.
 Nothing here touches the network; the same state is fed live from the bus or from a trace file.
+
+Wire input is untrusted: a payload that is not JSON where JSON is needed, nested deeper than
+`pydantic_core.from_json` allows (about 200 levels), not UTF-8 or of the wrong shape is skipped and
+counted in `malformed`; the first one logs one warning, the rest are only counted.
 """
 
 from __future__ import annotations
 
-import json
 import math
 from collections import Counter, deque
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, ValidationError
+from pydantic_core import from_json
 
-from services.bus.envelopes import ENVELOPE_KEYS, CallRequest, Reply, TraceEvent
+from services.bus.envelopes import ENVELOPE_KEYS, CallRequest, Reply, TraceEvent, dumps
+from umlbot.logs import get_logger
+
+log = get_logger(__name__)
 
 EventType = Literal["availability", "call", "state", "signal", "trace", "orchestrator", "exit"]
 
@@ -29,6 +36,8 @@ DEFAULT_CALL_TIMEOUT_S = 5.0
 #: samples kept per action or feature for the percentiles.
 SAMPLE_WINDOW = 2000
 MAX_PENDING_CALLS = 10_000
+#: how `pydantic_core.from_json` says that JSON is nested too deeply (then it is malformed, not text).
+TOO_DEEP = "recursion limit exceeded"
 
 
 class MonitorEvent(BaseModel):
@@ -56,6 +65,7 @@ class MonitorEvent(BaseModel):
     duration_ms: float | None = None
     level: str | None = None
     detail: str | None = None
+    seq: int | None = None  # a trace event's number in its orchestrator run
     payload: Any = None
 
     def line(self) -> str:
@@ -147,14 +157,32 @@ class MonitorState:
         self.recent_calls: deque[MonitorEvent] = deque(maxlen=recent)
         self.recent_events: deque[MonitorEvent] = deque(maxlen=recent)
         self.messages = 0
-        self.unparsed = 0
+        #: messages (or trace events inside a batch) skipped because they were malformed.
+        self.malformed = 0
         self._pending: dict[tuple[str, str], _Pending] = {}
         self._reply_topics: Counter[str] = Counter()  # reply_to topics of the pending calls
 
     # -- input ----------------------------------------------------------------------------------
 
     def observe(self, topic: str, payload: bytes, at: float) -> list[MonitorEvent]:
-        """Take one MQTT message seen at unix time `at`; return the events it makes."""
+        """Take one MQTT message seen at unix time `at`; return the events it makes.
+
+        Never raises for what came over the wire: a malformed message is counted and skipped.
+        """
+        try:
+            return self._observe(topic, payload, at)
+        except (ValueError, TypeError, RecursionError) as exc:  # ValidationError is a ValueError
+            self._skip(topic, exc)
+            return []
+
+    def _skip(self, topic: str, problem: Exception | str) -> None:
+        self.malformed += 1
+        if self.malformed == 1:
+            text = problem if isinstance(problem, str) else first_problem(problem)
+            log.warning("malformed message skipped (further ones are only counted)", topic=topic,
+                        problem=text[:200])
+
+    def _observe(self, topic: str, payload: bytes, at: float) -> list[MonitorEvent]:
         where = split_topic(topic)
         if where is None:
             if topic in self._reply_topics:  # a caller chose a reply topic outside umlbot/
@@ -196,7 +224,7 @@ class MonitorState:
         return MonitorEvent(
             type="trace", time=trace.end, robot=robot, topic=topic, lane=trace.lane, node=trace.node,
             kind=trace.kind, duration_ms=trace.duration_ms, value=trace.value, error=trace.error,
-            level=trace.level, detail=trace.detail,
+            level=trace.level, detail=trace.detail, seq=trace.seq,
         )
 
     def expire(self, now: float) -> list[MonitorEvent]:
@@ -220,7 +248,7 @@ class MonitorState:
     def _on_request(self, robot: str, component: str, feature: str, topic: str, payload: bytes,
                     at: float) -> list[MonitorEvent]:
         try:
-            data = json.loads(payload) if payload else None
+            data = from_json(payload) if payload else None
         except ValueError:
             return [self._record_call(MonitorEvent(
                 type="call", time=at, robot=robot, topic=topic, component=component, feature=feature,
@@ -251,8 +279,8 @@ class MonitorState:
     def _on_reply(self, topic: str, payload: bytes, at: float) -> list[MonitorEvent]:
         try:
             reply = Reply.model_validate_json(payload)
-        except ValidationError:
-            self.unparsed += 1
+        except ValidationError as exc:
+            self._skip(topic, exc)
             return []
         key = (topic, str(reply.id))
         pending = self._take(key)
@@ -294,8 +322,8 @@ class MonitorState:
         if not payload:  # a cleared retained status
             self.availability.pop((robot, component), None)
             return []
-        state = str(data.get("state", "unknown")) if isinstance(data, dict) else "unknown"
-        impl = data.get("impl") if isinstance(data, dict) else None
+        state = (_text(data.get("state")) if isinstance(data, dict) else None) or "unknown"
+        impl = _text(data.get("impl")) if isinstance(data, dict) else None
         previous = self.availability.get((robot, component))
         if previous is not None and previous.state == state:
             previous.impl = impl or previous.impl
@@ -307,19 +335,22 @@ class MonitorState:
     def _on_orchestrator(self, robot: str, leaf: str, topic: str, payload: bytes,
                          at: float) -> list[MonitorEvent]:
         if leaf == "trace":
-            try:
-                trace = TraceEvent.model_validate_json(payload)
-            except ValidationError:
-                self.unparsed += 1
-                return []
-            return [self.observe_trace(trace, robot, topic)]
+            events = []
+            for item in trace_items(from_json(payload)):
+                try:
+                    trace = TraceEvent.model_validate(item)
+                except ValidationError as exc:
+                    self._skip(topic, exc)
+                    continue
+                events.append(self.observe_trace(trace, robot, topic))
+            return events
         data = _json_or_text(payload)
         if leaf == "status":
             if not payload:
                 return []
-            state = str(data.get("state", "unknown")) if isinstance(data, dict) else str(data)
+            state = (_text(data.get("state")) if isinstance(data, dict) else _text(data)) or "unknown"
             self.orchestrator[robot] = state
-            reason = data.get("reason") if isinstance(data, dict) else None
+            reason = _text(data.get("reason")) if isinstance(data, dict) else None
             return [MonitorEvent(type="orchestrator", time=at, robot=robot, topic=topic, state=state,
                                  detail=reason)]
         if leaf == "exit":
@@ -327,9 +358,38 @@ class MonitorState:
         return []
 
 
+def trace_items(data: Any) -> list[Any]:
+    """The events of one trace message: a single `TraceEvent` object or a JSON array of them."""
+    return data if isinstance(data, list) else [data]
+
+
+def _text(value: Any) -> str | None:
+    """A wire value meant to be a short text: strings as they are, other JSON as JSON, null None."""
+    if value is None or isinstance(value, str):
+        return value
+    return dumps(value)
+
+
+def first_problem(exc: Exception) -> str:
+    """What is wrong, in one line (the first error of a ValidationError)."""
+    if isinstance(exc, ValidationError):
+        first = exc.errors()[0]
+        where = ".".join(str(p) for p in first["loc"])
+        return f"{where}: {first['msg']}" if where else str(first["msg"])
+    if isinstance(exc, RecursionError):
+        return "nested too deeply"
+    return str(exc) or type(exc).__name__
+
+
 def _json_or_text(payload: bytes) -> Any:
-    """The payload as JSON when it is JSON, else as text (undecodable bytes replaced)."""
+    """The payload as JSON when it is JSON, else as text.
+
+    Raises ValueError (the message is malformed) for JSON nested too deeply and for bytes that
+    are not UTF-8.
+    """
     try:
-        return json.loads(payload)
-    except ValueError:
-        return payload.decode("utf-8", errors="replace")
+        return from_json(payload)
+    except ValueError as exc:
+        if TOO_DEEP in str(exc):
+            raise
+        return payload.decode("utf-8")

@@ -1,4 +1,8 @@
-"""The monitor's terminal view (rich): availability, lanes, last calls, per-action statistics."""
+"""The monitor's terminal view (rich): availability, lanes, last calls, per-action statistics.
+
+Every cell that shows something from the wire is a `Text`, never a markup string: rich would read
+`[true]` (the arguments of `enabled(true)`) or `[bold]` as markup and drop or restyle them.
+"""
 
 from __future__ import annotations
 
@@ -18,9 +22,10 @@ MAX_CELL = 40
 MAX_STATS_ROWS = 20
 
 
-def _short(value: Any) -> str:
+def _short(value: Any, style: str = "") -> Text:
+    """A wire value as plain text (JSON unless it is a string), cut to `MAX_CELL` characters."""
     text = value if isinstance(value, str) else json.dumps(value, ensure_ascii=False, default=str)
-    return text if len(text) <= MAX_CELL else text[: MAX_CELL - 1] + "…"
+    return Text(text if len(text) <= MAX_CELL else text[: MAX_CELL - 1] + "…", style=style)
 
 
 def _ms(value: float) -> str:
@@ -32,12 +37,12 @@ def _age(since: float, now: float) -> str:
     return f"{seconds:.1f}s" if seconds < 120 else f"{seconds / 60:.0f}m"
 
 
-def _name(robot: str, name: str, many_robots: bool) -> str:
-    return f"{robot}/{name}" if many_robots else name
+def _name(robot: str, name: str, many_robots: bool) -> Text:
+    return Text(f"{robot}/{name}" if many_robots else name)
 
 
-def _stats_table(title: str, first: str, rows: list[tuple[str, Stats]]) -> Table:
-    busiest = sorted(rows, key=lambda row: (-row[1].count, row[0]))
+def _stats_table(title: str, first: str, rows: list[tuple[Text, Stats]]) -> Table:
+    busiest = sorted(rows, key=lambda row: (-row[1].count, row[0].plain))
     shown = busiest[:MAX_STATS_ROWS]
     more = len(busiest) - len(shown)
     table = Table(title=title, title_justify="left", expand=True,
@@ -55,8 +60,8 @@ def _call_result(event: MonitorEvent) -> Text:
     if event.ok is None and event.error is None:
         return Text("sent", style="dim")
     if event.ok:
-        return Text(_short(event.value) if event.value is not None else "ok", style="green")
-    return Text(_short(event.error or "error"), style="red")
+        return _short(event.value, "green") if event.value is not None else Text("ok", style="green")
+    return _short(event.error or "error", "red")
 
 
 def render(state: MonitorState, now: float | None = None, title: str = "umlbot monitor") -> RenderableType:
@@ -67,7 +72,8 @@ def render(state: MonitorState, now: float | None = None, title: str = "umlbot m
     orchestrator = ", ".join(f"{r}: {s}" for r, s in sorted(state.orchestrator.items())) or "not seen"
     header = Text.assemble(
         (title, "bold"), f"  robot: {', '.join(sorted(robots)) or '-'}  orchestrator: {orchestrator}  ",
-        (f"{state.messages} messages, {state.pending_calls} calls pending", "dim"),
+        (f"{state.messages} messages, {state.pending_calls} calls pending"
+         + (f", {state.malformed} malformed skipped" if state.malformed else ""), "dim"),
     )
 
     components = Table(title="Components", title_justify="left", expand=True)
@@ -75,15 +81,16 @@ def render(state: MonitorState, now: float | None = None, title: str = "umlbot m
         components.add_column(column)
     for (robot, name), avail in sorted(state.availability.items()):
         style = "green" if avail.state == "online" else "red"
-        components.add_row(_name(robot, name, many), Text(avail.state, style=style), avail.impl or "",
+        components.add_row(_name(robot, name, many), Text(avail.state, style=style), Text(avail.impl or ""),
                            _age(avail.since, now))
 
     lanes = Table(title="Lanes (last node executed)", title_justify="left", expand=True)
     for column in ("lane", "node", "kind", "detail", "ago"):
         lanes.add_column(column)
     for (robot, lane), current in sorted(state.lanes.items()):
-        detail = Text(_short(current.error or current.detail or ""), style="red" if current.error else "")
-        lanes.add_row(_name(robot, lane, many), current.node, current.kind, detail, _age(current.at, now))
+        detail = _short(current.error or current.detail or "", "red" if current.error else "")
+        lanes.add_row(_name(robot, lane, many), Text(current.node), Text(current.kind), detail,
+                      _age(current.at, now))
 
     calls = Table(title="Last calls", title_justify="left", expand=True)
     for column in ("ago", "call", "args", "result", "latency ms"):

@@ -14,8 +14,8 @@ Life of a run (docs/semantics.md says the same for users):
    finish) or a fault happened (a call timed out or got an error reply, an expression failed, a
    used component went `offline`, the broker connection was lost: fail-safe at once);
 5. on every path: cancel the lanes, stop every actuator (after a lost broker: as soon as it is
-   back, waiting at most `reconnect_wait_s`), publish the final status `stopped` or `failed`
-   with the reason, flush the trace, disconnect.
+   back, waiting at most `reconnect_wait_s`), flush the trace, publish the final status
+   `stopped` or `failed` with the reason, disconnect.
 """
 
 from __future__ import annotations
@@ -396,6 +396,8 @@ class Orchestrator:
                     await self._wait_actuators_online(ACTUATORS_BACK_TIMEOUT_S)
             if control.connected and client.connected:
                 await self._stop_actuators(at_start=False)
+            if self.recorder is not None:
+                self.recorder.close()  # the last trace events go out before the final status
             final = "failed" if self.failure is not None else "stopped"
             self._publish_status(final, self.failure or self.exit_reason or "every lane ended")
         self._closing = True

@@ -1,11 +1,14 @@
-"""The execution trace: one `TraceEvent` per executed node, published off the lanes' hot path.
+"""The execution trace: one `TraceEvent` per executed node, published in batches off the hot path.
 
-The engine hands each executed node to `TraceRecorder.record` as a plain tuple (an append to a
-deque, no I/O, no JSON). Later turns of the event loop turn the tuples into `TraceEvent` JSON and
-publish them on `…/orchestrator/trace` (QoS 0), write them to the `--trace FILE` copy (JSON lines,
-the same objects) and hand them to an optional listener. When shipping falls behind by more than
-`max_pending` events, the oldest are dropped and counted (`dropped`), so a busy lane is slowed by
-at most one batch per `YIELD_EVERY` nodes.
+The engine hands each executed node to `TraceRecorder.record` as a plain tuple (a counter and an
+append to a deque: no I/O, no JSON). The recorder numbers the events (`seq` 1, 2, 3 … in recording
+order) and ships them in batches from the event loop: the first event after a batch starts a
+window of `window_s` (20 ms); at its end everything pending (at most `batch` events) leaves as ONE
+message on `…/orchestrator/trace` (QoS 0), a JSON array of `TraceEvent` objects in recording order.
+A full batch pending leaves at the loop's next turn instead, and `close` ships the rest. The same
+events go to the `--trace FILE` copy (JSON lines, one event a line) and to an optional listener.
+When shipping falls behind by more than `max_pending` events, the oldest are dropped and counted
+(`dropped`); their `seq` numbers are missing, so a consumer sees the gap.
 """
 
 from __future__ import annotations
@@ -13,12 +16,13 @@ from __future__ import annotations
 import asyncio
 import collections
 import contextlib
+import json
 import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import IO, Any
 
-from services.bus.envelopes import dumps
+from services.bus.envelopes import _json_default
 from services.orchestrator.engine import TraceRecord
 from umlbot.logs import get_logger
 
@@ -26,17 +30,21 @@ log = get_logger(__name__)
 
 #: events kept while the publisher is behind; older ones are dropped (and counted) beyond this.
 DEFAULT_MAX_PENDING = 20_000
-#: events shipped per turn of the event loop.
-DEFAULT_BATCH = 32
-#: how long the first queued event waits for others, so that events leave in bursts.
-DEFAULT_DELAY_S = 0.005
+#: events in one trace message at most; this many pending are shipped without waiting.
+DEFAULT_BATCH = 500
+#: how long the first event of a batch waits for others: at most one message per window.
+DEFAULT_WINDOW_S = 0.020
 
 Publish = Callable[[bytes], None]
 Listener = Callable[[dict[str, Any]], None]
 
+# strict JSON for every consumer (a browser's JSON.parse rejects NaN): such values go as their repr
+_ENCODER = json.JSONEncoder(separators=(",", ":"), ensure_ascii=False, allow_nan=False,
+                            default=_json_default)
 
-def event_dict(record: TraceRecord) -> dict[str, Any]:
-    """The `TraceEvent` JSON object of one engine trace record."""
+
+def event_dict(record: TraceRecord, seq: int | None = None) -> dict[str, Any]:
+    """The `TraceEvent` JSON object of one engine trace record (`seq`: its number in the run)."""
     lane, node, kind, label, start, end, value, error, warning = record
     event: dict[str, Any] = {
         "lane": lane,
@@ -58,16 +66,45 @@ def event_dict(record: TraceRecord) -> dict[str, Any]:
     else:
         event["level"] = "info"
         event["detail"] = label
+    if seq is not None:
+        event["seq"] = seq
     return event
 
 
+def _repair(events: list[dict[str, Any]]) -> None:
+    """Replace every value that is not strict JSON (NaN, an object) by its repr."""
+    for event in events:
+        if "value" in event:
+            try:
+                _ENCODER.encode(event["value"])
+            except (TypeError, ValueError) as exc:
+                log.debug("trace value not JSON", node=event["node"], error=str(exc))
+                event["value"] = repr(event["value"])
+
+
+def encode_events(events: list[dict[str, Any]], lines: bool) -> tuple[str, list[str]]:
+    """(the JSON array of `events`, each event's JSON when `lines`); values repaired if need be."""
+    try:
+        return _encode(events, lines)
+    except (TypeError, ValueError):
+        _repair(events)
+        return _encode(events, lines)
+
+
+def _encode(events: list[dict[str, Any]], lines: bool) -> tuple[str, list[str]]:
+    if not lines:  # one call of the C encoder for the whole batch: half the cost
+        return _ENCODER.encode(events), []
+    texts = [_ENCODER.encode(event) for event in events]
+    return "[" + ",".join(texts) + "]", texts
+
+
 class TraceRecorder:
-    """Collects trace records from the engine and ships them in small batches on the event loop.
+    """Collects trace records from the engine and ships them in batches on the event loop.
 
     Shipping runs as a loop callback, so it fills the time the lanes spend waiting for replies
     (no extra thread competing for the interpreter while a reply is being handled); a lane that
     never waits gives the loop a turn every `engine.YIELD_EVERY` nodes, and each turn ships at most
-    `batch` events. Must be made and used on the event loop's thread.
+    one batch. Must be made and used on the event loop's thread.
     """
 
     def __init__(
@@ -77,8 +114,10 @@ class TraceRecorder:
         listener: Listener | None = None,
         max_pending: int = DEFAULT_MAX_PENDING,
         batch: int = DEFAULT_BATCH,
-        delay_s: float = DEFAULT_DELAY_S,
+        window_s: float = DEFAULT_WINDOW_S,
     ) -> None:
+        if batch < 1 or max_pending < 1 or window_s < 0:
+            raise ValueError("batch and max_pending must be >= 1 and window_s >= 0")
         self._loop = asyncio.get_running_loop()
         self._publish = publish
         self._listener = listener
@@ -86,44 +125,60 @@ class TraceRecorder:
         if trace_file is not None:
             # line-buffered so that a crash loses at most the line being written
             self._file = Path(trace_file).open("w", encoding="utf-8", buffering=1)  # noqa: SIM115
+        # the pending records are always the last len(_pending) recorded: seq needs no storage
         self._pending: collections.deque[TraceRecord] = collections.deque()
         self._max_pending = max_pending
         self._batch = batch
-        self._delay_s = delay_s
-        self._scheduled = False
+        self._window_s = window_s
+        self._handle: asyncio.Handle | None = None  # the scheduled _drain
+        self._soon = False  # _handle runs at the loop's next turn (a full batch is pending)
         self._closed = False
+        #: events recorded so far (the `seq` of the last one).
+        self.recorded = 0
         self.dropped = 0
         self.shipped = 0
+        #: trace messages published.
+        self.messages = 0
 
     def record(self, record: TraceRecord) -> None:
         """Queue one executed node (called by the engine on the event loop; never blocks)."""
+        self.recorded += 1
         pending = self._pending
         if len(pending) >= self._max_pending:
             pending.popleft()
             self.dropped += 1
         pending.append(record)
-        if not self._scheduled and not self._closed:
-            self._scheduled = True
-            self._loop.call_later(self._delay_s, self._drain)
+        if self._handle is None:
+            if not self._closed:
+                self._handle = self._loop.call_later(self._window_s, self._drain)
+        elif not self._soon and len(pending) >= self._batch:
+            self._handle.cancel()
+            self._soon = True
+            self._handle = self._loop.call_soon(self._drain)
 
     def _drain(self) -> None:
-        self._scheduled = False
+        self._handle = None
+        self._soon = False
+        self._ship(self._batch)
         pending = self._pending
-        ship = self._ship
-        for _ in range(min(self._batch, len(pending))):
-            ship(pending.popleft())
         if pending and not self._closed:
-            self._scheduled = True
-            self._loop.call_soon(self._drain)
+            if len(pending) >= self._batch:
+                self._soon = True
+                self._handle = self._loop.call_soon(self._drain)
+            else:
+                self._handle = self._loop.call_later(self._window_s, self._drain)
 
     def close(self, timeout: float = 2.0) -> None:
         """Ship what is queued (for at most `timeout` s), then close the file; idempotent."""
         if not self._closed:
             self._closed = True
+            if self._handle is not None:
+                self._handle.cancel()
+                self._handle = None
             deadline = time.monotonic() + timeout
             pending = self._pending
             while pending and time.monotonic() < deadline:
-                self._ship(pending.popleft())
+                self._ship(self._batch)
             self.dropped += len(pending)
             pending.clear()
             if self.dropped:
@@ -133,22 +188,28 @@ class TraceRecorder:
                 self._file.close()
             self._file = None
 
-    def _ship(self, record: TraceRecord) -> None:
+    def _ship(self, limit: int) -> None:
+        """Publish the oldest `limit` pending events as one message (file and listener too)."""
+        pending = self._pending
+        count = min(limit, len(pending))
+        if not count:
+            return
+        first = self.recorded - len(pending) + 1  # the seq of the oldest pending event
+        popleft = pending.popleft
+        events = [event_dict(popleft(), seq) for seq in range(first, first + count)]
+        array, lines = encode_events(events, lines=self._file is not None)
+        if self._publish is not None:
+            try:
+                self._publish(array.encode("utf-8"))
+                self.messages += 1
+            except Exception as exc:  # tracing must never take the orchestrator down
+                log.warning("trace events not published", events=count, error=str(exc))
         try:
-            event = event_dict(record)
-            text = dumps(event)
-        except (TypeError, ValueError) as exc:  # a value that is not JSON: keep its text
-            lane, node, kind, label, start, end, value, error, warning = record
-            event = event_dict((lane, node, kind, label, start, end, repr(value), error, warning))
-            text = dumps(event)
-            log.debug("trace value not JSON", error=str(exc))
-        try:
-            if self._publish is not None:
-                self._publish(text.encode("utf-8"))
             if self._file is not None:
-                self._file.write(text + "\n")
+                self._file.write("\n".join(lines) + "\n")
             if self._listener is not None:
-                self._listener(event)
-            self.shipped += 1
-        except Exception as exc:  # tracing must never take the orchestrator down
-            log.warning("trace event not shipped", error=str(exc))
+                for event in events:
+                    self._listener(event)
+        except Exception as exc:
+            log.warning("trace events not written", events=count, error=str(exc))
+        self.shipped += count
