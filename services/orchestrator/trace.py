@@ -2,10 +2,12 @@
 
 The engine hands each executed node to `TraceRecorder.record` as a plain tuple (a counter and an
 append to a deque: no I/O, no JSON). The recorder numbers the events (`seq` 1, 2, 3 … in recording
-order) and ships them in batches from the event loop: the first event after a batch starts a
-window of `window_s` (20 ms); at its end everything pending (at most `batch` events) leaves as ONE
-message on `…/orchestrator/trace` (QoS 0), a JSON array of `TraceEvent` objects in recording order.
-A full batch pending leaves at the loop's next turn instead, and `close` ships the rest. The same
+order) and ships them in batches from the event loop, at most one message per `window_s` (20 ms):
+an event recorded when the last message left more than a window ago leaves at the loop's next
+turn, together with every event recorded in the same turn (so a lone node is seen at once);
+otherwise it waits for the window to end. Everything pending then (at most `batch` events) leaves
+as ONE message on `…/orchestrator/trace` (QoS 0), a JSON array of `TraceEvent` objects in
+recording order. A full batch pending leaves at the loop's next turn, and `close` ships the rest. The same
 events go to the `--trace FILE` copy (JSON lines, one event a line) and to an optional listener.
 When shipping falls behind by more than `max_pending` events, the oldest are dropped and counted
 (`dropped`); their `seq` numbers are missing, so a consumer sees the gap.
@@ -131,7 +133,8 @@ class TraceRecorder:
         self._batch = batch
         self._window_s = window_s
         self._handle: asyncio.Handle | None = None  # the scheduled _drain
-        self._soon = False  # _handle runs at the loop's next turn (a full batch is pending)
+        self._soon = False  # _handle runs at the loop's next turn
+        self._last_ship = -float("inf")  # time.monotonic() when the last message left
         self._closed = False
         #: events recorded so far (the `seq` of the last one).
         self.recorded = 0
@@ -150,7 +153,12 @@ class TraceRecorder:
         pending.append(record)
         if self._handle is None:
             if not self._closed:
-                self._handle = self._loop.call_later(self._window_s, self._drain)
+                wait = self._last_ship + self._window_s - time.monotonic()
+                if wait > 0:
+                    self._handle = self._loop.call_later(wait, self._drain)
+                else:  # quiet for a window: leave with whatever this turn of the loop records
+                    self._soon = True
+                    self._handle = self._loop.call_soon(self._drain)
         elif not self._soon and len(pending) >= self._batch:
             self._handle.cancel()
             self._soon = True
@@ -194,6 +202,7 @@ class TraceRecorder:
         count = min(limit, len(pending))
         if not count:
             return
+        self._last_ship = time.monotonic()
         first = self.recorded - len(pending) + 1  # the seq of the oldest pending event
         popleft = pending.popleft
         events = [event_dict(popleft(), seq) for seq in range(first, first + count)]
