@@ -1,20 +1,24 @@
 """The studio's hub: collects the robot's events from any thread and sends them to every page.
 
 Events (`MonitorEvent` dicts, the objects `umlbot monitor --json` prints) arrive on the bus's
-dispatcher thread; `push` only appends them to a list under a lock. A task on the server's event
-loop takes them every `FLUSH_S`, keeps what a page opened later needs (the snapshot: the latest
-availability, retained state and orchestrator status, the trace history, the last calls) and
-sends one `events` frame to each connected page. Nothing is dropped on the way; the history is
-bounded (`keep_trace`), and a page that opens after more than that many trace events sees the
-newest ones.
+dispatcher thread; `push` only appends them to a list under a lock (and wakes the event loop when
+nothing is scheduled yet). The event loop flushes at once when the last flush is more than
+`FLUSH_S` ago, else when it is due (so a lone event reaches the page within a millisecond or two,
+and a busy robot makes at most one frame per `FLUSH_S`). A flush keeps what a page opened later
+needs (the snapshot: the latest availability, retained state and orchestrator status, the trace
+history, the last calls) and sends one `events` frame to each connected page. Nothing is dropped
+on the way; the history is bounded (`keep_trace`): a page that opens after more than that many
+trace events sees the newest ones.
 """
 
 from __future__ import annotations
 
 import asyncio
 import collections
+import contextlib
 import json
 import threading
+import time
 from collections.abc import Callable
 from typing import Any
 
@@ -22,8 +26,8 @@ from umlbot.logs import get_logger
 
 log = get_logger(__name__)
 
-#: seconds between two frames to the pages (events are coalesced in between).
-FLUSH_S = 0.05
+#: seconds between two frames to the pages at most (events are coalesced in between).
+FLUSH_S = 0.025
 #: trace events kept for pages that open later.
 DEFAULT_KEEP_TRACE = 100_000
 #: feature calls kept for pages that open later.
@@ -91,6 +95,9 @@ class Hub:
         self.trace: collections.deque[dict[str, Any]] = collections.deque(maxlen=keep_trace)
         self.calls: collections.deque[dict[str, Any]] = collections.deque(maxlen=KEEP_CALLS)
         self.received = 0
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._scheduled = False
+        self._last_flush = 0.0
 
     # --- any thread ------------------------------------------------------------------------------
 
@@ -98,12 +105,26 @@ class Hub:
         """Queue one event for the pages (thread-safe, never blocks)."""
         with self._lock:
             self._incoming.append(event)
+            wake = not self._scheduled and self._loop is not None
+            self._scheduled = True
+        if wake:
+            self._wake()
 
     def push_world(self, frame: dict[str, Any]) -> None:
         """The simulated world's latest state; its `pings` accumulate until the next flush."""
         with self._lock:
             self._world_pings.extend(frame.get("pings", []))
             self._world = frame
+            wake = not self._scheduled and self._loop is not None
+            self._scheduled = True
+        if wake:
+            self._wake()
+
+    def _wake(self) -> None:
+        loop = self._loop
+        if loop is not None:
+            with contextlib.suppress(RuntimeError):  # the loop has closed: nobody to send to
+                loop.call_soon_threadsafe(self._due)
 
     # --- the event loop ----------------------------------------------------------------------------
 
@@ -128,7 +149,9 @@ class Hub:
 
     def flush(self) -> None:
         """Move queued events into the snapshot and send them to every page as one frame."""
+        self._last_flush = time.monotonic()
         with self._lock:
+            self._scheduled = False
             events, self._incoming = self._incoming, []
             world, self._world = self._world, None
             pings, self._world_pings = self._world_pings, []
@@ -156,11 +179,25 @@ class Hub:
         elif kind == "orchestrator":
             self.orchestrator = event
 
+    def _due(self) -> None:
+        wait = self._last_flush + FLUSH_S - time.monotonic()
+        loop = self._loop
+        if wait > 0 and loop is not None:
+            loop.call_later(wait, self._safe_flush)
+        else:
+            self._safe_flush()
+
+    def _safe_flush(self) -> None:
+        try:
+            self.flush()
+        except Exception as exc:  # a bad event must not stop the page updates
+            log.warning("studio flush failed", error=str(exc))
+
     async def run(self) -> None:
-        """Flush every `FLUSH_S` until cancelled."""
-        while True:
-            await asyncio.sleep(FLUSH_S)
-            try:
-                self.flush()
-            except Exception as exc:  # a bad event must not stop the page updates
-                log.warning("studio flush failed", error=str(exc))
+        """Deliver events to the pages until cancelled (events pushed meanwhile wake it)."""
+        self._loop = asyncio.get_running_loop()
+        try:
+            self._safe_flush()  # whatever arrived before the loop ran
+            await asyncio.Event().wait()
+        finally:
+            self._loop = None
