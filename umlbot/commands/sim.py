@@ -113,9 +113,10 @@ def command(model: Path, track: Path | None, speed: float, broker_url: str | Non
         if result.plot is not None:
             click.echo(f"  picture         {result.plot}")
     if follower is not None:
-        click.echo(f"umlbot studio: {follower.url}  (the run has ended; Ctrl-C to quit)", err=as_json)
-        with StopSignals() as after:
-            after.running()
-            after.stop.wait()
+        if result.reason != "interrupted":  # Ctrl-C during the run quits; after a run, look at it
+            click.echo(f"umlbot studio: {follower.url}  (the run has ended; Ctrl-C to quit)", err=as_json)
+            with StopSignals() as after:
+                after.running()
+                after.stop.wait()
         follower.close()
     sys.exit(0 if result.ok else 1)
