@@ -56,10 +56,13 @@ wss.on("connection", (ws) => {
     if (rate) {
       // synthetic load: trace events with current timestamps
       const due = Math.floor(((now - start) / 1000) * rate);
-      const traces = events.filter((e) => e.type === "trace");
+      // random nodes of the model, like bench/studio.py
+      const pool = model.diagrams.flatMap((d) => d.lanes.flatMap((l) => l.nodes.map((n) => [l.name, n.id, n.kind])));
       while (synth < due) {
-        const e = traces[synth % traces.length];
-        batch.push({ ...e, time: now / 1000 });
+        const [lane, node, kind] = pool[Math.floor(Math.random() * pool.length)];
+        const duration = 0.5 + Math.random() * 19.5;
+        batch.push({ type: "trace", time: now / 1000, robot: "bench", lane, node, kind, duration_ms: Math.round(duration * 1000) / 1000,
+          level: "info", detail: node, seq: synth + 1, ...(kind === "datastore" ? { value: synth } : {}) });
         synth++;
       }
     } else {

@@ -116,7 +116,8 @@ async function layoutAll(m: ModelView, first: string, gen: number): Promise<void
       canvas.append(view.svg);
       views.set(id, view);
       if (id === current) fit(view);
-      state.markAllDirty();
+      renderer.adoptFresh(state);
+      state.dirtyOrch = true;
       schedule();
       console.debug(`studio: laid out ${id} in ${(performance.now() - t0).toFixed(0)} ms`);
       if (id === first) {
@@ -180,6 +181,10 @@ function setDiagnostics(list: Diagnostic[]): void {
 function applyView(v: DiagramView): void {
   if (!v.view) return;
   v.viewport.setAttribute("transform", `translate(${v.view.x},${v.view.y}) scale(${v.view.k})`);
+  // Level of detail: text too small to read is not drawn (keeps big diagrams fast).
+  const k = v.view.k;
+  v.svg.classList.toggle("lod-mid", k < 0.45);
+  v.svg.classList.toggle("lod-far", k < 0.3);
 }
 
 function fit(v: DiagramView): void {
@@ -375,10 +380,20 @@ let qpos = 0;
 let rafId = 0;
 let lastTs = 0;
 let lastArrival = 0;
-const BUDGET_MS = 10;
+const BUDGET_MS = 8; // applying queued events, per frame
+const RENDER_BUDGET_MS = 8; // node updates, per frame
 
 function schedule(): void {
   if (!rafId) rafId = requestAnimationFrame(tick);
+}
+
+/** Apply the state's changes to the page. */
+function render(budgetMs = 0): void {
+  const full = state.allDirty;
+  renderer.flush(state, budgetMs);
+  if (state.dirtyCalls) flushCalls(full);
+  if (state.dirtyOrch || full) flushStatus();
+  state.clearDirty();
 }
 
 function tick(ts: number): void {
@@ -406,15 +421,13 @@ function tick(ts: number): void {
   }
   if (mode === "replay" && replay) newestTrace = replayTick(ts);
 
-  const full = state.allDirty;
-  renderer.flush(state);
-  if (state.dirtyCalls) flushCalls(full);
-  if (state.dirtyOrch || full) flushStatus();
-  state.clearDirty();
+  const r0 = performance.now();
+  render(RENDER_BUDGET_MS);
   sim.flush();
+  (window as unknown as { __dbg: number[] }).__dbg?.push(performance.now() - r0, qpos);
   if (newestTrace) pushCapped(hooks.latencies, Date.now() - newestTrace.time * 1000);
 
-  if (qpos < queue.length || flowing || (replay && replay.playing)) schedule();
+  if (qpos < queue.length || flowing || state.dirtyNodes.size || (replay && replay.playing)) schedule();
   else lastTs = 0;
 }
 
@@ -528,6 +541,7 @@ playBtn.addEventListener("click", () => {
 timeInput.addEventListener("input", () => {
   if (!replay) return;
   seek(Number(timeInput.value));
+  render(); // a scrub shows its moment at once, not a frame later
 });
 
 // ---------------------------------------------------------------- connection

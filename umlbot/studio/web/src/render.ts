@@ -70,8 +70,34 @@ export class Renderer {
   renderedTrails = new Map<string, string[]>();
   marks = new Map<string, Mark>(); // compiler diagnostics on nodes
   virtualLanes = new Set<string>();
+  private freshNodes: string[] = [];
+  private freshEdges: string[] = [];
+  private freshLanes = new Set<string>();
+  private freshComps: string[] = [];
+
+  /** Bring elements built since the last call up to date with `state` (nodes within the budget). */
+  adoptFresh(state: StudioState): void {
+    for (const key of this.freshNodes) state.dirtyNodes.add(key);
+    for (const key of this.freshEdges) {
+      const ee = this.edgeEls.get(key);
+      if (ee) this.renderEdge(ee, state.edges.get(key) ?? 0);
+    }
+    for (const lane of this.freshLanes) this.renderTrail(lane, state.trails.get(lane) ?? []);
+    for (const name of this.freshComps) {
+      const ce = this.compEls.get(name);
+      if (ce) this.renderComponent(ce, state.components.get(name));
+    }
+    this.freshNodes = [];
+    this.freshEdges = [];
+    this.freshLanes.clear();
+    this.freshComps = [];
+  }
 
   reset(model: ModelView | null): void {
+    this.freshNodes = [];
+    this.freshEdges = [];
+    this.freshLanes.clear();
+    this.freshComps = [];
     this.nodeEls.clear();
     this.edgeEls.clear();
     this.compEls.clear();
@@ -116,9 +142,12 @@ export class Renderer {
         if (e.labelBox) {
           label = svgEl("text", { class: "elabel", x: e.labelBox.x + 2, y: e.labelBox.y + 12 }, eg, e.label);
         }
-        this.edgeEls.set(edgeKey(lane.name, e.source, e.target), { g: eg, label, guard: e.label, count: -1 });
+        const ek = edgeKey(lane.name, e.source, e.target);
+        this.edgeEls.set(ek, { g: eg, label, guard: e.label, count: -1 });
+        this.freshEdges.push(ek);
       }
       for (const nb of lg.nodes) this.buildNode(nodesG, lane.name, nb);
+      this.freshLanes.add(lane.name);
     }
     return v;
   }
@@ -126,61 +155,63 @@ export class Renderer {
   private buildNode(parent: SVGGElement, lane: string, nb: NodeBox): void {
     const n = nb.node;
     const { w, h } = nb;
+    // Absolute coordinates, no transform per node: thousands of transform nodes make Chromium's
+    // paint and layerization slow.
+    const X = (v: number): number => nb.x + v;
+    const Y = (v: number): number => nb.y + v;
+    const pts = (list: [number, number][]): string => list.map(([a, b]) => `${X(a)},${Y(b)}`).join(" ");
     const g = svgEl("g", {
-      class: `node kind-${n.kind}`, "data-lane": lane, "data-node": n.id, "data-kind": n.kind,
-      "data-count": 0, transform: `translate(${nb.x},${nb.y})`,
+      class: `node kind-${n.kind}`, "data-lane": lane, "data-node": n.id, "data-kind": n.kind, "data-count": 0,
     }, parent);
     const title = svgEl("title", {}, g, n.label);
     let labelY = 21;
     switch (n.kind) {
       case "start":
-        svgEl("circle", { class: "shape", cx: w / 2, cy: h / 2, r: w / 2 }, g);
+        svgEl("circle", { class: "shape", cx: X(w / 2), cy: Y(h / 2), r: w / 2 }, g);
         break;
       case "end":
-        svgEl("circle", { class: "shape", cx: w / 2, cy: h / 2, r: w / 2 }, g);
-        svgEl("circle", { class: "dot", cx: w / 2, cy: h / 2, r: w / 2 - 5 }, g);
+        svgEl("circle", { class: "shape", cx: X(w / 2), cy: Y(h / 2), r: w / 2 }, g);
+        svgEl("circle", { class: "dot", cx: X(w / 2), cy: Y(h / 2), r: w / 2 - 5 }, g);
         break;
       case "fork":
       case "join":
-        svgEl("rect", { class: "shape bar", x: 0, y: 0, width: w, height: h, rx: 2 }, g);
+        svgEl("rect", { class: "shape bar", x: X(0), y: Y(0), width: w, height: h, rx: 2 }, g);
         break;
       case "decision":
-        svgEl("polygon", { class: "shape", points: `${w / 2},0 ${w},${h / 2} ${w / 2},${h} 0,${h / 2}` }, g);
+        svgEl("polygon", { class: "shape", points: pts([[w / 2, 0], [w, h / 2], [w / 2, h], [0, h / 2]]) }, g);
         labelY = h / 2 + 4.5;
         break;
       case "datastore":
-        svgEl("rect", { class: "shape", x: 0, y: 0, width: w, height: h, rx: 2 }, g);
-        svgEl("text", { class: "stereo", x: w / 2, y: 13 }, g, "«datastore»");
+        svgEl("rect", { class: "shape", x: X(0), y: Y(0), width: w, height: h, rx: 2 }, g);
+        svgEl("text", { class: "stereo", x: X(w / 2), y: Y(13) }, g, "«datastore»");
         labelY = 30;
         break;
       case "send":
-        svgEl("polygon", { class: "shape", points: `0,0 ${w - 18},0 ${w},${h / 2} ${w - 18},${h} 0,${h}` }, g);
+        svgEl("polygon", { class: "shape", points: pts([[0, 0], [w - 18, 0], [w, h / 2], [w - 18, h], [0, h]]) }, g);
         break;
       case "accept":
-        svgEl("polygon", { class: "shape", points: `0,0 ${w},0 ${w},${h} 0,${h} 18,${h / 2}` }, g);
+        svgEl("polygon", { class: "shape", points: pts([[0, 0], [w, 0], [w, h], [0, h], [18, h / 2]]) }, g);
         break;
       default:
-        svgEl("rect", { class: "shape", x: 0, y: 0, width: w, height: h, rx: 11 }, g);
+        svgEl("rect", { class: "shape", x: X(0), y: Y(0), width: w, height: h, rx: 11 }, g);
     }
     if (n.kind !== "start" && n.kind !== "end" && n.kind !== "fork" && n.kind !== "join") {
-      svgEl("text", { class: "label", x: n.kind === "send" ? (w - 18) / 2 : n.kind === "accept" ? (w + 18) / 2 : w / 2, y: labelY }, g, n.label);
+      const lx = n.kind === "send" ? (w - 18) / 2 : n.kind === "accept" ? (w + 18) / 2 : w / 2;
+      svgEl("text", { class: "label", x: X(lx), y: Y(labelY) }, g, n.label);
     }
     const called = n.kind === "action" ? n.label.replace(/\(\s*\)$/, "") : "";
     if (called && this.virtualLanes.has(called)) {
       // UML call behaviour action: the rake symbol.
       g.classList.add("calls");
       g.setAttribute("data-calls", called);
-      svgEl("path", { class: "rake", d: `M${w - 16},${h - 6} v-9 M${w - 21},${h - 6} v-5 h10 v5` }, g);
+      svgEl("path", { class: "rake", d: `M${X(w - 16)},${Y(h - 6)} v-9 M${X(w - 21)},${Y(h - 6)} v-5 h10 v5` }, g);
     }
     let value: SVGTextElement | null = null;
-    if (n.kind === "datastore") value = svgEl("text", { class: "value", x: w / 2, y: 47 }, g, "—");
-    const stats = svgEl("text", {
-      class: nb.statsInside ? "stats" : "stats outside",
-      x: nb.statsX - nb.x, y: nb.statsY - nb.y,
-    }, g, "×0");
-    this.nodeEls.set(nodeKey(lane, n.id), {
-      g, stats, value, title, label: n.label, count: -1, level: "info", message: "", valueText: "",
-    });
+    if (n.kind === "datastore") value = svgEl("text", { class: "value", x: X(w / 2), y: Y(47) }, g, "—");
+    const stats = svgEl("text", { class: nb.statsInside ? "stats" : "stats outside", x: nb.statsX, y: nb.statsY }, g, "×0");
+    const key = nodeKey(lane, n.id);
+    this.nodeEls.set(key, { g, stats, value, title, label: n.label, count: -2, level: "info", message: "", valueText: "" });
+    this.freshNodes.push(key);
   }
 
   buildComponents(layout: ComponentLayout, model: ModelView): DiagramView {
@@ -221,24 +252,28 @@ export class Renderer {
         svgEl("text", { class: "port-label", x: p.labelX - c.x, y: p.labelY - c.y }, inner, `${p.name} → ${p.feature}`);
       }
       this.compEls.set(c.name, { g, state, impl });
+      this.freshComps.push(c.name);
     }
     return v;
   }
 
-  /** Apply what changed in `state` to the elements (call once per animation frame). */
-  flush(state: StudioState): void {
+  /**
+   * Apply what changed in `state` to the elements (once per animation frame). Node updates stop
+   * after `budgetMs` (the rest stays dirty for the next frame); 0 = no limit.
+   */
+  flush(state: StudioState, budgetMs = 0): void {
     const all = state.allDirty;
+    const dirty = state.dirtyNodes;
     if (all) {
-      for (const [key, ne] of this.nodeEls) this.renderNode(ne, state.nodes.get(key), key, true);
+      for (const [key, ne] of this.nodeEls) {
+        ne.count = -2; // forces a full rewrite of this node
+        dirty.add(key);
+      }
       for (const [key, ee] of this.edgeEls) this.renderEdge(ee, state.edges.get(key) ?? 0);
       const lanes = new Set([...this.renderedTrails.keys(), ...state.trails.keys()]);
       for (const lane of lanes) this.renderTrail(lane, state.trails.get(lane) ?? []);
       for (const [name, ce] of this.compEls) this.renderComponent(ce, state.components.get(name));
     } else {
-      for (const key of state.dirtyNodes) {
-        const ne = this.nodeEls.get(key);
-        if (ne) this.renderNode(ne, state.nodes.get(key), key, false);
-      }
       for (const key of state.dirtyEdges) {
         const ee = this.edgeEls.get(key);
         if (ee) this.renderEdge(ee, state.edges.get(key) ?? 0);
@@ -248,6 +283,14 @@ export class Renderer {
         const ce = this.compEls.get(name);
         if (ce) this.renderComponent(ce, state.components.get(name));
       }
+    }
+    const t0 = performance.now();
+    let n = 0;
+    for (const key of dirty) {
+      dirty.delete(key);
+      const ne = this.nodeEls.get(key);
+      if (ne) this.renderNode(ne, state.nodes.get(key), key, ne.count === -2);
+      if (budgetMs > 0 && (++n & 31) === 0 && performance.now() - t0 > budgetMs) break;
     }
     if ((all || state.dirtyOrch) && this.orchBox) {
       this.orchBox.g.setAttribute("data-state", state.orch.state);

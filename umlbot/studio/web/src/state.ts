@@ -302,8 +302,8 @@ export class StudioState {
     this.dirtyCalls = true;
   }
 
+  /** Clear what the renderer has drawn (nodes it had no time for stay in dirtyNodes). */
   clearDirty(): void {
-    this.dirtyNodes.clear();
     this.dirtyEdges.clear();
     this.dirtyLanes.clear();
     this.dirtyComponents.clear();
