@@ -43,7 +43,11 @@ wss.on("connection", (ws) => {
     replay: mode === "replay" ? { file: "run.jsonl", events } : null });
   if (mode === "replay") return;
   let seq = 0;
-  const frame = (evs) => send({ type: "events", seq: ++seq, events: evs, dropped: 0 });
+  const frame = (evs) => {
+    seq += 1;
+    if (args.gap && seq === 3) seq += 1; // lose frame 3
+    send({ type: "events", seq, events: evs, dropped: 0 });
+  };
   frame([]); // snapshot (empty: we stream the run from its start)
   const t0 = events[0].time;
   const start = Date.now();

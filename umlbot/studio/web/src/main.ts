@@ -421,10 +421,8 @@ function tick(ts: number): void {
   }
   if (mode === "replay" && replay) newestTrace = replayTick(ts);
 
-  const r0 = performance.now();
   render(RENDER_BUDGET_MS);
   sim.flush();
-  (window as unknown as { __dbg: number[] }).__dbg?.push(performance.now() - r0, qpos);
   if (newestTrace) pushCapped(hooks.latencies, Date.now() - newestTrace.time * 1000);
 
   if (qpos < queue.length || flowing || state.dirtyNodes.size || (replay && replay.playing)) schedule();
