@@ -56,6 +56,9 @@ export interface ActivityLayout { kind: "activity"; diagram: ModelDiagram; width
 const HEADER_H = 34;
 const LANE_GAP = 0;
 const STATS_W = () => textWidth(STATS_SAMPLE, SMALL_PX);
+// Stats beside a small node (start, end, fork, join, decision) take two lines.
+export const STATS2_SAMPLE = "p50 888.8 · p99 888.8";
+const STATS2_W = () => textWidth(STATS2_SAMPLE, SMALL_PX) + 4;
 
 export function nodeSize(n: ModelNode): { w: number; h: number; statsInside: boolean } {
   const lw = textWidth(n.label, LABEL_PX);
@@ -99,7 +102,7 @@ async function layoutLane(lane: ModelLane): Promise<LaneGeom> {
     sizes.set(n.id, s);
     const child: ElkNode = { id: n.id, width: s.w, height: s.h };
     if (!s.statsInside) {
-      child.labels = [{ id: `${n.id}#stats`, text: "stats", width: sw, height: 14 }];
+      child.labels = [{ id: `${n.id}#stats`, text: "stats", width: STATS2_W(), height: 28 }];
       child.layoutOptions = { "elk.nodeLabels.placement": "OUTSIDE V_CENTER H_RIGHT" };
     }
     return child;
@@ -129,7 +132,7 @@ async function layoutLane(lane: ModelLane): Promise<LaneGeom> {
     if (!s.statsInside) {
       // ELK reserved room for the stats on the right (an outside node label); place them there.
       statsX = x + s.w + 8;
-      statsY = y + s.h / 2 + 4;
+      statsY = y + s.h / 2 - 3;
     }
     nodes.push({ node: n, x, y, w: s.w, h: s.h, statsX, statsY, statsInside: s.statsInside });
   }

@@ -76,6 +76,10 @@ function setModel(m: ModelView | null, diagnostics: Diagnostic[]): void {
     const sub = document.createElement("small");
     sub.textContent = d ? `${d.lanes.length} lane${d.lanes.length === 1 ? "" : "s"} · ${d.file}` : `${m?.components.length ?? 0} components`;
     li.append(sub);
+    const dot = document.createElement("i");
+    dot.className = "pulse";
+    dot.title = "ran just now";
+    li.prepend(dot);
     li.addEventListener("click", () => select(id));
     listEl.append(li);
   }
@@ -101,16 +105,20 @@ async function layoutAll(m: ModelView, first: string, gen: number): Promise<void
   for (const id of order) {
     try {
       const t0 = performance.now();
-      let view: DiagramView;
+      let view: DiagramView | null;
+      let t1: number;
       if (id === "components") {
         const layout = await layoutComponents(m);
         if (gen !== generation) return;
+        t1 = performance.now();
         view = renderer.buildComponents(layout, m);
       } else {
         const d = m.diagrams.find((x) => x.id === id)!;
         const layout = await layoutActivity(d);
         if (gen !== generation) return;
-        view = renderer.buildActivity(layout);
+        t1 = performance.now();
+        view = await renderer.buildActivity(layout, () => gen !== generation);
+        if (!view || gen !== generation) return;
       }
       view.svg.style.display = id === current ? "" : "none";
       canvas.append(view.svg);
@@ -119,7 +127,7 @@ async function layoutAll(m: ModelView, first: string, gen: number): Promise<void
       renderer.adoptFresh(state);
       state.dirtyOrch = true;
       schedule();
-      console.debug(`studio: laid out ${id} in ${(performance.now() - t0).toFixed(0)} ms`);
+      console.debug(`studio: ${id} laid out in ${(t1 - t0).toFixed(0)} ms, drawn in ${(performance.now() - t1).toFixed(0)} ms`);
       if (id === first) {
         // drawn on the next frame
         requestAnimationFrame(() => { hooks.ready = true; });
@@ -173,6 +181,20 @@ function setDiagnostics(list: Diagnostic[]): void {
     li.addEventListener("click", () => { if (li.dataset.diagram) select(li.dataset.diagram); });
   }
   $<HTMLElement>("#diagnostics-count").textContent = String(list.length);
+  // Problems per diagram, as a badge in the list.
+  for (const li of listEl.querySelectorAll<HTMLLIElement>("li")) {
+    li.querySelector(".badge")?.remove();
+    const d = model?.diagrams.find((x) => x.id === li.dataset.diagram);
+    if (!d) continue;
+    const files = new Set(d.lanes.map((l) => l.file).concat([d.file]));
+    const mine = list.filter((x) => files.has(x.file));
+    if (!mine.length) continue;
+    const badge = document.createElement("span");
+    badge.className = `badge ${mine.some((x) => x.severity === "error") ? "error" : "warning"}`;
+    badge.textContent = String(mine.length);
+    badge.title = `${mine.length} problem${mine.length === 1 ? "" : "s"} in this diagram`;
+    li.querySelector("small")?.before(badge);
+  }
   state.markAllDirty();
 }
 
@@ -388,7 +410,25 @@ function schedule(): void {
 }
 
 /** Apply the state's changes to the page. */
+const pulsedAt = new Map<string, number>();
+/** Pulse the list entry of each diagram whose lanes ran (at most every 300 ms per diagram). */
+function pulseDiagrams(): void {
+  if (!state.dirtyLanes.size) return;
+  const now = performance.now();
+  const seen = new Set<string>();
+  for (const lane of state.dirtyLanes) {
+    const id = laneDiagram.get(lane);
+    if (!id || seen.has(id)) continue;
+    seen.add(id);
+    if (now - (pulsedAt.get(id) ?? -1e9) < 300) continue;
+    pulsedAt.set(id, now);
+    const dot = listEl.querySelector<HTMLElement>(`li[data-diagram="${CSS.escape(id)}"] .pulse`);
+    dot?.animate([{ opacity: 1 }, { opacity: 0 }], { duration: 1500, fill: "forwards" });
+  }
+}
+
 function render(budgetMs = 0): void {
+  pulseDiagrams();
   const full = state.allDirty;
   renderer.flush(state, budgetMs);
   if (state.dirtyCalls) flushCalls(full);
@@ -635,6 +675,18 @@ function connect(): void {
     retry = Math.min(retry * 2, 5000);
   };
 }
+
+window.addEventListener("keydown", (ev) => {
+  const t = ev.target as HTMLElement;
+  if (ev.ctrlKey || ev.metaKey || ev.altKey || /^(INPUT|SELECT|TEXTAREA|BUTTON)$/.test(t.tagName)) return;
+  if (ev.key === " " && replay) {
+    ev.preventDefault();
+    playBtn.click();
+  } else if (ev.key === "f") {
+    const v = views.get(current);
+    if (v) fit(v);
+  }
+});
 
 connEl.dataset.state = "closed";
 connEl.textContent = "○ connecting…";

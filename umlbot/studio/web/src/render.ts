@@ -40,6 +40,7 @@ const clip = (s: string, n: number): string => (s.length > n ? s.slice(0, n - 1)
 interface NodeEl {
   g: SVGGElement;
   stats: SVGTextElement;
+  statsLines: [SVGTSpanElement, SVGTSpanElement] | null; // two lines beside small nodes
   value: SVGTextElement | null;
   title: SVGTitleElement;
   label: string;
@@ -120,11 +121,21 @@ export class Renderer {
     return { id, svg, viewport, width, height, view: null };
   }
 
-  buildActivity(layout: ActivityLayout): DiagramView {
+  /**
+   * Draw an activity diagram lane by lane, yielding to the browser between lanes (a big diagram
+   * drawn in the background must not block a frame); null when `stale()` turns true meanwhile.
+   */
+  async buildActivity(layout: ActivityLayout, stale: () => boolean): Promise<DiagramView | null> {
     const d = layout.diagram;
     const v = this.newSvg(d.id, layout.width, layout.height);
     const marker = `url(#arrow-${d.id})`;
+    let budget = performance.now();
     for (const lg of layout.lanes) {
+      if (performance.now() - budget > 12) {
+        await new Promise((resolve) => setTimeout(resolve, 0));
+        if (stale()) return null;
+        budget = performance.now();
+      }
       const lane = lg.lane;
       const g = svgEl("g", { class: "lane", "data-lane": lane.name, transform: `translate(${lg.x},${lg.y})` }, v.viewport);
       svgEl("rect", { class: "lane-bg", x: 0, y: 0, width: lg.w, height: lg.h }, g);
@@ -208,9 +219,21 @@ export class Renderer {
     }
     let value: SVGTextElement | null = null;
     if (n.kind === "datastore") value = svgEl("text", { class: "value", x: X(w / 2), y: Y(47) }, g, "—");
-    const stats = svgEl("text", { class: nb.statsInside ? "stats" : "stats outside", x: nb.statsX, y: nb.statsY }, g, "×0");
+    let stats: SVGTextElement;
+    let statsLines: [SVGTSpanElement, SVGTSpanElement] | null = null;
+    if (nb.statsInside) {
+      stats = svgEl("text", { class: "stats", x: nb.statsX, y: nb.statsY }, g, "×0");
+    } else {
+      stats = svgEl("text", { class: "stats outside", x: nb.statsX, y: nb.statsY }, g);
+      statsLines = [
+        svgEl("tspan", { x: nb.statsX }, stats, "×0"),
+        svgEl("tspan", { x: nb.statsX, dy: 13 }, stats, ""),
+      ];
+    }
     const key = nodeKey(lane, n.id);
-    this.nodeEls.set(key, { g, stats, value, title, label: n.label, count: -2, level: "info", message: "", valueText: "" });
+    this.nodeEls.set(key, {
+      g, stats, statsLines, value, title, label: n.label, count: -2, level: "info", message: "", valueText: "",
+    });
     this.freshNodes.push(key);
   }
 
@@ -316,12 +339,20 @@ export class Renderer {
         g.setAttribute("data-last-ms", attrNum(s.lastMs));
         g.setAttribute("data-p50-ms", attrNum(p50));
         g.setAttribute("data-p99-ms", attrNum(p99));
-        ne.stats.textContent = `×${count} · ${fmtMs(s.lastMs)} ms · p50 ${fmtMs(p50)} · p99 ${fmtMs(p99)}`;
+        const head = `×${count} · ${fmtMs(s.lastMs)} ms · `;
+        const tail = `p50 ${fmtMs(p50)} · p99 ${fmtMs(p99)}`;
+        if (ne.statsLines) {
+          ne.statsLines[0].textContent = head;
+          ne.statsLines[1].textContent = tail;
+        } else ne.stats.textContent = head + tail;
       } else {
         g.removeAttribute("data-last-ms");
         g.removeAttribute("data-p50-ms");
         g.removeAttribute("data-p99-ms");
-        ne.stats.textContent = "×0";
+        if (ne.statsLines) {
+          ne.statsLines[0].textContent = "×0";
+          ne.statsLines[1].textContent = "";
+        } else ne.stats.textContent = "×0";
       }
       g.classList.toggle("ran", count > 0);
       if (ne.value) {
