@@ -89,5 +89,9 @@ wss.on("connection", (ws) => {
     if (!rate && i >= events.length && !track) clearInterval(timer);
   }, 50);
   ws.on("close", () => clearInterval(timer));
+  if (args.remodel) {
+    setTimeout(() => send({ type: "model", model, diagnostics: [{ severity: "error", message: "late problem", file: "activities/motion.yaml", line: 8, column: 1, text: "activities/motion.yaml:8:1: error: late problem" }] }), 1500);
+  }
+  if (args.drop) setTimeout(() => ws.close(), 2500);
 });
 server.listen(port, "127.0.0.1", () => console.log(`dev studio on http://127.0.0.1:${port}/ (${mode})`));

@@ -157,7 +157,28 @@ async function layoutLane(lane: ModelLane): Promise<LaneGeom> {
   return { lane, x: 0, y: 0, w, h: h + HEADER_H, headerH: HEADER_H, nodes, edges: edgeGeoms };
 }
 
-export async function layoutActivity(d: ModelDiagram): Promise<ActivityLayout> {
+// Layouts by diagram text: a reconnect or a recompile that left a diagram alone reuses its layout.
+const cache = new Map<string, Promise<Layout>>();
+function cached<T extends Layout>(key: string, make: () => Promise<T>): Promise<T> {
+  let p = cache.get(key);
+  if (!p) {
+    if (cache.size > 64) cache.clear();
+    p = make();
+    cache.set(key, p);
+    p.catch(() => cache.delete(key));
+  }
+  return p as Promise<T>;
+}
+
+export function layoutActivity(d: ModelDiagram): Promise<ActivityLayout> {
+  return cached("a" + JSON.stringify(d), () => layoutActivityNow(d));
+}
+
+export function layoutComponents(model: ModelView): Promise<ComponentLayout> {
+  return cached("c" + JSON.stringify([model.name, model.components, model.links]), () => layoutComponentsNow(model));
+}
+
+async function layoutActivityNow(d: ModelDiagram): Promise<ActivityLayout> {
   const lanes = await Promise.all(d.lanes.map(layoutLane));
   let x = 0;
   let height = 0;
@@ -183,9 +204,9 @@ export interface ComponentLayout {
   components: ComponentGeom[]; links: LinkGeom[]; orch: { x: number; y: number; w: number; h: number };
 }
 
-export async function layoutComponents(model: ModelView): Promise<ComponentLayout> {
+async function layoutComponentsNow(model: ModelView): Promise<ComponentLayout> {
   const incoming = new Set(model.links.map((l) => `${l.target.component}.${l.target.port}`));
-  const orchW = 260;
+  const orchW = 420;
   const orchH = 70;
   const children: ElkNode[] = model.components.map((c) => {
     const lines = [

@@ -47,6 +47,7 @@ let views = new Map<string, DiagramView>();
 let current = "";
 let generation = 0;
 let laneDiagram = new Map<string, string>();
+const savedViews = new Map<string, { x: number; y: number; k: number }>(); // pan/zoom kept across redraws
 
 // ---------------------------------------------------------------- model and diagrams
 
@@ -61,7 +62,10 @@ function setModel(m: ModelView | null, diagnostics: Diagnostic[]): void {
   index = new ModelIndex(m);
   state.index = index;
   renderer.reset(m);
-  for (const v of views.values()) v.svg.remove();
+  for (const v of views.values()) {
+    if (v.view) savedViews.set(v.id, v.view);
+    v.svg.remove();
+  }
   views = new Map();
   laneDiagram = new Map();
   for (const d of m?.diagrams ?? []) for (const l of d.lanes) laneDiagram.set(l.name, d.id);
@@ -123,7 +127,11 @@ async function layoutAll(m: ModelView, first: string, gen: number): Promise<void
       view.svg.style.display = id === current ? "" : "none";
       canvas.append(view.svg);
       views.set(id, view);
-      if (id === current) fit(view);
+      const saved = savedViews.get(id);
+      if (saved) {
+        view.view = { ...saved };
+        applyView(view);
+      } else if (id === current) fit(view);
       renderer.adoptFresh(state);
       state.dirtyOrch = true;
       schedule();

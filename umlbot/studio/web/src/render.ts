@@ -67,7 +67,7 @@ export class Renderer {
   nodeEls = new Map<string, NodeEl>();
   edgeEls = new Map<string, EdgeEl>();
   compEls = new Map<string, CompEl>();
-  orchBox: { g: SVGGElement; text: SVGTextElement } | null = null;
+  orchBox: { g: SVGGElement; text: SVGTextElement; title: SVGTitleElement } | null = null;
   renderedTrails = new Map<string, string[]>();
   marks = new Map<string, Mark>(); // compiler diagnostics on nodes
   virtualLanes = new Set<string>();
@@ -248,12 +248,13 @@ export class Renderer {
     }
     const o = layout.orch;
     const og = svgEl("g", { class: "orchestrator", "data-state": "unknown", transform: `translate(${o.x},${o.y})` }, v.viewport);
+    const otitle = svgEl("title", {}, og, "unknown");
     svgEl("rect", { class: "box", width: o.w, height: o.h, rx: 4 }, og);
     svgEl("text", { class: "stereo", x: 12, y: 18 }, og, "«orchestrator»");
     svgEl("text", { class: "name", x: 12, y: 38 }, og, model.name);
     const otext = svgEl("text", { class: "orch-state", x: 12, y: 58 }, og, "unknown");
     svgEl("circle", { class: "dot", cx: o.w - 16, cy: 16, r: 6 }, og);
-    this.orchBox = { g: og, text: otext };
+    this.orchBox = { g: og, text: otext, title: otitle };
 
     for (const c of layout.components) {
       const m = model.components.find((mc) => mc.name === c.name);
@@ -317,7 +318,9 @@ export class Renderer {
     }
     if ((all || state.dirtyOrch) && this.orchBox) {
       this.orchBox.g.setAttribute("data-state", state.orch.state);
-      this.orchBox.text.textContent = state.orch.state + (state.orch.detail ? ` — ${state.orch.detail}` : "");
+      const text = state.orch.state + (state.orch.detail ? ` — ${state.orch.detail}` : "");
+      this.orchBox.text.textContent = clip(text, 62);
+      this.orchBox.title.textContent = text;
     }
   }
 
