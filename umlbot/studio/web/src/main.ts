@@ -217,13 +217,14 @@ function applyView(v: DiagramView): void {
   v.svg.classList.toggle("lod-far", k < 0.3);
 }
 
-function fit(v: DiagramView): void {
+/** Show the whole diagram; `readable`: when that is too small to read, fit its width from the top. */
+function fit(v: DiagramView, readable = true): void {
   const W = canvas.clientWidth || 800;
   const H = canvas.clientHeight || 600;
   const pad = 16;
   let k = Math.min((W - 2 * pad) / v.width, (H - 2 * pad) / v.height, 1.25);
   let y = (H - v.height * k) / 2;
-  if (k < 0.6) {
+  if (readable && k < 0.45) {
     // Too small to read when fitted whole: fit the width and start at the top.
     k = Math.min((W - 2 * pad) / v.width, 1);
     if (v.height * k > H) y = pad;
@@ -236,7 +237,7 @@ function fit(v: DiagramView): void {
 
 $<HTMLButtonElement>("#fit").addEventListener("click", () => {
   const v = views.get(current);
-  if (v) fit(v);
+  if (v) fit(v, false);
 });
 
 canvas.addEventListener("wheel", (ev) => {
@@ -446,7 +447,7 @@ function render(budgetMs = 0): void {
 
 function tick(ts: number): void {
   rafId = 0;
-  const flowing = performance.now() - lastArrival < 1000;
+  const flowing = performance.now() - lastArrival < 1000 || !!replay?.playing;
   if (flowing && lastTs) pushCapped(hooks.frames, ts - lastTs);
   lastTs = ts;
 
@@ -692,7 +693,7 @@ window.addEventListener("keydown", (ev) => {
     playBtn.click();
   } else if (ev.key === "f") {
     const v = views.get(current);
-    if (v) fit(v);
+    if (v) fit(v, false);
   }
 });
 

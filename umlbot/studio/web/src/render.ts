@@ -4,7 +4,7 @@
 import type { ActivityLayout, ComponentLayout, NodeBox, Point } from "./layout";
 import { COMP_STATE_LINES } from "./layout";
 import type { Level, NodeStats, StudioState, ComponentState } from "./state";
-import { TRAIL, edgeKey, nodeKey, percentiles } from "./state";
+import { TRAIL, edgeKey, nextNodes, nodeKey, percentiles } from "./state";
 import type { ModelView } from "./types";
 
 const SVGNS = "http://www.w3.org/2000/svg";
@@ -69,6 +69,7 @@ export class Renderer {
   compEls = new Map<string, CompEl>();
   orchBox: { g: SVGGElement; text: SVGTextElement; title: SVGTitleElement } | null = null;
   renderedTrails = new Map<string, string[]>();
+  renderedRunning = new Map<string, string[]>(); // per lane: nodes running now (after the current one)
   marks = new Map<string, Mark>(); // compiler diagnostics on nodes
   virtualLanes = new Set<string>();
   private freshNodes: string[] = [];
@@ -83,7 +84,7 @@ export class Renderer {
       const ee = this.edgeEls.get(key);
       if (ee) this.renderEdge(ee, state.edges.get(key) ?? 0);
     }
-    for (const lane of this.freshLanes) this.renderTrail(lane, state.trails.get(lane) ?? []);
+    for (const lane of this.freshLanes) this.renderTrail(lane, state.trails.get(lane) ?? [], state);
     for (const name of this.freshComps) {
       const ce = this.compEls.get(name);
       if (ce) this.renderComponent(ce, state.components.get(name));
@@ -104,6 +105,7 @@ export class Renderer {
     this.compEls.clear();
     this.orchBox = null;
     this.renderedTrails.clear();
+    this.renderedRunning.clear();
     this.virtualLanes = new Set(
       (model?.diagrams ?? []).flatMap((d) => d.lanes.filter((l) => l.virtual).map((l) => l.name)),
     );
@@ -294,15 +296,15 @@ export class Renderer {
         dirty.add(key);
       }
       for (const [key, ee] of this.edgeEls) this.renderEdge(ee, state.edges.get(key) ?? 0);
-      const lanes = new Set([...this.renderedTrails.keys(), ...state.trails.keys()]);
-      for (const lane of lanes) this.renderTrail(lane, state.trails.get(lane) ?? []);
+      const lanes = new Set([...this.renderedTrails.keys(), ...this.renderedRunning.keys(), ...state.trails.keys()]);
+      for (const lane of lanes) this.renderTrail(lane, state.trails.get(lane) ?? [], state);
       for (const [name, ce] of this.compEls) this.renderComponent(ce, state.components.get(name));
     } else {
       for (const key of state.dirtyEdges) {
         const ee = this.edgeEls.get(key);
         if (ee) this.renderEdge(ee, state.edges.get(key) ?? 0);
       }
-      for (const lane of state.dirtyLanes) this.renderTrail(lane, state.trails.get(lane) ?? []);
+      for (const lane of state.dirtyLanes) this.renderTrail(lane, state.trails.get(lane) ?? [], state);
       for (const name of state.dirtyComponents) {
         const ce = this.compEls.get(name);
         if (ce) this.renderComponent(ce, state.components.get(name));
@@ -391,7 +393,11 @@ export class Renderer {
     if (ee.label) ee.label.textContent = count > 0 ? `${ee.guard}  ×${count}` : ee.guard;
   }
 
-  private renderTrail(lane: string, trail: string[]): void {
+  private renderTrail(lane: string, trail: string[], state: StudioState): void {
+    for (const id of this.renderedRunning.get(lane) ?? []) this.nodeEls.get(nodeKey(lane, id))?.g.classList.remove("running");
+    const running = trail.length ? nextNodes(state.index, lane, trail[0], state.nodes.get(nodeKey(lane, trail[0]))) : [];
+    for (const id of running) this.nodeEls.get(nodeKey(lane, id))?.g.classList.add("running");
+    this.renderedRunning.set(lane, running);
     const old = this.renderedTrails.get(lane) ?? [];
     for (const id of old) {
       const ne = this.nodeEls.get(nodeKey(lane, id));

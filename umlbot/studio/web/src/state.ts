@@ -12,8 +12,8 @@ export interface NodeStats {
   count: number;
   lastMs: number;
   durs: number[]; // shared, positional; only the first `count` entries belong to this state
-  hasValue: boolean;
-  value: unknown;
+  hasValue: boolean; // a datastore's value is known
+  value: unknown; // datastore: its value; decision: the node it went to
   level: Level;
   message: string;
   lastIdx: number; // state clock when the node last completed (edge attribution)
@@ -62,6 +62,7 @@ export const edgeKey = (lane: string, source: string, target: string): string =>
 interface LaneIndex {
   nodes: Map<string, ModelNode>;
   incoming: Map<string, ModelEdge[]>;
+  outgoing: Map<string, string[]>;
 }
 
 export class ModelIndex {
@@ -72,16 +73,30 @@ export class ModelIndex {
       for (const lane of d.lanes) {
         const nodes = new Map<string, ModelNode>();
         const incoming = new Map<string, ModelEdge[]>();
+        const outgoing = new Map<string, string[]>();
         for (const n of lane.nodes) nodes.set(n.id, n);
         for (const e of lane.edges) {
           const list = incoming.get(e.target);
           if (list) list.push(e);
           else incoming.set(e.target, [e]);
+          const out = outgoing.get(e.source);
+          if (out) out.push(e.target);
+          else outgoing.set(e.source, [e.target]);
         }
-        this.lanes.set(lane.name, { nodes, incoming });
+        this.lanes.set(lane.name, { nodes, incoming, outgoing });
       }
     }
   }
+}
+
+/** The nodes that run after `node` completed in `lane`: a decision's branch, else every successor. */
+export function nextNodes(index: ModelIndex, lane: string, node: string, stats: NodeStats | undefined): string[] {
+  const li = index.lanes.get(lane);
+  if (!li) return [];
+  const kind = li.nodes.get(node)?.kind;
+  if (kind === "end") return [];
+  if (kind === "decision") return typeof stats?.value === "string" ? [stats.value] : [];
+  return li.outgoing.get(node) ?? [];
 }
 
 export class StudioState {
@@ -173,7 +188,8 @@ export class StudioState {
       message = e.detail ?? "warning";
     }
     const hasValue = e.kind === "datastore" && "value" in e ? true : old ? old.hasValue : false;
-    const value = e.kind === "datastore" && "value" in e ? e.value : old?.value;
+    // a datastore's value, or the node a decision went to
+    const value = (e.kind === "datastore" || e.kind === "decision") && "value" in e ? e.value : old?.value;
 
     // Edges: a decision says where it went; any other node was entered from the incoming edge
     // whose source completed most recently (a join from all of them).
@@ -215,8 +231,8 @@ export class StudioState {
       const next = [node];
       if (trail) for (const n of trail) if (n !== node && next.length < TRAIL) next.push(n);
       this.trails.set(lane, next);
-      this.dirtyLanes.add(lane);
     }
+    this.dirtyLanes.add(lane); // also a repeat: a decision may have taken another branch
 
     if (typeof e.seq === "number") {
       if (this.traceSeq && e.seq > this.traceSeq + 1) this.traceLost += e.seq - this.traceSeq - 1;
