@@ -3,7 +3,8 @@
 import { svgEl } from "./render";
 import type { TrackView, WorldMsg } from "./types";
 
-const PINGS_KEPT = 24;
+const PING_SECONDS = 1.0; // pings of the last second (sim time) stay drawn
+const PINGS_MAX = 400;
 
 export class SimPanel {
   root: HTMLElement;
@@ -76,15 +77,21 @@ export class SimPanel {
       for (const p of m.pings) {
         svgEl("line", {
           class: p.cm === null ? "ping miss" : "ping", x1: p.x0, y1: p.y0, x2: p.x1, y2: p.y1,
-          "data-cm": p.cm === null ? "" : p.cm,
+          "data-cm": p.cm === null ? "" : p.cm, "data-t": p.t,
         }, this.pingsG);
       }
     }
-    while (this.pingsG.childElementCount > PINGS_KEPT) this.pingsG.firstElementChild?.remove();
-    const n = this.pingsG.childElementCount;
-    Array.from(this.pingsG.children).forEach((el, i) => {
-      (el as SVGElement).style.opacity = String(0.25 + (0.75 * (i + 1)) / n);
-    });
+    // Keep the last second of pings, older ones fainter.
+    const now = last.t;
+    const lines = Array.from(this.pingsG.children) as SVGElement[];
+    let drop = Math.max(0, lines.length - PINGS_MAX);
+    const stale = (el: SVGElement): boolean => Math.abs(now - Number(el.getAttribute("data-t"))) > PING_SECONDS;
+    while (drop < lines.length && stale(lines[drop])) drop++; // (a new run restarts the clock)
+    for (let i = 0; i < drop; i++) lines[i].remove();
+    for (let i = drop; i < lines.length; i++) {
+      const age = Math.max(0, now - Number(lines[i].getAttribute("data-t")));
+      lines[i].style.opacity = (1 - (0.75 * age) / PING_SECONDS).toFixed(2);
+    }
     if (this.info) {
       this.info.textContent = `t ${last.t.toFixed(1)} s · servo ${last.servo_deg.toFixed(0)}° · collisions ${last.collisions}${last.goal ? " · goal reached" : ""}`;
     }

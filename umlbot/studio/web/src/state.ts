@@ -178,12 +178,13 @@ export class StudioState {
     const durs = old ? old.durs : [];
     const count = old ? old.count : 0;
     durs[count] = d;
-    let level: Level = old ? old.level : "info";
-    let message = old ? old.message : "";
+    // The node's last run decides: a failed run is red, a warning amber, a good run clears it.
+    let level: Level = "info";
+    let message = "";
     if (e.level === "error" || (e.error !== undefined && e.error !== null)) {
       level = "error";
       message = e.error ?? e.detail ?? "error";
-    } else if (e.level === "warning" && level !== "error") {
+    } else if (e.level === "warning") {
       level = "warning";
       message = e.detail ?? "warning";
     }
