@@ -95,7 +95,6 @@ const LANE_OPTIONS: Record<string, string> = {
 };
 
 async function layoutLane(lane: ModelLane): Promise<LaneGeom> {
-  const sw = STATS_W();
   const sizes = new Map<string, ReturnType<typeof nodeSize>>();
   const children: ElkNode[] = lane.nodes.map((n) => {
     const s = nodeSize(n);

@@ -183,10 +183,16 @@ function setDiagnostics(list: Diagnostic[]): void {
           const old = renderer.marks.get(key);
           if (!old || (old.level === "warning" && d.severity === "error")) renderer.marks.set(key, { level: d.severity, message: d.text });
           li.dataset.diagram = dg.id;
+          li.dataset.lane = lane.name;
+          li.dataset.node = n.id;
         }
       }
     }
-    li.addEventListener("click", () => { if (li.dataset.diagram) select(li.dataset.diagram); });
+    li.addEventListener("click", () => {
+      if (!li.dataset.diagram) return;
+      select(li.dataset.diagram);
+      if (li.dataset.lane && li.dataset.node) reveal(li.dataset.lane, li.dataset.node);
+    });
   }
   $<HTMLElement>("#diagnostics-count").textContent = String(list.length);
   // Problems per diagram, as a badge in the list.
@@ -215,6 +221,28 @@ function applyView(v: DiagramView): void {
   const k = v.view.k;
   v.svg.classList.toggle("lod-mid", k < 0.45);
   v.svg.classList.toggle("lod-far", k < 0.3);
+}
+
+/** Centre the view on a node (at a readable zoom) and flash it. */
+function reveal(lane: string, node: string): void {
+  const v = views.get(current);
+  const g = canvas.querySelector<SVGGElement>(`g.node[data-lane="${CSS.escape(lane)}"][data-node="${CSS.escape(node)}"]`);
+  if (!v || !v.view || !g) return;
+  if (v.view.k < 0.8) {
+    const r = canvas.getBoundingClientRect();
+    const cx = r.width / 2;
+    const cy = r.height / 2;
+    v.view.x = cx - ((cx - v.view.x) * 0.9) / v.view.k;
+    v.view.y = cy - ((cy - v.view.y) * 0.9) / v.view.k;
+    v.view.k = 0.9;
+    applyView(v);
+  }
+  const c = canvas.getBoundingClientRect();
+  const b = g.getBoundingClientRect();
+  v.view.x += c.left + c.width / 2 - (b.left + b.width / 2);
+  v.view.y += c.top + c.height / 2 - (b.top + b.height / 2);
+  applyView(v);
+  g.animate([{ opacity: 0.2 }, { opacity: 1 }, { opacity: 0.2 }, { opacity: 1 }], { duration: 900 });
 }
 
 /** Show the whole diagram; `readable`: when that is too small to read, fit its width from the top. */
@@ -626,6 +654,7 @@ function resetSession(hello: HelloMsg): void {
   callsBody.replaceChildren();
   const name = hello.model?.name ?? "(no model)";
   titleEl.textContent = `${name} · robot ${hello.robot}`;
+  $<HTMLElement>("#source").textContent = hello.source;
   titleEl.title = hello.source;
   modeEl.textContent = mode === "replay" ? `replay${hello.replay ? ` · ${hello.replay.file}` : ""}` : "live";
   modeEl.dataset.mode = mode;

@@ -50,7 +50,7 @@ interface NodeEl {
   valueText: string;
 }
 interface EdgeEl { g: SVGGElement; label: SVGTextElement | null; guard: string; count: number }
-interface CompEl { g: SVGGElement; state: SVGTextElement; impl: SVGTextElement }
+interface CompEl { g: SVGGElement; state: SVGTextElement }
 
 export interface DiagramView {
   id: string;
@@ -269,7 +269,7 @@ export class Renderer {
       svgEl("text", { class: "stereo", x: 12, y: 18 }, inner, `«${m.kind}»`);
       svgEl("text", { class: "name", x: 12, y: 37 }, inner, c.name);
       svgEl("circle", { class: "dot", cx: c.w - 42, cy: 16, r: 6 }, inner);
-      const impl = svgEl("text", { class: "impl", x: 12, y: 54 }, inner, `${m.impl} · ${m.service} · ${m.driver}`);
+      svgEl("text", { class: "impl", x: 12, y: 54 }, inner, `${m.impl} · ${m.service} · ${m.driver}`);
       svgEl("text", { class: "features", x: 12, y: 69 }, inner, `features: ${m.features.join(", ")}`);
       svgEl("line", { class: "sep", x1: 0, x2: c.w, y1: 77, y2: 77 }, inner);
       const state = svgEl("text", { class: "state", x: 12, y: 92 }, inner);
@@ -277,7 +277,7 @@ export class Renderer {
         svgEl("rect", { class: "port", x: p.x - c.x, y: p.y - c.y, width: p.w, height: p.h }, inner);
         svgEl("text", { class: "port-label", x: p.labelX - c.x, y: p.labelY - c.y }, inner, `${p.name} → ${p.feature}`);
       }
-      this.compEls.set(c.name, { g, state, impl });
+      this.compEls.set(c.name, { g, state });
       this.freshComps.push(c.name);
     }
     return v;

@@ -330,15 +330,7 @@ export class StudioState {
   }
 }
 
-// Nearest-rank percentile of the first `count` samples (p in 0..1), by quickselect on a copy.
-export function percentile(durs: number[], count: number, p: number): number {
-  if (count <= 0) return 0;
-  const a = new Float64Array(count);
-  for (let i = 0; i < count; i++) a[i] = durs[i];
-  const k = Math.min(count - 1, Math.max(0, Math.ceil(p * count) - 1));
-  return select(a, k);
-}
-
+// Nearest-rank p50 and p99 of the first `count` samples, by quickselect on a copy.
 export function percentiles(durs: number[], count: number): [number, number] {
   if (count <= 0) return [0, 0];
   const a = new Float64Array(count);
