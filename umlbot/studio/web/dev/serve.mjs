@@ -90,7 +90,7 @@ wss.on("connection", (ws) => {
   }, 50);
   ws.on("close", () => clearInterval(timer));
   if (args.remodel) {
-    setTimeout(() => send({ type: "model", model, diagnostics: [{ severity: "error", message: "late problem", file: "activities/motion.yaml", line: 8, column: 1, text: "activities/motion.yaml:8:1: error: late problem" }] }), 1500);
+    setTimeout(() => send({ type: "model", model: args.remodel === "null" ? null : model, diagnostics: [{ severity: "error", message: "late problem", file: "activities/motion.yaml", line: 8, column: 1, text: "activities/motion.yaml:8:1: error: late problem" }] }), 1500);
   }
   if (args.drop) setTimeout(() => ws.close(), 2500);
 });

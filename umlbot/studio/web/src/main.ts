@@ -36,6 +36,7 @@ const speedSel = $<HTMLSelectElement>("#replay-speed");
 const timeInput = $<HTMLInputElement>("#replay-time");
 const clockEl = $<HTMLElement>("#replay-clock");
 const messageEl = $<HTMLElement>("#canvas-message");
+const bannerEl = $<HTMLElement>("#canvas-banner");
 const sim = new SimPanel($<HTMLElement>("#sim"));
 
 const renderer = new Renderer();
@@ -639,6 +640,7 @@ let expectSeq = 0;
 let retry = 500;
 
 function resetSession(hello: HelloMsg): void {
+  bannerEl.hidden = true;
   mode = hello.mode === "replay" ? "replay" : "live";
   queue.length = 0;
   qpos = 0;
@@ -691,7 +693,15 @@ function onMessage(msg: ServerMsg): void {
       schedule();
       break;
     case "model":
-      setModel(msg.model, msg.diagnostics ?? []);
+      if (!msg.model && model) {
+        // Broken by an edit: keep the last good diagrams, list the problems.
+        setDiagnostics(msg.diagnostics ?? []);
+        bannerEl.textContent = "The model no longer compiles (see Diagnostics): showing the last version that did.";
+        bannerEl.hidden = false;
+      } else {
+        bannerEl.hidden = true;
+        setModel(msg.model, msg.diagnostics ?? []);
+      }
       schedule();
       break;
     default:
