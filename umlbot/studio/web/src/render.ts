@@ -50,7 +50,7 @@ interface NodeEl {
   valueText: string;
 }
 interface EdgeEl { g: SVGGElement; label: SVGTextElement | null; guard: string; count: number }
-interface CompEl { g: SVGGElement; state: SVGTextElement }
+interface CompEl { g: SVGGElement; state: SVGTextElement; box: SVGRectElement; flashedAt: number }
 
 export interface DiagramView {
   id: string;
@@ -263,7 +263,7 @@ export class Renderer {
       if (!m) continue;
       const g = svgEl("g", { class: "component unknown", "data-component": c.name, "data-state": "unknown" }, v.viewport);
       const inner = svgEl("g", { transform: `translate(${c.x},${c.y})` }, g);
-      svgEl("rect", { class: "box", width: c.w, height: c.h, rx: 3 }, inner);
+      const box = svgEl("rect", { class: "box", width: c.w, height: c.h, rx: 3 }, inner);
       // UML component icon
       svgEl("path", { class: "icon", d: `M${c.w - 26},8 h14 v16 h-14 z M${c.w - 30},11 h8 v3 h-8 z M${c.w - 30},18 h8 v3 h-8 z` }, inner);
       svgEl("text", { class: "stereo", x: 12, y: 18 }, inner, `«${m.kind}»`);
@@ -277,7 +277,7 @@ export class Renderer {
         svgEl("rect", { class: "port", x: p.x - c.x, y: p.y - c.y, width: p.w, height: p.h }, inner);
         svgEl("text", { class: "port-label", x: p.labelX - c.x, y: p.labelY - c.y }, inner, `${p.name} → ${p.feature}`);
       }
-      this.compEls.set(c.name, { g, state });
+      this.compEls.set(c.name, { g, state, box, flashedAt: -1e9 });
       this.freshComps.push(c.name);
     }
     return v;
@@ -309,6 +309,14 @@ export class Renderer {
         const ce = this.compEls.get(name);
         if (ce) this.renderComponent(ce, state.components.get(name));
       }
+    }
+    // A component that was just called flashes (at most every 300 ms).
+    const now = performance.now();
+    for (const name of state.calledComponents) {
+      const ce = this.compEls.get(name);
+      if (!ce || now - ce.flashedAt < 300 || ce.g.getAttribute("data-state") === "offline") continue;
+      ce.flashedAt = now;
+      ce.box.animate([{ fill: "#fff3b0" }, { fill: "#ffffff" }], { duration: 600, easing: "ease-out" });
     }
     const t0 = performance.now();
     let n = 0;

@@ -119,6 +119,7 @@ export class StudioState {
   dirtyComponents = new Set<string>();
   dirtyOrch = false;
   dirtyCalls = false;
+  calledComponents = new Set<string>(); // components that got a call since the last frame
   allDirty = true;
 
   constructor(public index: ModelIndex) {}
@@ -248,6 +249,7 @@ export class StudioState {
   }
 
   private applyCall(e: MonitorEvent): void {
+    if (e.component) this.calledComponents.add(e.component);
     const row: CallRow = {
       key: "",
       time: e.time,
@@ -326,6 +328,7 @@ export class StudioState {
     this.dirtyComponents.clear();
     this.dirtyOrch = false;
     this.dirtyCalls = false;
+    this.calledComponents.clear();
     this.allDirty = false;
   }
 }
