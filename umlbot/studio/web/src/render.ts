@@ -142,9 +142,10 @@ export class Renderer {
       const g = svgEl("g", { class: "lane", "data-lane": lane.name, transform: `translate(${lg.x},${lg.y})` }, v.viewport);
       svgEl("rect", { class: "lane-bg", x: 0, y: 0, width: lg.w, height: lg.h }, g);
       svgEl("rect", { class: "lane-header", x: 0, y: 0, width: lg.w, height: lg.headerH }, g);
-      const title = svgEl("text", { class: "lane-title", x: lg.w / 2, y: 22 }, g, lane.name);
-      const sub = lane.virtual ? "  «activity»" : lane.component ? "" : "";
-      if (sub) svgEl("tspan", { class: "lane-sub" }, title, sub);
+      svgEl("text", { class: "lane-title", x: lg.w / 2, y: 22 }, g, lane.name);
+      // a virtual lane is a called activity; a component's lane runs on that component
+      const sub = lane.virtual ? "«activity»" : lane.component ? "«component»" : "";
+      if (sub) svgEl("text", { class: "lane-sub", x: 8, y: 21 }, g, sub);
       const body = svgEl("g", { class: "lane-body", transform: `translate(0,${lg.headerH})` }, g);
       const edgesG = svgEl("g", { class: "edges" }, body);
       const nodesG = svgEl("g", { class: "nodes" }, body);
