@@ -17,7 +17,7 @@ window.__studio = hooks;
 const KEEP = 10_000;
 const pushCapped = (a: number[], v: number): void => {
   a.push(v);
-  if (a.length > KEEP * 1.5) a.splice(0, a.length - KEEP);
+  if (a.length > KEEP) a.splice(0, a.length - KEEP);
 };
 
 const $ = <T extends HTMLElement>(sel: string): T => document.querySelector(sel) as T;
