@@ -138,8 +138,8 @@ async function layoutAll(m: ModelView, first: string, gen: number): Promise<void
       schedule();
       console.debug(`studio: ${id} laid out in ${(t1 - t0).toFixed(0)} ms, drawn in ${(performance.now() - t1).toFixed(0)} ms`);
       if (id === first) {
-        // drawn on the next frame
-        requestAnimationFrame(() => { hooks.ready = true; });
+        // ready once the frame that first paints it is over
+        requestAnimationFrame(() => requestAnimationFrame(() => { hooks.ready = true; }));
       }
     } catch (err) {
       console.error(`studio: layout of ${id} failed`, err);
