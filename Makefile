@@ -9,7 +9,7 @@ TRACK  ?= models/tracks/s_bend.yaml
 SPEED  ?= 10
 OUT    ?= out
 
-.PHONY: all install system-packages test lint typecheck pytest sim bench clean
+.PHONY: all install system-packages test lint typecheck pytest sim bench clean studio
 
 all: test
 
@@ -45,6 +45,10 @@ bench: $(STAMP)
 	$(BIN)/python bench/compile.py
 	$(BIN)/python bench/orchestrator.py
 	$(BIN)/python bench/sim.py
+
+# Rebuild the studio page from its sources (needs Node.js and npm; the built page is committed).
+studio:
+	cd umlbot/studio/web && npm ci --no-audit --no-fund && npm run build
 
 clean:
 	rm -rf $(VENV) $(OUT) .mypy_cache .ruff_cache .pytest_cache build *.egg-info

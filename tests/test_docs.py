@@ -885,6 +885,7 @@ OPTION_SECTIONS: dict[tuple[str, str], tuple[str, ...]] = {
     ("docs/model-format.md", "# The model format"): ("check", "compile", "render"),
     ("docs/semantics.md", ""): ("run",),
     ("docs/monitor.md", ""): ("monitor",),
+    ("docs/studio.md", "## Options"): ("studio",),
     ("docs/services.md", "# Hardware services"): ("service",),
     ("docs/services.md", "## Drivers"): ("service",),
     ("docs/simulator.md", "## Command"): ("sim",),

@@ -39,8 +39,9 @@ class LiveMonitor:
     def connected(self) -> bool:
         return self._connection.connected
 
-    def start(self, timeout: float = 5.0) -> None:
-        """Connect; raises NotConnected when the broker is not reached within `timeout`."""
+    def start(self, timeout: float | None = 5.0) -> None:
+        """Connect; raises NotConnected when the broker is not reached within `timeout` (None:
+        connect in the background and keep trying)."""
         self._connection.start(timeout)
 
     def tick(self, now: float | None = None) -> None:

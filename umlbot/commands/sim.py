@@ -38,9 +38,13 @@ DEFAULT_TRACK = "models/tracks/s_bend.yaml"
 @click.option("--max-collisions", type=click.IntRange(min=1), default=1, show_default=True,
               help="Stop after this many collisions.")
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as one JSON object.")
+@click.option("--studio", is_flag=True,
+              help="Follow the run in umlbot studio (the page stays open after the run until Ctrl-C).")
+@click.option("--studio-port", type=click.IntRange(0, 65535), default=8080, show_default=True,
+              help="Port of the studio page (0 = any free port).")
 def command(model: Path, track: Path | None, speed: float, broker_url: str | None, port: int | None,
             timeout_s: float, plot: Path | None, processes: bool, seed: int | None, noise_cm: float,
-            max_collisions: int, as_json: bool) -> None:
+            max_collisions: int, as_json: bool, studio: bool, studio_port: int) -> None:
     """Run MODEL on a track: embedded broker, world, services, orchestrator; exit 0 only when the
     goal was reached without a collision."""
     from umlbot.logs import configure_logging
@@ -77,8 +81,20 @@ def command(model: Path, track: Path | None, speed: float, broker_url: str | Non
         elif not as_json:
             click.echo(line)
 
+    follower = None
+    if studio:
+        from umlbot.studio.follow import SimFollower
+
+        follower = SimFollower(model, studio_port, announce=lambda url: click.echo(
+            f"umlbot studio: {url}  (follows this run)", err=as_json))
     with signals:  # while it starts, a signal interrupts it (the run is then "interrupted")
-        result = run_sim(options, show, signals.stop)
+        try:
+            result = run_sim(options, show, signals.stop,
+                             observe=follower.observe if follower is not None else None)
+        except BaseException:
+            if follower is not None:
+                follower.close()
+            raise
     if live:
         click.echo()
     if as_json:
@@ -96,4 +112,11 @@ def command(model: Path, track: Path | None, speed: float, broker_url: str | Non
             click.echo(f"  failure         {result.failure}")
         if result.plot is not None:
             click.echo(f"  picture         {result.plot}")
+    if follower is not None:
+        if result.reason != "interrupted":  # Ctrl-C during the run quits; after a run, look at it
+            click.echo(f"umlbot studio: {follower.url}  (the run has ended; Ctrl-C to quit)", err=as_json)
+            with StopSignals() as after:
+                after.running()
+                after.stop.wait()
+        follower.close()
     sys.exit(0 if result.ok else 1)

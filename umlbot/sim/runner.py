@@ -33,6 +33,9 @@ from umlbot.sim.sharing import WorldServer, attach_local_world
 from umlbot.sim.track import load_track
 from umlbot.sim.world import World, WorldLoop, WorldSnapshot
 
+#: `run_sim`'s `observe` hook: (world, broker URL, robot id) -> what to call when the run ended.
+Observer = Callable[[World, str, str], Callable[[], None]]
+
 log = get_logger(__name__)
 
 #: The default embedded-broker port: the standard one, so any MQTT client can watch the run.
@@ -324,8 +327,14 @@ def run_sim(
     options: SimOptions,
     on_progress: Callable[[Progress], None] | None = None,
     stop: threading.Event | None = None,
+    observe: Observer | None = None,
 ) -> SimResult:
-    """Run one simulation to its end (see the module docstring); `stop` ends it early (Ctrl-C)."""
+    """Run one simulation to its end (see the module docstring); `stop` ends it early (Ctrl-C).
+
+    `observe(world, broker_url, robot)` is called once the broker runs, before anything else
+    starts (the studio follows the run this way); the function it returns is called when the run
+    has ended, before the broker stops.
+    """
     from compiler.api import compile_model
     from services.bus.settings import BrokerSettings
     if not options.speed > 0:
@@ -343,6 +352,7 @@ def run_sim(
     deployment = sim_deployment(compiled)
     stop = stop or threading.Event()
     broker, url = _start_broker(options)
+    finish_observing: Callable[[], None] | None = None
     services = _Services(deployment, url, options.processes, world)
     loop: WorldLoop | None = None
     orchestrator: Any = None
@@ -355,6 +365,8 @@ def run_sim(
     reason = "interrupted"
     failure: str | None = None
     try:
+        if observe is not None:
+            finish_observing = observe(world, url, deployment.robot)
         services.start()
         services.wait_online()
         # the world moves with the clock from now on: start-up time is not sim time
@@ -422,6 +434,8 @@ def run_sim(
         if loop is not None:
             loop.stop()
         world.stop_motors()
+        if finish_observing is not None:
+            finish_observing()
         if broker is not None:
             broker.stop()
     latencies = list(orchestrator.stats.action_latency_s) if orchestrator is not None else []

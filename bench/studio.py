@@ -1,0 +1,237 @@
+"""Studio benchmark: how late the page shows a node, and how smooth it stays under load.
+
+Both parts run a real broker (Mosquitto, or the embedded amqtt with --broker amqtt), a real
+`umlbot studio` process and Debian's Chromium driven by Playwright; the page measures itself
+(`window.__studio`, docs/studio.md):
+
+- **latency**: the reference car (`models/robot_car`) runs on mock services under a real
+  `umlbot run`; for each trace event the page applies, it records the time from the node's end
+  (the orchestrator's clock, the event's own `time`) to the animation frame that highlighted it.
+  Targets: p50 <= 50 ms, p99 <= 200 ms.
+- **load**: a generated model of `--nodes` activity nodes in one activity diagram (20 swimlanes of
+  100 nodes), shown in the page, while a publisher sends `--rate` trace events per second on the
+  trace topic in the orchestrator's batched form (a JSON array every 20 ms) for `--seconds`.
+  The page records every frame's duration. Target: no frame over 100 ms.
+
+The last output line is one JSON object {"latency": {...}, "load": {...}}. Exit 1 when a target is
+missed.
+
+    python bench/studio.py [--nodes 2000] [--rate 2000] [--seconds 10] [--broker mosquitto|amqtt]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import random
+import re
+import statistics
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from collections.abc import Iterator
+from contextlib import ExitStack, contextmanager
+from pathlib import Path
+from typing import Any
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+import paho.mqtt.client as mqtt
+from compile import DEPLOYMENT, MODEL, lane_text  # bench/compile.py: the generated lanes
+from paho.mqtt.enums import CallbackAPIVersion
+from playwright.sync_api import Page, sync_playwright
+from rpc import run_broker
+
+REPO = Path(__file__).resolve().parent.parent
+CAR = REPO / "models" / "robot_car"
+CHROMIUM = "/usr/bin/chromium"
+CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking",
+                 "--disable-component-update", "--disable-sync", "--no-first-run"]
+LANE_NODES = 100
+BATCH_S = 0.02
+TARGETS = {"latency_p50_ms": 50.0, "latency_p99_ms": 200.0, "max_frame_ms": 100.0}
+
+
+def umlbot(*args: str) -> list[str]:
+    return [sys.executable, "-c", "from umlbot.cli import main; main()", *args]
+
+
+def percentile(values: list[float], q: float) -> float:
+    ordered = sorted(values)
+    return ordered[min(len(ordered) - 1, max(0, round(q / 100 * len(ordered)) - 1))]
+
+
+def big_model(root: Path, nodes: int) -> Path:
+    """A model folder whose one activity file holds `nodes` nodes in swimlanes of 100."""
+    (root / "activities").mkdir(parents=True)
+    (root / "model.yaml").write_text(MODEL, encoding="utf-8")
+    (root / "deployment.yaml").write_text(DEPLOYMENT, encoding="utf-8")
+    lanes = max(1, nodes // LANE_NODES)
+    parts = ["lanes:"]
+    for index in range(lanes):
+        name = "RaspberryPI" if index == 0 else f"Helper{index}"
+        callee = f"Helper{index + 1}" if index + 1 < lanes else None
+        text = lane_text(name, LANE_NODES, callee)
+        parts.append("\n".join(("  - " if i == 0 else "    ") + line
+                               for i, line in enumerate(text.rstrip("\n").splitlines())))
+    (root / "activities" / "all.yaml").write_text("\n".join(parts) + "\n", encoding="utf-8")
+    return root
+
+
+@contextmanager
+def child(argv: list[str], env: dict[str, str], log: Path) -> Iterator[subprocess.Popen[str]]:
+    with log.open("w") as err:
+        proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=err, env=env, text=True)
+    try:
+        yield proc
+    finally:
+        if proc.poll() is None:
+            proc.terminate()
+            try:
+                proc.wait(15)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait(5)
+        if proc.stdout is not None:
+            proc.stdout.close()
+
+
+def studio_url(proc: subprocess.Popen[str], timeout: float = 60.0) -> str:
+    assert proc.stdout is not None
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        line = proc.stdout.readline()
+        match = re.search(r"umlbot studio: (http://\S+)", line)
+        if match:
+            return match.group(1)
+        if not line and proc.poll() is not None:
+            break
+    raise RuntimeError("umlbot studio did not print its URL")
+
+
+def open_page(browser: Any, url: str, diagram: str | None = None) -> Page:
+    page: Page = browser.new_page(viewport={"width": 1600, "height": 1000})
+    page.goto(url + (f"#diagram={diagram}" if diagram else ""))
+    page.wait_for_function("window.__studio && window.__studio.ready === true", timeout=120_000)
+    return page
+
+
+def measure_latency(browser: Any, broker_url: str, seconds: float, workdir: Path) -> dict[str, Any]:
+    env = {**os.environ, "UMLBOT_BROKER": broker_url, "UMLBOT_LOG_LEVEL": "WARNING"}
+    compiled = workdir / "car.json"
+    subprocess.run(umlbot("compile", str(CAR), "-o", str(compiled)), check=True, env=env, timeout=120)
+    with ExitStack() as stack:
+        for kind in ("motor", "sonar", "servo", "gpio"):
+            argv = umlbot("service", kind, "--deploy", str(CAR / "deployment.yaml"), "--driver", "mock",
+                          "--robot", "car")
+            stack.enter_context(child(argv, env, workdir / f"{kind}.log"))
+        studio = stack.enter_context(child(umlbot("studio", str(CAR), "--port", "0", "--robot", "car"), env,
+                                           workdir / "studio.log"))
+        page = open_page(browser, studio_url(studio))
+        with child(umlbot("run", str(compiled), "--robot", "car"), env, workdir / "run.log"):
+            page.wait_for_function("window.__studio.latencies.length > 0", timeout=60_000)
+            page.evaluate("window.__studio.latencies.length = 0")
+            time.sleep(seconds)
+            latencies: list[float] = page.evaluate("window.__studio.latencies.slice()")
+            applied: int = page.evaluate("window.__studio.applied")
+        page.close()
+    return {"samples": len(latencies), "applied": applied,
+            "latency_p50_ms": round(statistics.median(latencies), 1),
+            "latency_p99_ms": round(percentile(latencies, 99), 1),
+            "latency_max_ms": round(max(latencies), 1)}
+
+
+def publish_load(broker_url: str, lanes: dict[str, list[tuple[str, str]]], rate: float, seconds: float,
+                 stop: threading.Event) -> int:
+    """Publish `rate` trace events/s (one JSON array per 20 ms) for `seconds`; returns how many."""
+    port = int(broker_url.rsplit(":", 1)[1])
+    client = mqtt.Client(CallbackAPIVersion.VERSION2, client_id=f"bench-studio-{os.getpid()}")
+    client.connect("127.0.0.1", port, 30)
+    client.loop_start()
+    rng = random.Random(7)
+    pool = [(lane, node, kind) for lane, nodes in lanes.items() for node, kind in nodes]
+    per_batch = max(1, round(rate * BATCH_S))
+    sent = 0
+    seq = 0
+    began = time.monotonic()
+    next_at = began
+    try:
+        while not stop.is_set() and time.monotonic() - began < seconds:
+            now = time.time()
+            batch = []
+            for _ in range(per_batch):
+                lane, node, kind = rng.choice(pool)
+                seq += 1
+                duration = rng.uniform(0.0005, 0.02)
+                batch.append({"lane": lane, "node": node, "kind": kind, "start": now - duration, "end": now,
+                              "duration_ms": round(duration * 1000, 3), "level": "info", "detail": node,
+                              "seq": seq, **({"value": seq} if kind == "datastore" else {})})
+            client.publish("umlbot/bench/orchestrator/trace", json.dumps(batch), qos=0)
+            sent += len(batch)
+            next_at += BATCH_S
+            time.sleep(max(0.0, next_at - time.monotonic()))
+    finally:
+        client.loop_stop()
+        client.disconnect()
+    return sent
+
+
+def measure_load(browser: Any, broker_url: str, nodes: int, rate: float, seconds: float,
+                 workdir: Path) -> dict[str, Any]:
+    from compiler.api import compile_model
+
+    model = big_model(workdir / "big", nodes)
+    compiled = compile_model(model)
+    lanes = {name: [(node.id, str(node.kind)) for node in lane.nodes.values()]
+             for name, lane in compiled.lanes.items()}
+    total_nodes = sum(len(v) for v in lanes.values())
+    env = {**os.environ, "UMLBOT_BROKER": broker_url, "UMLBOT_LOG_LEVEL": "WARNING"}
+    with child(umlbot("studio", str(model), "--port", "0", "--robot", "bench"), env,
+               workdir / "studio-big.log") as studio:
+        page = open_page(browser, studio_url(studio), diagram="activity-all")
+        shown = page.locator("g.node").count()
+        page.evaluate("window.__studio.frames.length = 0")
+        stop = threading.Event()
+        sent = publish_load(broker_url, lanes, rate, seconds, stop)
+        time.sleep(1.0)  # the last frames reach the page
+        frames: list[float] = page.evaluate("window.__studio.frames.slice()")
+        applied: int = page.evaluate("window.__studio.applied")
+        page.screenshot(path=str(REPO / "out" / "studio-bench-2000.png"))
+        page.close()
+    return {"nodes": total_nodes, "nodes_shown": shown, "rate_per_s": rate, "seconds": seconds, "sent": sent,
+            "applied": applied, "frames": len(frames),
+            "frame_p50_ms": round(statistics.median(frames), 1) if frames else None,
+            "frame_p99_ms": round(percentile(frames, 99), 1) if frames else None,
+            "max_frame_ms": round(max(frames), 1) if frames else None,
+            "frames_over_100_ms": sum(1 for f in frames if f > 100.0)}
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--nodes", type=int, default=2000)
+    parser.add_argument("--rate", type=float, default=2000.0)
+    parser.add_argument("--seconds", type=float, default=10.0)
+    parser.add_argument("--broker", choices=["mosquitto", "amqtt"], default="mosquitto")
+    args = parser.parse_args()
+    (REPO / "out").mkdir(exist_ok=True)
+    with tempfile.TemporaryDirectory() as tmp, run_broker(args.broker) as url, sync_playwright() as pw:
+        browser = pw.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
+        try:
+            latency = measure_latency(browser, url, args.seconds, Path(tmp))
+            load = measure_load(browser, url, args.nodes, args.rate, args.seconds, Path(tmp))
+        finally:
+            browser.close()
+    result = {"broker": args.broker, "latency": latency, "load": load, "targets": TARGETS}
+    print(json.dumps(result))
+    ok = (latency["latency_p50_ms"] <= TARGETS["latency_p50_ms"]
+          and latency["latency_p99_ms"] <= TARGETS["latency_p99_ms"]
+          and load["max_frame_ms"] is not None and load["max_frame_ms"] <= TARGETS["max_frame_ms"])
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

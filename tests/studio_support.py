@@ -1,0 +1,105 @@
+"""Test helpers for umlbot studio: a `umlbot studio` child process and a WebSocket reader."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import os
+import re
+import subprocess
+import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+import aiohttp
+from robot_run import umlbot_argv
+
+URL_LINE = re.compile(r"umlbot studio: (http://\S+)")
+
+
+class StudioProc:
+    """`umlbot studio ARGS` (or `umlbot sim … --studio`) as a child process; `url` once it listens."""
+
+    def __init__(self, args: list[str], workdir: Path, broker_url: str | None = None,
+                 timeout: float = 60.0) -> None:
+        env = {k: v for k, v in os.environ.items() if k not in ("UMLBOT_ROBOT", "UMLBOT_BROKER")}
+        if broker_url is not None:
+            env["UMLBOT_BROKER"] = broker_url
+        self.stderr_path = workdir / f"studio-{time.monotonic_ns()}.log"
+        with self.stderr_path.open("wb") as err:
+            self.popen = subprocess.Popen(umlbot_argv(*args), stdout=subprocess.PIPE, stderr=err,
+                                          cwd=workdir, env=env, text=True)
+        self.lines: list[str] = []
+        self.url = self._wait_url(timeout)
+
+    def _wait_url(self, timeout: float) -> str:
+        assert self.popen.stdout is not None
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            line = self.popen.stdout.readline()
+            if not line:
+                break
+            self.lines.append(line.rstrip("\n"))
+            match = URL_LINE.search(line)
+            if match:
+                return match.group(1)
+        self.stop()
+        raise AssertionError(f"studio printed no URL: {self.lines}\n{self.log_text()[-3000:]}")
+
+    def log_text(self) -> str:
+        return self.stderr_path.read_text(encoding="utf-8", errors="replace")
+
+    def stop(self, timeout: float = 15.0) -> int:
+        if self.popen.poll() is None:
+            self.popen.terminate()
+            try:
+                self.popen.wait(timeout)
+            except subprocess.TimeoutExpired:
+                self.popen.kill()
+                self.popen.wait(5)
+        if self.popen.stdout is not None:
+            self.popen.stdout.close()
+        return self.popen.returncode
+
+
+@contextmanager
+def studio(args: list[str], workdir: Path, broker_url: str | None = None) -> Iterator[StudioProc]:
+    proc = StudioProc(args, workdir, broker_url)
+    try:
+        yield proc
+    finally:
+        proc.stop()
+
+
+def read_frames(url: str, until: Callable[[list[dict[str, Any]]], bool], timeout: float = 20.0,
+                headers: dict[str, str] | None = None) -> list[dict[str, Any]]:
+    """Frames of one WebSocket session (hello first) until `until(frames)` holds; AssertionError on
+    time-out."""
+
+    async def session() -> list[dict[str, Any]]:
+        frames: list[dict[str, Any]] = []
+        deadline = time.monotonic() + timeout
+        async with aiohttp.ClientSession() as client, client.ws_connect(url.rstrip("/") + "/ws",
+                                                                           headers=headers) as ws:
+            while not until(frames):
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    raise AssertionError(f"condition not met within {timeout} s; {len(frames)} frames")
+                try:
+                    message = await ws.receive(timeout=remaining)
+                except TimeoutError:
+                    continue
+                if message.type != aiohttp.WSMsgType.TEXT:
+                    raise AssertionError(f"socket ended: {message.type}")
+                frames.append(json.loads(message.data))
+        return frames
+
+    return asyncio.run(session())
+
+
+def events_of(frames: list[dict[str, Any]], kind: str | None = None) -> list[dict[str, Any]]:
+    """Every event of the `events` frames (of one type when `kind` is given), in order."""
+    out = [e for f in frames if f["type"] == "events" for e in f["events"]]
+    return [e for e in out if kind is None or e["type"] == kind]

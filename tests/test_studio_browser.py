@@ -1,0 +1,214 @@
+"""umlbot studio in a real browser (Debian's Chromium driven by Playwright).
+
+A real broker, the car's services (mock drivers) and a real `umlbot run` drive the page; the tests
+read what a person sees from the DOM/SVG and keep screenshots under out/ (look at them).
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import subprocess
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+from conftest import BrokerProcess
+from playwright.sync_api import Browser, Page, expect, sync_playwright
+from robot_run import CAR_MODEL, Proc, compile_car, processes, start_services, umlbot_argv
+from studio_support import StudioProc, studio
+
+REPO = Path(__file__).resolve().parent.parent
+OUT = REPO / "out"
+CHROMIUM = "/usr/bin/chromium"
+ROBOT = "car"
+WAIT_MS = 30_000
+
+
+@pytest.fixture(scope="module")
+def browser() -> Iterator[Browser]:
+    if not Path(CHROMIUM).exists():
+        pytest.fail(f"{CHROMIUM} is required: apt-get install chromium (make test installs it)")
+    with sync_playwright() as pw:
+        launched = pw.chromium.launch(executable_path=CHROMIUM, args=[
+            "--no-sandbox", "--disable-gpu", "--disable-background-networking",
+            "--disable-component-update", "--disable-sync", "--no-first-run"])
+        try:
+            yield launched
+        finally:
+            launched.close()
+
+
+def open_page(browser: Browser, url: str) -> Page:
+    page = browser.new_page(viewport={"width": 1600, "height": 1000})
+    errors: list[str] = []
+    page.on("pageerror", lambda exc: errors.append(str(exc)))
+    page.goto(url)
+    page.wait_for_function("window.__studio && window.__studio.ready === true", timeout=WAIT_MS)
+    page.set_default_timeout(WAIT_MS)
+    assert errors == [], errors
+    return page
+
+
+def shot(page: Page, name: str) -> None:
+    OUT.mkdir(exist_ok=True)
+    page.screenshot(path=str(OUT / name))
+
+
+def show(page: Page, diagram: str) -> None:
+    page.locator(f'#diagram-list [data-diagram="{diagram}"]').click()
+    expect(page.locator(f'svg[data-diagram="{diagram}"]')).to_be_visible()
+
+
+def test_a_live_run_is_highlighted_with_counts_timings_calls_and_availability(
+    browser: Browser, mosquitto_broker: BrokerProcess, tmp_path: Path
+) -> None:
+    compiled = compile_car(tmp_path)
+    with processes() as made, studio(["studio", str(CAR_MODEL), "--port", "0", "--robot", ROBOT], tmp_path,
+                                     mosquitto_broker.url) as proc:
+        services = start_services(made, tmp_path, lambda kind: mosquitto_broker.url, robot=ROBOT)
+        page = open_page(browser, proc.url)
+        show(page, "components")
+        for name in ("LeftActuator", "RightActuator", "Sensor", "DistanceRead", "RaspberryPI"):
+            expect(page.locator(f'g.component[data-component="{name}"]')).to_have_attribute(
+                "data-state", "online")
+        made.append(Proc("run", umlbot_argv("run", str(compiled), "--robot", ROBOT), tmp_path,
+                         mosquitto_broker.url))
+        expect(page.locator("#orchestrator-status")).to_have_attribute("data-state", "running")
+
+        show(page, "activity-main")
+        # the main lane's current node is highlighted, and nodes it ran show counts and timings
+        expect(page.locator('g.node.active[data-lane="RaspberryPI"]')).to_have_count(1)
+        halt = page.locator('g.node[data-lane="RaspberryPI"][data-node="halt"]')
+        page.wait_for_function(
+            """() => Number(document.querySelector('g.node[data-lane="RaspberryPI"][data-node="halt"]')
+                   ?.getAttribute('data-count') || 0) >= 2""")
+        assert float(halt.get_attribute("data-p50-ms") or "nan") > 0
+        expect(halt.locator("text.stats")).to_contain_text("ms")
+        # the tuning datastore shows its value; the decision shows which branch it took
+        speed = page.locator('g.node[data-lane="RaspberryPI"][data-node="set_speed"]')
+        expect(speed.locator("text.value")).to_have_text("70")
+        taken = page.locator('g.edge[data-lane="RaspberryPI"][data-source="running"][data-target="measure"]')
+        expect(taken).not_to_have_attribute("data-count", "0")
+        # calls, with boolean arguments shown as they are
+        enabled = page.locator('#calls tbody tr[data-component="LeftActuator"][data-feature="enabled"]')
+        expect(enabled.first).to_be_visible()
+        args_seen = set(enabled.locator("td.args").all_text_contents())
+        assert args_seen and args_seen <= {"[true]", "[false]"}, args_seen
+        shot(page, "studio-live.png")
+
+        # a component going offline turns red; the orchestrator fails safe and says why
+        motor = next(s for s in services if s.name == "motor")
+        assert motor.stop() == 0
+        show(page, "components")
+        left = page.locator('g.component[data-component="LeftActuator"]')
+        expect(left).to_have_attribute("data-state", "offline")
+        expect(left).to_have_class(_has("offline"))
+        expect(page.locator("#orchestrator-status")).to_have_attribute("data-state", "failed")
+        expect(page.locator("#orchestrator-status")).to_contain_text("LeftActuator")
+        shot(page, "studio-offline.png")
+        page.close()
+
+
+def _has(css_class: str) -> re.Pattern[str]:
+    return re.compile(rf"(^|\s){re.escape(css_class)}(\s|$)")
+
+
+def _trace_line(node: str, kind: str, end: float, **extra: Any) -> str:
+    event = {"lane": "RaspberryPI", "node": node, "kind": kind, "start": end - 0.01, "end": end,
+             "duration_ms": 10.0, "level": "info", "detail": node, **extra}
+    return json.dumps(event) + "\n"
+
+
+def test_a_replay_scrubbed_to_a_moment_shows_that_moments_node_and_values(
+    browser: Browser, tmp_path: Path
+) -> None:
+    trace = tmp_path / "run.jsonl"
+    t0 = 1_800_000_000.0
+    trace.write_text(
+        _trace_line("start", "start", t0 + 0.0)
+        + _trace_line("set_speed", "datastore", t0 + 1.0, value=70)
+        + _trace_line("set_forward", "datastore", t0 + 2.0, value=300)
+        + _trace_line("set_speed", "datastore", t0 + 3.0, value=55)
+        + _trace_line("stop_all", "action", t0 + 4.0, error="Stop failed: time-out", level="error"),
+        encoding="utf-8")
+    with studio(["studio", str(CAR_MODEL), "--replay", str(trace), "--port", "0"], tmp_path) as proc:
+        page = open_page(browser, proc.url)
+        show(page, "activity-main")
+        expect(page.locator("#replay")).to_be_visible()
+        slider = page.locator("#replay-time")
+
+        def scrub(seconds: float) -> None:
+            slider.evaluate("(el, v) => { el.value = String(v); el.dispatchEvent(new Event('input')); }",
+                            seconds)
+
+        active = page.locator('g.node.active[data-lane="RaspberryPI"]')
+        speed = page.locator('g.node[data-lane="RaspberryPI"][data-node="set_speed"]')
+        scrub(2.5)
+        expect(active).to_have_attribute("data-node", "set_forward")
+        expect(speed.locator("text.value")).to_have_text("70")
+        expect(speed).to_have_attribute("data-count", "1")
+        scrub(3.5)
+        expect(active).to_have_attribute("data-node", "set_speed")
+        expect(speed.locator("text.value")).to_have_text("55")
+        expect(speed).to_have_attribute("data-count", "2")
+        shot(page, "studio-replay.png")
+        scrub(4.5)
+        failed = page.locator('g.node[data-lane="RaspberryPI"][data-node="stop_all"]')
+        expect(failed).to_have_class(_has("error"))
+        expect(failed).to_have_attribute("data-message", _has_text("time-out"))
+        scrub(1.5)  # back in time: the later values and the error are gone
+        expect(active).to_have_attribute("data-node", "set_speed")
+        expect(speed.locator("text.value")).to_have_text("70")
+        expect(failed).not_to_have_class(_has("error"))
+        page.close()
+
+
+def _has_text(text: str) -> re.Pattern[str]:
+    return re.compile(re.escape(text))
+
+
+def test_the_page_lists_the_checkers_messages_for_a_broken_model(browser: Browser, tmp_path: Path) -> None:
+    model = tmp_path / "bad.yaml"
+    model.write_text(
+        "name: bad\ncomponents:\n  Motor: {kind: actuator}\n"
+        "lanes:\n  - lane: Motor\n    nodes:\n"
+        "      - {id: start, kind: start}\n"
+        "      - {id: go, kind: action, call: Motor.speed(3)}\n"
+        "      - {id: end, kind: end}\n"
+        "deployment:\n  driver: mock\n  components:\n"
+        "    Motor: {impl: l298n, settings: {in1: 22, in2: 23}}\n", encoding="utf-8")
+    check = subprocess.run(umlbot_argv("check", str(model)), capture_output=True, text=True, timeout=60,
+                           check=False, cwd=tmp_path)
+    printed = [line for line in check.stdout.splitlines() + check.stderr.splitlines() if ": error: " in line]
+    assert printed
+    with studio(["studio", str(model), "--port", "0"], tmp_path) as proc:
+        page = open_page(browser, proc.url)
+        expect(page.locator("#diagnostics li")).to_have_count(len(printed))
+        shown = page.locator("#diagnostics li").all_text_contents()
+        for line in printed:
+            assert any(line in text for text in shown), (line, shown)
+        shot(page, "studio-diagnostics.png")
+        page.close()
+
+
+def test_sim_studio_draws_the_track_the_car_and_its_pings(browser: Browser, tmp_path: Path) -> None:
+    track = REPO / "models" / "tracks" / "corridor.yaml"
+    proc = StudioProc(["sim", str(CAR_MODEL), "--track", str(track), "--port", "0", "--speed", "2",
+                       "--timeout", "20", "--studio", "--studio-port", "0"], tmp_path)
+    try:
+        page = open_page(browser, proc.url)
+        expect(page.locator("#sim svg")).to_be_visible()
+        assert page.locator("#sim .wall").count() >= 1
+        expect(page.locator("#sim .car")).to_have_count(1)
+        page.wait_for_function("document.querySelectorAll('#sim .ping').length > 0")
+        start = page.locator("#sim .car").get_attribute("transform")
+        page.wait_for_function(
+            "t => document.querySelector('#sim .car').getAttribute('transform') !== t", arg=start)
+        show(page, "activity-main")
+        expect(page.locator('g.node.active[data-lane="RaspberryPI"]')).to_have_count(1)
+        shot(page, "studio-sim.png")
+        page.close()
+    finally:
+        proc.stop()

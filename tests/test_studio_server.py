@@ -1,0 +1,172 @@
+"""umlbot studio's server over real sockets: the model it serves, the robot's traffic it forwards
+from a real broker, the snapshot a late page gets, replays, and who may connect."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import subprocess
+from pathlib import Path
+from typing import Any
+
+import aiohttp
+from conftest import BrokerProcess
+from robot_run import CAR_MODEL, umlbot_argv
+from studio_support import events_of, read_frames, studio
+
+from compiler.api import check_model
+from umlbot.studio.model_view import model_view
+
+ROBOT = "car"
+
+
+def test_model_view_keeps_the_models_ids_and_flows() -> None:
+    result = check_model(CAR_MODEL)
+    assert result.model is not None
+    view = model_view(result.model)
+    assert [c["name"] for c in view["components"]] == sorted(result.model.components)
+    lanes = {lane["name"]: lane for d in view["diagrams"] for lane in d["lanes"]}
+    assert set(lanes) == set(result.model.lanes)
+    main = lanes["RaspberryPI"]
+    assert {n["id"] for n in main["nodes"]} == set(result.model.lanes["RaspberryPI"].nodes)
+    choose = [e for e in main["edges"] if e["source"] == "choose"]
+    assert [e["label"] for e in choose][-1] == "else"
+    assert all(e["target"] in {n["id"] for n in main["nodes"]} for e in main["edges"])
+    assert {d["file"] for d in view["diagrams"]} == {lane.file for lane in result.model.lanes.values()}
+
+
+def _hello(url: str) -> dict[str, Any]:
+    frames = read_frames(url, lambda f: len(f) >= 1)
+    assert frames[0]["type"] == "hello"
+    return frames[0]
+
+
+def test_a_model_with_errors_is_served_with_the_checkers_messages(tmp_path: Path) -> None:
+    model = tmp_path / "bad.yaml"
+    model.write_text(
+        "name: bad\ncomponents:\n  Motor: {kind: actuator}\n"
+        "lanes:\n  - lane: Motor\n    nodes:\n"
+        "      - {id: start, kind: start}\n"
+        "      - {id: go, kind: action, call: Motor.speed(3)}\n"
+        "      - {id: end, kind: end}\n"
+        "deployment:\n  driver: mock\n  components:\n"
+        "    Motor: {impl: l298n, settings: {in1: 22, in2: 23}}\n",
+        encoding="utf-8")
+    check = subprocess.run(umlbot_argv("check", str(model)), capture_output=True, text=True, timeout=60,
+                           check=False, cwd=tmp_path)
+    assert check.returncode == 1
+    with studio(["studio", str(model), "--port", "0"], tmp_path) as proc:
+        hello = _hello(proc.url)
+    assert hello["model"] is None
+    texts = [d["text"] for d in hello["diagnostics"]]
+    printed = [line for line in (check.stdout + check.stderr).splitlines() if ": error: " in line
+               or ": warning: " in line]
+    assert texts and set(texts) == set(printed)
+
+
+def test_live_traffic_reaches_the_page_and_a_late_page_gets_the_snapshot(
+    mosquitto_broker: BrokerProcess, raw_client: Any, tmp_path: Path
+) -> None:
+    raw = raw_client(mosquitto_broker)
+    base = f"umlbot/{ROBOT}"
+    with studio(["studio", str(CAR_MODEL), "--port", "0", "--robot", ROBOT], tmp_path,
+                mosquitto_broker.url) as proc:
+        hello = _hello(proc.url)
+        assert hello["mode"] == "live" and hello["robot"] == ROBOT and hello["model"]["name"] == "car"
+        assert hello["diagnostics"] == []
+
+        def published(frames: list[dict[str, Any]]) -> bool:
+            # publish once the page is attached; repeat the retained status until it shows up
+            if len(frames) == 2:
+                raw.publish(f"{base}/LeftActuator/status", '{"state":"online","impl":"l298n"}', retain=True)
+            return any(e.get("component") == "LeftActuator" for e in events_of(frames, "availability"))
+
+        read_frames(proc.url, published)
+        batch = [{"lane": "RaspberryPI", "node": n, "kind": "action", "start": 10.0 + i, "end": 10.5 + i,
+                  "duration_ms": 500.0, "level": "info", "detail": n}
+                 for i, n in enumerate(("stop_all", "halt"))]
+        raw.publish(f"{base}/orchestrator/trace", json.dumps(batch[0]))
+        raw.publish(f"{base}/orchestrator/trace", json.dumps(batch[1]))
+        raw.publish(f"{base}/LeftActuator/call/enabled",
+                    json.dumps({"id": "c7", "reply_to": f"{base}/_reply/t", "args": [True]}))
+        raw.publish(f"{base}/_reply/t", '{"id":"c7","ok":true,"value":null}')
+        raw.publish(f"{base}/orchestrator/status", '{"state":"failed","reason":"broker lost"}', retain=True)
+
+        # a page that opens now gets all of it in its snapshot, in order, with frame numbers 1, 2, …
+        frames = read_frames(proc.url, lambda f: len(events_of(f, "trace")) >= 2
+                             and len(events_of(f, "call")) >= 1 and len(events_of(f, "orchestrator")) >= 1)
+        raw.publish(f"{base}/LeftActuator/status", b"", retain=True)
+        raw.publish(f"{base}/orchestrator/status", b"", retain=True)
+    seqs = [f["seq"] for f in frames if f["type"] == "events"]
+    assert seqs == list(range(1, len(seqs) + 1))
+    traces = events_of(frames, "trace")
+    assert [(e["node"], e["time"], e["duration_ms"]) for e in traces] == [("stop_all", 10.5, 500.0),
+                                                                          ("halt", 11.5, 500.0)]
+    (call,) = events_of(frames, "call")
+    assert (call["component"], call["feature"], call["args"], call["ok"]) == ("LeftActuator", "enabled",
+                                                                              [True], True)
+    (status,) = events_of(frames, "orchestrator")
+    assert (status["state"], status["detail"]) == ("failed", "broker lost")
+
+
+def test_replay_serves_the_recorded_events(tmp_path: Path) -> None:
+    trace = tmp_path / "run.jsonl"
+    lines = [{"lane": "RaspberryPI", "node": n, "kind": "action", "start": 100.0 + i, "end": 100.25 + i,
+              "duration_ms": 250.0, "level": "info", "detail": n} for i, n in enumerate(("stop_all", "halt"))]
+    trace.write_text("".join(json.dumps(line) + "\n" for line in lines), encoding="utf-8")
+    with studio(["studio", str(CAR_MODEL), "--replay", str(trace), "--port", "0"], tmp_path) as proc:
+        hello = _hello(proc.url)
+    assert hello["mode"] == "replay" and hello["replay"]["file"] == "run.jsonl"
+    replayed = [(e["node"], e["time"]) for e in hello["replay"]["events"]]
+    assert replayed == [("stop_all", 100.25), ("halt", 101.25)]
+
+
+def test_a_broken_trace_file_is_one_clear_error(tmp_path: Path) -> None:
+    trace = tmp_path / "run.jsonl"
+    trace.write_text('{"lane": "x"}\n', encoding="utf-8")
+    result = subprocess.run(umlbot_argv("studio", str(CAR_MODEL), "--replay", str(trace), "--port", "0"),
+                            capture_output=True, text=True, timeout=60, check=False)
+    assert result.returncode == 1
+    assert f"{trace}:1: not a trace event" in result.stderr
+    assert "Traceback" not in result.stderr
+
+
+def test_non_loopback_bind_needs_allow_remote(tmp_path: Path) -> None:
+    result = subprocess.run(umlbot_argv("studio", str(CAR_MODEL), "--host", "0.0.0.0", "--port", "0"),
+                            capture_output=True, text=True, timeout=60, check=False)
+    assert result.returncode == 1
+    assert "--allow-remote" in result.stderr and "Traceback" not in result.stderr
+
+
+def test_foreign_origins_and_rebound_host_names_are_refused(tmp_path: Path) -> None:
+    with studio(["studio", str(CAR_MODEL), "--port", "0"], tmp_path) as proc:
+        port = proc.url.rstrip("/").rsplit(":", 1)[1]
+
+        async def status(path: str, headers: dict[str, str]) -> int:
+            async with aiohttp.ClientSession() as client:
+                try:
+                    async with client.ws_connect(f"http://127.0.0.1:{port}{path}", headers=headers):
+                        return 101
+                except aiohttp.WSServerHandshakeError as exc:
+                    return exc.status
+
+        assert asyncio.run(status("/ws", {"Origin": "http://evil.example"})) == 403
+        assert asyncio.run(status("/ws", {"Host": f"evil.example:{port}"})) == 403
+        assert asyncio.run(status("/ws", {"Origin": f"http://127.0.0.1:{port}"})) == 101
+        assert asyncio.run(status("/ws", {"Origin": f"http://localhost:{port}",
+                                          "Host": f"localhost:{port}"})) == 101
+
+
+def test_the_port_in_use_is_one_clear_error(tmp_path: Path) -> None:
+    with studio(["studio", str(CAR_MODEL), "--port", "0"], tmp_path) as proc:
+        port = proc.url.rstrip("/").rsplit(":", 1)[1]
+        result = subprocess.run(umlbot_argv("studio", str(CAR_MODEL), "--port", port),
+                                capture_output=True, text=True, timeout=60, check=False)
+    assert result.returncode == 1
+    assert f"cannot listen on 127.0.0.1:{port}" in result.stderr and "Traceback" not in result.stderr
+
+
+def test_a_missing_model_is_a_usage_error(tmp_path: Path) -> None:
+    result = subprocess.run(umlbot_argv("studio", str(tmp_path / "nothing")), capture_output=True, text=True,
+                            timeout=60, check=False)
+    assert result.returncode == 2 and "does not exist" in result.stderr

@@ -1,0 +1,78 @@
+"""`umlbot studio`: the browser page that shows a model's diagrams and follows the robot live."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import click
+
+from umlbot.stopsignals import StopSignals
+
+
+@click.command(name="studio")
+@click.argument("model", type=click.Path(exists=True, path_type=Path))
+@click.option("--broker", "broker_url", default=None, metavar="URL",
+              help="Broker URL, e.g. mqtt://user:pass@host:1883 "
+              "(default: $UMLBOT_BROKER or mqtt://127.0.0.1:1883).")
+@click.option("--ca-file", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="CA certificate file for mqtts:// brokers.")
+@click.option("--robot", metavar="ID", default=lambda: os.environ.get("UMLBOT_ROBOT") or None,
+              show_default="$UMLBOT_ROBOT or the model's name",
+              help="Robot id to follow (topics umlbot/<robot>/#).")
+@click.option("--replay", "replay_file", type=click.Path(exists=True, dir_okay=False, path_type=Path),
+              default=None, metavar="FILE",
+              help="Play a recorded trace (umlbot run --trace FILE) instead of following the broker.")
+@click.option("--host", default="127.0.0.1", show_default=True,
+              help="Address to listen on; anything but loopback needs --allow-remote.")
+@click.option("--port", type=click.IntRange(0, 65535), default=8080, show_default=True,
+              help="Port to listen on (0 = any free port).")
+@click.option("--allow-remote", is_flag=True,
+              help="Allow --host to be a non-loopback address (anyone who reaches it sees the robot).")
+@click.option("--open", "open_browser", is_flag=True, help="Open the page in the default browser.")
+def command(model: Path, broker_url: str | None, ca_file: Path | None, robot: str | None,
+            replay_file: Path | None, host: str, port: int, allow_remote: bool,
+            open_browser: bool) -> None:
+    """Serve the studio for MODEL: its diagrams, the robot's running nodes live, or a replay.
+
+    The model is compiled by the studio; when it does not compile, the page lists the problems.
+    Runs until Ctrl-C or SIGTERM.
+    """
+    from services.bus import BrokerSettings, resolve_broker_url
+    from services.bus.settings import redact_url
+    from umlbot.studio.server import StudioServer, StudioThread, check_bind
+    from umlbot.studio.sources import BrokerSource, replay_events, studio_data
+
+    check_bind(host, allow_remote)
+    data, _compiled = studio_data(model, robot, mode="replay" if replay_file else "live")
+    server = StudioServer(data, host=host, port=port, allow_remote=allow_remote)
+    source: BrokerSource | None = None
+    what = f"replay of {replay_file}"
+    if replay_file is not None:
+        data.replay = {"file": replay_file.name, "events": replay_events(replay_file, data.robot)}
+    else:
+        url = resolve_broker_url(broker_url)
+        settings = BrokerSettings.from_url(url, ca_file=ca_file)
+        what = f"robot {data.robot} on {redact_url(url)}"
+        source = BrokerSource(settings, data.robot, server.hub)
+        server.tick = source.tick
+    errors = sum(1 for d in data.diagnostics if d["severity"] == "error")
+    studio = StudioThread(server)
+    with StopSignals() as signals:
+        page = studio.start()
+        try:
+            if source is not None:
+                source.start()
+            signals.running()
+            click.echo(f"umlbot studio: {page}  ({what}; Ctrl-C to quit)")
+            if errors:
+                click.echo(f"  the model has {errors} error(s): the page lists them", err=True)
+            if open_browser:
+                import webbrowser
+
+                webbrowser.open(page)
+            signals.stop.wait()
+        finally:
+            if source is not None:
+                source.close()
+            studio.stop()

@@ -1,0 +1,203 @@
+"""The studio's hub: collects the robot's events from any thread and sends them to every page.
+
+Events (`MonitorEvent` dicts, the objects `umlbot monitor --json` prints) arrive on the bus's
+dispatcher thread; `push` only appends them to a list under a lock (and wakes the event loop when
+nothing is scheduled yet). The event loop flushes at once when the last flush is more than
+`FLUSH_S` ago, else when it is due (so a lone event reaches the page within a millisecond or two,
+and a busy robot makes at most one frame per `FLUSH_S`). A flush keeps what a page opened later
+needs (the snapshot: the latest availability, retained state and orchestrator status, the trace
+history, the last calls) and sends one `events` frame to each connected page. Nothing is dropped
+on the way; the history is bounded (`keep_trace`): a page that opens after more than that many
+trace events sees the newest ones.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import collections
+import contextlib
+import json
+import threading
+import time
+from collections.abc import Callable
+from typing import Any
+
+from umlbot.logs import get_logger
+
+log = get_logger(__name__)
+
+#: seconds between two frames to the pages at most (events are coalesced in between).
+FLUSH_S = 0.025
+#: trace events kept for pages that open later.
+DEFAULT_KEEP_TRACE = 100_000
+#: feature calls kept for pages that open later.
+KEEP_CALLS = 200
+#: events in one frame at most (a large snapshot is split into several frames).
+MAX_FRAME_EVENTS = 20_000
+
+Send = Callable[[str], Any]
+
+
+def dumps(data: Any) -> str:
+    """Compact JSON; values that are not JSON (NaN from the wire) become null or text."""
+    try:
+        return json.dumps(data, separators=(",", ":"), ensure_ascii=False, allow_nan=False)
+    except ValueError:
+        return json.dumps(_finite(data), separators=(",", ":"), ensure_ascii=False, default=str)
+
+
+def _finite(value: Any) -> Any:
+    if isinstance(value, float):
+        return value if value == value and value not in (float("inf"), float("-inf")) else None
+    if isinstance(value, dict):
+        return {key: _finite(item) for key, item in value.items()}
+    if isinstance(value, list):
+        return [_finite(item) for item in value]
+    return value
+
+
+class Page:
+    """One connected page: its own frame sequence and an outgoing queue drained by its own task."""
+
+    def __init__(self, send: Send) -> None:
+        self.seq = 0
+        self.queue: asyncio.Queue[str | None] = asyncio.Queue()
+        self._send = send
+
+    def frame(self, events: list[dict[str, Any]]) -> None:
+        for first in range(0, max(len(events), 1), MAX_FRAME_EVENTS):
+            self.seq += 1
+            chunk = events[first:first + MAX_FRAME_EVENTS]
+            self.queue.put_nowait(dumps({"type": "events", "seq": self.seq, "events": chunk}))
+
+    async def pump(self) -> None:
+        """Send queued frames in order until `None` is queued or the socket fails."""
+        while True:
+            text = await self.queue.get()
+            if text is None:
+                return
+            await self._send(text)
+
+
+class Hub:
+    """Fan-out of the robot's events to the pages, with a snapshot for late joiners."""
+
+    def __init__(self, keep_trace: int = DEFAULT_KEEP_TRACE) -> None:
+        self._lock = threading.Lock()
+        self._incoming: list[dict[str, Any]] = []
+        self._world: dict[str, Any] | None = None
+        self._world_pings: list[dict[str, Any]] = []
+        self.pages: set[Page] = set()
+        # the snapshot
+        self.availability: dict[str, dict[str, Any]] = {}
+        self.retained: dict[str, dict[str, Any]] = {}
+        self.orchestrator: dict[str, Any] | None = None
+        self.trace: collections.deque[dict[str, Any]] = collections.deque(maxlen=keep_trace)
+        self.calls: collections.deque[dict[str, Any]] = collections.deque(maxlen=KEEP_CALLS)
+        self.received = 0
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._scheduled = False
+        self._last_flush = 0.0
+
+    # --- any thread ------------------------------------------------------------------------------
+
+    def push(self, event: dict[str, Any]) -> None:
+        """Queue one event for the pages (thread-safe, never blocks)."""
+        with self._lock:
+            self._incoming.append(event)
+            wake = not self._scheduled and self._loop is not None
+            self._scheduled = True
+        if wake:
+            self._wake()
+
+    def push_world(self, frame: dict[str, Any]) -> None:
+        """The simulated world's latest state; its `pings` accumulate until the next flush."""
+        with self._lock:
+            self._world_pings.extend(frame.get("pings", []))
+            self._world = frame
+            wake = not self._scheduled and self._loop is not None
+            self._scheduled = True
+        if wake:
+            self._wake()
+
+    def _wake(self) -> None:
+        loop = self._loop
+        if loop is not None:
+            with contextlib.suppress(RuntimeError):  # the loop has closed: nobody to send to
+                loop.call_soon_threadsafe(self._due)
+
+    # --- the event loop ----------------------------------------------------------------------------
+
+    def snapshot(self) -> list[dict[str, Any]]:
+        """What a page opening now needs, in the order it should apply it."""
+        events: list[dict[str, Any]] = list(self.availability.values())
+        events += self.retained.values()
+        if self.orchestrator is not None:
+            events.append(self.orchestrator)
+        events += self.trace
+        events += self.calls
+        return events
+
+    def attach(self, page: Page) -> None:
+        """Register a page; it gets the snapshot now and every flush after."""
+        page.frame(self.snapshot())
+        self.pages.add(page)
+
+    def detach(self, page: Page) -> None:
+        self.pages.discard(page)
+        page.queue.put_nowait(None)
+
+    def flush(self) -> None:
+        """Move queued events into the snapshot and send them to every page as one frame."""
+        self._last_flush = time.monotonic()
+        with self._lock:
+            self._scheduled = False
+            events, self._incoming = self._incoming, []
+            world, self._world = self._world, None
+            pings, self._world_pings = self._world_pings, []
+        for event in events:
+            self._remember(event)
+        self.received += len(events)
+        if events:
+            for page in self.pages:
+                page.frame(events)
+        if world is not None:
+            text = dumps({**world, "type": "world", "pings": pings})
+            for page in self.pages:
+                page.queue.put_nowait(text)
+
+    def _remember(self, event: dict[str, Any]) -> None:
+        kind = event.get("type")
+        if kind == "trace":
+            self.trace.append(event)
+        elif kind == "call":
+            self.calls.append(event)
+        elif kind == "availability":
+            self.availability[f"{event.get('robot')}/{event.get('component')}"] = event
+        elif kind == "state":
+            self.retained[f"{event.get('robot')}/{event.get('component')}"] = event
+        elif kind == "orchestrator":
+            self.orchestrator = event
+
+    def _due(self) -> None:
+        wait = self._last_flush + FLUSH_S - time.monotonic()
+        loop = self._loop
+        if wait > 0 and loop is not None:
+            loop.call_later(wait, self._safe_flush)
+        else:
+            self._safe_flush()
+
+    def _safe_flush(self) -> None:
+        try:
+            self.flush()
+        except Exception as exc:  # a bad event must not stop the page updates
+            log.warning("studio flush failed", error=str(exc))
+
+    async def run(self) -> None:
+        """Deliver events to the pages until cancelled (events pushed meanwhile wake it)."""
+        self._loop = asyncio.get_running_loop()
+        try:
+            self._safe_flush()  # whatever arrived before the loop ran
+            await asyncio.Event().wait()
+        finally:
+            self._loop = None

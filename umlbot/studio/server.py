@@ -1,0 +1,215 @@
+"""The studio's web server (aiohttp): one page, its static assets and one WebSocket.
+
+The page is read-only in this version: the socket carries the model and the robot's traffic from
+the server to the page, nothing back. The socket checks `Origin` (a page of another site in the
+same browser may not read the robot) and, on a loopback bind, `Host` (no DNS rebinding).
+docs/studio.md describes the frames; `umlbot/studio/web/` holds the page's sources.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import ipaddress
+import threading
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any
+from urllib.parse import urlsplit
+
+from aiohttp import WSMsgType, web
+
+from umlbot.errors import ConfigError
+from umlbot.logs import get_logger
+from umlbot.studio.hub import Hub, Page, dumps
+
+log = get_logger(__name__)
+
+PROTOCOL_VERSION = 1
+DEFAULT_HOST = "127.0.0.1"
+DEFAULT_PORT = 8080
+#: seconds between two checks for calls that stayed unanswered.
+EXPIRE_EVERY_S = 1.0
+
+
+def static_dir() -> Path:
+    """The built page (index.html, the bundle, its licences) inside the installed package."""
+    return Path(str(resources.files("umlbot.studio") / "static"))
+
+
+def is_loopback(host: str) -> bool:
+    """True for 127.0.0.0/8, ::1 and localhost."""
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host.strip("[]")).is_loopback
+    except ValueError:
+        return False
+
+
+def check_bind(host: str, allow_remote: bool) -> None:
+    """Refuse a non-loopback bind unless the user asked for it explicitly."""
+    if not is_loopback(host) and not allow_remote:
+        raise ConfigError(
+            f"--host {host} would let anyone who can reach this machine watch the robot and its "
+            "model; add --allow-remote to bind to it anyway (see docs/studio.md, Security)"
+        )
+
+
+@dataclass
+class StudioData:
+    """What the page shows besides the live events: the model, its problems, a replay, a track."""
+
+    mode: str  # "live" or "replay"
+    robot: str
+    source: str
+    model: dict[str, Any] | None
+    diagnostics: list[dict[str, Any]]
+    track: dict[str, Any] | None = None
+    replay: dict[str, Any] | None = None
+
+    def hello(self) -> dict[str, Any]:
+        return {"type": "hello", "version": PROTOCOL_VERSION, "mode": self.mode, "robot": self.robot,
+                "source": self.source, "model": self.model, "diagnostics": self.diagnostics,
+                "track": self.track, "replay": self.replay}
+
+
+@dataclass
+class StudioServer:
+    """Serves `data` and the events of `hub` on `host:port` until `stop()`."""
+
+    data: StudioData
+    hub: Hub = field(default_factory=Hub)
+    host: str = DEFAULT_HOST
+    port: int = DEFAULT_PORT
+    allow_remote: bool = False
+    #: called about once a second on the event loop (expire unanswered calls, poll a world, …).
+    tick: Callable[[], None] | None = None
+    _runner: web.AppRunner | None = None
+    _tasks: list[asyncio.Task[None]] = field(default_factory=list)
+
+    # --- life cycle ------------------------------------------------------------------------------
+
+    def app(self) -> web.Application:
+        app = web.Application()
+        app.router.add_get("/", self._index)
+        app.router.add_get("/ws", self._socket)
+        app.router.add_static("/static/", static_dir(), follow_symlinks=False)
+        return app
+
+    async def start(self) -> str:
+        """Bind and serve; returns the page's URL. Raises ConfigError when the port is taken."""
+        check_bind(self.host, self.allow_remote)
+        self._runner = web.AppRunner(self.app(), access_log=None, handle_signals=False)
+        await self._runner.setup()
+        site = web.TCPSite(self._runner, self.host, self.port, reuse_address=True)
+        try:
+            await site.start()
+        except OSError as exc:
+            await self._runner.cleanup()
+            raise ConfigError(
+                f"studio cannot listen on {self.host}:{self.port}: {exc.strerror or exc} "
+                "(another studio? choose one with --port)"
+            ) from exc
+        server = getattr(site, "_server", None)
+        sockets = getattr(server, "sockets", None) or []
+        if sockets:
+            self.port = int(sockets[0].getsockname()[1])
+        self._tasks = [asyncio.create_task(self.hub.run(), name="studio-flush"),
+                       asyncio.create_task(self._ticker(), name="studio-tick")]
+        return self.url
+
+    @property
+    def url(self) -> str:
+        host = f"[{self.host}]" if ":" in self.host else self.host
+        return f"http://{host}:{self.port}/"
+
+    async def stop(self) -> None:
+        """Close every page and the listener; safe to call twice."""
+        for task in self._tasks:
+            task.cancel()
+        for task in self._tasks:
+            with contextlib.suppress(asyncio.CancelledError, Exception):
+                await task
+        self._tasks = []
+        for page in list(self.hub.pages):
+            self.hub.detach(page)
+        if self._runner is not None:
+            runner, self._runner = self._runner, None
+            await runner.cleanup()
+
+    async def _ticker(self) -> None:
+        while True:
+            await asyncio.sleep(EXPIRE_EVERY_S)
+            if self.tick is not None:
+                try:
+                    self.tick()
+                except Exception as exc:
+                    log.warning("studio tick failed", error=str(exc))
+
+    # --- handlers --------------------------------------------------------------------------------
+
+    async def _index(self, request: web.Request) -> web.StreamResponse:
+        self._check_host(request)
+        index = static_dir() / "index.html"
+        if not index.is_file():
+            return web.Response(status=500, text="umlbot studio: the page's assets are missing from this "
+                                "installation (umlbot/studio/static); reinstall umlbot")
+        return web.FileResponse(index, headers={"Cache-Control": "no-store"})
+
+    async def _socket(self, request: web.Request) -> web.StreamResponse:
+        self._check_host(request)
+        origin = request.headers.get("Origin")
+        if origin is not None and urlsplit(origin).netloc != request.host:
+            log.warning("studio socket refused: foreign origin", origin=origin)
+            raise web.HTTPForbidden(text="foreign origin")
+        ws = web.WebSocketResponse(heartbeat=20.0, max_msg_size=1 << 16)
+        await ws.prepare(request)
+        page = Page(ws.send_str)
+        await ws.send_str(dumps(self.data.hello()))
+        self.hub.attach(page)
+        pump = asyncio.create_task(page.pump(), name="studio-page")
+        try:
+            async for message in ws:  # the page sends nothing yet; read to see it close
+                if message.type == WSMsgType.ERROR:
+                    break
+        finally:
+            self.hub.detach(page)
+            with contextlib.suppress(Exception):
+                await asyncio.wait_for(pump, timeout=1.0)
+            pump.cancel()
+        return ws
+
+    def _check_host(self, request: web.Request) -> None:
+        """On a loopback bind, only loopback host names (a rebinding DNS name is refused)."""
+        if self.allow_remote:
+            return
+        host = urlsplit(f"//{request.host}").hostname or ""
+        if not is_loopback(host):
+            raise web.HTTPForbidden(text=f"host {request.host} is not this studio")
+
+
+class StudioThread:
+    """A `StudioServer` on its own event loop thread (for `umlbot sim --studio`)."""
+
+    def __init__(self, server: StudioServer) -> None:
+        self.server = server
+        self._loop = asyncio.new_event_loop()
+        self._thread = threading.Thread(target=self._loop.run_forever, name="studio", daemon=True)
+        self.url = ""
+
+    def start(self, timeout: float = 10.0) -> str:
+        self._thread.start()
+        future = asyncio.run_coroutine_threadsafe(self.server.start(), self._loop)
+        self.url = future.result(timeout)
+        return self.url
+
+    def stop(self, timeout: float = 5.0) -> None:
+        if not self._thread.is_alive():
+            return
+        with contextlib.suppress(Exception):
+            asyncio.run_coroutine_threadsafe(self.server.stop(), self._loop).result(timeout)
+        self._loop.call_soon_threadsafe(self._loop.stop)
+        self._thread.join(timeout)

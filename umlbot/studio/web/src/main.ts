@@ -1,0 +1,756 @@
+// umlbot studio page: connection, diagram list, live/replay driving, panels.
+
+import { layoutActivity, layoutComponents, warmUp } from "./layout";
+import type { DiagramView } from "./render";
+import { Renderer, fmtMs } from "./render";
+import { SimPanel } from "./sim";
+import type { CallRow, Snapshot } from "./state";
+import { ModelIndex, StudioState, nodeKey } from "./state";
+import type { Diagnostic, HelloMsg, ModelView, MonitorEvent, ServerMsg } from "./types";
+
+interface StudioHooks { latencies: number[]; frames: number[]; ready: boolean; applied: number }
+declare global {
+  interface Window { __studio: StudioHooks }
+}
+const hooks: StudioHooks = { latencies: [], frames: [], ready: false, applied: 0 };
+window.__studio = hooks;
+const KEEP = 10_000;
+const pushCapped = (a: number[], v: number): void => {
+  a.push(v);
+  if (a.length > KEEP) a.splice(0, a.length - KEEP);
+};
+
+const $ = <T extends HTMLElement>(sel: string): T => document.querySelector(sel) as T;
+const canvas = $<HTMLDivElement>("#canvas");
+const listEl = $<HTMLUListElement>("#diagram-list");
+const titleEl = $<HTMLElement>("#title");
+const modeEl = $<HTMLElement>("#mode");
+const orchEl = $<HTMLElement>("#orchestrator-status");
+const connEl = $<HTMLElement>("#connection");
+const gapsEl = $<HTMLElement>("#gaps");
+const diagEl = $<HTMLUListElement>("#diagnostics");
+const callsBody = $<HTMLTableSectionElement>("#calls tbody");
+const replayEl = $<HTMLElement>("#replay");
+const playBtn = $<HTMLButtonElement>("#replay-play");
+const speedSel = $<HTMLSelectElement>("#replay-speed");
+const timeInput = $<HTMLInputElement>("#replay-time");
+const clockEl = $<HTMLElement>("#replay-clock");
+const messageEl = $<HTMLElement>("#canvas-message");
+const bannerEl = $<HTMLElement>("#canvas-banner");
+const sim = new SimPanel($<HTMLElement>("#sim"));
+
+const renderer = new Renderer();
+let model: ModelView | null = null;
+let index = new ModelIndex(null);
+let state = new StudioState(index);
+let mode: "live" | "replay" = "live";
+let views = new Map<string, DiagramView>();
+let current = "";
+let generation = 0;
+let laneDiagram = new Map<string, string>();
+const savedViews = new Map<string, { x: number; y: number; k: number }>(); // pan/zoom kept across redraws
+
+// ---------------------------------------------------------------- model and diagrams
+
+function diagramIds(m: ModelView | null): string[] {
+  return m ? ["components", ...m.diagrams.map((d) => d.id)] : [];
+}
+
+function setModel(m: ModelView | null, diagnostics: Diagnostic[]): void {
+  generation += 1;
+  const gen = generation;
+  model = m;
+  index = new ModelIndex(m);
+  state.index = index;
+  renderer.reset(m);
+  for (const v of views.values()) {
+    if (v.view) savedViews.set(v.id, v.view);
+    v.svg.remove();
+  }
+  views = new Map();
+  laneDiagram = new Map();
+  for (const d of m?.diagrams ?? []) for (const l of d.lanes) laneDiagram.set(l.name, d.id);
+
+  // Diagram list
+  listEl.replaceChildren();
+  for (const id of diagramIds(m)) {
+    const li = document.createElement("li");
+    li.dataset.diagram = id;
+    const d = m?.diagrams.find((x) => x.id === id);
+    li.textContent = d ? d.title : "Components";
+    const sub = document.createElement("small");
+    sub.textContent = d ? `${d.lanes.length} lane${d.lanes.length === 1 ? "" : "s"} · ${d.file}` : `${m?.components.length ?? 0} components`;
+    li.append(sub);
+    const dot = document.createElement("i");
+    dot.className = "pulse";
+    dot.title = "ran just now";
+    li.prepend(dot);
+    li.addEventListener("click", () => select(id));
+    listEl.append(li);
+  }
+  setDiagnostics(diagnostics);
+
+  if (!m) {
+    messageEl.textContent = "The model does not compile: see the diagnostics.";
+    messageEl.hidden = false;
+    hooks.ready = true;
+    return;
+  }
+  messageEl.hidden = true;
+  const wanted = hashDiagram();
+  const ids = diagramIds(m);
+  const first = wanted && ids.includes(wanted) ? wanted : current && ids.includes(current) ? current : (m.diagrams[0]?.id ?? "components");
+  current = "";
+  select(first);
+  void layoutAll(m, first, gen);
+}
+
+async function layoutAll(m: ModelView, first: string, gen: number): Promise<void> {
+  const order = [first, ...diagramIds(m).filter((id) => id !== first)];
+  for (const id of order) {
+    try {
+      const t0 = performance.now();
+      let view: DiagramView | null;
+      let t1: number;
+      if (id === "components") {
+        const layout = await layoutComponents(m);
+        if (gen !== generation) return;
+        t1 = performance.now();
+        view = renderer.buildComponents(layout, m);
+      } else {
+        const d = m.diagrams.find((x) => x.id === id)!;
+        const layout = await layoutActivity(d);
+        if (gen !== generation) return;
+        t1 = performance.now();
+        view = await renderer.buildActivity(layout, () => gen !== generation);
+        if (!view || gen !== generation) return;
+      }
+      view.svg.style.display = id === current ? "" : "none";
+      canvas.append(view.svg);
+      views.set(id, view);
+      const saved = savedViews.get(id);
+      if (saved) {
+        view.view = { ...saved };
+        applyView(view);
+      } else if (id === current) fit(view);
+      renderer.adoptFresh(state);
+      state.dirtyOrch = true;
+      schedule();
+      console.debug(`studio: ${id} laid out in ${(t1 - t0).toFixed(0)} ms, drawn in ${(performance.now() - t1).toFixed(0)} ms`);
+      if (id === first) {
+        // ready once the frame that first paints it is over
+        requestAnimationFrame(() => requestAnimationFrame(() => { hooks.ready = true; }));
+      }
+    } catch (err) {
+      console.error(`studio: layout of ${id} failed`, err);
+      if (id === first) hooks.ready = true;
+    }
+  }
+}
+
+function select(id: string): void {
+  if (!diagramIds(model).includes(id)) return;
+  current = id;
+  for (const li of listEl.querySelectorAll<HTMLLIElement>("li")) li.classList.toggle("selected", li.dataset.diagram === id);
+  for (const [vid, v] of views) v.svg.style.display = vid === id ? "" : "none";
+  const v = views.get(id);
+  if (v && !v.view) fit(v);
+  if (hashDiagram() !== id) history.replaceState(null, "", `#diagram=${encodeURIComponent(id)}`);
+}
+
+function hashDiagram(): string {
+  const m = /diagram=([^&]+)/.exec(location.hash);
+  return m ? decodeURIComponent(m[1]) : "";
+}
+window.addEventListener("hashchange", () => {
+  const id = hashDiagram();
+  if (id && id !== current) select(id);
+});
+
+function setDiagnostics(list: Diagnostic[]): void {
+  diagEl.replaceChildren();
+  renderer.marks.clear();
+  for (const d of list) {
+    const li = document.createElement("li");
+    li.className = d.severity;
+    li.textContent = d.text;
+    diagEl.append(li);
+    for (const dg of model?.diagrams ?? []) {
+      for (const lane of dg.lanes) {
+        if (lane.file !== d.file) continue;
+        for (const n of lane.nodes) {
+          if (n.line !== d.line) continue;
+          const key = nodeKey(lane.name, n.id);
+          const old = renderer.marks.get(key);
+          if (!old || (old.level === "warning" && d.severity === "error")) renderer.marks.set(key, { level: d.severity, message: d.text });
+          li.dataset.diagram = dg.id;
+          li.dataset.lane = lane.name;
+          li.dataset.node = n.id;
+        }
+      }
+    }
+    li.addEventListener("click", () => {
+      if (!li.dataset.diagram) return;
+      select(li.dataset.diagram);
+      if (li.dataset.lane && li.dataset.node) reveal(li.dataset.lane, li.dataset.node);
+    });
+  }
+  $<HTMLElement>("#diagnostics-count").textContent = String(list.length);
+  // Problems per diagram, as a badge in the list.
+  for (const li of listEl.querySelectorAll<HTMLLIElement>("li")) {
+    li.querySelector(".badge")?.remove();
+    const d = model?.diagrams.find((x) => x.id === li.dataset.diagram);
+    if (!d) continue;
+    const files = new Set(d.lanes.map((l) => l.file).concat([d.file]));
+    const mine = list.filter((x) => files.has(x.file));
+    if (!mine.length) continue;
+    const badge = document.createElement("span");
+    badge.className = `badge ${mine.some((x) => x.severity === "error") ? "error" : "warning"}`;
+    badge.textContent = String(mine.length);
+    badge.title = `${mine.length} problem${mine.length === 1 ? "" : "s"} in this diagram`;
+    li.querySelector("small")?.before(badge);
+  }
+  state.markAllDirty();
+}
+
+// ---------------------------------------------------------------- pan / zoom
+
+function applyView(v: DiagramView): void {
+  if (!v.view) return;
+  v.viewport.setAttribute("transform", `translate(${v.view.x},${v.view.y}) scale(${v.view.k})`);
+  // Level of detail: text too small to read is not drawn (keeps big diagrams fast).
+  const k = v.view.k;
+  v.svg.classList.toggle("lod-mid", k < 0.45);
+  v.svg.classList.toggle("lod-far", k < 0.3);
+}
+
+/** Centre the view on a node (at a readable zoom) and flash it. */
+function reveal(lane: string, node: string): void {
+  const v = views.get(current);
+  const g = canvas.querySelector<SVGGElement>(`g.node[data-lane="${CSS.escape(lane)}"][data-node="${CSS.escape(node)}"]`);
+  if (!v || !v.view || !g) return;
+  if (v.view.k < 0.8) {
+    const r = canvas.getBoundingClientRect();
+    const cx = r.width / 2;
+    const cy = r.height / 2;
+    v.view.x = cx - ((cx - v.view.x) * 0.9) / v.view.k;
+    v.view.y = cy - ((cy - v.view.y) * 0.9) / v.view.k;
+    v.view.k = 0.9;
+    applyView(v);
+  }
+  const c = canvas.getBoundingClientRect();
+  const b = g.getBoundingClientRect();
+  v.view.x += c.left + c.width / 2 - (b.left + b.width / 2);
+  v.view.y += c.top + c.height / 2 - (b.top + b.height / 2);
+  applyView(v);
+  g.animate([{ opacity: 0.2 }, { opacity: 1 }, { opacity: 0.2 }, { opacity: 1 }], { duration: 900 });
+}
+
+/** Show the whole diagram; `readable`: when that is too small to read, fit its width from the top. */
+function fit(v: DiagramView, readable = true): void {
+  const W = canvas.clientWidth || 800;
+  const H = canvas.clientHeight || 600;
+  const pad = 16;
+  let k = Math.min((W - 2 * pad) / v.width, (H - 2 * pad) / v.height, 1.25);
+  let y = (H - v.height * k) / 2;
+  if (readable && k < 0.45) {
+    // Too small to read when fitted whole: fit the width and start at the top.
+    k = Math.min((W - 2 * pad) / v.width, 1);
+    if (v.height * k > H) y = pad;
+    else y = (H - v.height * k) / 2;
+  }
+  k = Math.max(k, 0.02);
+  v.view = { k, x: (W - v.width * k) / 2, y };
+  applyView(v);
+}
+
+$<HTMLButtonElement>("#fit").addEventListener("click", () => {
+  const v = views.get(current);
+  if (v) fit(v, false);
+});
+
+canvas.addEventListener("wheel", (ev) => {
+  const v = views.get(current);
+  if (!v || !v.view) return;
+  ev.preventDefault();
+  const r = canvas.getBoundingClientRect();
+  const px = ev.clientX - r.left;
+  const py = ev.clientY - r.top;
+  const f = Math.exp(-ev.deltaY * (ev.deltaMode === 1 ? 0.05 : 0.0015));
+  const k = Math.min(8, Math.max(0.02, v.view.k * f));
+  v.view.x = px - ((px - v.view.x) * k) / v.view.k;
+  v.view.y = py - ((py - v.view.y) * k) / v.view.k;
+  v.view.k = k;
+  applyView(v);
+}, { passive: false });
+
+let drag: { x: number; y: number; vx: number; vy: number; moved: boolean; id: number } | null = null;
+canvas.addEventListener("pointerdown", (ev) => {
+  const v = views.get(current);
+  if (!v || !v.view || ev.button !== 0) return;
+  drag = { x: ev.clientX, y: ev.clientY, vx: v.view.x, vy: v.view.y, moved: false, id: ev.pointerId };
+});
+canvas.addEventListener("pointermove", (ev) => {
+  const v = views.get(current);
+  if (!drag || !v || !v.view || ev.pointerId !== drag.id) return;
+  const dx = ev.clientX - drag.x;
+  const dy = ev.clientY - drag.y;
+  if (!drag.moved && Math.hypot(dx, dy) > 3) {
+    drag.moved = true;
+    canvas.setPointerCapture(ev.pointerId);
+    canvas.classList.add("dragging");
+  }
+  if (drag.moved) {
+    v.view.x = drag.vx + dx;
+    v.view.y = drag.vy + dy;
+    applyView(v);
+  }
+});
+const endDrag = (ev: PointerEvent): void => {
+  if (!drag || ev.pointerId !== drag.id) return;
+  const wasClick = !drag.moved;
+  drag = null;
+  canvas.classList.remove("dragging");
+  if (wasClick) {
+    // A click on a call behaviour action opens the called activity.
+    const g = (ev.target as Element).closest?.("g.node.calls");
+    const lane = g?.getAttribute("data-calls");
+    if (lane && laneDiagram.has(lane)) select(laneDiagram.get(lane)!);
+  }
+};
+canvas.addEventListener("pointerup", endDrag);
+canvas.addEventListener("pointercancel", endDrag);
+
+// ---------------------------------------------------------------- calls and status panels
+
+interface RowEl { tr: HTMLTableRowElement; row: CallRow }
+let callRows = new Map<string, RowEl>();
+
+const clockText = (t: number): string => {
+  const d = new Date(t * 1000);
+  return `${d.toLocaleTimeString([], { hour12: false })}.${String(d.getMilliseconds()).padStart(3, "0")}`;
+};
+function jsonText(v: unknown): string {
+  try {
+    const s = JSON.stringify(v);
+    return s === undefined ? "" : s;
+  } catch {
+    return String(v);
+  }
+}
+
+function fillRow(tr: HTMLTableRowElement, r: CallRow): void {
+  const cells = tr.cells;
+  cells[0].textContent = clockText(r.time);
+  cells[1].textContent = `${r.component}.${r.feature}`;
+  cells[2].textContent = r.args === undefined ? "" : jsonText(r.args);
+  const res = cells[3];
+  if (r.ok === true) {
+    res.textContent = r.hasValue ? jsonText(r.value) : "ok";
+    res.className = "result ok";
+  } else if (r.ok === false) {
+    res.textContent = `error: ${r.error || jsonText(r.value)}`;
+    res.className = "result err";
+  } else {
+    res.textContent = "sent…";
+    res.className = "result pending";
+  }
+  cells[4].textContent = r.latencyMs === undefined ? "" : `${fmtMs(r.latencyMs)} ms`;
+}
+
+function newRow(r: CallRow): HTMLTableRowElement {
+  const tr = document.createElement("tr");
+  tr.dataset.component = r.component;
+  tr.dataset.feature = r.feature;
+  for (const cls of ["time", "call", "args", "result", "latency"]) {
+    const td = document.createElement("td");
+    td.className = cls;
+    tr.append(td);
+  }
+  fillRow(tr, r);
+  return tr;
+}
+
+function flushCalls(full: boolean): void {
+  const newest = state.newestCalls();
+  if (full) {
+    callRows = new Map();
+    const frag = document.createDocumentFragment();
+    for (const r of newest) {
+      const tr = newRow(r);
+      callRows.set(r.key, { tr, row: r });
+      frag.append(tr);
+    }
+    callsBody.replaceChildren(frag);
+    return;
+  }
+  const keep = new Set(newest.map((r) => r.key));
+  for (const [key, re] of callRows) {
+    if (!keep.has(key)) {
+      re.tr.remove();
+      callRows.delete(key);
+    }
+  }
+  const frag = document.createDocumentFragment();
+  for (const r of newest) {
+    const re = callRows.get(r.key);
+    if (!re) {
+      const tr = newRow(r);
+      callRows.set(r.key, { tr, row: r });
+      frag.append(tr);
+    } else if (re.row !== r) {
+      re.row = r;
+      fillRow(re.tr, r);
+    }
+  }
+  callsBody.prepend(frag);
+}
+
+function flushStatus(): void {
+  const o = state.orch;
+  orchEl.dataset.state = o.state;
+  let text = `orchestrator: ${o.state}`;
+  if (o.detail) text += ` — ${o.detail}`;
+  if (state.exitPayload !== undefined) text += ` · exit ${jsonText(state.exitPayload)}`;
+  orchEl.textContent = text;
+  updateGaps();
+}
+
+let frameGaps = 0;
+let lostFrames = 0;
+let dropped = 0;
+function updateGaps(): void {
+  const lostTrace = state.traceLost;
+  gapsEl.dataset.gaps = String(frameGaps);
+  gapsEl.dataset.lostFrames = String(lostFrames);
+  gapsEl.dataset.dropped = String(dropped);
+  gapsEl.dataset.lostTrace = String(lostTrace);
+  const parts: string[] = [];
+  if (frameGaps) parts.push(`${frameGaps} gap${frameGaps === 1 ? "" : "s"} in the stream (${lostFrames} frame${lostFrames === 1 ? "" : "s"} lost)`);
+  if (dropped) parts.push(`${dropped} events dropped by the server`);
+  if (lostTrace) parts.push(`${lostTrace} trace events lost`);
+  gapsEl.hidden = parts.length === 0;
+  gapsEl.textContent = parts.length ? `⚠ ${parts.join(" · ")}` : "";
+}
+
+// ---------------------------------------------------------------- frame loop
+
+const queue: MonitorEvent[] = [];
+let qpos = 0;
+let rafId = 0;
+let lastTs = 0;
+let lastArrival = 0;
+const BUDGET_MS = 8; // applying queued events, per frame
+const RENDER_BUDGET_MS = 8; // node updates, per frame
+
+function schedule(): void {
+  if (!rafId) rafId = requestAnimationFrame(tick);
+}
+
+/** Apply the state's changes to the page. */
+const pulsedAt = new Map<string, number>();
+/** Pulse the list entry of each diagram whose lanes ran (at most every 300 ms per diagram). */
+function pulseDiagrams(): void {
+  if (!state.dirtyLanes.size) return;
+  const now = performance.now();
+  const seen = new Set<string>();
+  for (const lane of state.dirtyLanes) {
+    const id = laneDiagram.get(lane);
+    if (!id || seen.has(id)) continue;
+    seen.add(id);
+    if (now - (pulsedAt.get(id) ?? -1e9) < 300) continue;
+    pulsedAt.set(id, now);
+    const dot = listEl.querySelector<HTMLElement>(`li[data-diagram="${CSS.escape(id)}"] .pulse`);
+    dot?.animate([{ opacity: 1 }, { opacity: 0 }], { duration: 1500, fill: "forwards" });
+  }
+}
+
+function render(budgetMs = 0): void {
+  pulseDiagrams();
+  const full = state.allDirty;
+  renderer.flush(state, budgetMs);
+  if (state.dirtyCalls) flushCalls(full);
+  if (state.dirtyOrch || full) flushStatus();
+  state.clearDirty();
+}
+
+let skippedDraw = false;
+let unshownTrace: MonitorEvent | null = null;
+
+function tick(ts: number): void {
+  rafId = 0;
+  const flowing = performance.now() - lastArrival < 1000 || !!replay?.playing;
+  const frameMs = lastTs ? ts - lastTs : 0;
+  if (flowing && lastTs) pushCapped(hooks.frames, frameMs);
+  lastTs = ts;
+
+  let newestTrace: MonitorEvent | null = null;
+  if (mode === "live" && qpos < queue.length) {
+    const t0 = performance.now();
+    while (qpos < queue.length) {
+      const e = queue[qpos++];
+      state.apply(e);
+      if (e.type === "trace") {
+        hooks.applied += 1;
+        newestTrace = e;
+      }
+      if ((qpos & 255) === 0 && performance.now() - t0 > BUDGET_MS) break;
+    }
+    if (qpos >= queue.length) {
+      queue.length = 0;
+      qpos = 0;
+    }
+  }
+  if (mode === "replay" && replay) newestTrace = replayTick(ts);
+
+  // When frames run late (a busy machine), draw every other frame only: events are still
+  // applied, the drawing catches up on the next frame.
+  if (newestTrace) unshownTrace = newestTrace;
+  if (frameMs > 24 && !skippedDraw && !state.allDirty) {
+    skippedDraw = true;
+  } else {
+    skippedDraw = false;
+    render(RENDER_BUDGET_MS);
+    sim.flush();
+    if (unshownTrace) pushCapped(hooks.latencies, Date.now() - unshownTrace.time * 1000);
+    unshownTrace = null;
+  }
+
+  if (qpos < queue.length || flowing || skippedDraw || state.dirtyNodes.size || (replay && replay.playing)) schedule();
+  else lastTs = 0;
+}
+
+// ---------------------------------------------------------------- replay
+
+const SNAP_EVERY = 1000;
+interface Replay {
+  events: MonitorEvent[];
+  times: Float64Array;
+  t0: number;
+  duration: number;
+  snaps: Snapshot[];
+  pos: number; // events applied
+  time: number; // seconds since the first event
+  playing: boolean;
+  prevTs: number;
+  pendingTrace: MonitorEvent | null;
+}
+let replay: Replay | null = null;
+
+function setupReplay(events: MonitorEvent[]): void {
+  const sorted = events.map((e, i) => ({ e, i }))
+    .sort((a, b) => a.e.time - b.e.time || a.i - b.i).map((x) => x.e);
+  const times = new Float64Array(sorted.length);
+  sorted.forEach((e, i) => { times[i] = e.time; });
+  const t0 = sorted.length ? sorted[0].time : 0;
+  const snaps: Snapshot[] = [];
+  for (let i = 0; i < sorted.length; i++) {
+    if (i % SNAP_EVERY === 0) snaps.push(state.snapshot());
+    state.apply(sorted[i]);
+  }
+  if (sorted.length % SNAP_EVERY === 0) snaps.push(state.snapshot());
+  const duration = sorted.length ? sorted[sorted.length - 1].time - t0 : 0;
+  replay = { events: sorted, times, t0, duration, snaps, pos: 0, time: 0, playing: false, prevTs: 0, pendingTrace: null };
+  state.restore(snaps[0] ?? state.snapshot());
+  timeInput.min = "0";
+  timeInput.max = duration.toFixed(3);
+  timeInput.step = "0.001";
+  replayEl.hidden = false;
+  seek(0);
+  updatePlay();
+}
+
+function upperBound(a: Float64Array, v: number): number {
+  let lo = 0;
+  let hi = a.length;
+  while (lo < hi) {
+    const mid = (lo + hi) >> 1;
+    if (a[mid] <= v) lo = mid + 1;
+    else hi = mid;
+  }
+  return lo;
+}
+
+function seek(t: number): void {
+  if (!replay) return;
+  const r = replay;
+  r.time = Math.min(Math.max(t, 0), r.duration);
+  const target = upperBound(r.times, r.t0 + r.time + 1e-9);
+  if (target < r.pos || target - r.pos > SNAP_EVERY) {
+    const s = Math.floor(target / SNAP_EVERY);
+    state.restore(r.snaps[Math.min(s, r.snaps.length - 1)]);
+    r.pos = Math.min(s, r.snaps.length - 1) * SNAP_EVERY;
+  }
+  while (r.pos < target) {
+    const e = r.events[r.pos++];
+    state.apply(e);
+    if (e.type === "trace") {
+      hooks.applied += 1;
+      r.pendingTrace = e;
+    }
+  }
+  if (document.activeElement !== timeInput || r.playing) timeInput.value = r.time.toFixed(3);
+  clockEl.textContent = `${r.time.toFixed(3)} s / ${r.duration.toFixed(3)} s`;
+  schedule();
+}
+
+function replayTick(ts: number): MonitorEvent | null {
+  const r = replay!;
+  if (r.playing) {
+    if (r.prevTs) {
+      const speed = Number(speedSel.value) || 1;
+      const t = r.time + ((ts - r.prevTs) / 1000) * speed;
+      if (t >= r.duration) {
+        r.playing = false;
+        updatePlay();
+      }
+      seek(t);
+    }
+    r.prevTs = ts;
+  }
+  const e = r.pendingTrace;
+  r.pendingTrace = null;
+  return e;
+}
+
+function updatePlay(): void {
+  const playing = !!replay?.playing;
+  playBtn.textContent = playing ? "❚❚ Pause" : "▶ Play";
+  playBtn.setAttribute("aria-pressed", String(playing));
+}
+
+playBtn.addEventListener("click", () => {
+  if (!replay) return;
+  if (!replay.playing && replay.time >= replay.duration) seek(0);
+  replay.playing = !replay.playing;
+  replay.prevTs = 0;
+  updatePlay();
+  schedule();
+});
+timeInput.addEventListener("input", () => {
+  if (!replay) return;
+  seek(Number(timeInput.value));
+  render(); // a scrub shows its moment at once, not a frame later
+});
+
+// ---------------------------------------------------------------- connection
+
+let ws: WebSocket | null = null;
+let expectSeq = 0;
+let retry = 500;
+
+function resetSession(hello: HelloMsg): void {
+  bannerEl.hidden = true;
+  mode = hello.mode === "replay" ? "replay" : "live";
+  queue.length = 0;
+  qpos = 0;
+  replay = null;
+  replayEl.hidden = true;
+  expectSeq = 0;
+  frameGaps = 0;
+  lostFrames = 0;
+  dropped = 0;
+  index = new ModelIndex(hello.model);
+  state = new StudioState(index);
+  callRows = new Map();
+  callsBody.replaceChildren();
+  const name = hello.model?.name ?? "(no model)";
+  titleEl.textContent = `${name} · robot ${hello.robot}`;
+  $<HTMLElement>("#source").textContent = hello.source;
+  titleEl.title = hello.source;
+  modeEl.textContent = mode === "replay" ? `replay${hello.replay ? ` · ${hello.replay.file}` : ""}` : "live";
+  modeEl.dataset.mode = mode;
+  document.title = `umlbot studio — ${name} (${mode})`;
+  sim.setTrack(hello.track);
+  setModel(hello.model, hello.diagnostics ?? []);
+  if (mode === "replay") setupReplay(hello.replay?.events ?? []);
+  state.markAllDirty();
+  schedule();
+}
+
+function onMessage(msg: ServerMsg): void {
+  switch (msg.type) {
+    case "hello":
+      resetSession(msg);
+      break;
+    case "events": {
+      if (expectSeq && msg.seq !== expectSeq) {
+        frameGaps += 1;
+        if (msg.seq > expectSeq) lostFrames += msg.seq - expectSeq;
+      }
+      expectSeq = msg.seq + 1;
+      dropped += msg.dropped ?? 0;
+      if (mode === "live") {
+        for (const e of msg.events) queue.push(e);
+        lastArrival = performance.now();
+      }
+      state.dirtyOrch = true;
+      schedule();
+      break;
+    }
+    case "world":
+      sim.push(msg);
+      schedule();
+      break;
+    case "model":
+      if (!msg.model && model) {
+        // Broken by an edit: keep the last good diagrams, list the problems.
+        setDiagnostics(msg.diagnostics ?? []);
+        bannerEl.textContent = "The model no longer compiles (see Diagnostics): showing the last version that did.";
+        bannerEl.hidden = false;
+      } else {
+        bannerEl.hidden = true;
+        setModel(msg.model, msg.diagnostics ?? []);
+      }
+      schedule();
+      break;
+    default:
+      break;
+  }
+}
+
+function connect(): void {
+  const url = `${location.protocol === "https:" ? "wss" : "ws"}://${location.host}/ws`;
+  const sock = new WebSocket(url);
+  ws = sock;
+  sock.onopen = () => {
+    retry = 500;
+    connEl.dataset.state = "open";
+    connEl.textContent = "● connected";
+  };
+  sock.onmessage = (ev) => {
+    let msg: ServerMsg;
+    try {
+      msg = JSON.parse(ev.data as string) as ServerMsg;
+    } catch (err) {
+      console.error("studio: bad frame", err);
+      return;
+    }
+    onMessage(msg);
+  };
+  sock.onclose = () => {
+    if (ws !== sock) return;
+    connEl.dataset.state = "closed";
+    connEl.textContent = "○ disconnected — reconnecting…";
+    setTimeout(connect, retry);
+    retry = Math.min(retry * 2, 5000);
+  };
+}
+
+window.addEventListener("keydown", (ev) => {
+  const t = ev.target as HTMLElement;
+  if (ev.ctrlKey || ev.metaKey || ev.altKey || /^(INPUT|SELECT|TEXTAREA|BUTTON)$/.test(t.tagName)) return;
+  if (ev.key === " " && replay) {
+    ev.preventDefault();
+    playBtn.click();
+  } else if (ev.key === "f") {
+    const v = views.get(current);
+    if (v) fit(v, false);
+  }
+});
+
+connEl.dataset.state = "closed";
+connEl.textContent = "○ connecting…";
+updateGaps();
+warmUp();
+connect();
