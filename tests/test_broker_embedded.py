@@ -12,6 +12,7 @@ import threading
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
 from conftest import free_port, port_accepts, wait_until
@@ -41,6 +42,45 @@ def test_embedded_broker_serves_calls_in_process(embedded: EmbeddedBroker) -> No
     embedded.stop()
     embedded.stop()  # twice is fine
     assert not port_accepts(embedded.port)
+
+
+def test_a_new_client_gets_retained_messages_only_for_its_own_subscriptions(embedded: EmbeddedBroker) -> None:
+    settings = BrokerSettings.from_url(embedded.url)
+    with BusConnection(settings, "test", client_id="retainer") as publisher:
+        publisher.publish("umlbot/car/Motor/status", b'{"state":"online"}', retain=True)
+        publisher.publish("umlbot/car/Sonar/status", b'{"state":"online"}', retain=True)
+    watcher = BusConnection(settings, "test", client_id="watcher")  # holds a filter matching both
+    watcher.subscribe("umlbot/car/+/status", lambda message: None)
+    watcher.start(3.0)
+    try:
+        got: list[str] = []
+        done = threading.Event()
+
+        def keep(message: Message) -> None:
+            got.append(message.topic)
+            done.set()
+
+        newcomer = BusConnection(settings, "test", client_id="newcomer")
+        newcomer.subscribe("umlbot/car/Sonar/status", keep)
+        raw_topics: list[str] = []
+        dispatch = newcomer._client.on_message
+        assert dispatch is not None
+
+        def every_publish(client: Any, userdata: Any, message: Any) -> None:
+            raw_topics.append(message.topic)
+            dispatch(client, userdata, message)
+
+        newcomer._client.on_message = every_publish
+        newcomer.start(3.0)
+        try:
+            assert done.wait(3.0)
+            time.sleep(0.3)  # anything else amqtt would send arrives meanwhile
+        finally:
+            newcomer.close()
+        # before the fix amqtt also sent umlbot/car/Motor/status (the watcher's filter matches it)
+        assert raw_topics == ["umlbot/car/Sonar/status"]
+    finally:
+        watcher.close()
 
 
 def test_loopback_by_default() -> None:

@@ -127,6 +127,25 @@ class _SnapshotSubscriptions(dict[str, list[Any]]):
         return [(key, list(value)) for key, value in super().items()]
 
 
+def _retained_only_for_own_subscriptions(broker: Any) -> None:
+    """Deliver retained messages only for the client's own subscriptions.
+
+    amqtt 0.12.1 walks the WHOLE subscription table when any client connects and sends that client
+    the retained messages matching every other client's filters: a new client received topics it
+    never subscribed to (and, with an ACL, topics it may not read). Here a retained message goes
+    out only for a filter the session itself holds (a SUBSCRIBE adds it before amqtt sends the
+    retained messages, so ordinary subscriptions are unaffected).
+    """
+    original = broker._publish_retained_messages_for_subscription
+
+    async def publish_retained(subscription: tuple[str, int], session: Any) -> None:
+        holders = broker._subscriptions.get(subscription[0], ())
+        if any(holder.client_id == session.client_id for holder, _ in holders):
+            await original(subscription, session)
+
+    broker._publish_retained_messages_for_subscription = publish_retained
+
+
 def _check_port_free(host: str, port: int) -> None:
     """Raise ConfigError naming the port when something already listens there."""
     family = socket.AF_INET6 if ":" in host else socket.AF_INET
@@ -234,6 +253,7 @@ class EmbeddedBroker:
             warnings.filterwarnings("ignore", "The 'acl' option is deprecated", DeprecationWarning)
             self._broker = Broker(config)
             self._broker._subscriptions = _SnapshotSubscriptions(self._broker._subscriptions)
+            _retained_only_for_own_subscriptions(self._broker)
             await self._broker.start()
 
     async def _shutdown(self) -> None:
