@@ -27,7 +27,7 @@ from umlbot.logs import get_logger
 log = get_logger(__name__)
 
 #: seconds between two frames to the pages at most (events are coalesced in between).
-FLUSH_S = 0.025
+FLUSH_S = 0.010
 #: trace events kept for pages that open later.
 DEFAULT_KEEP_TRACE = 100_000
 #: feature calls kept for pages that open later.
