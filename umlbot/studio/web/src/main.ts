@@ -475,7 +475,9 @@ function render(budgetMs = 0): void {
 }
 
 let skippedDraw = false;
-let unshownTrace: MonitorEvent | null = null;
+// node end times (unix s) of the live trace events applied but not drawn yet: each one's latency
+// (node end -> drawn) is recorded when the frame that shows it is drawn
+const unshownEnds: number[] = [];
 
 function tick(ts: number): void {
   rafId = 0;
@@ -484,7 +486,6 @@ function tick(ts: number): void {
   if (flowing && lastTs) pushCapped(hooks.frames, frameMs);
   lastTs = ts;
 
-  let newestTrace: MonitorEvent | null = null;
   if (mode === "live" && qpos < queue.length) {
     const t0 = performance.now();
     while (qpos < queue.length) {
@@ -492,7 +493,7 @@ function tick(ts: number): void {
       state.apply(e);
       if (e.type === "trace") {
         hooks.applied += 1;
-        newestTrace = e;
+        unshownEnds.push(e.time);
       }
       if ((qpos & 255) === 0 && performance.now() - t0 > BUDGET_MS) break;
     }
@@ -501,19 +502,21 @@ function tick(ts: number): void {
       qpos = 0;
     }
   }
-  if (mode === "replay" && replay) newestTrace = replayTick(ts);
+  if (mode === "replay" && replay) replayTick(ts);
 
   // When frames run late (a busy machine), draw every other frame only: events are still
   // applied, the drawing catches up on the next frame.
-  if (newestTrace) unshownTrace = newestTrace;
   if (frameMs > 24 && !skippedDraw && !state.allDirty) {
     skippedDraw = true;
   } else {
     skippedDraw = false;
     render(RENDER_BUDGET_MS);
     sim.flush();
-    if (unshownTrace) pushCapped(hooks.latencies, Date.now() - unshownTrace.time * 1000);
-    unshownTrace = null;
+    if (unshownEnds.length) {
+      const now = Date.now();
+      for (const end of unshownEnds) pushCapped(hooks.latencies, now - end * 1000);
+      unshownEnds.length = 0;
+    }
   }
 
   if (qpos < queue.length || flowing || skippedDraw || state.dirtyNodes.size || (replay && replay.playing)) schedule();
