@@ -47,7 +47,14 @@ DRIVERS: dict[tuple[ServiceKind, str], str] = {
     ("servo", "sim"): "services.servo.sim:FACTORY",
     ("gpio", "pigpio"): "services.gpio.pigpio:FACTORY",
     ("gpio", "mock"): "services.gpio.mock:FACTORY",
+    ("motor", "lgpio"): "services.motor.lgpio:FACTORY",
+    ("sonar", "lgpio"): "services.sonar.lgpio:FACTORY",
+    ("servo", "lgpio"): "services.servo.lgpio:FACTORY",
+    ("gpio", "lgpio"): "services.gpio.lgpio:FACTORY",
 }
+
+#: The driver name that stands for the GPIO backend this machine has (`services.autodetect`).
+AUTO = "auto"
 
 #: Driver names whose settings live under a `<name>_` key prefix in a shared settings mapping.
 PREFIXED_DRIVERS: tuple[str, ...] = ("mock", "sim")
@@ -97,13 +104,17 @@ def known_drivers(kind: ServiceKind) -> list[str]:
     """Every driver name available for a service kind, sorted."""
     with _lock:
         runtime = {name for (k, name) in _runtime if k == kind}
-    return sorted(runtime | {name for (k, name) in DRIVERS if k == kind})
+    return sorted(runtime | {name for (k, name) in DRIVERS if k == kind} | {AUTO})
 
 
 def get_factory(kind: ServiceKind, driver: str) -> DriverFactory[Any]:
     """The factory of a driver; `UnknownDriver` (listing the known names) when there is none."""
     if kind not in SERVICE_KINDS:
         raise UnknownDriver(f"unknown service kind {kind!r}; known kinds: {', '.join(SERVICE_KINDS)}")
+    if driver == AUTO:
+        from services.autodetect import auto_driver
+
+        driver = auto_driver()
     with _lock:
         runtime = _runtime.get((kind, driver))
     if runtime is not None:

@@ -1190,8 +1190,9 @@ def test_driver_settings_tables_are_the_settings_models() -> None:
                                           "Servo": ServoSettings, "Raspberry": GpioSettings}
     tables = _settings_tables()
     assert set(models) | {"Mock"} == set(tables)
-    #: documented elsewhere (`host`/`port`: "the settings `host`/`port`") or internal.
-    not_in_tables = {"host", "port", "reserved_pins"}
+    #: documented elsewhere (`host`/`port`/`chip`: "the settings `host`/`port`", "the setting
+    #: `chip`" in the driver table) or internal.
+    not_in_tables = {"host", "port", "chip", "reserved_pins"}
     for title, model in models.items():
         rows = {code_spans(row[0])[0]: row[1] for row in tables[title]}
         assert set(rows) == set(model.model_fields) - not_in_tables, title

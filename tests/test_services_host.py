@@ -22,7 +22,8 @@ from umlbot.errors import ConfigError, DriverError, NotConnected, UnknownDriver
 
 
 def test_unknown_driver_lists_the_known_names() -> None:
-    with pytest.raises(UnknownDriver, match=r"unknown motor driver 'warp'; known drivers: mock, pigpio"):
+    known = r"unknown motor driver 'warp'; known drivers: auto, lgpio, mock, pigpio"
+    with pytest.raises(UnknownDriver, match=known):
         registry.get_factory("motor", "warp")
 
 
@@ -137,7 +138,7 @@ def test_cli_unknown_driver_is_one_clear_line(tmp_path: Path) -> None:
     result = _cli("service", "motor", "--deploy", str(deploy), "--driver", "warp",
                   "--broker", f"mqtt://127.0.0.1:{free_port()}")
     assert result.returncode == 1
-    assert "unknown motor driver 'warp'; known drivers: mock, pigpio" in result.stderr
+    assert "unknown motor driver 'warp'; known drivers: auto, lgpio, mock, pigpio" in result.stderr
 
 
 def test_cli_pigpio_without_daemon_says_how_to_start_it(tmp_path: Path) -> None:
