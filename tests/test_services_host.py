@@ -29,7 +29,7 @@ def test_unknown_driver_lists_the_known_names() -> None:
 
 def test_unknown_kind() -> None:
     with pytest.raises(ConfigError, match="unknown service kind"):
-        ServiceHost("lidar", deployment(), broker_settings("mqtt://127.0.0.1:1"), ROBOT)  # type: ignore[arg-type]
+        ServiceHost("lidar", deployment(), broker_settings("mqtt://127.0.0.1:1"), ROBOT)
 
 
 def test_deployment_without_components_of_the_kind() -> None:

@@ -26,6 +26,7 @@ COMMANDS: dict[str, str] = {
     "sim": "Run the whole robot in the 2D simulator.",
     "call": "Call one component feature over MQTT and print the reply.",
     "monitor": "Watch the robot's traffic live.",
+    "plugins": "List the installed component and driver plugins (entry points).",
 }
 
 

@@ -27,7 +27,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from umlbot.errors import ConfigError
 from umlbot.files import load_yaml, read_text
-from umlbot.library import IMPLEMENTATIONS, Implementation, ServiceKind, resolve_implementation
+from umlbot.library import Implementation, ServiceKind, implementations, resolve_implementation
 
 
 class ComponentDeployment(BaseModel):
@@ -98,7 +98,7 @@ def parse_deployment(text: str, source: str = "<deployment>") -> Deployment:
     for name, comp in deployment.components.items():
         if resolve_implementation(comp.impl) is None:
             raise ConfigError(f"{source}: component {name!r}: unknown implementation id {comp.impl!r} "
-                              f"(known: {', '.join(sorted(IMPLEMENTATIONS))})")
+                              f"(known: {', '.join(sorted(implementations()))})")
     return deployment
 
 

@@ -1,4 +1,5 @@
-"""`umlbot service KIND --deploy FILE`: run one hardware service (motor, sonar, servo or gpio).
+"""`umlbot service KIND --deploy FILE`: run one hardware service (motor, sonar, servo, gpio or a
+plugin's service kind).
 
 Serves every component of that kind in the deployment until SIGTERM or SIGINT; on every exit
 path (signal, error, broker loss) the motors are stopped before the process ends.
@@ -11,7 +12,7 @@ from pathlib import Path
 
 import click
 
-from services.registry import SERVICE_KINDS
+from umlbot.library import service_kinds
 from umlbot.stopsignals import StopSignals
 
 
@@ -21,7 +22,7 @@ def resolve_robot(cli_value: str | None, deployment_robot: str | None) -> str:
 
 
 @click.command(name="service")
-@click.argument("kind", type=click.Choice(SERVICE_KINDS))
+@click.argument("kind", type=click.Choice(service_kinds()))
 @click.option("--deploy", "deploy_file", required=True, metavar="FILE",
               type=click.Path(dir_okay=False, path_type=Path),
               help="Deployment file (plain `Component=impl` lines or YAML).")
@@ -54,7 +55,7 @@ def command(
     from umlbot.deployment import load_deployment
     from umlbot.library import ServiceKind
 
-    service_kind: ServiceKind = kind  # type: ignore[assignment]  # click.Choice checked it
+    service_kind: ServiceKind = kind  # click.Choice checked it
     deployment = load_deployment(deploy_file)
     settings = BrokerSettings.from_url(resolve_broker_url(broker_url), ca_file=ca_file)
     host = ServiceHost(
