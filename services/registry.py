@@ -92,7 +92,8 @@ def get_factory(kind: ServiceKind, driver: str) -> DriverFactory[Any]:
     """The factory of a driver; `UnknownDriver` (listing the known names) when there is none."""
     if kind not in service_kinds():
         raise UnknownDriver(f"unknown service kind {kind!r}; known kinds: {', '.join(service_kinds())}")
-    if driver == AUTO:
+    chosen_by_auto = driver == AUTO
+    if chosen_by_auto:
         from services.autodetect import auto_driver
 
         driver = auto_driver()
@@ -102,9 +103,8 @@ def get_factory(kind: ServiceKind, driver: str) -> DriverFactory[Any]:
         return runtime
     entry = catalog().drivers.get((kind, driver))
     if entry is None:
-        raise UnknownDriver(
-            f"unknown {kind} driver {driver!r}; known drivers: {', '.join(known_drivers(kind))}"
-        )
+        why = f"driver auto chose {driver!r} here, but there is no " if chosen_by_auto else "unknown "
+        raise UnknownDriver(f"{why}{kind} driver {driver!r}; known drivers: {', '.join(known_drivers(kind))}")
     try:
         factory = entry.load()
     except DriverError:

@@ -23,7 +23,7 @@ from services.autodetect import Machine, choose, forget
 from services.fake_lgpio import FakeLgpio, error
 from services.motor.lgpio import LgpioL298NChannel
 from services.motor.pigpio import PigpioL298NChannel
-from umlbot.errors import DriverError
+from umlbot.errors import DriverError, UnknownDriver
 
 
 @pytest.fixture(autouse=True)
@@ -171,6 +171,14 @@ def test_auto_builds_the_chosen_driver(monkeypatch: pytest.MonkeyPatch) -> None:
     assert isinstance(channel, PigpioL298NChannel)
     channel.close()
     assert "auto" in registry.known_drivers("motor")
+
+
+def test_auto_names_its_choice_when_a_kind_lacks_that_driver(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("UMLBOT_FAKE_PIGPIO", "1")
+    monkeypatch.delenv("UMLBOT_FAKE_LGPIO", raising=False)
+    with pytest.raises(UnknownDriver, match=r"driver auto chose 'pigpio' here, but there is no buzzer "
+                                            r"driver 'pigpio'; known drivers: auto, lgpio, mock, sim"):
+        registry.get_factory("buzzer", "auto")  # the example plugin has no pigpio driver
 
 
 # --- services on lgpio ----------------------------------------------------------------------------

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import subprocess
 import sys
 from collections.abc import Callable
@@ -140,3 +141,31 @@ def test_its_mock_driver_runs_in_process(mosquitto_broker: BrokerProcess) -> Non
             bus.call("Bell", "tone", 12000)
         assert caught.value.code == "out_of_range"
     assert host.drivers["Bell"].playing_hz is None and host.drivers["Bell"].closed
+
+
+def test_umlbot_sim_runs_its_sim_driver_beside_the_car(tmp_path: Path) -> None:
+    """The reference car with a Bell added: `umlbot sim` serves it on the plugin's sim driver, the
+    orchestrator silences it at start (its safe stop) and the model's calls reach it."""
+    car = tmp_path / "car"
+    shutil.copytree(ROOT / "models" / "robot_car", car)
+    model = car / "model.yaml"
+    model.write_text(model.read_text().replace("\nlinks:", "  Bell: {kind: sounder}\n\nlinks:"))
+    main = car / "activities" / "main.yaml"
+    look = "  - {id: look_ahead, kind: action, call: Sensor.angle(90)}\n"
+    assert look in main.read_text()
+    calls = ("  - {id: ding, kind: action, call: Bell.tone(523)}\n"
+             "  - {id: dong, kind: action, call: Bell.enabled(true)}\n"
+             "  - {id: hush, kind: action, call: Bell.enabled(false)}\n")
+    main.write_text(main.read_text().replace(look, look + calls))
+    deployment = car / "deployment.yaml"
+    bell = "  Bell:\n    impl: CModelBuzzer\n    settings: {gpio: 12}\n"
+    deployment.write_text(deployment.read_text() + bell)
+    result = umlbot("--log-level", "INFO", "--log-json", "sim", str(car), "--track",
+                    str(ROOT / "models" / "tracks" / "corridor.yaml"), "--speed", "20",
+                    "--plot", str(tmp_path / "run.png"), timeout=120)
+    assert result.returncode == 0, result.stderr[-2000:]
+    events = [json.loads(line) for line in result.stderr.splitlines() if line.startswith("{")]
+    started = [e for e in events if e.get("event") == "service_started" and e.get("kind") == "buzzer"]
+    assert started and started[0]["components"] == {"Bell": "sim"}
+    assert any(e.get("event") == "actuators_stopped" and "Bell" in e["components"] for e in events)
+    assert [e["hz"] for e in events if e.get("event") == "buzzer_on"] == [523]

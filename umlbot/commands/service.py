@@ -27,7 +27,8 @@ def resolve_robot(cli_value: str | None, deployment_robot: str | None) -> str:
               type=click.Path(dir_okay=False, path_type=Path),
               help="Deployment file (plain `Component=impl` lines or YAML).")
 @click.option("--driver", default=None, metavar="NAME",
-              help="Driver for every component: pigpio, mock or sim (default: the deployment's).")
+              help="Driver for every component: auto, lgpio, pigpio, mock, sim or a plugin's "
+              "(default: the deployment's).")
 @click.option("--component", "components", multiple=True, metavar="NAME",
               help="Serve only this component (repeatable; default: all of this kind).")
 @click.option("--broker", "broker_url", default=None, metavar="URL",
