@@ -143,11 +143,28 @@ def test_cli_unknown_driver_is_one_clear_line(tmp_path: Path) -> None:
 
 def test_cli_pigpio_without_daemon_says_how_to_start_it(tmp_path: Path) -> None:
     deploy = tmp_path / "d.yaml"
-    deploy.write_text("components:\n  LeftActuator: {impl: l298n, settings: {in1: 22, in2: 23}}\n")
+    deploy.write_text("driver: pigpio\n"
+                      "components:\n  LeftActuator: {impl: l298n, settings: {in1: 22, in2: 23}}\n")
     result = _cli("service", "motor", "--deploy", str(deploy), "--broker", f"mqtt://127.0.0.1:{free_port()}",
                   env={"PIGPIO_PORT": str(free_port())})
     assert result.returncode == 1
     assert "pigpio" in result.stderr and ("pip install" in result.stderr or "pigpiod" in result.stderr)
+
+
+def test_cli_auto_on_a_machine_without_gpio_says_what_it_looked_for(tmp_path: Path) -> None:
+    """The default driver is `auto`; here (no Pi 5, no pigpiod, no gpiochip) it names all three."""
+    deploy = tmp_path / "d.yaml"
+    deploy.write_text("components:\n  LeftActuator: {impl: l298n, settings: {in1: 22, in2: 23}}\n")
+    port = free_port()
+    result = _cli("service", "motor", "--deploy", str(deploy), "--broker", f"mqtt://127.0.0.1:{free_port()}",
+                  env={"PIGPIO_PORT": str(port)})
+    assert result.returncode == 1
+    if Path("/dev/gpiochip0").exists() or Path("/proc/device-tree/model").exists():
+        assert "gpiochip" in result.stderr  # a board with GPIO: lgpio was chosen and says why it failed
+    else:
+        assert (f"error: driver auto found no GPIO backend: not a Raspberry Pi 5, no pigpio daemon at "
+                f"localhost:{port} and no /dev/gpiochip*; on a machine without GPIO use --driver mock or sim"
+                in result.stderr)
 
 
 def test_cli_missing_deployment(tmp_path: Path) -> None:

@@ -4,7 +4,7 @@ Two formats are read. The seed's plain format, one `<component>=<implementation 
 (`#` comments and blank lines allowed), and the rich YAML format::
 
     robot: car                 # optional robot id
-    driver: pigpio             # default driver for every component: pigpio, sim or mock
+    driver: auto               # default driver for every component: auto, lgpio, pigpio, sim, mock
     components:
       LeftActuator:
         impl: l298n
@@ -53,7 +53,7 @@ class Deployment(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
     robot: str | None = None
-    driver: str = "pigpio"
+    driver: str = "auto"
     components: dict[str, ComponentDeployment] = Field(default_factory=dict)
 
     def driver_for(self, component: str) -> str:
