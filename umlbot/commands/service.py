@@ -12,7 +12,6 @@ from pathlib import Path
 
 import click
 
-from umlbot.library import service_kinds
 from umlbot.stopsignals import StopSignals
 
 
@@ -21,8 +20,18 @@ def resolve_robot(cli_value: str | None, deployment_robot: str | None) -> str:
     return cli_value or os.environ.get("UMLBOT_ROBOT") or deployment_robot or "car"
 
 
+def _known_kind(ctx: click.Context, param: click.Parameter, kind: str) -> str:
+    # Checked when the command runs, not when it is imported: the library (built-ins and
+    # plugins) is read only then, after logging is set up.
+    from umlbot.library import service_kinds
+
+    if kind not in service_kinds():
+        raise click.BadParameter(f"{kind!r} is not one of {', '.join(map(repr, service_kinds()))}.")
+    return kind
+
+
 @click.command(name="service")
-@click.argument("kind", type=click.Choice(service_kinds()))
+@click.argument("kind", callback=_known_kind)
 @click.option("--deploy", "deploy_file", required=True, metavar="FILE",
               type=click.Path(dir_okay=False, path_type=Path),
               help="Deployment file (plain `Component=impl` lines or YAML).")
