@@ -63,6 +63,11 @@ def lgpio_module() -> Any:
             "the lgpio Python package is not installed; install it with "
             "`pip install 'umlbot[pi]'` or `sudo apt install python3-lgpio` (or use --driver mock / sim)"
         ) from exc
+    except OSError as exc:  # importing lgpio opens its notification pipe in the working directory
+        raise DriverError(
+            f"lgpio cannot start ({exc}); it makes its notification pipe (.lgd-nfy*) in the working "
+            f"directory {os.getcwd()}, which must be writable"
+        ) from exc
 
 
 def _open(lg: Any, chip: int) -> int:

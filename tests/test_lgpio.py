@@ -137,6 +137,15 @@ def test_missing_lgpio_package_says_how_to_install_it(monkeypatch: pytest.Monkey
         registry.create_driver("motor", "lgpio", "M", {"in1": 22, "in2": 23})
 
 
+def test_lgpio_that_cannot_make_its_pipe_says_where(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    # The real module opens '.lgd-nfy<n>' in the working directory on import.
+    (tmp_path / "lgpio.py").write_text("open('/nonexistent/.lgd-nfy0', 'rb')\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.delitem(sys.modules, "lgpio", raising=False)
+    with pytest.raises(DriverError, match=r"notification pipe \(\.lgd-nfy\*\) in the working directory"):
+        registry.create_driver("servo", "lgpio", "S", {"gpio": 18})
+
+
 # --- driver: auto ---------------------------------------------------------------------------------
 
 
