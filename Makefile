@@ -5,6 +5,7 @@ PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
+EXAMPLE_PLUGIN := examples/umlbot_buzzer
 TRACK  ?= models/tracks/s_bend.yaml
 SPEED  ?= 10
 OUT    ?= out
@@ -13,11 +14,13 @@ OUT    ?= out
 
 all: test
 
-$(STAMP): pyproject.toml
+# The example plugin is installed as a package of its own: the tests use it from outside, as a
+# user's plugin would be (tests/test_plugin_example.py).
+$(STAMP): pyproject.toml $(EXAMPLE_PLUGIN)/pyproject.toml
 	@$(PYTHON) -c 'import sys; assert sys.version_info >= (3, 11), "umlbot needs Python 3.11+, found " + sys.version.split()[0]'
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[test]'
+	$(BIN)/python -m pip install --quiet -e '.[test]' -e $(EXAMPLE_PLUGIN)
 	@touch $@
 
 install: $(STAMP)
@@ -29,7 +32,7 @@ lint: $(STAMP)
 	$(BIN)/ruff check .
 
 typecheck: $(STAMP)
-	$(BIN)/mypy umlbot compiler services tests bench
+	$(BIN)/mypy umlbot compiler services tests bench $(EXAMPLE_PLUGIN)/umlbot_buzzer
 
 pytest: system-packages $(STAMP)
 	$(BIN)/pytest

@@ -33,7 +33,7 @@ import paho.mqtt.client as mqtt
 from paho.mqtt.enums import CallbackAPIVersion
 
 from services.bus import BrokerSettings, BusClient, ComponentServer, Feature
-from umlbot.library import IMPLEMENTATIONS
+from umlbot.library import implementations
 from umlbot.logs import configure_logging
 
 ROBOT = "bench"
@@ -157,7 +157,7 @@ class UmlbotPair:
 
     def __init__(self, url: str) -> None:
         settings = BrokerSettings.from_url(url)
-        spec = IMPLEMENTATIONS["l298n"].features["dutycycle"]
+        spec = implementations()["l298n"].features["dutycycle"]
         features = [Feature(spec, lambda percent: None)]
         self.server = ComponentServer(settings, ROBOT, "Motor", "l298n", features)
         self.server.start(TIMEOUT_S)

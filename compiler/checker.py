@@ -18,13 +18,19 @@ from compiler.expr_parser import RawExpr, RBinary, RCall, RConst, RName, RUnary,
 from compiler.source import SourceLane, SourceModel, SourceNode
 from compiler.yamlsrc import YMap, YScalar, YSeq
 from umlbot.errors import ModelError
-from umlbot.library import KIND_FEATURES, ComponentKind, FeatureSpec, Implementation, resolve_implementation
+from umlbot.library import (
+    ComponentKind,
+    FeatureSpec,
+    Implementation,
+    component_kinds,
+    kind_features,
+    resolve_implementation,
+)
 
 #: expression types; "any" is a value whose type is known only at run time (a signal payload);
 #: "unknown" exists only while datastore types are being inferred.
 Type = Literal["int", "float", "bool", "str", "none", "any", "unknown"]
 
-KINDS: tuple[ComponentKind, ...] = ("system", "actuator", "sensor")
 RESERVED = {"Application", "usleep", "msleep", "and", "or", "not", "true", "false", "True", "False",
             "null"}
 SLEEP_BUILTINS = {"usleep": "us", "msleep": "ms"}
@@ -156,7 +162,7 @@ class _Scope:
         impl = self.impls.get(component)
         if impl is not None and feature in impl.features:
             return impl.features[feature]
-        return KIND_FEATURES[self.kinds[component]].get(feature)
+        return kind_features(self.kinds[component]).get(feature)
 
 
 @dataclass
@@ -265,7 +271,7 @@ class _ExprChecker:
                 self.read_datastore = True
                 return {"op": "ref", "lane": owner, "name": name}, t
             hint = ""
-            if owner in scope.kinds and name in KIND_FEATURES[scope.kinds[owner]]:
+            if owner in scope.kinds and name in kind_features(scope.kinds[owner]):
                 hint = f"; to call the feature, write {owner}.{name}()"
             raise self.fail(f"unknown datastore '{name}' in swimlane '{owner}'{hint}", raw.offsets[1])
         raise self.fail(f"unknown swimlane or component '{owner}'", raw.offset)
@@ -320,8 +326,8 @@ class _ExprChecker:
                                 f"{owner}()", raw.offset)
             raise self.fail(f"unknown component '{owner}'", raw.offset)
         kind = scope.kinds[owner]
-        if feature not in KIND_FEATURES[kind]:
-            known = ", ".join(KIND_FEATURES[kind])
+        if feature not in kind_features(kind):
+            known = ", ".join(kind_features(kind))
             raise self.fail(f"unknown feature '{feature}' of {kind} component '{owner}' "
                             f"(known: {known})", raw.name.offsets[1])
         impl = scope.impls.get(owner)
@@ -373,16 +379,16 @@ class _Checker:
                 continue
             if comp.kind is None:
                 continue
-            if comp.kind not in KINDS:
-                self.d.error(f"unknown component kind '{comp.kind}' (expected system, actuator or "
-                             "sensor)", comp.kind_loc)
+            if comp.kind not in component_kinds():
+                self.d.error(f"unknown component kind '{comp.kind}' (known: "
+                             f"{', '.join(component_kinds())})", comp.kind_loc)
                 continue
             kind: ComponentKind = comp.kind
             self.scope.kinds[name] = kind
             for port, (feature, loc) in comp.ports.items():
-                if feature not in KIND_FEATURES[kind]:
+                if feature not in kind_features(kind):
                     self.d.error(f"port '{port}' names unknown feature '{feature}' of {kind} component "
-                                 f"'{name}' (known: {', '.join(KIND_FEATURES[kind])})", loc)
+                                 f"'{name}' (known: {', '.join(kind_features(kind))})", loc)
         for link in self.source.links:
             for end in (link.source, link.target):
                 if end is None:
@@ -422,11 +428,11 @@ class _Checker:
                 continue
             self.scope.impls[name] = impl
             for port, (feature, port_loc) in self.source.components[name].ports.items():
-                if feature in KIND_FEATURES[kind] and feature not in impl.features:
+                if feature in kind_features(kind) and feature not in impl.features:
                     self.d.error(f"implementation '{impl.id}' of '{name}' does not offer feature "
                                  f"'{feature}' (port '{port}')", port_loc)
         for name, comp in self.source.components.items():
-            if name not in dep.deployment.components and comp.kind in KINDS:
+            if name not in dep.deployment.components and comp.kind in component_kinds():
                 self.d.error(f"component '{name}' has no implementation in the deployment", comp.loc)
 
     # --- swimlanes -----------------------------------------------------------------------------------

@@ -20,7 +20,8 @@ usage: install.sh [options]
   --deployment FILE   deployment file (plain or YAML)
   --robot ID          robot id written to umlbot.env (default: car)
   --broker URL        default broker URL written to umlbot.env (default: mqtt://127.0.0.1:1883)
-  --driver NAME       driver for the services: pigpio (default), mock or sim
+  --driver NAME       driver for the services: auto (default: lgpio on a Pi 5, pigpio where
+                      pigpiod runs), pigpio, lgpio, mock or sim
   --services "K..."   service kinds to enable (default: "motor sonar servo gpio")
   --embedded-broker   also enable umlbot-broker.service (the embedded amqtt broker)
   --secure            one MQTT user per service and for the orchestrator (deploy/broker_auth.py):
@@ -42,7 +43,7 @@ MODEL=""
 DEPLOYMENT=""
 ROBOT=car
 BROKER=mqtt://127.0.0.1:1883
-DRIVER=pigpio
+DRIVER=auto
 SERVICES="motor sonar servo gpio"
 EMBEDDED_BROKER=0
 SECURE=0
@@ -80,7 +81,7 @@ case "$PREFIX" in /*) ;; *) die "--prefix must be an absolute path" ;; esac
 for kind in $SERVICES; do
     case "$kind" in motor|sonar|servo|gpio) ;; *) die "unknown service kind '$kind'" ;; esac
 done
-case "$DRIVER" in pigpio|mock|sim) ;; *) die "unknown driver '$DRIVER' (pigpio, mock or sim)" ;; esac
+case "$DRIVER" in auto|pigpio|lgpio|mock|sim) ;; *) die "unknown driver '$DRIVER' (auto, pigpio, lgpio, mock or sim)" ;; esac
 [ -z "$MODEL" ] || [ -f "$MODEL" ] || die "compiled model $MODEL not found"
 [ -z "$DEPLOYMENT" ] || [ -f "$DEPLOYMENT" ] || die "deployment $DEPLOYMENT not found"
 [ -f "$SOURCE/pyproject.toml" ] || die "$SOURCE is not an umlbot checkout (no pyproject.toml)"
@@ -104,12 +105,14 @@ install -d -m 0750 "$ETC"
 
 # 1. The unprivileged user (systemd-sysusers reads the same file at boot).
 install -m 0644 "$SOURCE/deploy/sysusers.d/umlbot.conf" "$ROOT/etc/sysusers.d/umlbot.conf"
-if [ -z "$ROOT" ] && ! id umlbot >/dev/null 2>&1; then
+# The user is in group gpio for lgpio's /dev/gpiochip* (sysusers' `m` line; both steps idempotent).
+if [ -z "$ROOT" ]; then
     if command -v systemd-sysusers >/dev/null 2>&1; then
         systemd-sysusers /etc/sysusers.d/umlbot.conf
-    else
+    elif ! id umlbot >/dev/null 2>&1; then
         useradd --system --home-dir /var/lib/umlbot --shell /usr/sbin/nologin umlbot
     fi
+    if getent group gpio >/dev/null 2>&1; then usermod -aG gpio umlbot; fi
 fi
 
 # 2. The virtual environment with umlbot installed from the source checkout.
@@ -118,7 +121,7 @@ if [ "$VENV" -eq 1 ]; then
     say "creating $DEST/venv and installing umlbot from $SOURCE"
     "$PYTHON" -m venv "$DEST/venv"
     "$DEST/venv/bin/python" -m pip install --quiet --upgrade pip
-    # the `pi` extra brings the pigpio client library the pigpio drivers use
+    # the `pi` extra brings the pigpio and lgpio libraries the hardware drivers use
     "$DEST/venv/bin/python" -m pip install --quiet "$SOURCE[pi]"
 fi
 

@@ -27,36 +27,25 @@ from services.bus.server import ComponentServer
 from services.bus.settings import BrokerSettings
 from services.bus.topics import Topics
 from services.component_service import ComponentService
-from services.registry import SERVICE_KINDS, create_driver
+from services.registry import create_driver
 from umlbot.deployment import Deployment
 from umlbot.errors import ConfigError, NotConnected
-from umlbot.library import ServiceKind
+from umlbot.library import ServiceKind, service_kinds, service_spec
 from umlbot.logs import get_logger
 
 log = get_logger("umlbot.host")
 
-#: service kind -> "module:class" of its ComponentService.
-SERVICES: dict[ServiceKind, str] = {
-    "motor": "services.motor.service:MotorService",
-    "sonar": "services.sonar.service:SonarService",
-    "servo": "services.servo.service:ServoService",
-    "gpio": "services.gpio.service:GpioService",
-}
-
 #: Orchestrator states after which no motor may keep running.
 ORCHESTRATOR_STOP_STATES = frozenset({"offline", "stopped", "failed"})
-
-#: Settings keys that name a GPIO a component owns.
-PIN_KEYS = ("in1", "in2", "enable", "trigger", "echo", "gpio")
 
 TICK_S = 0.05
 
 
 def owned_pins(deployment: Deployment) -> dict[int, str]:
-    """GPIO -> component for every pin named in the components' settings (motor, sonar, servo)."""
+    """GPIO -> component for every pin a component's settings name (its implementation's `pin_keys`)."""
     owners: dict[int, str] = {}
     for name, comp in deployment.components.items():
-        for key in PIN_KEYS:
+        for key in comp.implementation.pin_keys:
             pin = comp.settings.get(key)
             if isinstance(pin, int) and not isinstance(pin, bool):
                 owners.setdefault(pin, name)
@@ -64,7 +53,10 @@ def owned_pins(deployment: Deployment) -> dict[int, str]:
 
 
 def _service_class(kind: ServiceKind) -> type[ComponentService]:
-    module_name, _, attribute = SERVICES[kind].partition(":")
+    spec = service_spec(kind)
+    if spec is None:
+        raise ConfigError(f"unknown service kind {kind!r}; known: {', '.join(service_kinds())}")
+    module_name, _, attribute = spec.service.partition(":")
     cls: type[ComponentService] = getattr(importlib.import_module(module_name), attribute)
     return cls
 
@@ -83,8 +75,8 @@ class ServiceHost:
         components: list[str] | None = None,
         connect_timeout_s: float = 5.0,
     ) -> None:
-        if kind not in SERVICE_KINDS:
-            raise ConfigError(f"unknown service kind {kind!r}; known: {', '.join(SERVICE_KINDS)}")
+        if service_spec(kind) is None:
+            raise ConfigError(f"unknown service kind {kind!r}; known: {', '.join(service_kinds())}")
         self.kind = kind
         self.deployment = deployment
         self.settings = settings

@@ -2,15 +2,17 @@
 
 A service host asks `create_driver(kind, driver, component, settings)` for the driver of one
 component; the driver name comes from `--driver` or the deployment (component override, then the
-deployment's default). Each entry is a lazy reference `"module:ATTRIBUTE"` to a `DriverFactory`, so
+deployment's default; `auto` picks the GPIO backend this machine has). The drivers are the
+``umlbot.drivers`` entry points (`umlbot.plugins`), umlbot's own and any plugin's alike, each a
+lazy reference to a `DriverFactory`: a driver's module is imported only when it is chosen, so
 `pigpio` is imported only by the pigpio drivers and a simulator only by the sim drivers.
 
-Adding a driver backend (e.g. the simulator's): write `services/<kind>/sim.py` exposing
-``FACTORY = DriverFactory(SimSonarSettings, create)`` where ``create(component, settings)``
-returns an object satisfying the kind's Protocol (`services/<kind>/driver.py`), then add one line
-per kind to `DRIVERS` below, e.g. ``("sonar", "sim"): "services.sonar.sim:FACTORY"``. Code that
-must bind a driver to live objects (a simulated world) can instead call `register_driver()` at
-run time with a factory closure; that entry overrides the table for this process.
+Adding a driver backend: write `services/<kind>/<name>.py` (or a module of your package) exposing
+``FACTORY = DriverFactory(Settings, create)`` where ``create(component, settings)`` returns an
+object satisfying the kind's Protocol (`services/<kind>/driver.py`), then add one entry point
+``"<kind>.<name>" = "module:FACTORY"`` to the ``umlbot.drivers`` group of the pyproject.toml. Code
+that must bind a driver to live objects (a simulated world) can instead call `register_driver()`
+at run time with a factory closure; that entry overrides the entry points for this process.
 
 Settings: the component's deployment `settings` mapping is validated by the factory's pydantic
 model. Keys prefixed with another driver's name (`mock_…`, `sim_…`) are dropped first, so one
@@ -19,7 +21,6 @@ deployment can carry the settings of every backend and `--driver` switches betwe
 
 from __future__ import annotations
 
-import importlib
 import threading
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
@@ -27,27 +28,14 @@ from typing import Any, Generic, TypeVar
 
 from pydantic import BaseModel, ValidationError
 
-from umlbot.errors import ConfigError, UnknownDriver
-from umlbot.library import ServiceKind
+from umlbot.errors import ConfigError, DriverError, UnknownDriver
+from umlbot.library import ServiceKind, service_kinds
+from umlbot.plugins import catalog
 
 S = TypeVar("S", bound=BaseModel)
 
-SERVICE_KINDS: tuple[ServiceKind, ...] = ("motor", "sonar", "servo", "gpio")
-
-#: (service kind, driver name) -> "module:attribute" of a `DriverFactory`. One line per backend.
-DRIVERS: dict[tuple[ServiceKind, str], str] = {
-    ("motor", "pigpio"): "services.motor.pigpio:FACTORY",
-    ("motor", "mock"): "services.motor.mock:FACTORY",
-    ("motor", "sim"): "services.motor.sim:FACTORY",
-    ("sonar", "pigpio"): "services.sonar.pigpio:FACTORY",
-    ("sonar", "mock"): "services.sonar.mock:FACTORY",
-    ("sonar", "sim"): "services.sonar.sim:FACTORY",
-    ("servo", "pigpio"): "services.servo.pigpio:FACTORY",
-    ("servo", "mock"): "services.servo.mock:FACTORY",
-    ("servo", "sim"): "services.servo.sim:FACTORY",
-    ("gpio", "pigpio"): "services.gpio.pigpio:FACTORY",
-    ("gpio", "mock"): "services.gpio.mock:FACTORY",
-}
+#: The driver name that stands for the GPIO backend this machine has (`services.autodetect`).
+AUTO = "auto"
 
 #: Driver names whose settings live under a `<name>_` key prefix in a shared settings mapping.
 PREFIXED_DRIVERS: tuple[str, ...] = ("mock", "sim")
@@ -97,25 +85,36 @@ def known_drivers(kind: ServiceKind) -> list[str]:
     """Every driver name available for a service kind, sorted."""
     with _lock:
         runtime = {name for (k, name) in _runtime if k == kind}
-    return sorted(runtime | {name for (k, name) in DRIVERS if k == kind})
+    return sorted(runtime | {name for (k, name) in catalog().drivers if k == kind} | {AUTO})
 
 
 def get_factory(kind: ServiceKind, driver: str) -> DriverFactory[Any]:
     """The factory of a driver; `UnknownDriver` (listing the known names) when there is none."""
-    if kind not in SERVICE_KINDS:
-        raise UnknownDriver(f"unknown service kind {kind!r}; known kinds: {', '.join(SERVICE_KINDS)}")
+    if kind not in service_kinds():
+        raise UnknownDriver(f"unknown service kind {kind!r}; known kinds: {', '.join(service_kinds())}")
+    chosen_by_auto = driver == AUTO
+    if chosen_by_auto:
+        from services.autodetect import auto_driver
+
+        driver = auto_driver()
     with _lock:
         runtime = _runtime.get((kind, driver))
     if runtime is not None:
         return runtime
-    target = DRIVERS.get((kind, driver))
-    if target is None:
-        raise UnknownDriver(
-            f"unknown {kind} driver {driver!r}; known drivers: {', '.join(known_drivers(kind))}"
-        )
-    module_name, _, attribute = target.partition(":")
-    module = importlib.import_module(module_name)
-    factory: DriverFactory[Any] = getattr(module, attribute)
+    entry = catalog().drivers.get((kind, driver))
+    if entry is None:
+        why = f"driver auto chose {driver!r} here, but there is no " if chosen_by_auto else "unknown "
+        raise UnknownDriver(f"{why}{kind} driver {driver!r}; known drivers: {', '.join(known_drivers(kind))}")
+    try:
+        factory = entry.load()
+    except DriverError:
+        raise
+    except Exception as exc:  # a plugin's driver module that does not import
+        raise DriverError(f"the {kind} driver {driver!r} of package {entry.package} cannot be loaded "
+                          f"from {entry.target}: {type(exc).__name__}: {exc}") from exc
+    if not isinstance(factory, DriverFactory):
+        raise DriverError(f"the {kind} driver {driver!r} of package {entry.package}: {entry.target} is a "
+                          f"{type(factory).__name__}, not a services.registry.DriverFactory")
     return factory
 
 

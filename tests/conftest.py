@@ -323,11 +323,11 @@ def raw_client() -> Iterator[Callable[..., RawClient]]:
 _SERVER_SCRIPT = """
 import sys, threading
 from services.bus import BrokerSettings, ComponentServer, Feature
-from umlbot.library import IMPLEMENTATIONS, FeatureSpec, Param
+from umlbot.library import FeatureSpec, Param, implementations
 from umlbot.logs import configure_logging
 configure_logging()
 url, robot, component = sys.argv[1:4]
-motor = IMPLEMENTATIONS["l298n"].features
+motor = implementations()["l298n"].features
 features = [
     Feature(motor["dutycycle"], lambda percent: None),
     Feature(motor["enabled"], lambda on: None),

@@ -13,7 +13,7 @@ from paho.mqtt.properties import Properties
 
 from services.bus import BrokerSettings, BusClient, ComponentServer, Feature, Topics
 from umlbot.errors import RemoteError
-from umlbot.library import IMPLEMENTATIONS, FeatureSpec, Param
+from umlbot.library import FeatureSpec, Param, implementations
 
 pytestmark = pytest.mark.network
 
@@ -23,7 +23,7 @@ TOPICS = Topics("car5")
 @pytest.fixture
 def server5(mosquitto_broker: BrokerProcess) -> Iterator[ComponentServer]:
     features = [
-        Feature(IMPLEMENTATIONS["l298n"].features["dutycycle"], lambda percent: None),
+        Feature(implementations()["l298n"].features["dutycycle"], lambda percent: None),
         Feature(FeatureSpec("value", (), "int"), lambda: 17),
         Feature(FeatureSpec("echo", (Param("text", "str"),), "str"), lambda text: text),
     ]

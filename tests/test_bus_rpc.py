@@ -15,7 +15,7 @@ from conftest import BrokerProcess, RawClient, wait_until
 
 from services.bus import BrokerSettings, BusClient, ComponentServer, Feature, FeatureError, Message, Topics
 from umlbot.errors import CallTimeout, DriverError, NotConnected, RemoteError
-from umlbot.library import IMPLEMENTATIONS, FeatureSpec, Param
+from umlbot.library import FeatureSpec, Param, implementations
 
 pytestmark = pytest.mark.network
 
@@ -39,7 +39,7 @@ class Probe:
         return handler
 
     def features(self) -> list[Feature]:
-        motor = IMPLEMENTATIONS["l298n"].features
+        motor = implementations()["l298n"].features
 
         def boom() -> None:
             raise ZeroDivisionError("secret internal detail")

@@ -14,7 +14,7 @@ from conftest import BrokerProcess, free_port
 
 from services.bus import BrokerSettings, ComponentServer, Feature
 from umlbot.commands.call import EXIT_ERROR_REPLY, EXIT_NOT_CONNECTED, EXIT_TIMEOUT, parse_arg
-from umlbot.library import IMPLEMENTATIONS, FeatureSpec, Param
+from umlbot.library import FeatureSpec, Param, implementations
 
 pytestmark = pytest.mark.network
 
@@ -22,7 +22,7 @@ received: list[tuple[str, Any]] = []
 
 
 def _features() -> list[Feature]:
-    motor = IMPLEMENTATIONS["l298n"].features
+    motor = implementations()["l298n"].features
     return [
         Feature(motor["dutycycle"], lambda percent: received.append(("dutycycle", percent))),
         Feature(FeatureSpec("value", (), "int"), lambda: 42),

@@ -7,6 +7,8 @@ from pathlib import Path
 import pytest
 from compiler_support import HEADER, MAIN, at, check_text, errors_of, position
 
+from umlbot.library import component_kinds
+
 
 def lane(*nodes: str, name: str = "Pi") -> str:
     body = "".join(f"      - {node}\n" for node in nodes)
@@ -152,7 +154,7 @@ CASES: list[tuple[str, str, str, str, int]] = [
      "duplicate swimlane 'Pi' (first defined at {file}:17)", "Pi\n    nodes", 1),
     ("unknown component kind",
      HEADER.replace("Pi: {kind: system}", "Pi: {kind: computer}") + MAIN,
-     "unknown component kind 'computer' (expected system, actuator or sensor)", "computer", 0),
+     f"unknown component kind 'computer' (known: {', '.join(component_kinds())})", "computer", 0),
     ("port naming an unknown feature",
      HEADER.replace("ports: {drive: enabled}", "ports: {drive: speed}") + MAIN,
      "port 'drive' names unknown feature 'speed' of actuator component 'Motor' (known: enabled, "

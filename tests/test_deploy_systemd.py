@@ -109,3 +109,14 @@ def test_hardware_services_wait_for_pigpiod_and_the_broker() -> None:
     assert "pigpiod.service" in unit["After"].split() and "pigpiod.service" in unit["Wants"].split()
     assert {"mosquitto.service", "umlbot-broker.service"} <= set(unit["After"].split())
     assert "mosquitto.service" in _unit("umlbot-orchestrator.service")["Unit"]["After"].split()
+
+
+def test_hardware_services_reach_the_gpiochips_for_lgpio_and_nothing_else() -> None:
+    service = _unit("umlbot-service@.service")["Service"]
+    assert "PrivateDevices" not in service, "it would hide /dev/gpiochip* (the Pi 5 has no pigpiod)"
+    assert service["DevicePolicy"] == "closed" and service["DeviceAllow"] == "char-gpiochip rw"
+    assert service["WorkingDirectory"] == "/var/lib/umlbot", "lgpio's notification pipe goes there"
+    sysusers = (REPO / "deploy" / "sysusers.d" / "umlbot.conf").read_text(encoding="utf-8").splitlines()
+    assert "m umlbot gpio" in sysusers, "the group that owns /dev/gpiochip*"
+    for other in ("umlbot-orchestrator.service", "umlbot-broker.service"):
+        assert _unit(other)["Service"]["PrivateDevices"] == "yes"

@@ -1,4 +1,4 @@
-"""Contract suite for GPIO drivers: mock, and pigpio on the fake pigpio.pi."""
+"""Contract suite for GPIO drivers: mock, pigpio on the fake pigpio.pi, and lgpio on the fake lgpio."""
 
 from __future__ import annotations
 
@@ -7,8 +7,10 @@ from dataclasses import dataclass
 
 import pytest
 
+from services.fake_lgpio import FakeLgpio
 from services.fake_pigpio import FakePi
 from services.gpio.driver import GpioPins, GpioSettings, PinNotAllowed
+from services.gpio.lgpio import LgpioGpio
 from services.gpio.mock import MockGpio, MockGpioSettings
 from services.gpio.pigpio import PigpioGpio
 from services.registry import create_driver
@@ -25,12 +27,19 @@ class Rig:
     output: Callable[[int], int]
 
 
-@pytest.fixture(params=["mock", "pigpio-fake"])
+@pytest.fixture(params=["mock", "pigpio-fake", "lgpio-fake"])
 def rig(request: pytest.FixtureRequest) -> Iterator[Rig]:
     if request.param == "mock":
         mock = MockGpio("RaspberryPI", MockGpioSettings(pins=ALLOWED, reserved_pins=RESERVED))
         yield Rig(mock, mock.set_level, lambda pin: mock.levels.get(pin, 0))
         mock.close()
+        return
+    if request.param == "lgpio-fake":
+        lg = FakeLgpio()
+        lg_driver = LgpioGpio("RaspberryPI", GpioSettings(pins=ALLOWED, reserved_pins=RESERVED), lg=lg)
+        yield Rig(lg_driver, lambda pin, level: lg.set_input(pin, level), lambda pin: lg.line(pin).level)
+        lg_driver.close()
+        lg.shutdown()
         return
     fake = FakePi()
     driver = PigpioGpio("RaspberryPI", GpioSettings(pins=ALLOWED, reserved_pins=RESERVED), pi=fake)
@@ -100,3 +109,19 @@ def test_mock_initial_levels_from_settings() -> None:
     mock = create_driver("gpio", "mock", "P", {"pins": [4], "mock_levels": {4: 1}})
     assert mock.read(4) == 1
     assert mock.commands == [("read", (4,))]
+
+
+def test_lgpio_claims_inputs_with_pull_and_outputs_with_their_level() -> None:
+    lg = FakeLgpio()
+    driver = LgpioGpio("P", GpioSettings(pins=[4, 17], pull="up"), lg=lg)
+    assert driver.read(17) == 1  # pulled up
+    driver.write(4, 1)
+    driver.write(4, 0)
+    (handle,) = lg.open_handles
+    assert lg.calls_named("gpio_claim_input") == [(handle, 17, lg.SET_PULL_UP)]
+    assert lg.calls_named("gpio_claim_output") == [(handle, 4, 1, 0)], "claimed once, at the level"
+    assert lg.calls_named("gpio_write") == [(handle, 4, 0)]
+    driver.close()
+    assert lg.line(4).claim == lg.line(17).claim == "free" and not lg.open_handles
+    with pytest.raises(DriverError, match="gpio is closed"):
+        driver.read(17)

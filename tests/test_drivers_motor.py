@@ -1,6 +1,7 @@
-"""Contract suite for motor channel drivers: mock, pigpio (with and without an enable pin) on the
-fake pigpio.pi, and sim on a small simulated world. The observable is the signed drive in percent
-(+ clockwise, - anticlockwise): for sim, the command the world holds for the channel's side."""
+"""Contract suite for motor channel drivers: mock, pigpio and lgpio (with and without an enable
+pin) on the fake pigpio.pi and the fake lgpio, and sim on a small simulated world. The observable
+is the signed drive in percent (+ clockwise, - anticlockwise): for sim, the command the world holds
+for the channel's side."""
 
 from __future__ import annotations
 
@@ -10,8 +11,10 @@ from dataclasses import dataclass
 import pytest
 from services_support import ROOM  # 2 m x 3 m room, car in the middle facing +y
 
+from services.fake_lgpio import FakeLgpio
 from services.fake_pigpio import FakePi
 from services.motor.driver import L298NSettings, MotorChannel
+from services.motor.lgpio import LgpioL298NChannel
 from services.motor.mock import MockMotorChannel, MockMotorSettings
 from services.motor.pigpio import PWM_RANGE, PigpioL298NChannel
 from services.motor.sim import SimMotorChannel
@@ -41,6 +44,18 @@ def _pigpio_rig(fake: FakePi, enable: int | None) -> Rig:
     return Rig(driver, drive)
 
 
+def _lgpio_rig(fake: FakeLgpio, enable: int | None) -> Rig:
+    driver = LgpioL298NChannel("LeftActuator", L298NSettings(in1=22, in2=23, enable=enable), lg=fake)
+
+    def drive() -> float:
+        in1, in2 = fake.line(22), fake.line(23)
+        if enable is None:
+            return 100 * (in1.duty_fraction - in2.duty_fraction)
+        return 100 * fake.line(enable).duty_fraction * (in1.level - in2.level)
+
+    return Rig(driver, drive)
+
+
 def _sim_drive(world: World) -> float:
     left = world.motor("left")
     return (1 if left.forward else -1) * left.duty_percent * left.enabled
@@ -55,7 +70,8 @@ def world() -> Iterator[World]:
     attach_local_world(None)
 
 
-@pytest.fixture(params=["mock", "pigpio-fake", "pigpio-fake-enable", "sim"])
+@pytest.fixture(params=["mock", "pigpio-fake", "pigpio-fake-enable", "lgpio-fake", "lgpio-fake-enable",
+                        "sim"])
 def rig(request: pytest.FixtureRequest) -> Iterator[Rig]:
     if request.param == "mock":
         mock = MockMotorChannel("LeftActuator")
@@ -68,8 +84,9 @@ def rig(request: pytest.FixtureRequest) -> Iterator[Rig]:
         yield Rig(channel, lambda: _sim_drive(world))
         channel.close()
         return
-    fake = FakePi()
-    rig = _pigpio_rig(fake, 24 if request.param.endswith("enable") else None)
+    enable = 24 if request.param.endswith("enable") else None
+    lgpio = request.param.startswith("lgpio")
+    rig = _lgpio_rig(FakeLgpio(), enable) if lgpio else _pigpio_rig(FakePi(), enable)
     yield rig
     rig.driver.close()
 
@@ -272,3 +289,59 @@ def test_mock_latency_is_applied() -> None:
     started = time.monotonic()
     mock.set_enabled(True)
     assert time.monotonic() - started >= 0.05
+
+
+# --- lgpio specifics ---------------------------------------------------------------------------
+
+
+def test_lgpio_claims_outputs_low_before_pwm_and_passes_the_percent() -> None:
+    fake = FakeLgpio()
+    channel = LgpioL298NChannel("M", L298NSettings(in1=22, in2=23, pwm_frequency_hz=1000), lg=fake)
+    (handle,) = fake.open_handles  # chip 0: the handle is its own key
+    assert fake.calls_named("gpio_claim_output") == [(handle, 22, 0, 0), (handle, 23, 0, 0)]
+    channel.set_duty_cycle(37.5)
+    channel.set_enabled(True)
+    assert fake.line(22).pwm_frequency == 1000 and fake.line(22).pwm_duty_percent == 37.5
+    channel.set_direction(False)
+    assert fake.line(22).pwm_frequency == 0, "PWM is switched off before the pin is written low"
+    assert fake.line(22).level == 0 and fake.line(23).pwm_duty_percent == 37.5
+    channel.close()
+    assert fake.line(22).claim == fake.line(23).claim == "free", "close frees the lines"
+    assert not fake.open_handles, "and closes the chip"
+
+
+def test_lgpio_never_drives_both_inputs() -> None:
+    fake = FakeLgpio()
+    channel = LgpioL298NChannel("M", L298NSettings(in1=22, in2=23), lg=fake)
+    channel.set_duty_cycle(70)
+    channel.set_enabled(True)
+    for clockwise in (False, True, False):
+        channel.set_direction(clockwise)
+        assert min(fake.line(22).duty_fraction, fake.line(23).duty_fraction) == 0
+    channel.close()
+
+
+def test_lgpio_enable_pin_brakes() -> None:
+    fake = FakeLgpio()
+    brake = LgpioL298NChannel("M", L298NSettings(in1=22, in2=23, enable=24, brake=True), lg=fake)
+    brake.set_duty_cycle(50)
+    brake.set_enabled(True)
+    brake.set_enabled(False)
+    assert fake.line(24).pwm_frequency == 0 and fake.line(24).level == 1
+    assert fake.line(22).level == fake.line(23).level == 0  # fast stop
+    brake.close()
+
+
+def test_lgpio_busy_line_is_a_driver_error_naming_the_component() -> None:
+    fake = FakeLgpio()
+    first = LgpioL298NChannel("Left", L298NSettings(in1=22, in2=23), lg=fake)
+    with pytest.raises(DriverError, match=r"Right: lgpio gpio_claim_output.*'GPIO busy'"):
+        LgpioL298NChannel("Right", L298NSettings(in1=23, in2=24), lg=fake)
+    assert len(fake.open_handles) == 1, "the failed channel closed its handle"
+    first.close()
+
+
+def test_lgpio_missing_chip_says_how_to_fix_it() -> None:
+    fix = r"cannot open /dev/gpiochip4 .*can not open gpiochip.*usermod -aG gpio"
+    with pytest.raises(DriverError, match=fix):
+        LgpioL298NChannel("M", L298NSettings(in1=22, in2=23, chip=4), lg=FakeLgpio())

@@ -1,6 +1,7 @@
-"""Contract suite for servo drivers: mock, pigpio on the fake pigpio.pi, and sim turning the sonar
-of a simulated world. Pulses are a pin-level notion: whether a servo sends them is checked on mock
-and pigpio; for sim the observable is the world's servo angle once its turning time has passed."""
+"""Contract suite for servo drivers: mock, pigpio on the fake pigpio.pi, lgpio on the fake lgpio,
+and sim turning the sonar of a simulated world. Pulses are a pin-level notion: whether a servo
+sends them is checked on mock, pigpio and lgpio; for sim the observable is the world's servo angle
+once its turning time has passed."""
 
 from __future__ import annotations
 
@@ -10,9 +11,11 @@ from dataclasses import dataclass
 import pytest
 from services_support import ROOM  # 2 m x 3 m room, car in the middle facing +y
 
+from services.fake_lgpio import FakeLgpio
 from services.fake_pigpio import FakePi
 from services.registry import create_driver
 from services.servo.driver import Servo, ServoSettings
+from services.servo.lgpio import LgpioServo
 from services.servo.mock import MockServo
 from services.servo.pigpio import PigpioServo
 from umlbot.errors import ConfigError, DriverError
@@ -57,6 +60,18 @@ def _make_rig(name: str, request: pytest.FixtureRequest) -> Iterator[Rig]:
         yield Rig(mock, lambda: mock.angle_deg if mock.pulsing else None)
         mock.close()
         return
+    if name == "lgpio-fake":
+        lg = FakeLgpio()
+        lg_driver = LgpioServo("Sensor", ServoSettings(gpio=18), lg=lg)
+
+        def lg_angle() -> float | None:
+            line = lg.line(18)
+            assert line.servo_frequency in (0, 50)
+            return None if line.servo_pulse_us == 0 else (line.servo_pulse_us - 500) * 180 / 2000
+
+        yield Rig(lg_driver, lg_angle)
+        lg_driver.close()
+        return
     fake = FakePi()
     settings = ServoSettings(gpio=18)
     driver = PigpioServo("Sensor", settings, pi=fake)
@@ -69,12 +84,12 @@ def _make_rig(name: str, request: pytest.FixtureRequest) -> Iterator[Rig]:
     driver.close()
 
 
-@pytest.fixture(params=["mock", "pigpio-fake", "sim"])
+@pytest.fixture(params=["mock", "pigpio-fake", "lgpio-fake", "sim"])
 def rig(request: pytest.FixtureRequest) -> Iterator[Rig]:
     yield from _make_rig(request.param, request)
 
 
-@pytest.fixture(params=["mock", "pigpio-fake"])
+@pytest.fixture(params=["mock", "pigpio-fake", "lgpio-fake"])
 def pulse_rig(request: pytest.FixtureRequest) -> Iterator[Rig]:
     """The backends whose servo is driven by pulses that can be switched off."""
     yield from _make_rig(request.param, request)
@@ -175,3 +190,15 @@ def test_pigpio_uses_set_servo_pulsewidth() -> None:
     assert fake.calls_named("set_servo_pulsewidth")[-1] == (18, 2500)
     servo.close()
     assert fake.calls_named("set_servo_pulsewidth")[-1] == (18, 0)
+
+
+def test_lgpio_uses_tx_servo_at_50_hz() -> None:
+    lg = FakeLgpio()
+    servo = LgpioServo("S", ServoSettings(gpio=18, initial_angle_deg=90), lg=lg)
+    (handle,) = lg.open_handles
+    assert lg.calls_named("tx_servo") == [(handle, 18, 1500, 50, 0, 0)]
+    servo.set_angle(180)
+    assert lg.line(18).servo_pulse_us == 2500
+    servo.close()
+    assert lg.calls_named("tx_servo")[-1] == (handle, 18, 0, 50, 0, 0)
+    assert lg.line(18).claim == "free" and not lg.open_handles

@@ -1,5 +1,6 @@
 """Contract suite for distance sensor drivers: mock, pigpio on the fake pigpio.pi with a simulated
-HC-SR04 (echo edges with ticks, 32-bit wrap-around, no echo), and sim pinging a simulated world
+HC-SR04 (echo edges with ticks, 32-bit wrap-around, no echo), lgpio on the fake lgpio (echo alerts
+with nanosecond timestamps), and sim pinging a simulated world
 (a wall at the distance asked for). The sim sensor reads whole centimetres and cannot see a wall
 closer than its bumper, so sub-centimetre and 2 cm readings are checked on mock and pigpio only."""
 
@@ -12,9 +13,11 @@ from dataclasses import dataclass
 
 import pytest
 
+from services.fake_lgpio import FakeLgpio
 from services.fake_pigpio import TICK_WRAP, FakePi, tickDiff
 from services.registry import create_driver
 from services.sonar.driver import DistanceSensor, HCSR04Settings
+from services.sonar.lgpio import LgpioHCSR04
 from services.sonar.mock import MockDistanceSensor, MockSonarSettings
 from services.sonar.pigpio import PigpioHCSR04, tick_diff
 from services.sonar.sim import SimDistanceSensor
@@ -80,6 +83,18 @@ def _make_rig(name: str) -> Iterator[Rig]:
         yield Rig(mock, mock.set_distance)
         mock.close()
         return
+    if name == "lgpio-fake":
+        lg = FakeLgpio()
+        lg_sonar = lg.attach_hcsr04(trigger=8, echo=7, distance_cm=100)
+        lg_driver = LgpioHCSR04("DistanceRead", HCSR04Settings(trigger=8, echo=7), lg=lg)
+
+        def set_lg_distance(cm: float | None) -> None:
+            lg_sonar.distance_cm = cm
+
+        yield Rig(lg_driver, set_lg_distance)
+        lg_driver.close()
+        lg.shutdown()
+        return
     fake = FakePi()
     sonar = fake.attach_hcsr04(trigger=8, echo=7, distance_cm=100)
     driver = PigpioHCSR04("DistanceRead", HCSR04Settings(trigger=8, echo=7), pi=fake)
@@ -91,12 +106,12 @@ def _make_rig(name: str) -> Iterator[Rig]:
     driver.close()
 
 
-@pytest.fixture(params=["mock", "pigpio-fake", "sim"])
+@pytest.fixture(params=["mock", "pigpio-fake", "lgpio-fake", "sim"])
 def rig(request: pytest.FixtureRequest) -> Iterator[Rig]:
     yield from _make_rig(request.param)
 
 
-@pytest.fixture(params=["mock", "pigpio-fake"])
+@pytest.fixture(params=["mock", "pigpio-fake", "lgpio-fake"])
 def fine_rig(request: pytest.FixtureRequest) -> Iterator[Rig]:
     """The backends that read fractions of a centimetre and down to 2 cm."""
     yield from _make_rig(request.param)
@@ -295,6 +310,42 @@ def test_settings_refuse_same_pin_and_short_interval() -> None:
         HCSR04Settings(trigger=7, echo=7)
     with pytest.raises(ValueError):
         HCSR04Settings(trigger=8, echo=7, min_interval_s=0.01)
+
+
+# --- lgpio specifics --------------------------------------------------------------------------
+
+
+def test_lgpio_pings_by_writing_trigger_and_times_echo_alerts() -> None:
+    lg = FakeLgpio()
+    lg.attach_hcsr04(8, 7, distance_cm=20)
+    driver = LgpioHCSR04("S", HCSR04Settings(trigger=8, echo=7), lg=lg)
+    assert driver.read_distance_cm() == pytest.approx(20, abs=0.05)
+    (handle,) = lg.open_handles
+    assert lg.calls_named("gpio_claim_alert") == [(handle, 7, lg.BOTH_EDGES, lg.SET_PULL_DOWN)]
+    assert lg.calls_named("gpio_write") == [(handle, 8, 1), (handle, 8, 0)]
+    driver.close()
+    assert not lg._callbacks and not lg.open_handles, "close cancels the callback and the handle"
+    lg.shutdown()
+
+
+def test_lgpio_silent_sensor_times_out_to_none() -> None:
+    lg = FakeLgpio()
+    lg.attach_hcsr04(8, 7, distance_cm=None, no_echo="silent")
+    driver = LgpioHCSR04("S", HCSR04Settings(trigger=8, echo=7, echo_timeout_s=0.04), lg=lg)
+    started = time.monotonic()
+    assert driver.read_distance_cm() is None
+    assert 0.03 <= time.monotonic() - started < 1.0
+    driver.close()
+    lg.shutdown()
+
+
+def test_lgpio_far_echo_is_clamped_to_max_range() -> None:
+    lg = FakeLgpio()
+    lg.attach_hcsr04(8, 7, distance_cm=450)
+    driver = LgpioHCSR04("S", HCSR04Settings(trigger=8, echo=7, max_range_cm=400), lg=lg)
+    assert driver.read_distance_cm() == 400
+    driver.close()
+    lg.shutdown()
 
 
 # --- mock specifics ----------------------------------------------------------------------------

@@ -22,13 +22,14 @@ from umlbot.errors import ConfigError, DriverError, NotConnected, UnknownDriver
 
 
 def test_unknown_driver_lists_the_known_names() -> None:
-    with pytest.raises(UnknownDriver, match=r"unknown motor driver 'warp'; known drivers: mock, pigpio"):
+    known = r"unknown motor driver 'warp'; known drivers: auto, lgpio, mock, pigpio"
+    with pytest.raises(UnknownDriver, match=known):
         registry.get_factory("motor", "warp")
 
 
 def test_unknown_kind() -> None:
     with pytest.raises(ConfigError, match="unknown service kind"):
-        ServiceHost("lidar", deployment(), broker_settings("mqtt://127.0.0.1:1"), ROBOT)  # type: ignore[arg-type]
+        ServiceHost("lidar", deployment(), broker_settings("mqtt://127.0.0.1:1"), ROBOT)
 
 
 def test_deployment_without_components_of_the_kind() -> None:
@@ -137,16 +138,33 @@ def test_cli_unknown_driver_is_one_clear_line(tmp_path: Path) -> None:
     result = _cli("service", "motor", "--deploy", str(deploy), "--driver", "warp",
                   "--broker", f"mqtt://127.0.0.1:{free_port()}")
     assert result.returncode == 1
-    assert "unknown motor driver 'warp'; known drivers: mock, pigpio" in result.stderr
+    assert "unknown motor driver 'warp'; known drivers: auto, lgpio, mock, pigpio" in result.stderr
 
 
 def test_cli_pigpio_without_daemon_says_how_to_start_it(tmp_path: Path) -> None:
     deploy = tmp_path / "d.yaml"
-    deploy.write_text("components:\n  LeftActuator: {impl: l298n, settings: {in1: 22, in2: 23}}\n")
+    deploy.write_text("driver: pigpio\n"
+                      "components:\n  LeftActuator: {impl: l298n, settings: {in1: 22, in2: 23}}\n")
     result = _cli("service", "motor", "--deploy", str(deploy), "--broker", f"mqtt://127.0.0.1:{free_port()}",
                   env={"PIGPIO_PORT": str(free_port())})
     assert result.returncode == 1
     assert "pigpio" in result.stderr and ("pip install" in result.stderr or "pigpiod" in result.stderr)
+
+
+def test_cli_auto_on_a_machine_without_gpio_says_what_it_looked_for(tmp_path: Path) -> None:
+    """The default driver is `auto`; here (no Pi 5, no pigpiod, no gpiochip) it names all three."""
+    deploy = tmp_path / "d.yaml"
+    deploy.write_text("components:\n  LeftActuator: {impl: l298n, settings: {in1: 22, in2: 23}}\n")
+    port = free_port()
+    result = _cli("service", "motor", "--deploy", str(deploy), "--broker", f"mqtt://127.0.0.1:{free_port()}",
+                  env={"PIGPIO_PORT": str(port)})
+    assert result.returncode == 1
+    if Path("/dev/gpiochip0").exists() or Path("/proc/device-tree/model").exists():
+        assert "gpiochip" in result.stderr  # a board with GPIO: lgpio was chosen and says why it failed
+    else:
+        assert (f"error: driver auto found no GPIO backend: not a Raspberry Pi 5, no pigpio daemon at "
+                f"localhost:{port} and no /dev/gpiochip*; on a machine without GPIO use --driver mock or sim"
+                in result.stderr)
 
 
 def test_cli_missing_deployment(tmp_path: Path) -> None:

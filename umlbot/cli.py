@@ -27,6 +27,7 @@ COMMANDS: dict[str, str] = {
     "call": "Call one component feature over MQTT and print the reply.",
     "monitor": "Watch the robot's traffic live.",
     "studio": "Serve the browser studio: diagrams, the running robot live, trace replay.",
+    "plugins": "List the installed component and driver plugins (entry points).",
 }
 
 

@@ -4,7 +4,7 @@ Two formats are read. The seed's plain format, one `<component>=<implementation 
 (`#` comments and blank lines allowed), and the rich YAML format::
 
     robot: car                 # optional robot id
-    driver: pigpio             # default driver for every component: pigpio, sim or mock
+    driver: auto               # default driver for every component: auto, lgpio, pigpio, sim, mock
     components:
       LeftActuator:
         impl: l298n
@@ -27,7 +27,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from umlbot.errors import ConfigError
 from umlbot.files import load_yaml, read_text
-from umlbot.library import IMPLEMENTATIONS, Implementation, ServiceKind, resolve_implementation
+from umlbot.library import Implementation, ServiceKind, implementations, resolve_implementation
 
 
 class ComponentDeployment(BaseModel):
@@ -53,7 +53,7 @@ class Deployment(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
     robot: str | None = None
-    driver: str = "pigpio"
+    driver: str = "auto"
     components: dict[str, ComponentDeployment] = Field(default_factory=dict)
 
     def driver_for(self, component: str) -> str:
@@ -98,7 +98,7 @@ def parse_deployment(text: str, source: str = "<deployment>") -> Deployment:
     for name, comp in deployment.components.items():
         if resolve_implementation(comp.impl) is None:
             raise ConfigError(f"{source}: component {name!r}: unknown implementation id {comp.impl!r} "
-                              f"(known: {', '.join(sorted(IMPLEMENTATIONS))})")
+                              f"(known: {', '.join(sorted(implementations()))})")
     return deployment
 
 

@@ -1,21 +1,32 @@
-"""The built-in component library: component kinds, their features, and the implementations.
+"""The component library: component kinds, their features, the implementations and service kinds.
 
 This is the one place that says which features exist, what arguments they take (type and range),
 which implementation offers which of them and which service kind serves an implementation. The
 compiler checks models against it, the services register exactly these features on the bus, and
 the orchestrator uses `safe_stop` to stop actuators. Seed implementation ids (`CModel…`) are
 aliases of the canonical ids.
+
+The library is assembled from `ComponentPlugin`s found through the `umlbot.components` entry
+point group (see `umlbot.plugins`); umlbot's own kinds, implementations and services below
+(`BUILTIN`) are registered through that group too, in umlbot's pyproject.toml. Look things up
+with the functions at the end (`resolve_implementation`, `kind_features`, `service_spec` …),
+never in `BUILTIN` directly, so that plugins are seen exactly like built-ins.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
+
+if TYPE_CHECKING:
+    from umlbot.plugins import Catalog
 
 ArgType = Literal["int", "float", "bool", "str"]
 ValueType = Literal["int", "float", "bool", "str", "none"]
-ComponentKind = Literal["system", "actuator", "sensor"]
-ServiceKind = Literal["motor", "sonar", "servo", "gpio"]
+#: A component kind's name: `system`, `actuator`, `sensor`, or one a plugin adds.
+ComponentKind = str
+#: A service kind's name: `motor`, `sonar`, `servo`, `gpio`, or one a plugin adds.
+ServiceKind = str
 
 
 @dataclass(frozen=True)
@@ -47,30 +58,27 @@ class FeatureSpec:
         return FeatureSpec(self.name, params, self.returns, self.doc)
 
 
-GPIO_PIN = Param("gpio", "int", 0, 27, "BCM pin")
+@dataclass(frozen=True)
+class KindSpec:
+    """A component kind of the component diagram and every feature a component of it can have."""
 
-#: The features each component kind can have (SPEC §2). Implementations offer a subset.
-KIND_FEATURES: dict[ComponentKind, dict[str, FeatureSpec]] = {
-    "system": {
-        "readPin": FeatureSpec("readPin", (GPIO_PIN,), "int", "Read a GPIO pin: 0 or 1."),
-        "writePin": FeatureSpec(
-            "writePin", (GPIO_PIN, Param("value", "int", 0, 1)), "none", "Write 0 or 1 to a GPIO pin."
-        ),
-    },
-    "actuator": {
-        "enabled": FeatureSpec("enabled", (Param("on", "bool"),), "none", "Drive (true) or stop (false)."),
-        "direction": FeatureSpec(
-            "direction", (Param("clockwise", "bool"),), "none", "true = clockwise (forward)."
-        ),
-        "dutycycle": FeatureSpec(
-            "dutycycle", (Param("percent", "int", 0, 100, "%"),), "none", "PWM duty cycle in percent."
-        ),
-        "angle": FeatureSpec("angle", (Param("degrees", "int", 0, 360, "°"),), "none", "Turn to an angle."),
-    },
-    "sensor": {
-        "value": FeatureSpec("value", (), "int", "Read the sensor (a distance sensor: centimetres)."),
-    },
-}
+    name: ComponentKind
+    features: tuple[FeatureSpec, ...]
+    doc: str = ""
+
+    def pick(self, *names: str) -> dict[str, FeatureSpec]:
+        """The named features of this kind, for an implementation that offers a subset."""
+        by_name = {spec.name: spec for spec in self.features}
+        return {name: by_name[name] for name in names}
+
+
+@dataclass(frozen=True)
+class ServiceSpec:
+    """A service kind: the `ComponentService` subclass ("module:Class") serving its components."""
+
+    name: ServiceKind
+    service: str
+    doc: str = ""
 
 
 @dataclass(frozen=True)
@@ -86,20 +94,52 @@ class Implementation:
     #: calls (feature, args) that put this part into a safe, stopped state.
     safe_stop: tuple[tuple[str, tuple[bool | int, ...]], ...] = ()
     settings_doc: dict[str, str] = field(default_factory=dict)
+    #: settings keys that name a GPIO this part owns (no other component may use it).
+    pin_keys: tuple[str, ...] = ()
 
 
-def _pick(kind: ComponentKind, *names: str) -> dict[str, FeatureSpec]:
-    return {name: KIND_FEATURES[kind][name] for name in names}
+@dataclass(frozen=True)
+class ComponentPlugin:
+    """What one `umlbot.components` entry point provides: new kinds, service kinds, implementations."""
+
+    kinds: tuple[KindSpec, ...] = ()
+    services: tuple[ServiceSpec, ...] = ()
+    implementations: tuple[Implementation, ...] = ()
 
 
-IMPLEMENTATIONS: dict[str, Implementation] = {
-    impl.id: impl
-    for impl in (
+GPIO_PIN = Param("gpio", "int", 0, 27, "BCM pin")
+
+#: The built-in component kinds and the features each can have (SPEC §2).
+SYSTEM = KindSpec("system", (
+    FeatureSpec("readPin", (GPIO_PIN,), "int", "Read a GPIO pin: 0 or 1."),
+    FeatureSpec("writePin", (GPIO_PIN, Param("value", "int", 0, 1)), "none", "Write 0 or 1 to a GPIO pin."),
+))
+ACTUATOR = KindSpec("actuator", (
+    FeatureSpec("enabled", (Param("on", "bool"),), "none", "Drive (true) or stop (false)."),
+    FeatureSpec("direction", (Param("clockwise", "bool"),), "none", "true = clockwise (forward)."),
+    FeatureSpec("dutycycle", (Param("percent", "int", 0, 100, "%"),), "none", "PWM duty cycle in percent."),
+    FeatureSpec("angle", (Param("degrees", "int", 0, 360, "°"),), "none", "Turn to an angle."),
+))
+SENSOR = KindSpec("sensor", (
+    FeatureSpec("value", (), "int", "Read the sensor (a distance sensor: centimetres)."),
+))
+
+
+#: umlbot's own kinds, service kinds and implementations, registered as the entry point `builtin`.
+BUILTIN = ComponentPlugin(
+    kinds=(SYSTEM, ACTUATOR, SENSOR),
+    services=(
+        ServiceSpec("motor", "services.motor.service:MotorService", "L298N motor channels"),
+        ServiceSpec("sonar", "services.sonar.service:SonarService", "HC-SR04 range finders"),
+        ServiceSpec("servo", "services.servo.service:ServoService", "hobby servos"),
+        ServiceSpec("gpio", "services.gpio.service:GpioService", "plain GPIO pins of the system"),
+    ),
+    implementations=(
         Implementation(
             id="raspberrypi",
             kind="system",
             service="gpio",
-            features=_pick("system", "readPin", "writePin"),
+            features=SYSTEM.pick("readPin", "writePin"),
             title="Raspberry Pi GPIO (system)",
             aliases=("CModelSystemRaspberryPI",),
             settings_doc={"pins": "GPIO pins the model may read or write (BCM numbers)"},
@@ -108,10 +148,11 @@ IMPLEMENTATIONS: dict[str, Implementation] = {
             id="l298n",
             kind="actuator",
             service="motor",
-            features=_pick("actuator", "enabled", "direction", "dutycycle"),
+            features=ACTUATOR.pick("enabled", "direction", "dutycycle"),
             title="L298N H-bridge motor channel",
             aliases=("CModelL298NActuator",),
             safe_stop=(("enabled", (False,)),),
+            pin_keys=("in1", "in2", "enable"),
             settings_doc={
                 "in1": "GPIO of input 1",
                 "in2": "GPIO of input 2",
@@ -124,35 +165,69 @@ IMPLEMENTATIONS: dict[str, Implementation] = {
             id="servo",
             kind="actuator",
             service="servo",
-            features={"angle": KIND_FEATURES["actuator"]["angle"].with_range("degrees", 0, 180)},
+            features={"angle": ACTUATOR.pick("angle")["angle"].with_range("degrees", 0, 180)},
             title="hobby servo, 180°",
             aliases=("CModelActuator",),
             settings_doc={"gpio": "GPIO of the signal wire", "min_pulse_us": "pulse at 0°",
                           "max_pulse_us": "pulse at 180°"},
+            pin_keys=("gpio",),
         ),
         Implementation(
             id="hcsr04",
             kind="sensor",
             service="sonar",
-            features=_pick("sensor", "value"),
+            features=SENSOR.pick("value"),
             title="HC-SR04 ultrasonic range finder",
             aliases=("CModelDistanceSensorHCSR",),
             settings_doc={"trigger": "GPIO of TRIG", "echo": "GPIO of ECHO", "samples": "median of N"},
+            pin_keys=("trigger", "echo"),
         ),
-    )
-}
+    ),
+)
 
-_ALIASES: dict[str, str] = {
-    name.lower(): impl.id for impl in IMPLEMENTATIONS.values() for name in (impl.id, *impl.aliases)
-}
+
+# --- lookups: the assembled library (built-ins and plugins alike) -------------------------------
+
+
+def catalog() -> Catalog:
+    """The assembled library (loaded from the entry points on first use)."""
+    from umlbot.plugins import catalog as load
+
+    return load()
 
 
 def resolve_implementation(name: str) -> Implementation | None:
     """The implementation for an id or seed alias (case-insensitive), or None when unknown."""
-    key = _ALIASES.get(name.strip().lower())
-    return IMPLEMENTATIONS[key] if key else None
+    lib = catalog()
+    key = lib.aliases.get(name.strip().lower())
+    return lib.implementations[key] if key else None
+
+
+def implementations() -> dict[str, Implementation]:
+    """Every implementation by canonical id."""
+    return catalog().implementations
 
 
 def implementations_for_service(service: ServiceKind) -> list[Implementation]:
     """The implementations that a service kind serves."""
-    return [impl for impl in IMPLEMENTATIONS.values() if impl.service == service]
+    return [impl for impl in catalog().implementations.values() if impl.service == service]
+
+
+def component_kinds() -> dict[ComponentKind, dict[str, FeatureSpec]]:
+    """Every component kind with the features a component of it can have."""
+    return catalog().kinds
+
+
+def kind_features(kind: ComponentKind) -> dict[str, FeatureSpec]:
+    """The features a component of `kind` can have (empty for an unknown kind)."""
+    return catalog().kinds.get(kind, {})
+
+
+def service_kinds() -> tuple[ServiceKind, ...]:
+    """Every service kind's name, built-ins first."""
+    return tuple(catalog().services)
+
+
+def service_spec(kind: ServiceKind) -> ServiceSpec | None:
+    """The service kind named `kind`, or None."""
+    return catalog().services.get(kind)

@@ -45,6 +45,7 @@ class GpioSettings(BaseModel):
     )
     host: str | None = Field(default=None, description="pigpiod host (default env PIGPIO_ADDR or localhost)")
     port: int | None = Field(default=None, description="pigpiod port (default env PIGPIO_PORT or 8888)")
+    chip: int = Field(default=0, ge=0, description="lgpio: the gpiochip of the header pins (/dev/gpiochipN)")
 
     @field_validator("pins")
     @classmethod

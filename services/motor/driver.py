@@ -56,6 +56,7 @@ class L298NSettings(BaseModel):
     invert: bool = Field(default=False, description="swap clockwise/anticlockwise (motor wired reversed)")
     host: str | None = Field(default=None, description="pigpiod host (default env PIGPIO_ADDR or localhost)")
     port: int | None = Field(default=None, description="pigpiod port (default env PIGPIO_PORT or 8888)")
+    chip: int = Field(default=0, ge=0, description="lgpio: the gpiochip of the header pins (/dev/gpiochipN)")
 
     @model_validator(mode="after")
     def _distinct_pins(self) -> L298NSettings:

@@ -35,6 +35,7 @@ class ServoSettings(BaseModel):
     initial_angle_deg: float | None = Field(default=None, ge=0, description="angle set at start-up")
     host: str | None = Field(default=None, description="pigpiod host (default env PIGPIO_ADDR or localhost)")
     port: int | None = Field(default=None, description="pigpiod port (default env PIGPIO_PORT or 8888)")
+    chip: int = Field(default=0, ge=0, description="lgpio: the gpiochip of the header pins (/dev/gpiochipN)")
 
     @model_validator(mode="after")
     def _calibration(self) -> ServoSettings:

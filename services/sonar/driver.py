@@ -36,6 +36,7 @@ class HCSR04Settings(BaseModel):
     echo_timeout_s: float = Field(default=0.04, gt=0, le=1, description="no echo within this -> None")
     host: str | None = Field(default=None, description="pigpiod host (default env PIGPIO_ADDR or localhost)")
     port: int | None = Field(default=None, description="pigpiod port (default env PIGPIO_PORT or 8888)")
+    chip: int = Field(default=0, ge=0, description="lgpio: the gpiochip of the header pins (/dev/gpiochipN)")
 
     @model_validator(mode="after")
     def _distinct_pins(self) -> HCSR04Settings:

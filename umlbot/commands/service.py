@@ -1,4 +1,5 @@
-"""`umlbot service KIND --deploy FILE`: run one hardware service (motor, sonar, servo or gpio).
+"""`umlbot service KIND --deploy FILE`: run one hardware service (motor, sonar, servo, gpio or a
+plugin's service kind).
 
 Serves every component of that kind in the deployment until SIGTERM or SIGINT; on every exit
 path (signal, error, broker loss) the motors are stopped before the process ends.
@@ -11,7 +12,6 @@ from pathlib import Path
 
 import click
 
-from services.registry import SERVICE_KINDS
 from umlbot.stopsignals import StopSignals
 
 
@@ -20,13 +20,24 @@ def resolve_robot(cli_value: str | None, deployment_robot: str | None) -> str:
     return cli_value or os.environ.get("UMLBOT_ROBOT") or deployment_robot or "car"
 
 
+def _known_kind(ctx: click.Context, param: click.Parameter, kind: str) -> str:
+    # Checked when the command runs, not when it is imported: the library (built-ins and
+    # plugins) is read only then, after logging is set up.
+    from umlbot.library import service_kinds
+
+    if kind not in service_kinds():
+        raise click.BadParameter(f"{kind!r} is not one of {', '.join(map(repr, service_kinds()))}.")
+    return kind
+
+
 @click.command(name="service")
-@click.argument("kind", type=click.Choice(SERVICE_KINDS))
+@click.argument("kind", callback=_known_kind)
 @click.option("--deploy", "deploy_file", required=True, metavar="FILE",
               type=click.Path(dir_okay=False, path_type=Path),
               help="Deployment file (plain `Component=impl` lines or YAML).")
 @click.option("--driver", default=None, metavar="NAME",
-              help="Driver for every component: pigpio, mock or sim (default: the deployment's).")
+              help="Driver for every component: auto, lgpio, pigpio, mock, sim or a plugin's "
+              "(default: the deployment's).")
 @click.option("--component", "components", multiple=True, metavar="NAME",
               help="Serve only this component (repeatable; default: all of this kind).")
 @click.option("--broker", "broker_url", default=None, metavar="URL",
@@ -54,7 +65,7 @@ def command(
     from umlbot.deployment import load_deployment
     from umlbot.library import ServiceKind
 
-    service_kind: ServiceKind = kind  # type: ignore[assignment]  # click.Choice checked it
+    service_kind: ServiceKind = kind  # click.Choice checked it
     deployment = load_deployment(deploy_file)
     settings = BrokerSettings.from_url(resolve_broker_url(broker_url), ca_file=ca_file)
     host = ServiceHost(

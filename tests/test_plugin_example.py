@@ -1,0 +1,171 @@
+"""The example plugin package (examples/umlbot_buzzer), installed for real by `make install`, used
+from outside exactly like a built-in: `umlbot plugins` lists it without importing a driver, the
+compiler checks its kind's features and ranges, `umlbot render` draws it, and its service (lgpio
+driver on the fake lgpio) serves a compiled model run by `umlbot run` over a real broker."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+from collections.abc import Callable
+from importlib.metadata import version
+from pathlib import Path
+
+import pytest
+from conftest import BrokerProcess, RawClient
+from services_support import wait_for
+
+from umlbot.errors import RemoteError
+from umlbot.library import implementations_for_service, kind_features, resolve_implementation
+
+ROOT = Path(__file__).resolve().parent.parent
+EXAMPLE = ROOT / "examples" / "umlbot_buzzer"
+MODEL = EXAMPLE / "model"
+
+
+def umlbot(*args: str, env: dict[str, str] | None = None,
+           timeout: float = 60) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-c", "from umlbot.cli import main; main()", *args],
+                          capture_output=True, text=True, timeout=timeout, env=env)
+
+
+def test_the_example_is_installed_as_a_package_of_its_own() -> None:
+    assert version("umlbot-buzzer") == "0.1.0", "make install installs examples/umlbot_buzzer"
+    impl = resolve_implementation("cmodelbuzzer")
+    assert impl is not None and (impl.id, impl.kind, impl.service) == ("passive_buzzer", "sounder", "buzzer")
+    assert list(kind_features("sounder")) == ["enabled", "tone"]
+    assert [i.id for i in implementations_for_service("buzzer")] == ["passive_buzzer"]
+
+
+def test_plugins_lists_it_without_importing_drivers() -> None:
+    probe = (
+        "import sys\nfrom click.testing import CliRunner\nfrom umlbot.cli import cli\n"
+        "result = CliRunner().invoke(cli, ['plugins', '--json'])\n"
+        "print(result.output)\n"
+        "print(sorted(m for m in sys.modules if m.endswith(('.lgpio', '.pigpio', '.mock', '.sim'))))\n"
+    )
+    done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=60)
+    listing, _, imported = done.stdout.rpartition("\n[")
+    assert imported.strip() == "]", f"listing imported driver modules: [{imported}"
+    data = json.loads(listing)
+    buzzer = next(p for p in data["packages"] if p["package"] == "umlbot-buzzer")
+    assert buzzer == {"package": "umlbot-buzzer", "version": "0.1.0", "kinds": ["sounder"],
+                      "services": ["buzzer"], "implementations": ["passive_buzzer (CModelBuzzer)"],
+                      "drivers": ["buzzer.lgpio", "buzzer.mock", "buzzer.sim"]}
+    assert data["packages"][0]["package"] == "umlbot" and "motor.lgpio" in data["packages"][0]["drivers"]
+    assert data["problems"] == []
+    text = umlbot("plugins")
+    assert text.returncode == 0
+    assert "umlbot-buzzer 0.1.0\n  component kinds: sounder\n  service kinds: buzzer" in text.stdout
+
+
+def test_check_compile_and_render_see_the_plugin(tmp_path: Path) -> None:
+    assert umlbot("check", str(MODEL)).returncode == 0
+    bad = tmp_path / "bad"
+    bad.mkdir()
+    (bad / "deployment.yaml").write_text((MODEL / "deployment.yaml").read_text())
+    (bad / "model.yaml").write_text((MODEL / "model.yaml").read_text()
+                                    .replace("Bell.tone(880)", "Bell.tone(15000)")
+                                    .replace("msleep(150)}", "Bell.volume(3)}", 1))
+    result = umlbot("check", str(bad))
+    assert result.returncode == 1
+    assert "argument 1 (hz) of Bell.tone must be 20..10000 by implementation 'passive_buzzer', got 15000" \
+        in result.stdout, result.stdout
+    assert "unknown feature 'volume' of sounder component 'Bell'" in result.stdout, result.stdout
+    compiled = tmp_path / "doorbell.json"
+    assert umlbot("compile", str(MODEL), "-o", str(compiled)).returncode == 0
+    component = json.loads(compiled.read_text())["components"]["Bell"]
+    bound = (component["kind"], component["impl"], component["service"])
+    assert bound == ("sounder", "passive_buzzer", "buzzer")
+    drawn = umlbot("render", str(MODEL), "-o", str(tmp_path / "diagrams"), "--format", "mermaid")
+    assert drawn.returncode == 0, drawn.stderr
+    mermaid = "\n".join(p.read_text() for p in (tmp_path / "diagrams").glob("*.mmd"))
+    assert "Bell" in mermaid and "sounder" in mermaid
+
+
+def test_its_service_runs_a_compiled_model_end_to_end(
+    mosquitto_broker: BrokerProcess, raw_client: Callable[..., RawClient], tmp_path: Path
+) -> None:
+    compiled = tmp_path / "doorbell.json"
+    assert umlbot("compile", str(MODEL), "-o", str(compiled)).returncode == 0
+    raw = raw_client(mosquitto_broker)
+    raw.subscribe("umlbot/doorbell/Bell/state")
+    lines = tmp_path / "lines.json"
+    env = {**os.environ, "UMLBOT_FAKE_LGPIO": "1", "UMLBOT_FAKE_LGPIO_STATE": str(lines)}
+    service = subprocess.Popen(
+        [sys.executable, "-c", "from umlbot.cli import main; main()", "service", "buzzer",
+         "--deploy", str(MODEL / "deployment.yaml"), "--broker", mosquitto_broker.url],
+        env=env, stderr=subprocess.PIPE, text=True,
+    )
+    try:
+        assert wait_for(lambda: lines.exists() and "0:12" in json.loads(lines.read_text())["lines"], 15.0)
+        trace = tmp_path / "trace.jsonl"
+        run = umlbot("run", str(compiled), "--broker", mosquitto_broker.url, "--trace", str(trace),
+                     timeout=60)
+        assert run.returncode == 0, run.stderr
+        states = []
+        while True:
+            try:
+                states.append(json.loads(raw.get(timeout=1.0).payload))
+            except TimeoutError:
+                break
+        assert {"on": True, "tone_hz": 880} in states and {"on": True, "tone_hz": 660} in states
+        assert states[-1]["on"] is False
+        events = [json.loads(line) for line in trace.read_text().splitlines()]
+        calls = [e["node"] for e in events if e.get("kind") == "action" and e.get("error") is None]
+        assert {"high", "ding", "low", "quiet"} <= set(calls), events
+    finally:
+        service.terminate()
+        _, stderr = service.communicate(timeout=10)
+    assert service.returncode == 0, stderr
+    bell = json.loads(lines.read_text())["lines"]["0:12"]
+    assert bell["pwm_frequency"] == 0 and bell["claim"] == "free", "stopping silenced and freed the pin"
+
+
+def test_its_mock_driver_runs_in_process(mosquitto_broker: BrokerProcess) -> None:
+    from services_support import broker_settings, client
+
+    from services.host import ServiceHost
+    from umlbot.deployment import load_deployment
+
+    deployment = load_deployment(MODEL / "deployment.yaml")
+    with ServiceHost("buzzer", deployment, broker_settings(mosquitto_broker.url), "car", "mock") as host, \
+            client(mosquitto_broker.url) as bus:
+        bus.call("Bell", "tone", 523)
+        bus.call("Bell", "enabled", True)
+        assert host.drivers["Bell"].playing_hz == 523
+        with pytest.raises(RemoteError) as caught:
+            bus.call("Bell", "tone", 12000)
+        assert caught.value.code == "out_of_range"
+    assert host.drivers["Bell"].playing_hz is None and host.drivers["Bell"].closed
+
+
+def test_umlbot_sim_runs_its_sim_driver_beside_the_car(tmp_path: Path) -> None:
+    """The reference car with a Bell added: `umlbot sim` serves it on the plugin's sim driver, the
+    orchestrator silences it at start (its safe stop) and the model's calls reach it."""
+    car = tmp_path / "car"
+    shutil.copytree(ROOT / "models" / "robot_car", car)
+    model = car / "model.yaml"
+    model.write_text(model.read_text().replace("\nlinks:", "  Bell: {kind: sounder}\n\nlinks:"))
+    main = car / "activities" / "main.yaml"
+    look = "  - {id: look_ahead, kind: action, call: Sensor.angle(90)}\n"
+    assert look in main.read_text()
+    calls = ("  - {id: ding, kind: action, call: Bell.tone(523)}\n"
+             "  - {id: dong, kind: action, call: Bell.enabled(true)}\n"
+             "  - {id: hush, kind: action, call: Bell.enabled(false)}\n")
+    main.write_text(main.read_text().replace(look, look + calls))
+    deployment = car / "deployment.yaml"
+    bell = "  Bell:\n    impl: CModelBuzzer\n    settings: {gpio: 12}\n"
+    deployment.write_text(deployment.read_text() + bell)
+    result = umlbot("--log-level", "INFO", "--log-json", "sim", str(car), "--track",
+                    str(ROOT / "models" / "tracks" / "corridor.yaml"), "--speed", "20",
+                    "--plot", str(tmp_path / "run.png"), timeout=120)
+    assert result.returncode == 0, result.stderr[-2000:]
+    events = [json.loads(line) for line in result.stderr.splitlines() if line.startswith("{")]
+    started = [e for e in events if e.get("event") == "service_started" and e.get("kind") == "buzzer"]
+    assert started and started[0]["components"] == {"Bell": "sim"}
+    assert any(e.get("event") == "actuators_stopped" and "Bell" in e["components"] for e in events)
+    assert [e["hz"] for e in events if e.get("event") == "buzzer_on"] == [523]
