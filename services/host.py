@@ -16,13 +16,13 @@ the retained `state` after every change, and guarantees the safe stops:
 from __future__ import annotations
 
 import importlib
-import json
 import threading
 import time
 from collections.abc import Mapping
 from typing import Any
 
 from services.bus.connection import Message
+from services.bus.envelopes import parse_json
 from services.bus.server import ComponentServer
 from services.bus.settings import BrokerSettings
 from services.bus.topics import Topics
@@ -211,7 +211,7 @@ class ServiceHost:
     def _on_orchestrator_status(self, message: Message) -> None:
         state: Any
         try:
-            data = json.loads(message.payload) if message.payload.strip() else None
+            data = parse_json(message.payload) if message.payload.strip() else None
         except ValueError:
             data = message.payload.decode("utf-8", "replace").strip()
         state = data.get("state") if isinstance(data, dict) else data

@@ -19,7 +19,7 @@ from concurrent.futures import TimeoutError as FutureTimeout
 from typing import Any
 
 from services.bus.connection import BusConnection, Handler, Message
-from services.bus.envelopes import dumps
+from services.bus.envelopes import dumps, parse_json
 from services.bus.settings import BrokerSettings
 from services.bus.topics import Topics
 from umlbot.errors import CallTimeout, NotConnected, RemoteError
@@ -147,7 +147,7 @@ class BusClient:
 
     def _on_reply(self, message: Message) -> None:
         try:
-            reply = json.loads(message.payload.decode("utf-8"))
+            reply = parse_json(message.payload)
         except ValueError:
             log.warning("bad_reply", topic=message.topic, reason="not JSON")
             return
@@ -175,4 +175,8 @@ def _unwrap(reply: dict[str, Any], component: str, feature: str) -> Any:
     if isinstance(error, dict):
         code, text = str(error.get("code", "internal")), str(error.get("message", ""))
         raise RemoteError(code, text, component, feature)
-    raise RemoteError("bad_reply", f"malformed reply: {json.dumps(reply)[:200]}", component, feature)
+    try:
+        text = json.dumps(reply)[:200]
+    except (ValueError, RecursionError):
+        text = "(not shown: nested too deeply)"
+    raise RemoteError("bad_reply", f"malformed reply: {text}", component, feature)

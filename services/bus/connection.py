@@ -24,7 +24,7 @@ from paho.mqtt.enums import CallbackAPIVersion, MQTTErrorCode, MQTTProtocolVersi
 from paho.mqtt.packettypes import PacketTypes
 from paho.mqtt.properties import Properties
 
-from services.bus.envelopes import to_payload
+from services.bus.envelopes import parse_json, to_payload
 from services.bus.settings import BrokerSettings, make_client_id
 from umlbot.errors import BusError, ConfigError, NotConnected
 from umlbot.logs import get_logger
@@ -52,10 +52,8 @@ class Message:
         return self.payload.decode("utf-8")
 
     def json(self) -> Any:
-        """The payload parsed as JSON (raises ValueError)."""
-        import json
-
-        return json.loads(self.payload)
+        """The payload parsed as UTF-8 JSON (raises ValueError, also for too deep a nesting)."""
+        return parse_json(self.payload)
 
 
 @dataclass(frozen=True)

@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import json
 import signal
 import threading
 import time
@@ -42,7 +41,7 @@ from services.bus import (
     Topics,
     Will,
 )
-from services.bus.envelopes import dumps
+from services.bus.envelopes import dumps, parse_json
 from services.orchestrator.engine import Engine, EngineStats, NodeFailed, used_components
 from services.orchestrator.expressions import Value
 from services.orchestrator.signals import SignalBoard
@@ -606,7 +605,7 @@ def _signal_payload(payload: bytes) -> Value:
     if not payload:
         return None
     try:
-        return json.loads(payload)
+        return parse_json(payload)
     except ValueError:
         return payload.decode("utf-8", errors="replace")
 
