@@ -29,7 +29,7 @@ from services.bus.topics import Topics
 from services.component_service import ComponentService
 from services.registry import SERVICE_KINDS, create_driver
 from umlbot.deployment import Deployment
-from umlbot.errors import ConfigError, NotConnected
+from umlbot.errors import ConfigError
 from umlbot.library import ServiceKind
 from umlbot.logs import get_logger
 
@@ -146,8 +146,7 @@ class ServiceHost:
             self._build()
             self._watch_orchestrator()
             for name, server in self.servers.items():
-                server.start(self.connect_timeout_s)
-                self._await_subscriptions(server)
+                server.start(self.connect_timeout_s)  # returns once the broker confirmed the subscriptions
                 self.services[name].changed()
             self._ticker = threading.Thread(
                 target=self._tick_loop, name=f"{self.kind}-safety", daemon=True
@@ -174,26 +173,6 @@ class ServiceHost:
             server.connection.add_on_connect(service.changed)
             server.connection.add_on_disconnect(self._on_disconnect_of(service))
             self.servers[name] = server
-
-    def _await_subscriptions(self, server: ComponentServer) -> None:
-        """Return once the broker has the server's subscriptions, so `start()` means "serving".
-
-        A broker handles one client's packets in order: a probe message that comes back through a
-        subscription made after the call subscription proves that one is active too.
-        """
-        probe = f"{self.topics.base}/_ready/{server.connection.client_id}"
-        arrived = threading.Event()
-        server.connection.subscribe(probe, lambda message: arrived.set(), qos=1)
-        try:
-            deadline = time.monotonic() + self.connect_timeout_s
-            while not arrived.is_set() and time.monotonic() < deadline:
-                server.connection.publish(probe, b"", qos=1)
-                arrived.wait(0.2)
-            if not arrived.is_set():
-                raise NotConnected(f"{server.component}: the broker did not confirm the subscriptions "
-                                   f"within {self.connect_timeout_s:g} s")
-        finally:
-            server.connection.unsubscribe(probe)
 
     def _on_disconnect_of(self, service: ComponentService) -> Any:
         def lost() -> None:
