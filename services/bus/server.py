@@ -25,7 +25,7 @@ from services.bus.connection import BusConnection, Message, Will
 from services.bus.envelopes import ENVELOPE_KEYS, CallRequest, Reply, Status, dumps, parse_json
 from services.bus.settings import BrokerSettings
 from services.bus.topics import Topics, check_name, is_valid_publish_topic
-from umlbot.errors import DriverError, NotConnected, UmlbotError
+from umlbot.errors import BusError, DriverError, NotConnected, UmlbotError
 from umlbot.library import FeatureSpec, Param
 from umlbot.logs import get_logger
 
@@ -249,7 +249,7 @@ class ComponentServer:
         with self._status_lock:
             stopping, self._stopping = self._stopping, True
             if not stopping and self.connection.connected:
-                with contextlib.suppress(NotConnected):
+                with contextlib.suppress(BusError):  # not connected, or refused by the broker
                     self.connection.publish(self._status_topic, OFFLINE, qos=1, retain=True, wait_s=2.0)
         self.connection.close()
 
