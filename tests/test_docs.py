@@ -969,6 +969,7 @@ SCRIPT_OPTION_PARAGRAPHS = {
     ("docs/deploy-pi.md", "## 4. Install"): "deploy/install.sh",
     ("docs/performance.md", "## RPC"): "bench/rpc.py",
     ("docs/performance.md", "## Orchestrator"): "bench/orchestrator.py",
+    ("docs/performance.md", "## Memory"): "bench/memory.py",
 }
 
 
