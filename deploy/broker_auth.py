@@ -2,8 +2,9 @@
 """Broker users, passwords and ACLs for one robot, written from its deployment.
 
 One MQTT user per hardware service kind (`umlbot-motor`, `umlbot-sonar`, `umlbot-servo`,
-`umlbot-gpio`), one for the orchestrator, a read-only `umlbot-monitor` and a full-rights
-`umlbot-operator` (for `umlbot call`, `mosquitto_pub`, exit requests). Each service user may only
+`umlbot-gpio`), `umlbot-all` for `umlbot service all` (the four kinds' rights together), one for
+the orchestrator, a read-only `umlbot-monitor` and a full-rights `umlbot-operator` (for
+`umlbot call`, `mosquitto_pub`, exit requests). Each service user may only
 serve the topics of the components the deployment gives its kind. Run it with the venv's Python:
 
     /opt/umlbot/venv/bin/python /opt/umlbot/share/broker_auth.py \\
@@ -33,7 +34,7 @@ from pathlib import Path
 from urllib.parse import urlsplit
 
 SERVICE_KINDS = ("motor", "sonar", "servo", "gpio")
-ROLES = (*SERVICE_KINDS, "orchestrator", "monitor", "operator")
+ROLES = (*SERVICE_KINDS, "all", "orchestrator", "monitor", "operator")
 
 
 def user_of(role: str) -> str:
@@ -56,7 +57,8 @@ def grants(components: dict[str, str], robot: str) -> dict[str, Grants]:
     `<Component>/state`; it answers on the callers' reply topics under `_reply/`, and watches the
     orchestrator's status (a motor stops when the orchestrator goes offline). The orchestrator
     calls the deployed components, reads their status and state, owns `orchestrator/#` and the
-    signals. Every client reads its own replies: on Mosquitto through the `%c` pattern, on amqtt
+    signals. `all` (`umlbot service all`) has the rights of the four service kinds together.
+    Every client reads its own replies: on Mosquitto through the `%c` pattern, on amqtt
     (no patterns) through `_reply/#`.
     """
     base = f"umlbot/{robot}"
@@ -67,6 +69,10 @@ def grants(components: dict[str, str], robot: str) -> dict[str, Grants]:
             read=[*owned, f"{base}/orchestrator/status"],
             write=[*owned, f"{base}/_reply/#"],
         )
+    table["all"] = Grants(  # `umlbot service all`: every kind in one process
+        read=[*(f"{base}/{name}/#" for name in sorted(components)), f"{base}/orchestrator/status"],
+        write=[*(f"{base}/{name}/#" for name in sorted(components)), f"{base}/_reply/#"],
+    )
     names = sorted(components)
     table["orchestrator"] = Grants(
         # status and state of every component: amqtt cannot grant a `+/status` subscription

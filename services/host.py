@@ -11,6 +11,7 @@ the retained `state` after every change, and guarantees the safe stops:
 - servos stop their pulses when the host stops.
 
 `host.drivers[component]` is the driver object, so tests can read a mock driver's commands.
+`ServiceGroup` runs several kinds in one process (`umlbot service all`, for small boards).
 """
 
 from __future__ import annotations
@@ -257,3 +258,74 @@ class ServiceHost:
     def components(self) -> Mapping[str, ComponentService]:
         """The served components by name."""
         return self.services
+
+
+class ServiceGroup:
+    """Several service kinds in one process: one `ServiceHost` per kind the deployment uses.
+
+    `umlbot service all` on a small board: one interpreter instead of four (each is most of a
+    service's memory). Every component keeps its own connection and last will, and each host
+    its safety stops; `stop()` stops the motors first. `start()`/`stop()` (idempotent), or `with`.
+    """
+
+    def __init__(
+        self,
+        kinds: tuple[ServiceKind, ...],
+        deployment: Deployment,
+        settings: BrokerSettings,
+        robot: str,
+        driver: str | None = None,
+        *,
+        components: list[str] | None = None,
+        connect_timeout_s: float = 5.0,
+    ) -> None:
+        if len(kinds) == 1:  # one kind: its host says what is wrong with the components asked for
+            self.hosts = [ServiceHost(kinds[0], deployment, settings, robot, driver,
+                                      components=components, connect_timeout_s=connect_timeout_s)]
+            return
+        served = {kind: deployment.components_of_service(kind) for kind in kinds}
+        if components is not None:
+            unknown = sorted(set(components) - {name for names in served.values() for name in names})
+            if unknown:
+                raise ConfigError(f"no component(s) {unknown} in the deployment")
+            served = {kind: {name: comp for name, comp in comps.items() if name in components}
+                      for kind, comps in served.items()}
+        self.hosts = [
+            ServiceHost(kind, deployment, settings, robot, driver,
+                        components=list(comps), connect_timeout_s=connect_timeout_s)
+            for kind, comps in sorted(served.items(), key=lambda item: item[0] != "motor")
+            if comps
+        ]
+        if not self.hosts:
+            raise ConfigError("the deployment has no component served by any service")
+
+    def start(self) -> None:
+        """Start every host; on a failure stop those started (motors stopped) and raise."""
+        try:
+            for host in self.hosts:
+                host.start()
+        except BaseException:
+            self.stop()
+            raise
+
+    def stop(self) -> None:
+        """Stop every host, the motors' first; idempotent."""
+        for host in self.hosts:
+            host.stop()
+
+    def __enter__(self) -> ServiceGroup:
+        self.start()
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.stop()
+
+    def wait(self, stop: threading.Event) -> None:
+        """Block until `stop` is set (the CLI sets it from SIGTERM/SIGINT)."""
+        while not stop.wait(0.5):
+            pass
+
+    @property
+    def components(self) -> Mapping[str, ComponentService]:
+        """The served components of every kind, by name."""
+        return {name: service for host in self.hosts for name, service in host.services.items()}

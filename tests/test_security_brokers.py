@@ -263,7 +263,7 @@ def test_recipe_keeps_passwords_and_hides_them(tmp_path: Path) -> None:
     first = make_auth(tmp_path)
     second = make_auth(tmp_path)
     assert first == second
-    assert set(first) == {"motor", "sonar", "servo", "gpio", "orchestrator", "monitor", "operator"}
+    assert set(first) == {"motor", "sonar", "servo", "gpio", "all", "orchestrator", "monitor", "operator"}
     assert len(set(first.values())) == len(first)  # one password per user
     for name in ("motor.env", "amqtt.passwd", "mosquitto.passwd"):
         assert os.stat(tmp_path / name).st_mode & 0o077 == 0

@@ -1,7 +1,8 @@
 """`umlbot service KIND --deploy FILE`: run one hardware service (motor, sonar, servo or gpio).
 
 Serves every component of that kind in the deployment until SIGTERM or SIGINT; on every exit
-path (signal, error, broker loss) the motors are stopped before the process ends.
+path (signal, error, broker loss) the motors are stopped before the process ends. KIND `all`
+serves every kind the deployment uses in this one process (one unit on a small board).
 """
 
 from __future__ import annotations
@@ -21,14 +22,14 @@ def resolve_robot(cli_value: str | None, deployment_robot: str | None) -> str:
 
 
 @click.command(name="service")
-@click.argument("kind", type=click.Choice(SERVICE_KINDS))
+@click.argument("kind", type=click.Choice([*SERVICE_KINDS, "all"]))
 @click.option("--deploy", "deploy_file", required=True, metavar="FILE",
               type=click.Path(dir_okay=False, path_type=Path),
               help="Deployment file (plain `Component=impl` lines or YAML).")
 @click.option("--driver", default=None, metavar="NAME",
               help="Driver for every component: pigpio, mock or sim (default: the deployment's).")
 @click.option("--component", "components", multiple=True, metavar="NAME",
-              help="Serve only this component (repeatable; default: all of this kind).")
+              help="Serve only this component (repeatable; default: all of this kind, or of every kind).")
 @click.option("--broker", "broker_url", default=None, metavar="URL",
               help="Broker URL, e.g. mqtt://user:pass@host:1883 "
               "(default: $UMLBOT_BROKER or mqtt://127.0.0.1:1883).")
@@ -48,17 +49,17 @@ def command(
     robot: str | None,
     connect_timeout: float,
 ) -> None:
-    """Run one hardware service for the components the deployment gives it."""
+    """Run one hardware service (or `all` of them) for the components the deployment gives it."""
     from services.bus.settings import BrokerSettings, resolve_broker_url
-    from services.host import ServiceHost
+    from services.host import ServiceGroup
     from umlbot.deployment import load_deployment
     from umlbot.library import ServiceKind
 
-    service_kind: ServiceKind = kind  # type: ignore[assignment]  # click.Choice checked it
+    kinds: tuple[ServiceKind, ...] = SERVICE_KINDS if kind == "all" else (kind,)  # type: ignore[assignment]
     deployment = load_deployment(deploy_file)
     settings = BrokerSettings.from_url(resolve_broker_url(broker_url), ca_file=ca_file)
-    host = ServiceHost(
-        service_kind,
+    group = ServiceGroup(
+        kinds,
         deployment,
         settings,
         resolve_robot(robot, deployment.robot),
@@ -68,8 +69,8 @@ def command(
     )
     with StopSignals() as signals:
         try:
-            host.start()  # a signal meanwhile interrupts the start (exit 130)
+            group.start()  # a signal meanwhile interrupts the start (exit 130)
             signals.running()
-            host.wait(signals.stop)
+            group.wait(signals.stop)
         finally:
-            host.stop()  # motors stop here on every path: signal, error, KeyboardInterrupt
+            group.stop()  # motors stop here on every path: signal, error, KeyboardInterrupt
