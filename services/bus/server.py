@@ -33,6 +33,8 @@ log = get_logger(__name__)
 
 #: requests larger than this are refused with `payload_too_large`.
 MAX_REQUEST_BYTES = 256 * 1024
+#: how much of an oversize request is read to find its id and reply_to.
+SALVAGE_HEAD_BYTES = 4096
 #: the status payload of a component that is gone (last will, and on a clean stop).
 OFFLINE: Final[dict[str, str]] = {"state": "offline"}
 
@@ -294,7 +296,9 @@ class ComponentServer:
         reply_to: str | None = None
         try:
             if len(message.payload) > self.max_request_bytes:
-                salvaged_id, reply_to = _salvage_envelope(message.payload)
+                # only the head: a client puts id and reply_to first, and a copy of a megabyte
+                # for each refused request would only grow the service's heap
+                salvaged_id, reply_to = _salvage_envelope(message.payload[:SALVAGE_HEAD_BYTES])
                 request_id = salvaged_id if salvaged_id is not None else request_id
                 raise _BadInput(
                     "payload_too_large",
