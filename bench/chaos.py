@@ -2,7 +2,8 @@
 frozen, and thousands of malformed payloads thrown at it.
 
 Every process is what runs on the robot: `umlbot service KIND --driver mock` for the four kinds
-and `umlbot run` on the compiled car, each with JSON logs in a temporary folder, on a broker this
+and `umlbot run` on the compiled car, with the environment of the systemd units (so
+`MALLOC_MMAP_THRESHOLD_` too), each with JSON logs in a temporary folder, on a broker this
 script starts (Mosquitto and/or the embedded `umlbot broker`, each on a free port). An observer (a
 plain paho client) records what the bus says; the services' own logs say when a motor stopped.
 
@@ -69,6 +70,13 @@ MOTORS = COMPONENTS["motor"]
 WATCHDOG_S = 2.0  # the car deployment's watchdog_s
 CALL_TIMEOUT_S = 2.0  # the car model's call_timeout_s
 REPLY_PREFIX = f"umlbot/{ROBOT}/_reply/chaos-fuzz"
+
+
+def unit_environment() -> dict[str, str]:
+    """The `Environment=` settings of the services' systemd unit: the processes run as there."""
+    unit = (REPO / "deploy" / "systemd" / "umlbot-service@.service").read_text(encoding="utf-8")
+    return dict(line.removeprefix("Environment=").split("=", 1) for line in unit.splitlines()
+                if line.startswith("Environment="))
 
 
 def umlbot(*args: str) -> list[str]:
@@ -254,7 +262,7 @@ class Fleet:
         # MQTT 5 where the broker speaks it, so that Response Topics name a reply topic too
         url = broker.url + ("?protocol=5" if broker.kind == "mosquitto" else "")
         self.env = {**{k: v for k, v in os.environ.items() if not k.startswith("UMLBOT_")},
-                    "UMLBOT_BROKER": url, "UMLBOT_LOG_LEVEL": "INFO", "PYTHONUNBUFFERED": "1"}
+                    **unit_environment(), "UMLBOT_BROKER": url, "UMLBOT_LOG_LEVEL": "INFO"}
         self.trace: Path | None = None
 
     def _spawn(self, name: str, argv: list[str]) -> Proc:

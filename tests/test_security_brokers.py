@@ -184,6 +184,24 @@ def test_refused_subscriptions_are_reported_with_their_filter(secured: SecuredBr
         assert refused == {}
 
 
+def test_the_all_services_user_serves_every_component_and_nothing_else(
+    secured: SecuredBroker, connect: Any
+) -> None:
+    """`umlbot-all` (for `umlbot service all`) has the four service users' rights, no more."""
+    watcher = as_role(secured, connect, "operator")
+    assert watcher.subscribe(f"umlbot/{ROBOT}/#")
+    every = as_role(secured, connect, "all")
+    assert every.subscribe(f"umlbot/{ROBOT}/LeftActuator/call/#")
+    assert every.subscribe(f"umlbot/{ROBOT}/DistanceRead/call/#")
+    every.publish(f"umlbot/{ROBOT}/orchestrator/exit", "{}")
+    every.publish(f"umlbot/{ROBOT}/signal/go", "1")
+    for component in ("LeftActuator", "DistanceRead", "Sensor", "RaspberryPI"):
+        every.publish(f"umlbot/{ROBOT}/{component}/status", '{"state":"online"}')
+    seen = watcher.wait_for(f"umlbot/{ROBOT}/RaspberryPI/status", '{"state":"online"}')
+    seen += watcher.received("#", QUIET_S)
+    assert {m.topic.split("/")[2] for m in seen} == {"LeftActuator", "DistanceRead", "Sensor", "RaspberryPI"}
+
+
 def test_services_own_their_status_and_answer_callers(secured: SecuredBroker, connect: Any) -> None:
     """A service may set its last will on its status; replies reach the caller."""
     watcher = as_role(secured, connect, "monitor")
