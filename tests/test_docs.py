@@ -970,6 +970,7 @@ SCRIPT_OPTION_PARAGRAPHS = {
     ("docs/performance.md", "## RPC"): "bench/rpc.py",
     ("docs/performance.md", "## Orchestrator"): "bench/orchestrator.py",
     ("docs/performance.md", "## Memory"): "bench/memory.py",
+    ("docs/performance.md", "## Chaos"): "bench/chaos.py",
 }
 
 
