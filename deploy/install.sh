@@ -22,7 +22,8 @@ usage: install.sh [options]
   --broker URL        default broker URL written to umlbot.env (default: mqtt://127.0.0.1:1883)
   --driver NAME       driver for the services: auto (default: lgpio on a Pi 5, pigpio where
                       pigpiod runs), pigpio, lgpio, mock or sim
-  --services "K..."   service kinds to enable (default: "motor sonar servo gpio")
+  --services "K..."   service kinds to enable (default: "motor sonar servo gpio"; "all" is
+                      every kind in one process, for small boards)
   --embedded-broker   also enable umlbot-broker.service (the embedded amqtt broker)
   --secure            one MQTT user per service and for the orchestrator (deploy/broker_auth.py):
                       /etc/umlbot/<role>.env, Mosquitto's conf.d/umlbot.conf, umlbot.passwd and
@@ -79,7 +80,7 @@ say() { echo "install.sh: $*"; }
 
 case "$PREFIX" in /*) ;; *) die "--prefix must be an absolute path" ;; esac
 for kind in $SERVICES; do
-    case "$kind" in motor|sonar|servo|gpio) ;; *) die "unknown service kind '$kind'" ;; esac
+    case "$kind" in motor|sonar|servo|gpio|all) ;; *) die "unknown service kind '$kind'" ;; esac
 done
 case "$DRIVER" in auto|pigpio|lgpio|mock|sim) ;; *) die "unknown driver '$DRIVER' (auto, pigpio, lgpio, mock or sim)" ;; esac
 [ -z "$MODEL" ] || [ -f "$MODEL" ] || die "compiled model $MODEL not found"
@@ -165,7 +166,7 @@ if [ "$SECURE" -eq 1 ]; then
     install -d -m 0750 "$AUTH"
     "$PY" "$SOURCE/deploy/broker_auth.py" --deployment "$DEPLOYMENT" --robot "$ROBOT" --out "$AUTH" \
         --host "$host" --port "$port" "${tls[@]}"
-    for role in motor sonar servo gpio orchestrator; do
+    for role in motor sonar servo gpio all orchestrator; do
         install -m 0640 "$AUTH/$role.env" "$ETC/$role.env"
     done
     sed "s#^listener 1883 127.0.0.1#listener $port 127.0.0.1#" "$SOURCE/deploy/mosquitto/umlbot.conf" \

@@ -11,25 +11,26 @@ the retained `state` after every change, and guarantees the safe stops:
 - servos stop their pulses when the host stops.
 
 `host.drivers[component]` is the driver object, so tests can read a mock driver's commands.
+`ServiceGroup` runs several kinds in one process (`umlbot service all`, for small boards).
 """
 
 from __future__ import annotations
 
 import importlib
-import json
 import threading
 import time
 from collections.abc import Mapping
 from typing import Any
 
 from services.bus.connection import Message
+from services.bus.envelopes import parse_json
 from services.bus.server import ComponentServer
 from services.bus.settings import BrokerSettings
 from services.bus.topics import Topics
 from services.component_service import ComponentService
 from services.registry import create_driver
 from umlbot.deployment import Deployment
-from umlbot.errors import ConfigError, NotConnected
+from umlbot.errors import ConfigError
 from umlbot.library import ServiceKind, service_kinds, service_spec
 from umlbot.logs import get_logger
 
@@ -138,8 +139,7 @@ class ServiceHost:
             self._build()
             self._watch_orchestrator()
             for name, server in self.servers.items():
-                server.start(self.connect_timeout_s)
-                self._await_subscriptions(server)
+                server.start(self.connect_timeout_s)  # returns once the broker confirmed the subscriptions
                 self.services[name].changed()
             self._ticker = threading.Thread(
                 target=self._tick_loop, name=f"{self.kind}-safety", daemon=True
@@ -167,26 +167,6 @@ class ServiceHost:
             server.connection.add_on_disconnect(self._on_disconnect_of(service))
             self.servers[name] = server
 
-    def _await_subscriptions(self, server: ComponentServer) -> None:
-        """Return once the broker has the server's subscriptions, so `start()` means "serving".
-
-        A broker handles one client's packets in order: a probe message that comes back through a
-        subscription made after the call subscription proves that one is active too.
-        """
-        probe = f"{self.topics.base}/_ready/{server.connection.client_id}"
-        arrived = threading.Event()
-        server.connection.subscribe(probe, lambda message: arrived.set(), qos=1)
-        try:
-            deadline = time.monotonic() + self.connect_timeout_s
-            while not arrived.is_set() and time.monotonic() < deadline:
-                server.connection.publish(probe, b"", qos=1)
-                arrived.wait(0.2)
-            if not arrived.is_set():
-                raise NotConnected(f"{server.component}: the broker did not confirm the subscriptions "
-                                   f"within {self.connect_timeout_s:g} s")
-        finally:
-            server.connection.unsubscribe(probe)
-
     def _on_disconnect_of(self, service: ComponentService) -> Any:
         def lost() -> None:
             if not self._stop.is_set():
@@ -203,7 +183,7 @@ class ServiceHost:
     def _on_orchestrator_status(self, message: Message) -> None:
         state: Any
         try:
-            data = json.loads(message.payload) if message.payload.strip() else None
+            data = parse_json(message.payload) if message.payload.strip() else None
         except ValueError:
             data = message.payload.decode("utf-8", "replace").strip()
         state = data.get("state") if isinstance(data, dict) else data
@@ -270,3 +250,74 @@ class ServiceHost:
     def components(self) -> Mapping[str, ComponentService]:
         """The served components by name."""
         return self.services
+
+
+class ServiceGroup:
+    """Several service kinds in one process: one `ServiceHost` per kind the deployment uses.
+
+    `umlbot service all` on a small board: one interpreter instead of four (each is most of a
+    service's memory). Every component keeps its own connection and last will, and each host
+    its safety stops; `stop()` stops the motors first. `start()`/`stop()` (idempotent), or `with`.
+    """
+
+    def __init__(
+        self,
+        kinds: tuple[ServiceKind, ...],
+        deployment: Deployment,
+        settings: BrokerSettings,
+        robot: str,
+        driver: str | None = None,
+        *,
+        components: list[str] | None = None,
+        connect_timeout_s: float = 5.0,
+    ) -> None:
+        if len(kinds) == 1:  # one kind: its host says what is wrong with the components asked for
+            self.hosts = [ServiceHost(kinds[0], deployment, settings, robot, driver,
+                                      components=components, connect_timeout_s=connect_timeout_s)]
+            return
+        served = {kind: deployment.components_of_service(kind) for kind in kinds}
+        if components is not None:
+            unknown = sorted(set(components) - {name for names in served.values() for name in names})
+            if unknown:
+                raise ConfigError(f"no component(s) {unknown} in the deployment")
+            served = {kind: {name: comp for name, comp in comps.items() if name in components}
+                      for kind, comps in served.items()}
+        self.hosts = [
+            ServiceHost(kind, deployment, settings, robot, driver,
+                        components=list(comps), connect_timeout_s=connect_timeout_s)
+            for kind, comps in sorted(served.items(), key=lambda item: item[0] != "motor")
+            if comps
+        ]
+        if not self.hosts:
+            raise ConfigError("the deployment has no component served by any service")
+
+    def start(self) -> None:
+        """Start every host; on a failure stop those started (motors stopped) and raise."""
+        try:
+            for host in self.hosts:
+                host.start()
+        except BaseException:
+            self.stop()
+            raise
+
+    def stop(self) -> None:
+        """Stop every host, the motors' first; idempotent."""
+        for host in self.hosts:
+            host.stop()
+
+    def __enter__(self) -> ServiceGroup:
+        self.start()
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.stop()
+
+    def wait(self, stop: threading.Event) -> None:
+        """Block until `stop` is set (the CLI sets it from SIGTERM/SIGINT)."""
+        while not stop.wait(0.5):
+            pass
+
+    @property
+    def components(self) -> Mapping[str, ComponentService]:
+        """The served components of every kind, by name."""
+        return {name: service for host in self.hosts for name, service in host.services.items()}

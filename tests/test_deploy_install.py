@@ -155,12 +155,12 @@ def test_secure_install_writes_one_user_per_role(tmp_path: Path) -> None:
     assert result.returncode == 0, result.stderr
     etc = root / "etc" / "umlbot"
     passwords = set()
-    for role in (*KINDS, "orchestrator"):
+    for role in (*KINDS, "all", "orchestrator"):
         text = (etc / f"{role}.env").read_text(encoding="utf-8")
         assert f"UMLBOT_BROKER=mqtt://umlbot-{role}:" in text and "@127.0.0.1:1884" in text
         assert stat.S_IMODE((etc / f"{role}.env").stat().st_mode) & 0o007 == 0
         passwords.add(text.split(":")[2].split("@")[0])
-    assert len(passwords) == 5
+    assert len(passwords) == 6
     for password in passwords:  # nothing printed them
         assert password not in result.stdout + result.stderr
     mosquitto = root / "etc" / "mosquitto"

@@ -978,6 +978,8 @@ SCRIPT_OPTION_PARAGRAPHS = {
     ("docs/deploy-pi.md", "## 4. Install"): "deploy/install.sh",
     ("docs/performance.md", "## RPC"): "bench/rpc.py",
     ("docs/performance.md", "## Orchestrator"): "bench/orchestrator.py",
+    ("docs/performance.md", "## Memory"): "bench/memory.py",
+    ("docs/performance.md", "## Chaos"): "bench/chaos.py",
 }
 
 

@@ -145,6 +145,24 @@ def test_exit_request_over_mqtt_sets_application_exit(
         assert states[-3:] == ["running", "stopping", "stopped"]
 
 
+def test_only_a_json_object_on_the_exit_topic_requests_the_exit(
+    broker: BrokerProcess, raw_client: Callable[..., RawClient]
+) -> None:
+    """Clearing a retained exit message (`mosquitto_pub -r -n`) or stray bytes do not end a run."""
+    raw = raw_client(broker)
+    with rig(broker.url, "exit_loop.yaml") as r:
+        running = r.start()
+        orch = running.orchestrator
+        assert wait_for(lambda: "nap" in r.nodes(), 5.0)
+        raw.publish("umlbot/test/orchestrator/exit", b"", retain=True)  # the retained-clear
+        for junk in (b"", b"\xff\xfe", b"[1]", b"[" * 5000, b'"stop"', b"null", b'{"reason": 5}'):
+            raw.publish("umlbot/test/orchestrator/exit", junk)
+        # the first request that counts names its reason: so none of the junk before it counted
+        raw.publish("umlbot/test/orchestrator/exit", json.dumps({"reason": "the real one"}))
+        assert running.wait() == 0, orch.failure
+        assert orch.exit_reason == "exit requested over MQTT: the real one"
+
+
 def test_grace_period_then_lanes_cancelled_and_motor_stopped(broker: BrokerProcess) -> None:
     with rig(broker.url, "stubborn.yaml") as r:
         running = r.start(grace_s=0.3)

@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+import structlog
 from conftest import port_accepts
 from secured_brokers import (
     DEPLOY,
@@ -30,7 +31,11 @@ from secured_brokers import (
     make_auth_files,
     start_secured,
     stop_broker,
+    url_of,
 )
+
+from services.bus import BrokerSettings, BusConnection
+from umlbot.commands.call import EXIT_REFUSED, EXIT_TIMEOUT
 
 QUIET_S = 0.5  # how long "nothing arrives" is watched, after a positive control arrived
 
@@ -122,6 +127,81 @@ def test_a_user_without_rights_cannot_move_a_motor(secured: SecuredBroker, conne
     assert [m.payload for m in seen] == [b"10"]
 
 
+def umlbot_call(broker: SecuredBroker, role: str, query: str, *args: str) -> subprocess.CompletedProcess[str]:
+    """`umlbot call` as `role`; `query` is appended to the broker URL (e.g. `?protocol=5`)."""
+    url = f"mqtt://umlbot-{role}:{broker.passwords[role]}@127.0.0.1:{broker.port}{query}"
+    return subprocess.run(
+        [sys.executable, "-c", "from umlbot.cli import main; main()", "call", *args, "--robot", ROBOT,
+         "--timeout", "1"],
+        capture_output=True, text=True, timeout=60, check=False, env={**os.environ, "UMLBOT_BROKER": url},
+    )
+
+
+def test_umlbot_call_says_when_the_acl_refused_it(tmp_path: Path, auth: AuthFiles) -> None:
+    """MQTT 3.1.1: a time-out that names the ACL; MQTT 5: Mosquitto's reason, exit 5, at once."""
+    broker = start_secured("mosquitto", tmp_path, auth)
+    try:
+        silent = umlbot_call(broker, "monitor", "", "LeftActuator.dutycycle", "100")
+        assert silent.returncode == EXIT_TIMEOUT, silent.stderr
+        assert "ACL may also have dropped the request of user 'umlbot-monitor'" in silent.stderr
+        assert "?protocol=5" in silent.stderr
+
+        began = time.monotonic()
+        refused = umlbot_call(broker, "monitor", "?protocol=5", "LeftActuator.dutycycle", "100")
+        assert refused.returncode == EXIT_REFUSED, refused.stderr
+        assert "refused: the broker refused the publish to umlbot/car/LeftActuator/call/dutycycle: " \
+               "Not authorized for user 'umlbot-monitor'" in refused.stderr
+        assert time.monotonic() - began < 10  # no waiting for the time-out (a process start aside)
+
+        allowed = umlbot_call(broker, "operator", "?protocol=5", "LeftActuator.dutycycle", "10")
+        assert allowed.returncode == EXIT_TIMEOUT  # accepted by the broker; nobody serves it
+        assert "ACL" not in allowed.stderr  # over MQTT 5 an accepted request rules the ACL out
+    finally:
+        stop_broker(broker)
+
+
+def test_refused_subscriptions_are_reported_with_their_filter(secured: SecuredBroker) -> None:
+    """The bus connection (the monitor's too) names a filter the broker refused in its SUBACK.
+
+    amqtt refuses the subscription itself (3.1.1: 0x80, no reason); Mosquitto grants it and
+    filters each delivered message instead, so there is nothing to report.
+    """
+    settings = BrokerSettings.from_url(url_of(secured, "sonar"))
+    connection = BusConnection(settings, role="sonar", robot=ROBOT)
+    connection.subscribe(f"umlbot/{ROBOT}/LeftActuator/call/#", lambda message: None)
+    connection.subscribe(f"umlbot/{ROBOT}/DistanceRead/call/#", lambda message: None)
+    try:
+        with structlog.testing.capture_logs() as logs:
+            connection.start(5.0)
+        refused = dict(connection.refused_subscriptions)
+    finally:
+        connection.close()
+    if secured.kind == "amqtt":
+        assert refused == {f"umlbot/{ROBOT}/LeftActuator/call/#": "Unspecified error"}
+        [warning] = [e for e in logs if e["event"] == "mqtt_subscription_refused"]
+        assert warning["topic_filter"] == f"umlbot/{ROBOT}/LeftActuator/call/#"
+    else:
+        assert refused == {}
+
+
+def test_the_all_services_user_serves_every_component_and_nothing_else(
+    secured: SecuredBroker, connect: Any
+) -> None:
+    """`umlbot-all` (for `umlbot service all`) has the four service users' rights, no more."""
+    watcher = as_role(secured, connect, "operator")
+    assert watcher.subscribe(f"umlbot/{ROBOT}/#")
+    every = as_role(secured, connect, "all")
+    assert every.subscribe(f"umlbot/{ROBOT}/LeftActuator/call/#")
+    assert every.subscribe(f"umlbot/{ROBOT}/DistanceRead/call/#")
+    every.publish(f"umlbot/{ROBOT}/orchestrator/exit", "{}")
+    every.publish(f"umlbot/{ROBOT}/signal/go", "1")
+    for component in ("LeftActuator", "DistanceRead", "Sensor", "RaspberryPI"):
+        every.publish(f"umlbot/{ROBOT}/{component}/status", '{"state":"online"}')
+    seen = watcher.wait_for(f"umlbot/{ROBOT}/RaspberryPI/status", '{"state":"online"}')
+    seen += watcher.received("#", QUIET_S)
+    assert {m.topic.split("/")[2] for m in seen} == {"LeftActuator", "DistanceRead", "Sensor", "RaspberryPI"}
+
+
 def test_services_own_their_status_and_answer_callers(secured: SecuredBroker, connect: Any) -> None:
     """A service may set its last will on its status; replies reach the caller."""
     watcher = as_role(secured, connect, "monitor")
@@ -201,7 +281,7 @@ def test_recipe_keeps_passwords_and_hides_them(tmp_path: Path) -> None:
     first = make_auth(tmp_path)
     second = make_auth(tmp_path)
     assert first == second
-    assert set(first) == {"motor", "sonar", "servo", "gpio", "orchestrator", "monitor", "operator"}
+    assert set(first) == {"motor", "sonar", "servo", "gpio", "all", "orchestrator", "monitor", "operator"}
     assert len(set(first.values())) == len(first)  # one password per user
     for name in ("motor.env", "amqtt.passwd", "mosquitto.passwd"):
         assert os.stat(tmp_path / name).st_mode & 0o077 == 0

@@ -6,6 +6,7 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+import time
 from pathlib import Path
 from typing import Any
 
@@ -14,11 +15,12 @@ from conftest import BrokerProcess, free_port
 from services_support import ROBOT, broker_settings, client, deployment, running
 
 from services import registry
-from services.host import ServiceHost, owned_pins
+from services.host import ServiceGroup, ServiceHost, owned_pins
 from services.motor.driver import L298NSettings
 from services.motor.mock import MockMotorChannel, MockMotorSettings
 from umlbot.deployment import parse_deployment
 from umlbot.errors import ConfigError, DriverError, NotConnected, UnknownDriver
+from umlbot.library import service_kinds
 
 
 def test_unknown_driver_lists_the_known_names() -> None:
@@ -182,8 +184,6 @@ def test_cli_robot_from_env_and_plain_deployment(mosquitto_broker: BrokerProcess
     )
     try:
         with client(mosquitto_broker.url) as bus:
-            import time
-
             deadline = time.monotonic() + 15
             while True:
                 try:
@@ -194,3 +194,49 @@ def test_cli_robot_from_env_and_plain_deployment(mosquitto_broker: BrokerProcess
     finally:
         proc.terminate()
         assert proc.wait(10) == 0
+
+
+def test_service_all_serves_every_kind_in_one_process(
+    mosquitto_broker: BrokerProcess, tmp_path: Path
+) -> None:
+    """`umlbot service all`: every component of the car answers; SIGTERM stops it cleanly."""
+    deploy = tmp_path / "car.txt"
+    deploy.write_text("LeftActuator=l298n\nRightActuator=l298n\nDistanceRead=hcsr04\nSensor=servo\n"
+                      "RaspberryPI=raspberrypi\n", encoding="utf-8")
+    proc = subprocess.Popen(
+        [sys.executable, "-c", "from umlbot.cli import main; main()", "service", "all",
+         "--deploy", str(deploy), "--driver", "mock", "--broker", mosquitto_broker.url, "--robot", ROBOT],
+        env={**os.environ, "UMLBOT_LOG_LEVEL": "WARNING"},
+    )
+    try:
+        with client(mosquitto_broker.url) as bus:
+            deadline = time.monotonic() + 20
+            while True:  # the process is serving once its last component answers
+                try:
+                    assert bus.call("RaspberryPI", "readPin", 5, timeout=0.5) in (0, 1)
+                    break
+                except TimeoutError:
+                    assert proc.poll() is None and time.monotonic() < deadline, "service all never answered"
+            assert bus.call("LeftActuator", "dutycycle", 40) is None
+            assert bus.call("RightActuator", "enabled", True) is None
+            assert isinstance(bus.call("DistanceRead", "value"), int)
+            assert bus.call("Sensor", "angle", 90) is None
+    finally:
+        proc.terminate()
+        assert proc.wait(10) == 0
+
+
+def test_service_group_stops_motors_first_and_checks_components(mosquitto_broker: BrokerProcess) -> None:
+    group = ServiceGroup(service_kinds(), deployment(), broker_settings(mosquitto_broker.url), ROBOT,
+                         components=["LeftActuator", "DistanceRead"])
+    assert [host.kind for host in group.hosts] == ["motor", "sonar"]
+    with group:
+        assert sorted(group.components) == ["DistanceRead", "LeftActuator"]
+        with client(mosquitto_broker.url) as bus:
+            bus.call("LeftActuator", "dutycycle", 50)
+            bus.call("LeftActuator", "enabled", True)
+        assert group.hosts[0].drivers["LeftActuator"].running
+    assert not group.hosts[0].drivers["LeftActuator"].running
+    with pytest.raises(ConfigError, match=r"no component\(s\) \['Wheel'\] in the deployment"):
+        ServiceGroup(service_kinds(), deployment(), broker_settings(mosquitto_broker.url), ROBOT,
+                     components=["Wheel"])

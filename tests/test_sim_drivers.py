@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import json
 import os
+import socket
 import subprocess
 import sys
 from collections.abc import Iterator
@@ -117,6 +119,40 @@ def test_remote_world_does_what_the_local_one_does(world: World, served: WorldSe
 def test_remote_world_refuses_a_wrong_key(served: WorldServer) -> None:
     with pytest.raises(SimError, match="refused"):
         RemoteWorld(served.address, "wrong").read_sonar_cm()
+
+
+def exchange(wire: Any, line: bytes) -> dict[str, Any]:
+    """One line to the world server, its reply line back."""
+    wire.write(line + b"\n")
+    wire.flush()
+    reply: dict[str, Any] = json.loads(wire.readline())
+    return reply
+
+
+def test_the_world_server_answers_malformed_lines(world: World, served: WorldServer) -> None:
+    host, _, port = served.address.rpartition(":")
+    with socket.create_connection((host, int(port)), timeout=5) as sock, sock.makefile("rwb") as wire:
+        assert exchange(wire, json.dumps({"op": "hello", "key": "\u00e9" + served.key}).encode()) == {
+            "ok": False, "error": "bad key"}  # a non-ASCII key is a wrong key, not a crash
+    with socket.create_connection((host, int(port)), timeout=5) as sock, sock.makefile("rwb") as wire:
+        assert exchange(wire, json.dumps({"op": "hello", "key": served.key}).encode())["ok"] is True
+        bad = [
+            b"[" * 5000,  # nested too deeply for the decoder
+            b"\xff\xfe not json",
+            b"[1, 2]",
+            b'{"op": "set_motor", "args": [1]}',
+            b'{"op": "set_motor", "args": {"side": "left", "enabled": "yes"}}',
+            b'{"op": "set_motor", "args": {"side": "left", "duty_percent": NaN}}',
+            b'{"op": "set_motor", "args": {"side": ' + b"[" * 100 + b"]" * 100 + b"}}",
+            b'{"op": "set_servo", "args": {"degrees": ' + b"9" * 4000 + b"}}",
+            b'{"op": "set_servo", "args": {}}',
+            b'{"op": "fly"}',
+        ]
+        for line in bad:
+            reply = exchange(wire, line)
+            assert reply["ok"] is False and reply["error"], line[:60]
+        assert not world.motor("left").enabled  # nothing of the junk reached the world
+        assert exchange(wire, b'{"op": "read_sonar_cm", "args": {}}') == {"ok": True, "value": AHEAD_CM}
 
 
 def test_unreachable_world_is_a_driver_error(monkeypatch: pytest.MonkeyPatch) -> None:

@@ -49,6 +49,18 @@ class CallTimeout(BusError, TimeoutError):
         self.timeout_s = timeout_s
 
 
+class BrokerRefused(BusError, PermissionError):
+    """The broker refused a publish or a subscription with an MQTT 5 reason code (e.g. its ACL).
+
+    MQTT 3.1.1 has no such answer: there a refused publish is dropped without a word.
+    """
+
+    def __init__(self, what: str, reason: str) -> None:
+        super().__init__(f"the broker refused {what}: {reason}")
+        self.what = what
+        self.reason = reason
+
+
 class RemoteError(BusError):
     """The service answered a call with an error reply; `code` is the stable slug."""
 

@@ -7,7 +7,16 @@ import os
 import sys
 from typing import Any
 
-import structlog
+# structlog imports rich, when it is installed, only to draw tracebacks on a terminal: about 4 MB
+# in every service process. Its plain tracebacks say the same; `umlbot monitor` imports rich itself.
+_hide_rich = "rich" not in sys.modules
+if _hide_rich:
+    sys.modules["rich"] = None  # type: ignore[assignment]  # makes `import rich` raise ImportError
+try:
+    import structlog
+finally:
+    if _hide_rich:
+        del sys.modules["rich"]
 
 _configured = False
 

@@ -14,12 +14,13 @@ import contextlib
 import itertools
 import json
 import threading
+import time
 from concurrent.futures import Future, InvalidStateError
 from concurrent.futures import TimeoutError as FutureTimeout
 from typing import Any
 
 from services.bus.connection import BusConnection, Handler, Message
-from services.bus.envelopes import dumps
+from services.bus.envelopes import dumps, parse_json
 from services.bus.settings import BrokerSettings
 from services.bus.topics import Topics
 from umlbot.errors import CallTimeout, NotConnected, RemoteError
@@ -80,7 +81,7 @@ class BusClient:
     # -- calls ----------------------------------------------------------------------------------
 
     def _request(
-        self, component: str, feature: str, args: tuple[Any, ...]
+        self, component: str, feature: str, args: tuple[Any, ...], ack_wait_s: float | None = None
     ) -> tuple[str, Future[dict[str, Any]]]:
         if not self.connection.connected:
             raise NotConnected(
@@ -93,21 +94,30 @@ class BusClient:
             self._pending[request_id] = future
         payload = dumps({"id": request_id, "reply_to": self.reply_topic, "args": args}).encode("utf-8")
         try:
-            self.connection.publish(self.topics.call(component, feature), payload, qos=0)
+            if ack_wait_s is None:
+                self.connection.publish(self.topics.call(component, feature), payload, qos=0)
+            else:
+                self.connection.publish(self.topics.call(component, feature), payload, qos=1,
+                                        wait_s=ack_wait_s)
         except BaseException:
             with self._pending_lock:
                 self._pending.pop(request_id, None)
             raise
         return request_id, future
 
-    def call(self, component: str, feature: str, *args: Any, timeout: float = 2.0) -> Any:
+    def call(self, component: str, feature: str, *args: Any, timeout: float = 2.0,
+             acknowledged: bool = False) -> Any:
         """Call `component.feature(*args)`; return its value.
 
-        Raises CallTimeout, RemoteError (with `.code`) or NotConnected.
+        Raises CallTimeout, RemoteError (with `.code`) or NotConnected. With `acknowledged`, the
+        request goes out at QoS 1 and waits (within `timeout`) for the broker's acknowledgement,
+        so that over MQTT 5 a refused publish (the broker's ACL) raises `BrokerRefused` at once
+        instead of ending as a time-out; it costs a round trip, so the orchestrator does not.
         """
-        request_id, future = self._request(component, feature, args)
+        started = time.monotonic()
+        request_id, future = self._request(component, feature, args, timeout if acknowledged else None)
         try:
-            reply = future.result(timeout)
+            reply = future.result(max(0.0, timeout - (time.monotonic() - started)))
         except FutureTimeout:
             with self._pending_lock:
                 self._pending.pop(request_id, None)
@@ -147,7 +157,7 @@ class BusClient:
 
     def _on_reply(self, message: Message) -> None:
         try:
-            reply = json.loads(message.payload.decode("utf-8"))
+            reply = parse_json(message.payload)
         except ValueError:
             log.warning("bad_reply", topic=message.topic, reason="not JSON")
             return
@@ -175,4 +185,8 @@ def _unwrap(reply: dict[str, Any], component: str, feature: str) -> Any:
     if isinstance(error, dict):
         code, text = str(error.get("code", "internal")), str(error.get("message", ""))
         raise RemoteError(code, text, component, feature)
-    raise RemoteError("bad_reply", f"malformed reply: {json.dumps(reply)[:200]}", component, feature)
+    try:
+        text = json.dumps(reply)[:200]
+    except (ValueError, RecursionError):
+        text = "(not shown: nested too deeply)"
+    raise RemoteError("bad_reply", f"malformed reply: {text}", component, feature)

@@ -24,9 +24,9 @@ from paho.mqtt.enums import CallbackAPIVersion, MQTTErrorCode, MQTTProtocolVersi
 from paho.mqtt.packettypes import PacketTypes
 from paho.mqtt.properties import Properties
 
-from services.bus.envelopes import to_payload
+from services.bus.envelopes import parse_json, to_payload
 from services.bus.settings import BrokerSettings, make_client_id
-from umlbot.errors import BusError, ConfigError, NotConnected
+from umlbot.errors import BrokerRefused, BusError, ConfigError, NotConnected
 from umlbot.logs import get_logger
 
 log = get_logger(__name__)
@@ -52,10 +52,8 @@ class Message:
         return self.payload.decode("utf-8")
 
     def json(self) -> Any:
-        """The payload parsed as JSON (raises ValueError)."""
-        import json
-
-        return json.loads(self.payload)
+        """The payload parsed as UTF-8 JSON (raises ValueError, also for too deep a nesting)."""
+        return parse_json(self.payload)
 
 
 @dataclass(frozen=True)
@@ -154,7 +152,10 @@ class BusConnection:
         self._client = self._make_client()
         self._lock = threading.RLock()
         self._subacks = threading.Condition(self._lock)
-        self._pending_subacks: set[int] = set()
+        self._pending_subacks: dict[int, list[str]] = {}  # SUBSCRIBE mid -> its topic filters
+        self._refused_publishes: dict[int, str] = {}  # PUBLISH mid -> the broker's reason (MQTT 5)
+        #: topic filter -> reason, for every subscription the broker refused (e.g. its ACL)
+        self.refused_subscriptions: dict[str, str] = {}
         self._subscriptions: list[_Subscription] = []
         self._route_cache: dict[str, tuple[list[_Subscription], list[_Subscription]]] = {}
         self._on_connect: list[Callback] = []
@@ -209,6 +210,7 @@ class BusConnection:
         client.on_message = self._handle_message
         client.on_socket_open = self._handle_socket_open
         client.on_subscribe = self._handle_subscribe
+        client.on_publish = self._handle_publish
         return client
 
     # -- public API -----------------------------------------------------------------------------
@@ -333,6 +335,10 @@ class BusConnection:
         if wait_s is not None and qos > 0:
             with contextlib.suppress(RuntimeError, ValueError):
                 info.wait_for_publish(wait_s)
+            # paho runs on_publish (which notes a refusal) before it marks the message published
+            refused = self._refused_publishes.pop(info.mid, None) if info.is_published() else None
+            if refused is not None:
+                raise BrokerRefused(f"the publish to {topic}", refused)
 
     def subscribe(
         self, topic_filter: str, handler: Handler, qos: int = 1, wait_s: float | None = None
@@ -360,7 +366,7 @@ class BusConnection:
                 # under the lock, so that the SUBACK cannot be handled before its mid is noted
                 rc, mid = self._client.subscribe(subscription.topic_filter, subscription.qos)
                 if rc == mqtt.MQTT_ERR_SUCCESS and mid is not None:
-                    self._pending_subacks.add(mid)
+                    self._pending_subacks[mid] = [subscription.topic_filter]
 
     def unsubscribe(self, topic_filter: str) -> None:
         """Drop every handler of this filter and tell the broker."""
@@ -414,7 +420,7 @@ class BusConnection:
             if filters:
                 rc, mid = client.subscribe([(f, q) for f, q in filters.items()])
                 if rc == mqtt.MQTT_ERR_SUCCESS and mid is not None:
-                    self._pending_subacks.add(mid)
+                    self._pending_subacks[mid] = list(filters)
         self.counters.connects += 1
         self._last_error = None
         self._accepted = True
@@ -431,13 +437,27 @@ class BusConnection:
         self, client: mqtt.Client, userdata: Any, mid: int, reasons: Any, properties: Any = None
     ) -> None:
         with self._subacks:
-            self._pending_subacks.discard(mid)
+            filters = self._pending_subacks.pop(mid, [])
             self._subacks.notify_all()
-        refused = [str(r) for r in reasons if getattr(r, "is_failure", False)]
-        if refused:
-            # typically the broker's ACL: the handlers of this filter will never be called
-            log.warning("mqtt_subscription_refused", broker=self.settings.url, client_id=self.client_id,
-                        reasons=refused)
+        for topic_filter, reason in zip(filters, reasons, strict=False):
+            if getattr(reason, "is_failure", False):
+                # typically the broker's ACL: the handlers of this filter will never be called.
+                # MQTT 5 names the reason ("Not authorized"); 3.1.1 only says "Unspecified error".
+                self.refused_subscriptions[topic_filter] = str(reason)
+                log.warning("mqtt_subscription_refused", broker=self.settings.url,
+                            client_id=self.client_id, topic_filter=topic_filter, reason=str(reason))
+            else:
+                self.refused_subscriptions.pop(topic_filter, None)
+
+    def _handle_publish(
+        self, client: mqtt.Client, userdata: Any, mid: int, reason: Any, properties: Any = None
+    ) -> None:
+        if getattr(reason, "is_failure", False):  # only MQTT 5 acknowledgements carry a reason
+            if len(self._refused_publishes) >= 256:  # nobody waited for these: forget the oldest
+                self._refused_publishes.pop(next(iter(self._refused_publishes)))
+            self._refused_publishes[mid] = str(reason)
+        elif self._refused_publishes:
+            self._refused_publishes.pop(mid, None)  # a message id used again
 
     def _handle_disconnect(
         self, client: mqtt.Client, userdata: Any, flags: Any, reason: Any, properties: Any = None

@@ -2,7 +2,7 @@
 
 Requests, replies and error bodies; component availability (`Status`); and the orchestrator's
 own payloads (`TraceEvent`, `OrchestratorStatus`, `ExitRequest`). `to_payload` turns anything
-publishable into the UTF-8 JSON bytes that go on the wire.
+publishable into the UTF-8 JSON bytes that go on the wire; `parse_json` reads them back.
 """
 
 from __future__ import annotations
@@ -131,6 +131,18 @@ class ExitRequest(BaseModel):
     """Ask the orchestrator to finish (`…/orchestrator/exit`); `Application.exit` becomes true."""
 
     reason: str | None = None
+
+
+def parse_json(payload: bytes) -> Any:
+    """The JSON value of a payload from the wire; `ValueError` for anything that is not UTF-8 JSON.
+
+    Nesting too deep for the decoder (5 000 `[` in a row) is a `ValueError` too, never the
+    decoder's `RecursionError`: whoever reads the wire answers one kind of error.
+    """
+    try:
+        return json.loads(payload.decode("utf-8"))
+    except RecursionError:
+        raise ValueError("JSON nested too deeply") from None
 
 
 def _json_default(obj: Any) -> Any:

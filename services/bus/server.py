@@ -12,6 +12,7 @@ from __future__ import annotations
 import contextlib
 import json
 import math
+import re
 import threading
 import time
 from collections.abc import Callable
@@ -21,10 +22,10 @@ from typing import Any, Final
 from pydantic import ValidationError
 
 from services.bus.connection import BusConnection, Message, Will
-from services.bus.envelopes import ENVELOPE_KEYS, CallRequest, Reply, Status, dumps
+from services.bus.envelopes import ENVELOPE_KEYS, CallRequest, Reply, Status, dumps, parse_json
 from services.bus.settings import BrokerSettings
 from services.bus.topics import Topics, check_name, is_valid_publish_topic
-from umlbot.errors import DriverError, NotConnected, UmlbotError
+from umlbot.errors import BusError, DriverError, NotConnected, UmlbotError
 from umlbot.library import FeatureSpec, Param
 from umlbot.logs import get_logger
 
@@ -32,6 +33,8 @@ log = get_logger(__name__)
 
 #: requests larger than this are refused with `payload_too_large`.
 MAX_REQUEST_BYTES = 256 * 1024
+#: how much of an oversize request is read to find its id and reply_to.
+SALVAGE_HEAD_BYTES = 4096
 #: the status payload of a component that is gone (last will, and on a clean stop).
 OFFLINE: Final[dict[str, str]] = {"state": "offline"}
 
@@ -78,7 +81,11 @@ class _BadInput(Exception):
 
 
 def _describe(value: Any) -> str:
-    text = json.dumps(value)
+    """A short JSON rendering of a bad argument for an error message (any value, any depth)."""
+    try:
+        text = json.dumps(value)
+    except (ValueError, OverflowError, RecursionError):  # too deep: say what it is
+        text = type(value).__name__
     return text if len(text) <= 40 else text[:37] + "..."
 
 
@@ -103,9 +110,12 @@ def check_arg(param: Param, value: Any) -> Any:
     elif param.type == "float":
         if isinstance(value, bool) or not isinstance(value, int | float):
             raise _BadInput("bad_args", f"{param.name} must be a number, got {_describe(value)}")
-        if not math.isfinite(value):
+        try:
+            converted = float(value)  # an integer of 400 digits does not fit
+        except OverflowError:
+            converted = math.inf
+        if not math.isfinite(converted):
             raise _BadInput("bad_args", f"{param.name} must be a finite number")
-        converted = float(value)
     else:
         if not isinstance(value, str):
             raise _BadInput("bad_args", f"{param.name} must be a string, got {_describe(value)}")
@@ -117,7 +127,8 @@ def check_arg(param: Param, value: Any) -> Any:
         low = "-inf" if param.minimum is None else f"{param.minimum:g}"
         high = "inf" if param.maximum is None else f"{param.maximum:g}"
         unit = f" {param.unit}" if param.unit else ""
-        raise _BadInput("out_of_range", f"{param.name}={converted} is outside {low}..{high}{unit}")
+        raise _BadInput("out_of_range",
+                        f"{param.name}={_describe(converted)} is outside {low}..{high}{unit}")
     return converted
 
 
@@ -146,9 +157,10 @@ def parse_request(payload: bytes, response_topic: str | None = None) -> _Parsed:
     if not payload.strip():
         return _Parsed(None, None, [])
     try:
-        data = json.loads(payload.decode("utf-8"))
-    except (UnicodeDecodeError, ValueError) as exc:
-        raise _BadInput("bad_json", f"payload is not UTF-8 JSON: {exc}") from None
+        data = parse_json(payload)
+    except ValueError as exc:
+        request_id, reply_to = _salvage_envelope(payload)
+        raise _BadInput("bad_json", f"payload is not UTF-8 JSON: {exc}", request_id, reply_to) from None
     if isinstance(data, dict) and ENVELOPE_KEYS & data.keys():
         # fast path for the well-formed envelope every umlbot client sends
         request_id, reply_to, args = data.get("id"), data.get("reply_to"), data.get("args", [])
@@ -236,7 +248,7 @@ class ComponentServer:
         with self._status_lock:
             stopping, self._stopping = self._stopping, True
             if not stopping and self.connection.connected:
-                with contextlib.suppress(NotConnected):
+                with contextlib.suppress(BusError):  # not connected, or refused by the broker
                     self.connection.publish(self._status_topic, OFFLINE, qos=1, retain=True, wait_s=2.0)
         self.connection.close()
 
@@ -281,7 +293,10 @@ class ComponentServer:
         reply_to: str | None = None
         try:
             if len(message.payload) > self.max_request_bytes:
-                request_id, reply_to = _peek_envelope(message.payload, request_id)
+                # only the head: a client puts id and reply_to first, and a copy of a megabyte
+                # for each refused request would only grow the service's heap
+                salvaged_id, reply_to = _salvage_envelope(message.payload[:SALVAGE_HEAD_BYTES])
+                request_id = salvaged_id if salvaged_id is not None else request_id
                 raise _BadInput(
                     "payload_too_large",
                     f"request of {len(message.payload)} bytes exceeds the limit of "
@@ -298,6 +313,10 @@ class ComponentServer:
                 raise _BadInput("unknown_feature",
                                 f"{self.component} has no feature {feature_name!r} (it has: {known})")
             args = check_args(feature.spec, parsed.args)
+        except RecursionError:  # a value nested deeper than the checks can walk (the decoder could)
+            self._fail(feature_name, request_id, reply_to, response_topic, correlation, "bad_args",
+                       "arguments nested too deeply")
+            return
         except _BadInput as bad:
             if bad.request_id is not None:
                 request_id = bad.request_id
@@ -366,17 +385,74 @@ def _correlation_id(correlation: bytes | None) -> str | None:
         return correlation.hex()
 
 
-def _peek_envelope(payload: bytes, request_id: str | int | None) -> tuple[str | int | None, str | None]:
-    """Best effort: the id and reply_to of an oversized request, so it can still be answered."""
-    try:
-        data = json.loads(payload)
-    except (UnicodeDecodeError, ValueError):
-        return request_id, None
-    if not isinstance(data, dict):
-        return request_id, None
-    raw_id, reply_to = data.get("id"), data.get("reply_to")
-    if isinstance(raw_id, str | int) and not isinstance(raw_id, bool):
-        request_id = raw_id
+#: JSON text in runs: a string, a run of opening brackets, of closing ones, or anything else.
+_RUNS = re.compile(r'"(?:[^"\\]|\\.)*"|[\[{]+|[\]}]+|[^"\[\]{}]+')
+_WHITESPACE = re.compile(r"[ \t\n\r]*")
+_DECODER = json.JSONDecoder()
+
+
+def _skip_ws(text: str, pos: int) -> int:
+    match = _WHITESPACE.match(text, pos)
+    return match.end() if match else pos
+
+
+def _skip_value(text: str, pos: int) -> int:
+    """The index after the JSON value at `pos`, without decoding it (any depth); -1 if cut short."""
+    if not text.startswith(("[", "{"), pos):
+        try:
+            return _DECODER.raw_decode(text, pos)[1]
+        except ValueError:
+            return -1
+    depth = 0
+    for run in _RUNS.finditer(text, pos):
+        token = run.group()
+        if token[0] in "[{":
+            depth += len(token)
+        elif token[0] in "]}":
+            if depth <= len(token):
+                return run.start() + depth
+            depth -= len(token)
+    return -1
+
+
+def _salvage_envelope(payload: bytes) -> tuple[str | int | None, str | None]:
+    """Best effort: the `id` and `reply_to` of a request that cannot be decoded as a whole.
+
+    For a request nested too deeply for the decoder, cut short, or too large to take: only the
+    top-level object is read, values other than `id` and `reply_to` are skipped undecoded, so the
+    caller still gets its error reply (e.g. to `{"id": 1, "reply_to": "r", "args": [[[[…`).
+    """
+    text = payload.decode("utf-8", "replace")
+    found: dict[str, Any] = {}
+    pos = _skip_ws(text, 0)
+    if not text.startswith("{", pos):
+        return None, None
+    pos += 1
+    while len(found) < 2:
+        pos = _skip_ws(text, pos)
+        try:
+            key, pos = _DECODER.raw_decode(text, pos)
+        except ValueError:
+            break
+        pos = _skip_ws(text, pos)
+        if not isinstance(key, str) or not text.startswith(":", pos):
+            break
+        pos = _skip_ws(text, pos + 1)
+        if key in ("id", "reply_to"):
+            try:
+                found[key], pos = _DECODER.raw_decode(text, pos)
+            except (ValueError, RecursionError):
+                break
+        else:
+            pos = _skip_value(text, pos)
+            if pos < 0:
+                break
+        pos = _skip_ws(text, pos)
+        if not text.startswith(",", pos):
+            break
+        pos += 1
+    raw_id, reply_to = found.get("id"), found.get("reply_to")
+    request_id = raw_id if _is_id(raw_id) else None
     if not (isinstance(reply_to, str) and is_valid_publish_topic(reply_to)):
         reply_to = None
     return request_id, reply_to

@@ -22,13 +22,14 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import json
 import signal
 import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
+
+from pydantic import ValidationError
 
 from compiler.compiled import CompiledModel
 from services.bus import (
@@ -42,7 +43,7 @@ from services.bus import (
     Topics,
     Will,
 )
-from services.bus.envelopes import dumps
+from services.bus.envelopes import dumps, parse_json
 from services.orchestrator.engine import Engine, EngineStats, NodeFailed, used_components
 from services.orchestrator.expressions import Value
 from services.orchestrator.signals import SignalBoard
@@ -520,11 +521,18 @@ class Orchestrator:
         if message.retain:  # a retained exit request would end every future run at once
             log.warning("ignoring a retained exit request", topic=message.topic)
             return
-        reason = "exit requested over MQTT"
-        with contextlib.suppress(ValueError):
+        if not message.payload:  # `mosquitto_pub -r -n` clearing a retained one: not a request
+            log.debug("ignoring an empty message on the exit topic", topic=message.topic)
+            return
+        try:
             request = ExitRequest.model_validate_json(message.payload)
-            if request.reason:
-                reason = f"exit requested over MQTT: {request.reason}"
+        except ValidationError as exc:  # a request is a JSON object: `{}` or `{"reason": "..."}`
+            log.warning("ignoring an exit request that is not a JSON object", topic=message.topic,
+                        error=exc.errors()[0]["msg"], size=len(message.payload))
+            return
+        reason = "exit requested over MQTT"
+        if request.reason:
+            reason = f"exit requested over MQTT: {request.reason}"
         self.request_exit(reason)
 
     def _connection_lost(self, control: bool) -> None:
@@ -608,7 +616,7 @@ def _signal_payload(payload: bytes) -> Value:
     if not payload:
         return None
     try:
-        return json.loads(payload)
+        return parse_json(payload)
     except ValueError:
         return payload.decode("utf-8", errors="replace")
 

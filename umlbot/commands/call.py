@@ -2,7 +2,12 @@
 
 Exit codes: 0 the call succeeded; 1 the service answered with an error reply (stderr shows
 `code: message`); 2 bad command line; 3 no reply within `--timeout`; 4 the broker could not be
-reached (or the connection dropped during the call).
+reached (or the connection dropped during the call); 5 the broker refused the request or the
+reply subscription (its ACL), which only MQTT 5 reports (`?protocol=5` in the broker URL).
+
+The request goes out at QoS 1, so that the broker's acknowledgement can carry that refusal. Over
+MQTT 3.1.1 a broker drops a publish its ACL refuses without a word: on a broker with users the
+time-out message says that this may be why.
 """
 
 from __future__ import annotations
@@ -19,6 +24,7 @@ EXIT_ERROR_REPLY = 1
 EXIT_USAGE = 2
 EXIT_TIMEOUT = 3
 EXIT_NOT_CONNECTED = 4
+EXIT_REFUSED = 5
 
 
 class CallFailed(click.ClickException):
@@ -38,6 +44,20 @@ class TimeoutFailure(CallFailed):
 
 class NotConnectedFailure(CallFailed):
     exit_code = EXIT_NOT_CONNECTED
+
+
+class RefusedFailure(CallFailed):
+    exit_code = EXIT_REFUSED
+
+
+def timeout_hint(component: str, robot: str, username: str | None, protocol: str) -> str:
+    """What a time-out may mean: no such service, or (3.1.1 with a user) the ACL dropping it."""
+    hint = f"is the {component} service running for robot {robot!r}?"
+    if username is not None and protocol != "5":
+        hint += (f" On a broker with users the ACL may also have dropped the request of user "
+                 f"{username!r} without a word (MQTT 3.1.1 has no error for it; add ?protocol=5 "
+                 f"to the broker URL to hear the broker's reason)")
+    return hint
 
 
 def parse_arg(text: str) -> Any:
@@ -83,12 +103,13 @@ def command(
     """Call TARGET (Component.feature) with ARGS and print the reply as JSON.
 
     Each ARG is JSON when it parses (60, true, "text", [1,2]) and a string otherwise.
-    Exit status: 0 ok, 1 error reply, 3 time-out, 4 broker not reachable.
+    Exit status: 0 ok, 1 error reply, 3 time-out, 4 broker not reachable, 5 refused by the
+    broker (MQTT 5 only: over 3.1.1 a refused request ends as a time-out).
 
     Example: umlbot call LeftActuator.dutycycle 60
     """
     from services.bus import BrokerSettings, BusClient, resolve_broker_url
-    from umlbot.errors import CallTimeout, NotConnected, RemoteError
+    from umlbot.errors import BrokerRefused, CallTimeout, NotConnected, RemoteError
 
     component, feature = parse_target(target)
     values = [parse_arg(a) for a in args]
@@ -97,14 +118,19 @@ def command(
     try:
         try:
             client.start(connect_timeout)
-            value = client.call(component, feature, *values, timeout=timeout)
+            refused = client.connection.refused_subscriptions.get(client.reply_topic)
+            if refused is not None:
+                raise BrokerRefused(f"the subscription to the reply topic {client.reply_topic}", refused)
+            value = client.call(component, feature, *values, timeout=timeout, acknowledged=True)
         except RemoteError as exc:
             click.echo(json.dumps({"ok": False, "error": {"code": exc.code, "message": exc.message}}))
             raise ErrorReplyFailure(f"{exc.code}: {exc.message}") from None
         except CallTimeout as exc:
-            raise TimeoutFailure(
-                f"timeout: {exc} (is the {component} service running for robot {robot!r}?)"
-            ) from None
+            hint = timeout_hint(component, robot, settings.username, settings.protocol)
+            raise TimeoutFailure(f"timeout: {exc} ({hint})") from None
+        except BrokerRefused as exc:
+            user = f" for user {settings.username!r}" if settings.username else ""
+            raise RefusedFailure(f"refused: {exc}{user}") from None
         except NotConnected as exc:
             raise NotConnectedFailure(f"not_connected: {exc}") from None
         click.echo(json.dumps({"ok": True, "value": value}, ensure_ascii=False))

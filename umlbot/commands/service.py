@@ -2,7 +2,8 @@
 plugin's service kind).
 
 Serves every component of that kind in the deployment until SIGTERM or SIGINT; on every exit
-path (signal, error, broker loss) the motors are stopped before the process ends.
+path (signal, error, broker loss) the motors are stopped before the process ends. KIND `all`
+serves every kind the deployment uses in this one process (one unit on a small board).
 """
 
 from __future__ import annotations
@@ -25,8 +26,9 @@ def _known_kind(ctx: click.Context, param: click.Parameter, kind: str) -> str:
     # plugins) is read only then, after logging is set up.
     from umlbot.library import service_kinds
 
-    if kind not in service_kinds():
-        raise click.BadParameter(f"{kind!r} is not one of {', '.join(map(repr, service_kinds()))}.")
+    if kind != "all" and kind not in service_kinds():
+        known = ", ".join(map(repr, [*service_kinds(), "all"]))
+        raise click.BadParameter(f"{kind!r} is not one of {known}.")
     return kind
 
 
@@ -39,7 +41,7 @@ def _known_kind(ctx: click.Context, param: click.Parameter, kind: str) -> str:
               help="Driver for every component: auto, lgpio, pigpio, mock, sim or a plugin's "
               "(default: the deployment's).")
 @click.option("--component", "components", multiple=True, metavar="NAME",
-              help="Serve only this component (repeatable; default: all of this kind).")
+              help="Serve only this component (repeatable; default: all of this kind, or of every kind).")
 @click.option("--broker", "broker_url", default=None, metavar="URL",
               help="Broker URL, e.g. mqtt://user:pass@host:1883 "
               "(default: $UMLBOT_BROKER or mqtt://127.0.0.1:1883).")
@@ -59,17 +61,17 @@ def command(
     robot: str | None,
     connect_timeout: float,
 ) -> None:
-    """Run one hardware service for the components the deployment gives it."""
+    """Run one hardware service (or `all` of them) for the components the deployment gives it."""
     from services.bus.settings import BrokerSettings, resolve_broker_url
-    from services.host import ServiceHost
+    from services.host import ServiceGroup
     from umlbot.deployment import load_deployment
-    from umlbot.library import ServiceKind
+    from umlbot.library import ServiceKind, service_kinds
 
-    service_kind: ServiceKind = kind  # click.Choice checked it
+    kinds: tuple[ServiceKind, ...] = tuple(service_kinds()) if kind == "all" else (kind,)
     deployment = load_deployment(deploy_file)
     settings = BrokerSettings.from_url(resolve_broker_url(broker_url), ca_file=ca_file)
-    host = ServiceHost(
-        service_kind,
+    group = ServiceGroup(
+        kinds,
         deployment,
         settings,
         resolve_robot(robot, deployment.robot),
@@ -79,8 +81,8 @@ def command(
     )
     with StopSignals() as signals:
         try:
-            host.start()  # a signal meanwhile interrupts the start (exit 130)
+            group.start()  # a signal meanwhile interrupts the start (exit 130)
             signals.running()
-            host.wait(signals.stop)
+            group.wait(signals.stop)
         finally:
-            host.stop()  # motors stop here on every path: signal, error, KeyboardInterrupt
+            group.stop()  # motors stop here on every path: signal, error, KeyboardInterrupt

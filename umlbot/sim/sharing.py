@@ -78,40 +78,77 @@ def connect_world() -> WorldHandle:
 # --- server ------------------------------------------------------------------------------------
 
 
+def _flag(args: dict[str, Any], name: str) -> bool | None:
+    value = args.get(name)
+    if value is not None and not isinstance(value, bool):
+        raise ValueError(f"{name} must be true, false or null, got {type(value).__name__}")
+    return value
+
+
+def _number(args: dict[str, Any], name: str, required: bool = False) -> float | None:
+    value = args.get(name)
+    if value is None and not required:
+        return None
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise ValueError(f"{name} must be a number, got {type(value).__name__}")
+    try:
+        number = float(value)
+    except OverflowError:
+        raise ValueError(f"{name} is too large") from None
+    if number != number:  # NaN passes every range check
+        raise ValueError(f"{name} must be a number, got NaN")
+    return number
+
+
 def _dispatch(world: World, op: str, args: dict[str, Any]) -> Any:
+    """Run one request on the world; `ValueError` for a request it cannot take."""
     if op == "set_motor":
         side = args.get("side")
         if side not in ("left", "right"):
-            raise ValueError(f"side must be 'left' or 'right', got {side!r}")
-        world.set_motor(side, enabled=args.get("enabled"), forward=args.get("forward"),
-                        duty_percent=args.get("duty_percent"))
+            raise ValueError(f"side must be 'left' or 'right', got {side!r}"[:80])
+        world.set_motor(side, enabled=_flag(args, "enabled"), forward=_flag(args, "forward"),
+                        duty_percent=_number(args, "duty_percent"))
         return None
     if op == "set_servo":
-        world.set_servo(float(args["degrees"]))
+        degrees = _number(args, "degrees", required=True)
+        assert degrees is not None
+        world.set_servo(degrees)
         return None
     if op == "servo_angle_deg":
         return world.servo_angle_deg()
     if op == "read_sonar_cm":
         return world.read_sonar_cm()
-    raise ValueError(f"unknown operation {op!r}")
+    raise ValueError(f"unknown operation {op!r}"[:80])
 
 
 class _Handler(socketserver.StreamRequestHandler):
+    """One sim driver's connection: a keyed hello, then one JSON request and one reply per line.
+
+    A bad line (not JSON, nested too deeply, longer than 64 KiB, an unknown operation, a wrong
+    argument) gets `{"ok": false, "error": ...}` and one warning in the log; the connection and
+    the world keep going.
+    """
+
     server: _TCPServer
 
     def handle(self) -> None:
         hello = self._read()
         if hello is None or hello.get("op") != "hello" or not hmac.compare_digest(
-            str(hello.get("key", "")), self.server.key
+            str(hello.get("key", "")).encode(), self.server.key.encode()
         ):
+            log.warning("sim_world_client_refused", reason="no hello with the key")
             self._write({"ok": False, "error": "bad key"})
             return
         self._write({"ok": True, "value": None})
         while (request := self._read()) is not None:
+            args = request.get("args")
             try:
-                value = _dispatch(self.server.world, str(request.get("op")), dict(request.get("args") or {}))
+                if args is not None and not isinstance(args, dict):
+                    raise ValueError("args must be a JSON object")
+                value = _dispatch(self.server.world, str(request.get("op"))[:80], args or {})
                 self._write({"ok": True, "value": value})
-            except (ValueError, TypeError, KeyError) as exc:
+            except ValueError as exc:
+                log.warning("sim_world_request_refused", op=str(request.get("op"))[:80], error=str(exc))
                 self._write({"ok": False, "error": str(exc)})
 
     def _read(self) -> dict[str, Any] | None:
@@ -120,9 +157,9 @@ class _Handler(socketserver.StreamRequestHandler):
             return None
         try:
             data = json.loads(line)
-        except ValueError:
-            return {"op": "invalid"}
-        return data if isinstance(data, dict) else {"op": "invalid"}
+        except (ValueError, RecursionError):  # RecursionError: nested too deeply for the decoder
+            return {"op": "invalid line (not JSON)"}
+        return data if isinstance(data, dict) else {"op": "invalid line (not a JSON object)"}
 
     def _write(self, reply: dict[str, Any]) -> None:
         with contextlib.suppress(OSError):

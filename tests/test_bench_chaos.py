@@ -1,0 +1,59 @@
+"""bench/chaos.py, run small: the robot car's real processes under broker crashes, killed and
+frozen services and malformed payloads (the full run's figures are in docs/performance.md)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+pytestmark = [pytest.mark.network, pytest.mark.slow]
+
+REPO = Path(__file__).resolve().parent.parent
+
+
+def chaos(*args: str) -> dict[str, Any]:
+    result = subprocess.run([sys.executable, str(REPO / "bench" / "chaos.py"), *args],
+                            capture_output=True, text=True, timeout=110, check=False)
+    assert result.returncode == 0, result.stderr[-4000:]
+    summary: dict[str, Any] = json.loads(result.stdout.strip().splitlines()[-1])
+    return summary
+
+
+@pytest.mark.parametrize("broker", ["mosquitto", "amqtt"])
+def test_a_broker_crash_stops_the_motors_and_everything_comes_back(broker: str) -> None:
+    [restart] = chaos("--scenarios", "restart", "--brokers", broker, "--trials", "2")["restart"]
+    assert restart["motors_stopped_every_trial"], restart["rows"]
+    assert all(row["stop_reasons"] == ["broker connection lost"] for row in restart["rows"])
+    assert restart["orchestrator_failed_safe_every_trial"], restart["rows"]
+    assert restart["back_online_every_trial"] and restart["lost_motor_states"] == 0
+    assert restart["lost_runs"] == 2  # the documented fail-safe: a run does not survive the broker
+
+
+def test_killed_and_frozen_services_fail_the_run_safe() -> None:
+    rows = chaos("--scenarios", "kill", "--brokers", "mosquitto", "--kinds", "motor,gpio",
+                 "--trials", "1")["kill"]
+    by = {(row["kind"], row["signal"]): row for row in rows}
+    for signal in ("SIGKILL", "SIGSTOP"):
+        assert by[("motor", signal)]["failed_safe"] == 1, by[("motor", signal)]
+        # the car's model never calls the gpio component: losing it must not stop the run
+        assert by[("gpio", signal)]["run_unaffected"] == 1, by[("gpio", signal)]
+    assert "went offline" in by[("motor", "SIGKILL")]["reasons"][0]
+    frozen = by[("motor", "SIGSTOP")]
+    assert frozen["calls_timed_out"] == 1 and "no reply" in frozen["reasons"][0]
+    assert frozen["motors_stopped_after_sigcont"]
+
+
+@pytest.mark.parametrize("broker", ["mosquitto", "amqtt"])
+def test_fuzzed_payloads_get_error_replies_and_break_nothing(broker: str) -> None:
+    [fuzz] = chaos("--scenarios", "fuzz", "--brokers", broker, "--fuzz", "400", "--seed", "7")["fuzz"]
+    assert fuzz["calls"] > 300 and fuzz["signals"] > 0 and fuzz["exit"] > 0
+    assert fuzz["process_exits"] == 0 and fuzz["tracebacks"] == 0
+    assert fuzz["requests_naming_a_reply_topic"] > 100
+    assert fuzz["replies"] == fuzz["error_replies"] == fuzz["requests_naming_a_reply_topic"]
+    assert fuzz["rss_growth_max_mb"] <= 5.0, fuzz["rss_growth_mb"]
+    assert fuzz["good_calls_after"] and fuzz["run_still_going"]

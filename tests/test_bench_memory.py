@@ -1,0 +1,34 @@
+"""bench/memory.py, run small: it measures the real `umlbot service` processes from /proc."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+pytestmark = pytest.mark.network
+
+REPO = Path(__file__).resolve().parent.parent
+
+
+def test_memory_bench_measures_one_kind_and_all() -> None:
+    result = subprocess.run(
+        [sys.executable, str(REPO / "bench" / "memory.py"), "--kinds", "motor", "--settle", "0.5"],
+        capture_output=True, text=True, timeout=180, check=False,
+    )
+    assert result.returncode == 0, result.stderr[-3000:]
+    summary = json.loads(result.stdout.strip().splitlines()[-1])
+    by_process = {r["process"]: r for r in summary["results"]}
+    bare = by_process["python (bare interpreter)"]
+    motor = by_process["umlbot service motor"]
+    every = by_process["umlbot service all"]
+    assert (motor["components"], every["components"]) == (2, 5)
+    for row in (motor, every):
+        assert bare["rss_mb"] < row["rss_mb"] <= row["hwm_mb"]
+        assert 0 < row["pss_mb"] <= row["rss_mb"]
+    # five components of four kinds in one process cost far less than two processes would
+    assert every["rss_mb"] < 1.5 * motor["rss_mb"]
+    assert summary["kinds_rss_mb"] == motor["rss_mb"] and summary["all_rss_mb"] == every["rss_mb"]
