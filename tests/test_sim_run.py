@@ -66,7 +66,7 @@ def _cli(*args: str, timeout: float = 150.0) -> subprocess.CompletedProcess[str]
 def test_cli_with_service_processes_reaches_the_goal_and_draws_the_picture(tmp_path: Path) -> None:
     picture = tmp_path / "sim.svg"
     done = _cli("--track", str(tracks_dir() / "s_bend.yaml"), "--port", "0", "--processes",
-                "--plot", str(picture), "--json")
+                "--plot", str(picture), "--json", "--seed", "2", "--noise", "1", "--drop", "5")
     assert done.returncode == 0, done.stderr[-2000:]
     summary = json.loads(done.stdout.strip().splitlines()[-1])
     assert summary["goal"] is True and summary["collisions"] == 0
