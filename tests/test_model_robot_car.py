@@ -114,30 +114,32 @@ def test_main_lane_tuning_stop_and_loop() -> None:
         tuning[node.name] = node.value.value
         node = main.nodes[node.next]
     assert set(tuning) == {"speed_percent", "forward_ms", "backward_ms", "turn_ms", "nudge_ms",
-                           "clearance_cm", "near_cm", "side_cm", "wall_cm", "corner_cm", "glance_ms",
-                           "servo_settle_ms"}
-    assert tuning["near_cm"] < tuning["clearance_cm"] < tuning["side_cm"]
+                           "clearance_cm", "near_cm", "side_cm", "wall_cm", "corner_cm", "back_cm",
+                           "glance_ms", "servo_settle_ms"}
+    assert tuning["near_cm"] < tuning["clearance_cm"] < tuning["side_cm"] < tuning["back_cm"]
     assert tuning["corner_cm"] < tuning["wall_cm"]
     assert tuning["nudge_ms"] < tuning["turn_ms"]  # the small steer is smaller than a turn step
     # then every actuator is stopped
     assert isinstance(node, ActionNode) and node.call.target == LaneTarget(lane="Stop")
     assert _branches(main, "running") == [("Application.exit", "finish"), ("else", "ping_ahead")]
     assert _branches(main, "choose") == [
-        ("ahead > clearance_cm and turning == 'none'", "straight"), ("ahead > side_cm", "straight"),
-        ("turning == 'left'", "turn_left"),
+        ("ahead > clearance_cm and turning == 'none'", "straight"),
+        ("ahead > side_cm and turning != 'back'", "straight"),
+        ("turning == 'back' and ahead > back_cm", "choose_left"), ("turning == 'left'", "turn_left"),
         ("turning == 'right'", "turn_right"), ("ahead < near_cm", "back_off"), ("else", "look")]
     # room ahead: the step forward and the glance run together
     step = main.nodes["step"]
     assert isinstance(step, ForkNode) and sorted(step.targets) == ["forward", "glance"]
     assert _branches(main, "steer") == [
-        ("Glance.left < corner_cm and Glance.left <= Glance.right", "retreat_right"),
-        ("Glance.right < corner_cm", "retreat_left"),
-        ("Glance.left < wall_cm and Glance.left <= Glance.right", "nudge_right"),
-        ("Glance.right < wall_cm", "nudge_left"), ("else", "running")]
+        ("ahead <= side_cm", "running"),
+        ("Glance.left < corner_cm and Glance.right >= wall_cm", "retreat_right"),
+        ("Glance.right < corner_cm and Glance.left >= wall_cm", "retreat_left"),
+        ("Glance.left < wall_cm and Glance.right >= wall_cm", "nudge_right"),
+        ("Glance.right < wall_cm and Glance.left >= wall_cm", "nudge_left"), ("else", "running")]
     # no room ahead: the side with more room
     assert _branches(main, "pick_side") == [
         ("Measure.left >= Measure.right and Measure.left > side_cm", "choose_left"),
-        ("Measure.right > side_cm", "choose_right"), ("else", "back_off")]
+        ("Measure.right > side_cm", "choose_right"), ("else", "backing")]
     lanes = {node_id: main.nodes[node_id].call.target.lane  # type: ignore[union-attr]
              for node_id in ("forward", "glance", "retreat_left", "retreat_right", "nudge_left",
                              "nudge_right", "turn_left", "turn_right", "back_off", "look")}

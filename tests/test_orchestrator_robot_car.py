@@ -4,7 +4,8 @@ A scripted distance sequence drives it through every choice of its main loop: a 
 the way ahead is clear (the two glances at the front corners read while it drives) and a small
 steer away from a near front corner; when the way ahead is blocked, a turn toward the side with
 more room, the same way again while still blocked, and a back-off when too near to turn or when
-there is no room on either side.
+there is no room on either side, looking again after each back-off until a side opens (or, far
+out, turning round).
 """
 
 from __future__ import annotations
@@ -27,6 +28,8 @@ SCRIPT: list[tuple[list[int], str, list[tuple[bool, bool]]]] = [
     ([100, 80, 30], "straight", [F, L]),  # front-right near: steer left
     ([100, 15, 80], "straight", [F, B, R]),  # front-left very near: back off, then steer right
     ([100, 80, 15], "straight", [F, B, L]),  # front-right very near: back off, then steer left
+    ([40, 15, 80], "straight", [F]),  # a wall ahead, seen by a glance too: no steering
+    ([100, 30, 30], "straight", [F]),  # near on both sides: no steering
     ([10, 30, 80], "look", [R]),  # blocked: more room on the right
     ([40], "turn_right", [R]),  # not clearly free yet: keep turning right, no look
     ([10], "turn_right", [R]),
@@ -34,7 +37,12 @@ SCRIPT: list[tuple[list[int], str, list[tuple[bool, bool]]]] = [
     ([10, 80, 30], "look", [L]),  # blocked: more room on the left
     ([100, 80, 80], "straight", [F]),
     ([5], "back_off", [B]),  # too near to turn in place
-    ([10, 20, 20], "look", [B]),  # no room on either side (the last reading repeats)
+    ([10, 20, 20], "look", [B]),  # no room on either side: back off ...
+    ([60, 20, 20], "look", [B]),  # ... and look again, not forward, until a side opens
+    ([60, 20, 80], "look", [R]),
+    ([100, 80, 80], "straight", [F]),
+    ([10, 20, 20], "look", [B]),
+    ([95], "choose_left", [L]),  # backed out far with no side open: turn round (the last reading repeats)
 ]
 
 
@@ -68,5 +76,5 @@ def test_robot_car_drives_by_the_scripted_distances(broker: BrokerProcess) -> No
         # the sonar looks ahead, glances at both front corners on each step, looks to both sides
         # when blocked, and is back ahead before the next ping
         angles = [args[0] for args in r.driver("Sensor").commands_named("set_angle")]
-        assert angles[:16] == [90] + [135, 45, 90] * 5
-        assert angles[16:19] == [180, 0, 90]
+        assert angles[:22] == [90] + [135, 45, 90] * 7
+        assert angles[22:25] == [180, 0, 90]
