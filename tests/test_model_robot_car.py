@@ -45,7 +45,7 @@ def test_components_and_both_deployments() -> None:
     assert settings["LeftActuator"]["in1"] == 22 and settings["LeftActuator"]["in2"] == 23
     assert settings["RightActuator"]["in1"] == 24 and settings["RightActuator"]["in2"] == 25
     assert settings["Sensor"] == {"gpio": 18}
-    assert settings["DistanceRead"] == {"trigger": 8, "echo": 7}
+    assert settings["DistanceRead"] == {"trigger": 8, "echo": 7, "samples": 3}
     assert rich.name == "car"
     assert [(link.source_component, link.target_component) for link in rich.links] == [
         ("Sensor", "DistanceRead")]
@@ -67,9 +67,8 @@ def test_motion_lanes_set_direction_then_enable() -> None:
                                            ("RightActuator", "enabled", False)]
 
 
-def test_measure_reads_centre_left_right_and_recentres() -> None:
-    lane = compile_model(ROBOT_CAR).lanes["Measure"]
-    assert lane.virtual and lane.datastores == ["center", "left", "right"]
+def _sequence(lane: Lane) -> list[tuple[str, object]]:
+    """A straight lane's steps: servo angles, waits and the datastores it reads into."""
     order: list[tuple[str, object]] = []
     node = lane.nodes[lane.start]
     while node.kind != "end":
@@ -80,13 +79,27 @@ def test_measure_reads_centre_left_right_and_recentres() -> None:
         elif isinstance(node, ActionNode):
             order.append(("wait", node.call.target.name))  # type: ignore[union-attr]
         node = lane.nodes[node.next]  # type: ignore[union-attr]
-    assert order == [("read", "center"), ("wait", "msleep"), ("servo", 180), ("wait", "msleep"),
-                     ("read", "left"), ("wait", "msleep"), ("servo", 0), ("wait", "msleep"),
-                     ("read", "right"), ("servo", 90), ("wait", "msleep")]
+    return order
+
+
+def test_measure_and_glance_read_both_sides_and_recentre() -> None:
+    model = compile_model(ROBOT_CAR)
+    for name, left, right in (("Measure", 180, 0), ("Glance", 135, 45)):
+        lane = model.lanes[name]
+        assert lane.virtual and lane.datastores == ["left", "right"]
+        assert _sequence(lane) == [("servo", left), ("wait", "msleep"), ("read", "left"),
+                                   ("servo", right), ("wait", "msleep"), ("read", "right"),
+                                   ("servo", 90), ("wait", "msleep")]
 
 
 def _main(model: CompiledModel) -> Lane:
     return model.lanes["RaspberryPI"]
+
+
+def _branches(lane: Lane, node_id: str) -> list[tuple[str, str]]:
+    decision = lane.nodes[node_id]
+    assert isinstance(decision, DecisionNode)
+    return [(b.label, b.target) for b in decision.branches]
 
 
 def test_main_lane_tuning_stop_and_loop() -> None:
@@ -95,24 +108,42 @@ def test_main_lane_tuning_stop_and_loop() -> None:
     assert not main.virtual and main.component == "RaspberryPI"
     # the tuning numbers are the first nodes after the start
     node = main.nodes[main.nodes[main.start].next]  # type: ignore[union-attr]
-    tuning = {}
+    tuning: dict[str, int] = {}
     while isinstance(node, DatastoreNode):
-        assert isinstance(node.value, Const)
+        assert isinstance(node.value, Const) and isinstance(node.value.value, int)
         tuning[node.name] = node.value.value
         node = main.nodes[node.next]
-    assert set(tuning) >= {"forward_ms", "turn_ms", "backward_ms", "clearance_cm", "echo_fade_ms",
-                           "servo_settle_ms"}
-    assert tuning["clearance_cm"] == 20
+    assert set(tuning) == {"speed_percent", "forward_ms", "backward_ms", "turn_ms", "nudge_ms",
+                           "clearance_cm", "near_cm", "side_cm", "wall_cm", "corner_cm", "back_cm",
+                           "glance_ms", "servo_settle_ms"}
+    assert tuning["near_cm"] < tuning["clearance_cm"] < tuning["side_cm"] < tuning["back_cm"]
+    assert tuning["corner_cm"] < tuning["wall_cm"]
+    assert tuning["nudge_ms"] < tuning["turn_ms"]  # the small steer is smaller than a turn step
     # then every actuator is stopped
     assert isinstance(node, ActionNode) and node.call.target == LaneTarget(lane="Stop")
-    loop = main.nodes["running"]
-    assert isinstance(loop, DecisionNode)
-    assert [b.label for b in loop.branches] == ["Application.exit", "else"]
-    choose = main.nodes["choose"]
-    assert isinstance(choose, DecisionNode)
-    assert [b.label for b in choose.branches] == [
-        "Measure.center > clearance_cm", "Measure.left > clearance_cm", "Measure.right > clearance_cm",
-        "else"]
-    called = [main.nodes[b.target] for b in choose.branches]
-    assert [n.call.target.lane for n in called] == [  # type: ignore[union-attr]
-        "MoveForward", "TurnLeft", "TurnRight", "MoveBackward"]
+    assert _branches(main, "running") == [("Application.exit", "finish"), ("else", "ping_ahead")]
+    assert _branches(main, "choose") == [
+        ("ahead > clearance_cm and turning == 'none'", "straight"),
+        ("ahead > side_cm and turning != 'back'", "straight"),
+        ("turning == 'back' and ahead > back_cm", "choose_left"), ("turning == 'left'", "turn_left"),
+        ("turning == 'right'", "turn_right"), ("ahead < near_cm", "back_off"), ("else", "look")]
+    # room ahead: the step forward and the glance run together
+    step = main.nodes["step"]
+    assert isinstance(step, ForkNode) and sorted(step.targets) == ["forward", "glance"]
+    assert _branches(main, "steer") == [
+        ("ahead <= side_cm", "running"),
+        ("Glance.left < corner_cm and Glance.right >= wall_cm", "retreat_right"),
+        ("Glance.right < corner_cm and Glance.left >= wall_cm", "retreat_left"),
+        ("Glance.left < wall_cm and Glance.right >= wall_cm", "nudge_right"),
+        ("Glance.right < wall_cm and Glance.left >= wall_cm", "nudge_left"), ("else", "running")]
+    # no room ahead: the side with more room
+    assert _branches(main, "pick_side") == [
+        ("Measure.left >= Measure.right and Measure.left > side_cm", "choose_left"),
+        ("Measure.right > side_cm", "choose_right"), ("else", "backing")]
+    lanes = {node_id: main.nodes[node_id].call.target.lane  # type: ignore[union-attr]
+             for node_id in ("forward", "glance", "retreat_left", "retreat_right", "nudge_left",
+                             "nudge_right", "turn_left", "turn_right", "back_off", "look")}
+    assert lanes == {"forward": "MoveForward", "glance": "Glance", "retreat_left": "MoveBackward",
+                     "retreat_right": "MoveBackward", "nudge_left": "TurnLeft",
+                     "nudge_right": "TurnRight", "turn_left": "TurnLeft", "turn_right": "TurnRight",
+                     "back_off": "MoveBackward", "look": "Measure"}

@@ -42,7 +42,7 @@ def test_uml_shapes_in_dot() -> None:
     assert 'fillcolor=black, label="", width=1.2, height=0.06' in motion  # fork/join bars
     main = texts["activity-main.dot"]
     assert isinstance(main, str)
-    assert "shape=diamond" in main and 'label="[Measure.center > clearance_cm]"' in main
+    assert "shape=diamond" in main and 'label="[Measure.right > side_cm]"' in main
 
 
 def test_mermaid_and_plantuml_name_every_node() -> None:

@@ -138,6 +138,42 @@ def test_seeded_noise_is_reproducible() -> None:
     assert len(readings) > 1
 
 
+def _slanted(incidence_deg: float) -> str:
+    """A long wall 1 m ahead of the car, turned so that the sonar's axis meets it at `incidence_deg`."""
+    a = math.radians(incidence_deg)
+    x, y = 2 * math.cos(a), 2 * math.sin(a)
+    return f"""
+name: slanted
+start: {{x: 0.0, y: 0.0, heading_deg: 90}}
+goal: {{x_min: 3, x_max: 4, y_min: 3, y_max: 4}}
+walls:
+  - [[{-x}, {1 - y}], [{x}, {1 + y}]]
+"""
+
+
+def test_sonar_loses_the_echo_of_a_wall_hit_too_obliquely() -> None:
+    assert IDEAL.sonar_max_incidence_deg == 50.0
+    # one ray: the echo comes back up to the steepest incidence, not beyond
+    one_ray = CarSpec(motor_time_constant_s=0.0, sonar_rays=1)
+    seen = World(parse_track(_slanted(48.0)), one_ray).read_sonar_cm()
+    assert seen == round((1.0 - IDEAL.sonar_forward_m) * 100)  # the wall crosses the axis at y = 1
+    assert World(parse_track(_slanted(52.0)), one_ray).read_sonar_cm() is None
+    # the 15° beam: a ray 7.5° off the axis still meets the wall at 52.5° - 7.5° = 45°
+    assert world(_slanted(52.5)).read_sonar_cm() is not None
+    assert world(_slanted(60.0)).read_sonar_cm() is None
+
+
+def test_dropped_echoes_are_seeded_and_counted_as_no_echo() -> None:
+    assert [world(sonar_drop=1.0).read_sonar_cm() for _ in range(3)] == [None, None, None]
+    runs = [[w.read_sonar_cm() for _ in range(40)] for w in (world(sonar_drop=0.3, seed=5),
+                                                               world(sonar_drop=0.3, seed=5))]
+    assert runs[0] == runs[1]
+    assert 0 < runs[0].count(None) < 40
+    assert set(runs[0]) - {None} == {world().read_sonar_cm()}
+    with pytest.raises(ValueError, match="dropped echoes"):
+        world(sonar_drop=1.5)
+
+
 def test_servo_turns_the_beam_at_a_finite_speed() -> None:
     w = world()
     w.set_servo(180)  # look left: the wall at x = -1.0
@@ -210,8 +246,8 @@ def test_bad_track_files_raise_sim_error_naming_the_field(tmp_path: Path) -> Non
 def test_every_bundled_track_loads_and_its_start_is_free() -> None:
     files = sorted(tracks_dir().glob("*.yaml"))
     names = {f.stem for f in files}
-    assert {"corridor", "left_bend", "right_bend", "s_bend", "dead_end"} <= names
-    assert len(files) >= 6
+    assert {"corridor", "left_bend", "right_bend", "s_bend", "zigzag", "dead_end"} <= names
+    assert len(files) >= 14
     for f in files:
         track = load_track(f)
         assert track.name == f.stem

@@ -1,9 +1,9 @@
 """The sim sonar driver: an HC-SR04 whose pings are cast into the simulated world.
 
 Same deployment settings as the real sensor (pins ignored). The world does the physics (beam,
-2..400 cm, 1 cm resolution, optional noise); as in the real driver, `samples` > 1 takes the median
-of the pings that got an echo (None when none did) and an echo beyond `max_range_cm` reads
-`max_range_cm`.
+no echo from a wall hit too obliquely, 2..400 cm, 1 cm resolution, optional noise and lost
+echoes); as in the real driver, `samples` > 1 takes the median of the pings that got an echo
+(None when none did) and an echo beyond `max_range_cm` reads `max_range_cm`.
 """
 
 from __future__ import annotations

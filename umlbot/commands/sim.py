@@ -32,9 +32,11 @@ DEFAULT_TRACK = "models/tracks/s_bend.yaml"
               help="Write the track, path and sonar pings to this PNG or SVG file.")
 @click.option("--processes", is_flag=True,
               help="Run each service as its own 'umlbot service' process (as on the robot).")
-@click.option("--seed", type=int, default=None, help="Seed of the sonar noise.")
+@click.option("--seed", type=int, default=None, help="Seed of the sonar noise and dropped echoes.")
 @click.option("--noise", "noise_cm", type=click.FloatRange(min=0), default=0.0, show_default=True,
               help="Sonar noise, standard deviation in cm.")
+@click.option("--drop", "drop_percent", type=click.FloatRange(0, 100), default=0.0, show_default=True,
+              help="Percentage of sonar pings whose echo is lost.")
 @click.option("--max-collisions", type=click.IntRange(min=1), default=1, show_default=True,
               help="Stop after this many collisions.")
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as one JSON object.")
@@ -44,7 +46,8 @@ DEFAULT_TRACK = "models/tracks/s_bend.yaml"
               help="Port of the studio page (0 = any free port).")
 def command(model: Path, track: Path | None, speed: float, broker_url: str | None, port: int | None,
             timeout_s: float, plot: Path | None, processes: bool, seed: int | None, noise_cm: float,
-            max_collisions: int, as_json: bool, studio: bool, studio_port: int) -> None:
+            drop_percent: float, max_collisions: int, as_json: bool, studio: bool,
+            studio_port: int) -> None:
     """Run MODEL on a track: embedded broker, world, services, orchestrator; exit 0 only when the
     goal was reached without a collision."""
     from umlbot.logs import configure_logging
@@ -59,7 +62,7 @@ def command(model: Path, track: Path | None, speed: float, broker_url: str | Non
     options = SimOptions(
         model=model, track=track or default_track(DEFAULT_TRACK), speed=speed, broker_url=broker_url,
         port=port, timeout_s=timeout_s, plot=plot, processes=processes, seed=seed, sonar_noise_cm=noise_cm,
-        max_collisions=max_collisions,
+        sonar_drop=drop_percent / 100.0, max_collisions=max_collisions,
     )
     live = sys.stdout.isatty() and not as_json
     announced: list[str] = []

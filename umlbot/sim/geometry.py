@@ -53,14 +53,30 @@ def ray_distance(origin: Point, angle: float, segment: Segment) -> float | None:
     return t
 
 
-def cast(origin: Point, angle: float, walls: list[Segment]) -> float | None:
-    """Distance to the nearest wall along one ray, or None when nothing is hit."""
-    best: float | None = None
+def cast_hit(origin: Point, angle: float, walls: list[Segment]) -> tuple[float, Segment] | None:
+    """The nearest wall along one ray and the distance to it, or None when nothing is hit."""
+    best: tuple[float, Segment] | None = None
     for wall in walls:
         d = ray_distance(origin, angle, wall)
-        if d is not None and (best is None or d < best):
-            best = d
+        if d is not None and (best is None or d < best[0]):
+            best = (d, wall)
     return best
+
+
+def cast(origin: Point, angle: float, walls: list[Segment]) -> float | None:
+    """Distance to the nearest wall along one ray, or None when nothing is hit."""
+    hit = cast_hit(origin, angle, walls)
+    return None if hit is None else hit[0]
+
+
+def incidence(angle: float, wall: Segment) -> float:
+    """The angle (radians, 0..pi/2) between a ray at `angle` and the normal of `wall`."""
+    length = math.hypot(wall.b.x - wall.a.x, wall.b.y - wall.a.y)
+    if length < _EPS:
+        return 0.0  # a point-like wall echoes from every side
+    along = abs(_cross(math.cos(angle), math.sin(angle),
+                       (wall.b.x - wall.a.x) / length, (wall.b.y - wall.a.y) / length))
+    return math.acos(min(1.0, along))
 
 
 def segments_intersect(p: Segment, q: Segment) -> bool:

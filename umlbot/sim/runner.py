@@ -59,6 +59,7 @@ class SimOptions:
     processes: bool = False
     seed: int | None = None
     sonar_noise_cm: float = 0.0
+    sonar_drop: float = 0.0  # share of pings whose echo is lost (0..1)
     max_collisions: int = 1
     progress_interval_s: float = 0.5  # wall seconds between progress reports
 
@@ -346,7 +347,8 @@ def run_sim(
     track = load_track(options.track)
     compiled = compile_model(options.model)
     try:
-        world = World(track, sonar_noise_cm=options.sonar_noise_cm, seed=options.seed)
+        world = World(track, sonar_noise_cm=options.sonar_noise_cm, sonar_drop=options.sonar_drop,
+                      seed=options.seed)
     except ValueError as exc:
         raise SimError(str(exc)) from exc
     deployment = sim_deployment(compiled)

@@ -20,7 +20,7 @@ from typing import Literal
 
 from umlbot.clock import Clock
 from umlbot.logs import get_logger
-from umlbot.sim.geometry import Point, Pose, Segment, cast, rectangle_corners, rectangle_hits
+from umlbot.sim.geometry import Point, Pose, Segment, cast_hit, incidence, rectangle_corners, rectangle_hits
 from umlbot.sim.track import Track
 
 log = get_logger(__name__)
@@ -57,6 +57,7 @@ class CarSpec:
     sonar_max_cm: int = 400
     sonar_beam_deg: float = 15.0
     sonar_rays: int = 7
+    sonar_max_incidence_deg: float = 50.0  # a wall hit more obliquely reflects the ping away
     sonar_interval_s: float = 0.06  # the HC-SR04 needs 60 ms between pings
     sonar_timeout_s: float = 0.038  # no echo: the sensor gives up after ~38 ms
     servo_deg_per_s: float = 600.0  # 0.1 s per 60°
@@ -125,14 +126,18 @@ class World:
         *,
         clock: Clock | None = None,
         sonar_noise_cm: float = 0.0,
+        sonar_drop: float = 0.0,
         seed: int | None = None,
         step_s: float = 0.005,
     ) -> None:
+        if not 0.0 <= sonar_drop <= 1.0:
+            raise ValueError(f"the share of dropped echoes must be 0..1, got {sonar_drop}")
         self.track = track
         self.car = car or CarSpec()
         self.clock = clock
         self.step_s = step_s
         self.sonar_noise_cm = sonar_noise_cm
+        self.sonar_drop = sonar_drop
         self._rng = random.Random(seed)
         self._walls: list[Segment] = track.segments
         self._lock = threading.RLock()
@@ -197,6 +202,10 @@ class World:
     def read_sonar_cm(self) -> int | None:
         """One HC-SR04 ping: whole centimetres within 2..400, or None when no echo returns.
 
+        Each of `sonar_rays` rays across the beam ends at the first wall it meets; it echoes only
+        when it meets that wall within `sonar_max_incidence_deg` of the wall's normal (a wall hit
+        more obliquely reflects the sound away). The nearest echo is the reading; then the
+        optional noise, and with probability `sonar_drop` the echo is lost (seeded).
         With a clock that can be charged (`SimClock`), the ping takes its robot time: the wait for
         the 60 ms ping interval, then the echo's flight (or the 38 ms time-out).
         """
@@ -206,22 +215,33 @@ class World:
             if since < self.car.sonar_interval_s:
                 self._charge(self.car.sonar_interval_s - since)
             origin, bearing = self._sonar_origin()
-            half = math.radians(self.car.sonar_beam_deg) / 2
-            n = max(1, self.car.sonar_rays)
-            offsets = [0.0] if n == 1 else [-half + 2 * half * i / (n - 1) for i in range(n)]
-            hits = [d for off in offsets if (d := cast(origin, bearing + off, self._walls)) is not None]
+            echo_m = self._echo_m(origin, bearing)
             result: int | None = None
-            if hits:
-                cm = min(hits) * 100.0
+            if echo_m is not None:
+                cm = echo_m * 100.0
                 if self.sonar_noise_cm > 0:
                     cm += self._rng.gauss(0.0, self.sonar_noise_cm)
-                if cm <= self.car.sonar_max_cm:
+                dropped = self.sonar_drop > 0 and self._rng.random() < self.sonar_drop
+                if not dropped and cm <= self.car.sonar_max_cm:
                     result = max(self.car.sonar_min_cm, round(cm))
             self._trace.pings.append(Ping(self._time, origin, bearing, result))
             self._last_ping_s = self._time
             echo_s = self.car.sonar_timeout_s if result is None else 2 * result / 100.0 / SPEED_OF_SOUND_MPS
             self._charge(echo_s)
             return result
+
+    def _echo_m(self, origin: Point, bearing: float) -> float | None:
+        """The nearest echo across the beam in metres, or None when no ray comes back."""
+        half = math.radians(self.car.sonar_beam_deg) / 2
+        n = max(1, self.car.sonar_rays)
+        offsets = [0.0] if n == 1 else [-half + 2 * half * i / (n - 1) for i in range(n)]
+        steepest = math.radians(self.car.sonar_max_incidence_deg)
+        echoes = []
+        for offset in offsets:
+            hit = cast_hit(origin, bearing + offset, self._walls)
+            if hit is not None and incidence(bearing + offset, hit[1]) <= steepest:
+                echoes.append(hit[0])
+        return min(echoes, default=None)
 
     # --- integration ---------------------------------------------------------------------------
 
