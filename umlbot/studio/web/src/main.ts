@@ -1,5 +1,7 @@
 // umlbot studio page: connection, diagram list, live/replay driving, panels.
 
+import type { EditHooks } from "./edit";
+import { Editor } from "./edit";
 import { layoutActivity, layoutComponents, warmUp } from "./layout";
 import type { DiagramView } from "./render";
 import { Renderer, fmtMs } from "./render";
@@ -8,11 +10,11 @@ import type { CallRow, Snapshot } from "./state";
 import { ModelIndex, StudioState, nodeKey } from "./state";
 import type { Diagnostic, HelloMsg, ModelView, MonitorEvent, ServerMsg } from "./types";
 
-interface StudioHooks { latencies: number[]; frames: number[]; ready: boolean; applied: number }
+interface StudioHooks { latencies: number[]; frames: number[]; ready: boolean; applied: number; edit: EditHooks | null }
 declare global {
   interface Window { __studio: StudioHooks }
 }
-const hooks: StudioHooks = { latencies: [], frames: [], ready: false, applied: 0 };
+const hooks: StudioHooks = { latencies: [], frames: [], ready: false, applied: 0, edit: null };
 window.__studio = hooks;
 const KEEP = 10_000;
 const pushCapped = (a: number[], v: number): void => {
@@ -48,6 +50,8 @@ let views = new Map<string, DiagramView>();
 let current = "";
 let generation = 0;
 let laneDiagram = new Map<string, string>();
+let replaced = new Map<string, DiagramView>(); // drawings shown until their redraw is ready
+let editor: Editor | null = null;
 const savedViews = new Map<string, { x: number; y: number; k: number }>(); // pan/zoom kept across redraws
 
 // ---------------------------------------------------------------- model and diagrams
@@ -63,10 +67,10 @@ function setModel(m: ModelView | null, diagnostics: Diagnostic[]): void {
   index = new ModelIndex(m);
   state.index = index;
   renderer.reset(m);
-  for (const v of views.values()) {
-    if (v.view) savedViews.set(v.id, v.view);
-    v.svg.remove();
-  }
+  // The old drawings stay on screen until their new ones are ready (an edit redraws in place).
+  const old = views;
+  for (const v of old.values()) if (v.view) savedViews.set(v.id, v.view);
+  replaced = old;
   views = new Map();
   laneDiagram = new Map();
   for (const d of m?.diagrams ?? []) for (const l of d.lanes) laneDiagram.set(l.name, d.id);
@@ -91,12 +95,22 @@ function setModel(m: ModelView | null, diagnostics: Diagnostic[]): void {
   setDiagnostics(diagnostics);
 
   if (!m) {
+    for (const v of replaced.values()) v.svg.remove();
+    replaced = new Map();
     messageEl.textContent = "The model does not compile: see the diagnostics.";
+    if (editor && editor.info.empty) editor.showEmpty(messageEl);
     messageEl.hidden = false;
+    editor?.renderPalette();
     hooks.ready = true;
     return;
   }
   messageEl.hidden = true;
+  for (const [id, v] of replaced) {
+    if (!diagramIds(m).includes(id)) {
+      v.svg.remove();
+      replaced.delete(id);
+    }
+  }
   const wanted = hashDiagram();
   const ids = diagramIds(m);
   const first = wanted && ids.includes(wanted) ? wanted : current && ids.includes(current) ? current : (m.diagrams[0]?.id ?? "components");
@@ -112,14 +126,15 @@ async function layoutAll(m: ModelView, first: string, gen: number): Promise<void
       const t0 = performance.now();
       let view: DiagramView | null;
       let t1: number;
+      const positions = editor?.positions(id) ?? {};
       if (id === "components") {
-        const layout = await layoutComponents(m);
+        const layout = await layoutComponents(m, positions);
         if (gen !== generation) return;
         t1 = performance.now();
         view = renderer.buildComponents(layout, m);
       } else {
         const d = m.diagrams.find((x) => x.id === id)!;
-        const layout = await layoutActivity(d);
+        const layout = await layoutActivity(d, positions);
         if (gen !== generation) return;
         t1 = performance.now();
         view = await renderer.buildActivity(layout, () => gen !== generation);
@@ -127,6 +142,8 @@ async function layoutAll(m: ModelView, first: string, gen: number): Promise<void
       }
       view.svg.style.display = id === current ? "" : "none";
       canvas.append(view.svg);
+      replaced.get(id)?.svg.remove();
+      replaced.delete(id);
       views.set(id, view);
       const saved = savedViews.get(id);
       if (saved) {
@@ -134,6 +151,7 @@ async function layoutAll(m: ModelView, first: string, gen: number): Promise<void
         applyView(view);
       } else if (id === current) fit(view);
       renderer.adoptFresh(state);
+      editor?.highlightSelection();
       state.dirtyOrch = true;
       schedule();
       console.debug(`studio: ${id} laid out in ${(t1 - t0).toFixed(0)} ms, drawn in ${(performance.now() - t1).toFixed(0)} ms`);
@@ -153,6 +171,8 @@ function select(id: string): void {
   current = id;
   for (const li of listEl.querySelectorAll<HTMLLIElement>("li")) li.classList.toggle("selected", li.dataset.diagram === id);
   for (const [vid, v] of views) v.svg.style.display = vid === id ? "" : "none";
+  for (const [vid, v] of replaced) v.svg.style.display = vid === id ? "" : "none";
+  editor?.diagramShown(id);
   const v = views.get(id);
   if (v && !v.view) fit(v);
   if (hashDiagram() !== id) history.replaceState(null, "", `#diagram=${encodeURIComponent(id)}`);
@@ -167,7 +187,9 @@ window.addEventListener("hashchange", () => {
   if (id && id !== current) select(id);
 });
 
+let diagnostics: Diagnostic[] = [];
 function setDiagnostics(list: Diagnostic[]): void {
+  diagnostics = list;
   diagEl.replaceChildren();
   renderer.marks.clear();
   for (const d of list) {
@@ -175,19 +197,14 @@ function setDiagnostics(list: Diagnostic[]): void {
     li.className = d.severity;
     li.textContent = d.text;
     diagEl.append(li);
-    for (const dg of model?.diagrams ?? []) {
-      for (const lane of dg.lanes) {
-        if (lane.file !== d.file) continue;
-        for (const n of lane.nodes) {
-          if (n.line !== d.line) continue;
-          const key = nodeKey(lane.name, n.id);
-          const old = renderer.marks.get(key);
-          if (!old || (old.level === "warning" && d.severity === "error")) renderer.marks.set(key, { level: d.severity, message: d.text });
-          li.dataset.diagram = dg.id;
-          li.dataset.lane = lane.name;
-          li.dataset.node = n.id;
-        }
-      }
+    const at = nodeAtLine(d.file, d.line);
+    if (at) {
+      const key = nodeKey(at.lane, at.node);
+      const old = renderer.marks.get(key);
+      if (!old || (old.level === "warning" && d.severity === "error")) renderer.marks.set(key, { level: d.severity, message: d.text });
+      li.dataset.diagram = at.diagram;
+      li.dataset.lane = at.lane;
+      li.dataset.node = at.node;
     }
     li.addEventListener("click", () => {
       if (!li.dataset.diagram) return;
@@ -211,6 +228,23 @@ function setDiagnostics(list: Diagnostic[]): void {
     li.querySelector("small")?.before(badge);
   }
   state.markAllDirty();
+}
+
+/**
+ * The node a diagnostic at file:line belongs to: the node of that file whose first line is the last
+ * one at or before it (a bad guard on a branch's line marks its decision).
+ */
+function nodeAtLine(file: string, line: number): { diagram: string; lane: string; node: string } | null {
+  let best: { diagram: string; lane: string; node: string; line: number } | null = null;
+  for (const dg of model?.diagrams ?? []) {
+    for (const lane of dg.lanes) {
+      if (lane.file !== file) continue;
+      for (const n of lane.nodes) {
+        if (n.line <= line && (!best || n.line > best.line)) best = { diagram: dg.id, lane: lane.name, node: n.id, line: n.line };
+      }
+    }
+  }
+  return best;
 }
 
 // ---------------------------------------------------------------- pan / zoom
@@ -286,6 +320,7 @@ canvas.addEventListener("wheel", (ev) => {
 
 let drag: { x: number; y: number; vx: number; vy: number; moved: boolean; id: number } | null = null;
 canvas.addEventListener("pointerdown", (ev) => {
+  if (editor?.pointerDown(ev)) return;
   const v = views.get(current);
   if (!v || !v.view || ev.button !== 0) return;
   drag = { x: ev.clientX, y: ev.clientY, vx: v.view.x, vy: v.view.y, moved: false, id: ev.pointerId };
@@ -633,6 +668,42 @@ timeInput.addEventListener("input", () => {
   render(); // a scrub shows its moment at once, not a frame later
 });
 
+// ---------------------------------------------------------------- editing
+
+/** Forget the counts of the previous run (a new run starts). */
+function resetLive(): void {
+  queue.length = 0;
+  qpos = 0;
+  state = new StudioState(index);
+  callRows = new Map();
+  callsBody.replaceChildren();
+  state.markAllDirty();
+  schedule();
+}
+
+const editorHost = {
+  canvas,
+  model: (): ModelView | null => model,
+  current: (): string => current,
+  scale: (): number => views.get(current)?.view?.k ?? 1,
+  select,
+  setModel: (m: ModelView | null, d: Diagnostic[]): void => {
+    if (!m && model && !(editor?.info.empty)) {
+      // Broken by an edit: keep the last good diagrams, list the problems.
+      setDiagnostics(d);
+      bannerEl.textContent = "The model does not compile now (see Diagnostics): the diagram shows its last version that did.";
+      bannerEl.hidden = false;
+    } else {
+      bannerEl.hidden = true;
+      setModel(m, d);
+    }
+    schedule();
+  },
+  relayout: (): void => setModel(model, diagnostics),
+  diagnostics: (): Diagnostic[] => diagnostics,
+  resetLive,
+};
+
 // ---------------------------------------------------------------- connection
 
 let ws: WebSocket | null = null;
@@ -662,6 +733,13 @@ function resetSession(hello: HelloMsg): void {
   modeEl.dataset.mode = mode;
   document.title = `umlbot studio — ${name} (${mode})`;
   sim.setTrack(hello.track);
+  if (hello.edit) {
+    if (editor) editor.setInfo(hello.edit);
+    else {
+      hooks.edit = { version: hello.edit.version, busy: false, dirty: hello.edit.dirty, requests: 0, errors: [] };
+      editor = new Editor(editorHost, hello.edit, hooks.edit);
+    }
+  }
   setModel(hello.model, hello.diagnostics ?? []);
   if (mode === "replay") setupReplay(hello.replay?.events ?? []);
   state.markAllDirty();
@@ -691,6 +769,22 @@ function onMessage(msg: ServerMsg): void {
     case "world":
       sim.push(msg);
       schedule();
+      break;
+    case "files":
+      editor?.onFiles(msg);
+      schedule();
+      break;
+    case "conflict":
+      editor?.onConflict(msg);
+      break;
+    case "track":
+      sim.setTrack(msg.track);
+      resetLive();
+      editor?.setRunning(true);
+      break;
+    case "run":
+      editor?.setRunning(msg.state === "running" || msg.state === "starting");
+      if (msg.track !== undefined) sim.setTrack(msg.track);
       break;
     case "model":
       if (!msg.model && model) {
@@ -738,6 +832,7 @@ function connect(): void {
 }
 
 window.addEventListener("keydown", (ev) => {
+  if (editor?.key(ev)) return;
   const t = ev.target as HTMLElement;
   if (ev.ctrlKey || ev.metaKey || ev.altKey || /^(INPUT|SELECT|TEXTAREA|BUTTON)$/.test(t.tagName)) return;
   if (ev.key === " " && replay) {

@@ -76,6 +76,10 @@ export class Renderer {
   private freshEdges: string[] = [];
   private freshLanes = new Set<string>();
   private freshComps: string[] = [];
+  // Lanes drawn so far, by name: an identical lane (same geometry) is moved into the new drawing
+  // as it is after an edit, so an edit redraws only the lanes it changed.
+  private built = new Map<string, BuiltLane>();
+  private pool = new Map<string, BuiltLane>();
 
   /** Bring elements built since the last call up to date with `state` (nodes within the budget). */
   adoptFresh(state: StudioState): void {
@@ -96,6 +100,8 @@ export class Renderer {
   }
 
   reset(model: ModelView | null): void {
+    this.pool = this.built;
+    this.built = new Map();
     this.freshNodes = [];
     this.freshEdges = [];
     this.freshLanes.clear();
@@ -139,7 +145,29 @@ export class Renderer {
         budget = performance.now();
       }
       const lane = lg.lane;
+      const key = laneKey(lg, this.virtualLanes);
+      const old = this.pool.get(lane.name);
+      if (old && old.key === key) {
+        this.pool.delete(lane.name);
+        v.viewport.append(old.g);
+        for (const [k, ne] of old.nodes) {
+          this.nodeEls.set(k, ne);
+          this.freshNodes.push(k);
+          ne.count = -2;
+        }
+        for (const [k, ee] of old.edges) {
+          this.edgeEls.set(k, ee);
+          this.freshEdges.push(k);
+          ee.count = -1;
+        }
+        this.freshLanes.add(lane.name);
+        this.built.set(lane.name, old);
+        continue;
+      }
+      const laneNodes = new Map<string, NodeEl>();
+      const laneEdges = new Map<string, EdgeEl>();
       const g = svgEl("g", { class: "lane", "data-lane": lane.name, transform: `translate(${lg.x},${lg.y})` }, v.viewport);
+      this.built.set(lane.name, { key, g, nodes: laneNodes, edges: laneEdges });
       svgEl("rect", { class: "lane-bg", x: 0, y: 0, width: lg.w, height: lg.h }, g);
       svgEl("rect", { class: "lane-header", x: 0, y: 0, width: lg.w, height: lg.headerH }, g);
       svgEl("text", { class: "lane-title", x: lg.w / 2, y: 22 }, g, lane.name);
@@ -151,22 +179,29 @@ export class Renderer {
       const nodesG = svgEl("g", { class: "nodes" }, body);
       for (const e of lg.edges) {
         const eg = svgEl("g", { class: "edge", "data-lane": lane.name, "data-source": e.source, "data-target": e.target, "data-count": 0 }, edgesG);
-        svgEl("path", { class: "line", d: roundedPath(e.points), "marker-end": marker }, eg);
+        const d = roundedPath(e.points);
+        svgEl("path", { class: "line", d, "marker-end": marker }, eg);
+        svgEl("path", { class: "hit", d }, eg); // a wide invisible stroke to click an edge (edit mode)
         let label: SVGTextElement | null = null;
         if (e.labelBox) {
           label = svgEl("text", { class: "elabel", x: e.labelBox.x + 2, y: e.labelBox.y + 12 }, eg, e.label);
         }
         const ek = edgeKey(lane.name, e.source, e.target);
-        this.edgeEls.set(ek, { g: eg, label, guard: e.label, count: -1 });
+        const ee = { g: eg, label, guard: e.label, count: -1 };
+        this.edgeEls.set(ek, ee);
+        laneEdges.set(ek, ee);
         this.freshEdges.push(ek);
       }
-      for (const nb of lg.nodes) this.buildNode(nodesG, lane.name, nb);
+      for (const nb of lg.nodes) {
+        const k = this.buildNode(nodesG, lane.name, nb);
+        laneNodes.set(k, this.nodeEls.get(k)!);
+      }
       this.freshLanes.add(lane.name);
     }
     return v;
   }
 
-  private buildNode(parent: SVGGElement, lane: string, nb: NodeBox): void {
+  private buildNode(parent: SVGGElement, lane: string, nb: NodeBox): string {
     const n = nb.node;
     const { w, h } = nb;
     // Absolute coordinates, no transform per node: thousands of transform nodes make Chromium's
@@ -176,6 +211,7 @@ export class Renderer {
     const pts = (list: [number, number][]): string => list.map(([a, b]) => `${X(a)},${Y(b)}`).join(" ");
     const g = svgEl("g", {
       class: `node kind-${n.kind}`, "data-lane": lane, "data-node": n.id, "data-kind": n.kind, "data-count": 0,
+      "data-x": attrNum(nb.x), "data-y": attrNum(nb.y), "data-w": nb.w, "data-h": nb.h,
     }, parent);
     const title = svgEl("title", {}, g, n.label);
     let labelY = 21;
@@ -238,6 +274,7 @@ export class Renderer {
       g, stats, statsLines, value, title, label: n.label, count: -2, level: "info", message: "", valueText: "",
     });
     this.freshNodes.push(key);
+    return key;
   }
 
   buildComponents(layout: ComponentLayout, model: ModelView): DiagramView {
@@ -262,7 +299,9 @@ export class Renderer {
     for (const c of layout.components) {
       const m = model.components.find((mc) => mc.name === c.name);
       if (!m) continue;
-      const g = svgEl("g", { class: "component unknown", "data-component": c.name, "data-state": "unknown" }, v.viewport);
+      const g = svgEl("g", {
+        class: "component unknown", "data-component": c.name, "data-state": "unknown", "data-x": attrNum(c.x), "data-y": attrNum(c.y),
+      }, v.viewport);
       const inner = svgEl("g", { transform: `translate(${c.x},${c.y})` }, g);
       const box = svgEl("rect", { class: "box", width: c.w, height: c.h, rx: 3 }, inner);
       // UML component icon
@@ -453,6 +492,19 @@ export class Renderer {
       ce.state.textContent = "no retained state";
     }
   }
+}
+
+interface BuiltLane { key: string; g: SVGGElement; nodes: Map<string, NodeEl>; edges: Map<string, EdgeEl> }
+
+/** What a lane's drawing depends on (not the nodes' source lines, which shift with edits elsewhere). */
+function laneKey(lg: ActivityLayout["lanes"][number], virtualLanes: Set<string>): string {
+  const l = lg.lane;
+  return JSON.stringify([
+    lg.x, lg.y, lg.w, lg.h, l.name, l.file, l.virtual, l.component,
+    lg.nodes.map((nb) => [nb.node.id, nb.node.kind, nb.node.label, nb.x, nb.y, nb.w, nb.h, nb.statsX, nb.statsY,
+      nb.node.kind === "action" && virtualLanes.has(nb.node.label.replace(/\(\s*\)$/, ""))]),
+    lg.edges.map((e) => [e.source, e.target, e.label, e.points, e.labelBox]),
+  ]);
 }
 
 function roundedPath(pts: Point[]): string {

@@ -10,6 +10,7 @@ export interface ModelNode {
   line: number;
   store?: string;
   signal?: string;
+  fields?: Record<string, unknown>; // editable fields as written (edit mode)
 }
 
 export interface ModelEdge {
@@ -17,6 +18,7 @@ export interface ModelEdge {
   source: string;
   target: string;
   label: string;
+  guard?: string;
 }
 
 export interface ModelLane {
@@ -115,7 +117,86 @@ export interface HelloMsg {
   diagnostics: Diagnostic[];
   track: TrackView | null;
   replay: { file: string; events: MonitorEvent[] } | null;
+  edit?: EditInfo | null;
 }
+
+// ---- editing (contract: /work/notes/edit-contract.md) ----
+
+/** Positions the user chose: diagram id -> "<lane>/<node>" (or component name) -> [x, y]. */
+export type LayoutMap = Record<string, Record<string, [number, number]>>;
+
+export interface EditInfo {
+  token: string;
+  root: string;
+  empty: boolean;
+  dirty: boolean;
+  version: number;
+  layout: LayoutMap;
+}
+
+export interface ParamInfo { name: string; type?: string; minimum?: number | null; maximum?: number | null; unit?: string | null }
+export interface FeatureInfo { params: ParamInfo[] | null; returns?: string | null; doc?: string }
+export interface ImplInfo {
+  id: string;
+  kind: string;
+  service?: string;
+  title?: string;
+  features: Record<string, FeatureInfo> | string[];
+  aliases: string[];
+  settings_schema: JsonSchema | null;
+  settings_doc?: Record<string, string>;
+  doc?: string;
+}
+export interface JsonSchema {
+  type?: string | string[];
+  properties?: Record<string, JsonSchema>;
+  required?: string[];
+  title?: string;
+  description?: string;
+  default?: unknown;
+  minimum?: number;
+  maximum?: number;
+  enum?: unknown[];
+  items?: JsonSchema;
+  anyOf?: JsonSchema[];
+  $ref?: string;
+  $defs?: Record<string, JsonSchema>;
+}
+export interface FieldInfo { type?: string; required?: boolean; doc?: string }
+export interface Library {
+  kinds: Record<string, { features: Record<string, FeatureInfo>; doc?: string }>;
+  implementations: ImplInfo[];
+  builtins: ({ name: string } & FeatureInfo)[];
+  node_kinds: Record<string, { fields: Record<string, FieldInfo>; doc?: string }>;
+  expression_help?: unknown;
+}
+
+export interface EditAnswer {
+  version: number;
+  model: ModelView | null;
+  diagnostics: Diagnostic[];
+  changed?: string[];
+  dirty: boolean;
+  layout?: LayoutMap;
+}
+
+export interface Completion { label: string; kind: string; detail?: string; insert?: string }
+export interface Signature { label: string; params: ParamInfo[]; active: number }
+export interface CompleteAnswer { items: Completion[]; signature: Signature | null; from?: number; to?: number }
+
+export interface FilesMsg {
+  type: "files";
+  reason: string;
+  changed: string[];
+  model: ModelView | null;
+  diagnostics: Diagnostic[];
+  version: number;
+  dirty?: boolean;
+  layout?: LayoutMap;
+}
+export interface ConflictMsg { type: "conflict"; changed: string[] }
+export interface TrackMsg { type: "track"; track: TrackView | null; run?: unknown }
+export interface RunMsg { type: "run"; state: string; detail?: string; track?: TrackView | null }
 
 export interface EventsMsg {
   type: "events";
@@ -149,4 +230,4 @@ export interface ModelMsg {
   diagnostics: Diagnostic[];
 }
 
-export type ServerMsg = HelloMsg | EventsMsg | WorldMsg | ModelMsg;
+export type ServerMsg = HelloMsg | EventsMsg | WorldMsg | ModelMsg | FilesMsg | ConflictMsg | TrackMsg | RunMsg;
