@@ -209,9 +209,9 @@ class Editor:
     def __init__(self, root: Path) -> None:
         self.workspace = Workspace(root)
         data = StudioData(mode="live", robot="car", source=str(root), model=None, diagnostics=[])
-        data.edit = self.workspace.hello
         self.server = StudioServer(data, port=0)
         self.server.api = EditApi(self.workspace)
+        data.edit = self.server.api.hello
         self.thread = StudioThread(self.server)
         self.url = self.thread.start()
         self.token = self.workspace.token
@@ -416,3 +416,48 @@ def test_studio_on_a_new_folder_offers_and_writes_the_starter(tmp_path: Path) ->
     check = subprocess.run(umlbot_argv("check", str(folder)), capture_output=True, text=True, timeout=60,
                            check=False)
     assert check.returncode == 0, check.stdout + check.stderr
+
+
+def test_completion_offers_features_datastores_lanes_and_argument_ranges(car: tuple[Path, Editor]) -> None:
+    _, editor = car
+
+    def complete(text: str, lane: str = "RaspberryPI") -> dict[str, Any]:
+        status, answer = editor.post("complete", {"lane": lane, "text": text, "cursor": len(text),
+                                                  "field": "call"})
+        assert status == 200
+        return answer
+
+    assert [i["label"] for i in complete("LeftActuator.")["items"]] == ["enabled", "direction", "dutycycle"]
+    assert [i["label"] for i in complete("Measure.")["items"]] == ["center", "left", "right"]
+    labels = {i["label"]: i["kind"] for i in complete("")["items"]}
+    assert labels["speed_percent"] == "datastore" and labels["Stop"] == "lane"
+    assert labels["msleep"] == "builtin" and labels["Sensor"] == "component"
+    hint = complete("Sensor.angle(")["signature"]
+    assert hint["params"][0] == {"name": "degrees", "type": "int", "minimum": 0, "maximum": 180, "unit": "°"}
+    assert complete("RaspberryPI.writePin(4, ")["signature"]["active"] == 1
+    assert complete("Measure.ri")["replace"] == [8, 10]
+
+
+def test_run_drives_the_working_copy_in_the_simulator_and_the_page_follows(
+        car: tuple[Path, Editor]) -> None:
+    _, editor = car
+    assert "s_bend" in editor.get("tracks")["tracks"]
+    status, answer = editor.post("run", {"track": "s_bend"})
+    assert status == 200 and answer["running"], answer
+    assert editor.post("run", {"track": "s_bend"})[0] == 409  # one run at a time
+
+    def until(frames: list[dict[str, Any]]) -> bool:
+        xs = {f["car"]["x"] for f in frames if f.get("type") == "world"}
+        traced = any(e.get("type") == "trace" for f in frames if f.get("type") == "events"
+                     for e in f["events"])
+        return len(xs) > 1 and traced
+
+    frames = read_frames(editor.url, until, timeout=120)
+    run = frames[0]["edit"]["run"]
+    if not run["running"]:  # the page opened before the sim's broker ran: the frame follows
+        run = next(f for f in frames if f.get("type") == "run")
+    assert run["robot"] == "car" and run["track"]["name"]
+    status, answer = editor.post("stop", {})
+    assert status == 200 and answer["running"] is False
+    assert answer["result"]["reason"] in ("interrupted", "goal", "collision"), answer
+    assert editor.post("run", {"track": "../../etc/passwd"})[0] == 400

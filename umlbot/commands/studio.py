@@ -57,7 +57,7 @@ def command(model: Path, broker_url: str | None, ca_file: Path | None, robot: st
 
         workspace = Workspace(model)
         server.api = EditApi(workspace)
-        data.edit = workspace.hello
+        data.edit = server.api.hello
     source: BrokerSource | None = None
     what = f"replay of {replay_file}"
     if replay_file is not None:

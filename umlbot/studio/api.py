@@ -9,6 +9,7 @@ thread, one request at a time, so the page's live view never waits for it. docs/
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import json
 import secrets
 from collections.abc import Awaitable, Callable
@@ -18,6 +19,7 @@ from aiohttp import web
 
 from umlbot.logs import get_logger
 from umlbot.studio.hub import dumps
+from umlbot.studio.run import StudioRun, bundled_tracks, resolve_track
 from umlbot.studio.textedit import EditError
 from umlbot.studio.workspace import Conflict, Workspace
 
@@ -41,12 +43,15 @@ class EditApi:
         self.workspace = workspace
         self.server: StudioServer | None = None
         self._lock = asyncio.Lock()
-        self.extra_posts: dict[str, Handler] = {}
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self.run: StudioRun | None = None
 
     def routes(self, app: web.Application, server: StudioServer) -> None:
         self.server = server
+        self.run = StudioRun(server.hub, self.broadcast)
         app.router.add_get("/api/library", self._library)
         app.router.add_get("/api/files", self._files)
+        app.router.add_get("/api/tracks", self._tracks)
         posts: dict[str, Handler] = {
             "edit": lambda body: self.workspace.edit(body.get("version"), body.get("ops")),
             "undo": lambda body: self.workspace.undo(),
@@ -54,7 +59,9 @@ class EditApi:
             "save": lambda body: self.workspace.save(body.get("version"), bool(body.get("force"))),
             "reload": lambda body: self.workspace.reload(),
             "new": lambda body: self.workspace.new_model(body.get("name")),
-            **self.extra_posts,
+            "complete": self._complete,
+            "run": self._run,
+            "stop": lambda body: self._sim().stop(),
         }
         for name, handler in posts.items():
             app.router.add_post(f"/api/{name}", self._post(handler))
@@ -72,6 +79,50 @@ class EditApi:
         async with self._lock:
             ws = self.workspace
             return _json({"files": ws.texts(), "version": ws.version, "dirty": ws.dirty})
+
+    def hello(self) -> dict[str, Any]:
+        """The `edit` part of the socket's hello: the session, the model, a run going on."""
+        return {**self.workspace.hello(), "run": self.run.current if self.run is not None
+                else {"running": False}}
+
+    async def _tracks(self, request: web.Request) -> web.StreamResponse:
+        self._guard(request)
+        return _json({"tracks": list(bundled_tracks())})
+
+    def _complete(self, body: dict[str, Any]) -> dict[str, Any]:
+        from umlbot.studio.completion import complete
+
+        text = body.get("text")
+        cursor = body.get("cursor")
+        if not isinstance(text, str) or not (cursor is None or isinstance(cursor, int)):
+            raise EditError("complete needs 'text' (a string) and 'cursor' (an index into it)")
+        field = body.get("field")
+        lane = body.get("lane")
+        return complete(self.workspace.answer_cache.get("model"), lane if isinstance(lane, str) else None,
+                        text, cursor, field if isinstance(field, str) else None)
+
+    def _sim(self) -> StudioRun:
+        assert self.run is not None
+        return self.run
+
+    def _run(self, body: dict[str, Any]) -> dict[str, Any]:
+        ws = self.workspace
+        if ws.result is None or ws.result.model is None:
+            raise Conflict({"error": "the model has errors: fix them before running it",
+                            "version": ws.version})
+        return self._sim().start(dict(ws.files), resolve_track(body.get("track") or "s_bend", ws.root))
+
+    def broadcast(self, frame: dict[str, Any]) -> None:
+        """Send a frame to every page (from any thread)."""
+        loop = self._loop
+        if loop is not None and self.server is not None:
+            with contextlib.suppress(RuntimeError):  # the loop has closed
+                loop.call_soon_threadsafe(self.server.hub.broadcast, frame)
+
+    def close(self) -> None:
+        """End a run that is going on (the studio stops)."""
+        if self.run is not None and self.run.running:
+            self.run.stop()
 
     # --- writing ---------------------------------------------------------------------------------
 
@@ -94,7 +145,7 @@ class EditApi:
             if not isinstance(token, str) or not secrets.compare_digest(token, self.workspace.token):
                 log.warning("studio write refused: bad token", path=request.path)
                 return _json({"error": "missing or wrong token (reload the page)"}, 403)
-            loop = asyncio.get_running_loop()
+            loop = self._loop = asyncio.get_running_loop()
             async with self._lock:
                 try:
                     answer = await loop.run_in_executor(None, self._locked, handler, body)
@@ -114,7 +165,7 @@ class EditApi:
 
     async def watch(self) -> None:
         """Look at the model's files every `WATCH_EVERY_S` and tell the pages what changed."""
-        loop = asyncio.get_running_loop()
+        loop = self._loop = asyncio.get_running_loop()
         while True:
             await asyncio.sleep(WATCH_EVERY_S)
             try:

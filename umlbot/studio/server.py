@@ -142,6 +142,8 @@ class StudioServer:
 
     async def stop(self) -> None:
         """Close every page and the listener; safe to call twice."""
+        if self.api is not None:
+            await asyncio.get_running_loop().run_in_executor(None, self.api.close)
         for task in self._tasks:
             task.cancel()
         for task in self._tasks:
