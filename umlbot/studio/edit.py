@@ -96,8 +96,9 @@ class Edits:
         return Text(content, rel)
 
     def put(self, t: Text) -> None:
-        if self.files.get(t.name) != t.text:
-            self.files[t.name] = t.text
+        whole = t.whole
+        if self.files.get(t.name) != whole:
+            self.files[t.name] = whole
             self.changed.add(t.name)
 
     def create(self, rel: str, content: str) -> None:
@@ -118,13 +119,22 @@ class Edits:
                  and re.fullmatch(rf"{ACTIVITIES_DIR}/[^/]+\.ya?ml", rel)]
         return [MODEL_FILE, *sorted(names)] if self.files.get(MODEL_FILE) is not None else sorted(names)
 
-    def find_lane(self, lane: str) -> tuple[Text, yaml.MappingNode, yaml.SequenceNode | None, int | None]:
-        """(file, the lane's mapping, the `lanes` list holding it or None, its index there)."""
+    def find_lane(self, lane: str, whole: bool = False
+                  ) -> tuple[Text, yaml.MappingNode, yaml.SequenceNode | None, int | None]:
+        """(file, the lane's mapping, the `lanes` list holding it or None, its index there).
+
+        In a file of several lanes the text is only that lane's item (unless `whole`): a big
+        file is not read whole for an edit of one lane.
+        """
         for rel in self.lane_files():
             content = self.files[rel]
             assert content is not None
             if lane not in content:  # cheap: a lane's name is written in its file
                 continue
+            if not whole:
+                part = _lane_part(content, rel, lane)
+                if part is not None:
+                    return part
             t = Text(content, rel)
             root = t.root()
             if isinstance(root, yaml.MappingNode):
@@ -149,6 +159,37 @@ class Edits:
             if self.files.get(name) is not None:
                 return name
         return None
+
+
+def _lane_part(content: str, rel: str, lane: str
+               ) -> tuple[Text, yaml.MappingNode, yaml.SequenceNode, int] | None:
+    """The item `- lane: <lane>` of a `lanes:` list as its own text, when it is written so."""
+    match = re.search(rf"^( *)- +lane: *['\"]?{re.escape(lane)}['\"]? *(#.*)?\r?$", content, re.MULTILINE)
+    if match is None:
+        return None
+    start = match.start()
+    indent = len(match.group(1))
+    end = len(content)
+    at = content.find("\n", match.end())
+    while at >= 0:
+        line_end = content.find("\n", at + 1)
+        line = content[at + 1:line_end if line_end >= 0 else len(content)]
+        stripped = line.lstrip(" ")
+        if stripped and not stripped.startswith("#") and len(line) - len(stripped) <= indent:
+            end = at + 1
+            break
+        at = line_end
+    t = Text(content[start:end], rel, before=content[:start], after=content[end:])
+    try:
+        root = t.root()
+    except EditError:
+        return None
+    if not isinstance(root, yaml.SequenceNode) or len(root.value) != 1:
+        return None
+    item = root.value[0]
+    if not isinstance(item, yaml.MappingNode) or _scalar_text(get(item, "lane")) != lane:
+        return None
+    return t, item, root, 0
 
 
 def _scalar_text(node: yaml.Node | None) -> str | None:
@@ -363,7 +404,7 @@ def add_lane(e: Edits, op: Op) -> None:
     if not _NAME.fullmatch(lane):
         raise EditError(f"swimlane name {lane!r} is not a plain name (letters, digits and _)")
     try:
-        e.find_lane(lane)
+        e.find_lane(lane, whole=True)
     except EditError:
         pass
     else:
@@ -397,7 +438,7 @@ def add_lane(e: Edits, op: Op) -> None:
 
 def remove_lane(e: Edits, op: Op) -> None:
     lane = _need(op.lane, "lane", op)
-    t, _, lanes, index = e.find_lane(lane)
+    t, _, lanes, index = e.find_lane(lane, whole=True)
     if lanes is None or index is None:
         e.remove(t.name)
         return
