@@ -4,6 +4,7 @@
 // answers with; the server's compiler checks every edit.
 
 import type { Positions } from "./layout";
+import { sameFile } from "./paths";
 import type {
   CompleteAnswer, Completion, ConflictMsg, Diagnostic, EditAnswer, EditInfo, FeatureInfo, FieldInfo, FilesMsg,
   ImplInfo, JsonSchema, LayoutMap, Library, ModelComponent, ModelLane, ModelNode, ModelView, NodeKind,
@@ -67,7 +68,9 @@ export function paramText(p: { name: string; type?: string; minimum?: number | n
   if (p.type) s += `: ${p.type}`;
   const lo = p.minimum ?? null;
   const hi = p.maximum ?? null;
-  if (lo !== null || hi !== null) s += ` ${lo ?? "…"}..${hi ?? "…"}`;
+  if (lo !== null && hi !== null) s += ` ${lo}..${hi}`;
+  else if (lo !== null) s += ` ≥ ${lo}`;
+  else if (hi !== null) s += ` ≤ ${hi}`;
   if (p.unit) s += ` ${p.unit}`;
   return s;
 }
@@ -184,7 +187,7 @@ export class Editor {
 
   // ------------------------------------------------------------------ server
 
-  private async request<T>(path: string, body: Record<string, unknown>, quiet409 = false): Promise<T | null> {
+  private async request<T>(path: string, body: Record<string, unknown>, quiet409 = false, quiet = false): Promise<T | null> {
     this.hooks.requests += 1;
     try {
       const res = await fetch(path, {
@@ -202,6 +205,7 @@ export class Editor {
       if (res.status === 409 && quiet409) return data as T;
       if (!res.ok) {
         const err = (data as { error?: string } | null)?.error ?? `${res.status} ${res.statusText}`;
+        if (quiet) return null;
         if (res.status === 409 && (data as { conflict?: string[] } | null)?.conflict) {
           this.showConflict((data as { conflict: string[] }).conflict);
         } else if (res.status === 409) {
@@ -213,6 +217,7 @@ export class Editor {
       }
       return data as T;
     } catch (exc) {
+      if (quiet) return null;
       this.showNotice("error", `The studio server did not answer: ${String(exc)}`, []);
       return null;
     }
@@ -565,6 +570,7 @@ export class Editor {
         const from = this.connectFrom;
         this.connectFrom = null;
         this.host.canvas.classList.remove("connecting");
+        if (this.notice.dataset.kind === "hint") this.notice.hidden = true;
         if (from.lane !== lane) {
           this.showNotice("error", "A flow stays inside its swimlane: connect nodes of the same lane.", [], 5000);
           return true;
@@ -675,17 +681,24 @@ export class Editor {
     window.addEventListener("pointerup", up);
   }
 
-  /** Outline the selected node/edge/component/lane (after every redraw too). */
-  highlightSelection(): void {
+  /** Outline the selected node/edge/component/lane (after every redraw too); the selected element. */
+  highlightSelection(): Element | null {
     for (const e of this.host.canvas.querySelectorAll(".selected")) e.classList.remove("selected");
     const s = this.sel;
-    if (!s) return;
+    if (!s) return null;
     let q = "";
     if (s.type === "node") q = `g.node[data-lane="${CSS.escape(s.lane)}"][data-node="${CSS.escape(s.id)}"]`;
     else if (s.type === "edge") q = `g.edge[data-lane="${CSS.escape(s.lane)}"][data-source="${CSS.escape(s.source)}"][data-target="${CSS.escape(s.target)}"]`;
     else if (s.type === "component") q = `g.component[data-component="${CSS.escape(s.name)}"]`;
     else if (s.type === "lane") q = `g.lane[data-lane="${CSS.escape(s.lane)}"]`;
-    if (q) for (const e of this.host.canvas.querySelectorAll(q)) e.classList.add("selected");
+    let shown: Element | null = null;
+    if (q) {
+      for (const e of this.host.canvas.querySelectorAll(q)) {
+        e.classList.add("selected");
+        if (e.closest("svg")?.getAttribute("data-diagram") === this.host.current()) shown = e;
+      }
+    }
+    return s.type === "lane" ? null : shown;
   }
 
   private validateSelection(): void {
@@ -805,7 +818,7 @@ export class Editor {
     if (!lane || !node) return;
     el("div", { class: "props-head" }, body, `${node.kind} · ${id}`);
     el("div", { class: "props-sub" }, body, `swimlane ${laneName} · ${lane.file}:${node.line}`);
-    const marks = this.host.diagnostics().filter((d) => d.file === lane.file && d.line >= node.line && d.line < nextLine(lane, node));
+    const marks = this.host.diagnostics().filter((d) => sameFile(d.file, lane.file) && d.line >= node.line && d.line < nextLine(lane, node));
     for (const d of marks) el("div", { class: `problem ${d.severity}`, "data-severity": d.severity }, body, d.text);
     const fields = this.library?.node_kinds[node.kind]?.fields ?? defaultFields(node.kind);
     for (const [field, info] of Object.entries(fields)) {
@@ -1064,6 +1077,7 @@ export class Editor {
     let items: Completion[] = [];
     let active = 0;
     let answer: CompleteAnswer | null = null;
+    let answered = ""; // the text the shown completions are for
     let seq = 0;
     let committed = value;
     const close = (): void => {
@@ -1087,21 +1101,26 @@ export class Editor {
     const ask = async (): Promise<void> => {
       const mine = ++seq;
       const cursor = input.selectionStart ?? input.value.length;
-      const a = await this.request<CompleteAnswer>("/api/complete", { lane, text: input.value, cursor, field: name });
+      const a = await this.request<CompleteAnswer>("/api/complete", { lane, text: input.value, cursor, field: name }, false, true);
       if (mine !== seq || document.activeElement !== input) return;
       answer = a;
-      items = a?.items ?? [];
+      answered = input.value;
+      // nothing to complete right after a closed call, a number or a string
+      const prev = input.value.slice(0, cursor).trimEnd().slice(-1);
+      items = /[)\]0-9'"]/.test(prev) ? [] : (a?.items ?? []);
       active = 0;
       draw();
       const s = a?.signature;
       if (s) {
         sig.replaceChildren();
-        el("span", {}, sig, `${s.label}(`);
+        el("span", {}, sig, `${s.label.split("(")[0]}(`);
         s.params.forEach((p, i) => {
           if (i) sig.append(", ");
           el(i === s.active ? "b" : "span", { "data-param": p.name }, sig, paramText(p));
         });
         sig.append(")");
+        if (s.returns && s.returns !== "none") sig.append(` → ${s.returns}`);
+        if (s.doc) el("div", { class: "doc" }, sig, s.doc);
         sig.hidden = false;
       } else sig.hidden = true;
     };
@@ -1110,8 +1129,8 @@ export class Editor {
       if (!it) return;
       const text = it.insert ?? it.label;
       const cursor = input.selectionStart ?? input.value.length;
-      let from = answer?.from;
-      let to = answer?.to;
+      let from = answer?.replace?.[0];
+      let to = answer?.replace?.[1];
       if (from === undefined || to === undefined) {
         // replace the word being typed (after the last dot)
         const before = input.value.slice(0, cursor);
@@ -1136,6 +1155,7 @@ export class Editor {
     input.addEventListener("focus", later);
     input.addEventListener("click", later);
     input.addEventListener("keydown", (ev) => {
+      if (!list.hidden && items.length && input.value !== answered) close(); // typed on: stale
       if (!list.hidden && items.length) {
         if (ev.key === "ArrowDown" || ev.key === "ArrowUp") {
           ev.preventDefault();

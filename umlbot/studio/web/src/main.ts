@@ -3,6 +3,7 @@
 import type { EditHooks } from "./edit";
 import { Editor } from "./edit";
 import { layoutActivity, layoutComponents, warmUp } from "./layout";
+import { sameFile } from "./paths";
 import type { DiagramView } from "./render";
 import { Renderer, fmtMs } from "./render";
 import { SimPanel } from "./sim";
@@ -52,6 +53,7 @@ let generation = 0;
 let laneDiagram = new Map<string, string>();
 let replaced = new Map<string, DiagramView>(); // drawings shown until their redraw is ready
 let editor: Editor | null = null;
+let robotName = "";
 const savedViews = new Map<string, { x: number; y: number; k: number }>(); // pan/zoom kept across redraws
 
 // ---------------------------------------------------------------- model and diagrams
@@ -68,9 +70,12 @@ function setModel(m: ModelView | null, diagnostics: Diagnostic[]): void {
   state.index = index;
   renderer.reset(m);
   // The old drawings stay on screen until their new ones are ready (an edit redraws in place).
-  const old = views;
-  for (const v of old.values()) if (v.view) savedViews.set(v.id, v.view);
-  replaced = old;
+  for (const v of views.values()) if (v.view) savedViews.set(v.id, v.view);
+  for (const [id, v] of views) {
+    // a drawing that was itself waiting for its redraw is dropped for the newer one
+    replaced.get(id)?.svg.remove();
+    replaced.set(id, v);
+  }
   views = new Map();
   laneDiagram = new Map();
   for (const d of m?.diagrams ?? []) for (const l of d.lanes) laneDiagram.set(l.name, d.id);
@@ -105,6 +110,7 @@ function setModel(m: ModelView | null, diagnostics: Diagnostic[]): void {
     return;
   }
   messageEl.hidden = true;
+  titleEl.textContent = `${m.name} · robot ${robotName}`;
   for (const [id, v] of replaced) {
     if (!diagramIds(m).includes(id)) {
       v.svg.remove();
@@ -148,10 +154,12 @@ async function layoutAll(m: ModelView, first: string, gen: number): Promise<void
       const saved = savedViews.get(id);
       if (saved) {
         view.view = { ...saved };
+        if (editor) keepInView(view);
         applyView(view);
       } else if (id === current) fit(view);
       renderer.adoptFresh(state);
-      editor?.highlightSelection();
+      const sel = editor?.highlightSelection();
+      if (sel && id === current) showElement(view, sel);
       state.dirtyOrch = true;
       schedule();
       console.debug(`studio: ${id} laid out in ${(t1 - t0).toFixed(0)} ms, drawn in ${(performance.now() - t1).toFixed(0)} ms`);
@@ -218,8 +226,8 @@ function setDiagnostics(list: Diagnostic[]): void {
     li.querySelector(".badge")?.remove();
     const d = model?.diagrams.find((x) => x.id === li.dataset.diagram);
     if (!d) continue;
-    const files = new Set(d.lanes.map((l) => l.file).concat([d.file]));
-    const mine = list.filter((x) => files.has(x.file));
+    const files = d.lanes.map((l) => l.file).concat([d.file]);
+    const mine = list.filter((x) => files.some((f) => sameFile(f, x.file)));
     if (!mine.length) continue;
     const badge = document.createElement("span");
     badge.className = `badge ${mine.some((x) => x.severity === "error") ? "error" : "warning"}`;
@@ -238,7 +246,7 @@ function nodeAtLine(file: string, line: number): { diagram: string; lane: string
   let best: { diagram: string; lane: string; node: string; line: number } | null = null;
   for (const dg of model?.diagrams ?? []) {
     for (const lane of dg.lanes) {
-      if (lane.file !== file) continue;
+      if (!sameFile(lane.file, file)) continue;
       for (const n of lane.nodes) {
         if (n.line <= line && (!best || n.line > best.line)) best = { diagram: dg.id, lane: lane.name, node: n.id, line: n.line };
       }
@@ -278,6 +286,43 @@ function reveal(lane: string, node: string): void {
   v.view.y += c.top + c.height / 2 - (b.top + b.height / 2);
   applyView(v);
   g.animate([{ opacity: 0.2 }, { opacity: 1 }, { opacity: 0.2 }, { opacity: 1 }], { duration: 900 });
+}
+
+/** After an edit: a diagram that fits the canvas (at its zoom, or zoomed out to >= 0.6) is shown whole. */
+function keepInView(v: DiagramView): void {
+  if (!v.view) return;
+  const W = canvas.clientWidth || 800;
+  const H = canvas.clientHeight || 600;
+  const pad = 16;
+  const kFit = Math.min((W - 2 * pad) / v.width, (H - 2 * pad) / v.height);
+  if (kFit < v.view.k && kFit >= 0.6) {
+    // grown past the canvas but still readable whole: zoom out to show all of it
+    v.view.x = (W - v.width * kFit) / 2;
+    v.view.y = (H - v.height * kFit) / 2;
+    v.view.k = kFit;
+  }
+  const w = v.width * v.view.k;
+  const h = v.height * v.view.k;
+  if (w <= W - 2 * pad) v.view.x = Math.min(Math.max(v.view.x, pad), W - pad - w);
+  if (h <= H - 2 * pad) v.view.y = Math.min(Math.max(v.view.y, pad), H - pad - h);
+}
+
+/** Pan (no zoom) so that `el` is inside the canvas. */
+function showElement(v: DiagramView, el: Element): void {
+  if (!v.view) return;
+  const c = canvas.getBoundingClientRect();
+  const b = el.getBoundingClientRect();
+  const pad = 24;
+  let dx = 0;
+  let dy = 0;
+  if (b.right > c.right - pad) dx = c.right - pad - b.right;
+  if (b.left + dx < c.left + pad) dx = c.left + pad - b.left;
+  if (b.bottom > c.bottom - pad) dy = c.bottom - pad - b.bottom;
+  if (b.top + dy < c.top + pad) dy = c.top + pad - b.top;
+  if (!dx && !dy) return;
+  v.view.x += dx;
+  v.view.y += dy;
+  applyView(v);
 }
 
 /** Show the whole diagram; `readable`: when that is too small to read, fit its width from the top. */
@@ -725,6 +770,7 @@ function resetSession(hello: HelloMsg): void {
   state = new StudioState(index);
   callRows = new Map();
   callsBody.replaceChildren();
+  robotName = hello.robot;
   const name = hello.model?.name ?? "(no model)";
   titleEl.textContent = `${name} · robot ${hello.robot}`;
   $<HTMLElement>("#source").textContent = hello.source;

@@ -181,8 +181,8 @@ export interface EditAnswer {
 }
 
 export interface Completion { label: string; kind: string; detail?: string; insert?: string }
-export interface Signature { label: string; params: ParamInfo[]; active: number }
-export interface CompleteAnswer { items: Completion[]; signature: Signature | null; from?: number; to?: number }
+export interface Signature { label: string; params: ParamInfo[]; active: number; returns?: string; doc?: string }
+export interface CompleteAnswer { items: Completion[]; signature: Signature | null; replace?: [number, number] }
 
 export interface FilesMsg {
   type: "files";
