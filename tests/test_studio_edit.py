@@ -9,6 +9,7 @@ import difflib
 import importlib.util
 import json
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -19,6 +20,8 @@ from typing import Any
 
 import aiohttp
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 from robot_run import CAR_MODEL, umlbot_argv
 from studio_support import read_frames, studio
 
@@ -461,3 +464,139 @@ def test_run_drives_the_working_copy_in_the_simulator_and_the_page_follows(
     assert status == 200 and answer["running"] is False
     assert answer["result"]["reason"] in ("interrupted", "goal", "collision"), answer
     assert editor.post("run", {"track": "../../etc/passwd"})[0] == 400
+
+
+def test_a_robot_built_in_an_empty_folder_checks_and_drives_in_the_simulator(tmp_path: Path) -> None:
+    """From nothing to a car that drives, through the server only; then `umlbot check` and
+    `umlbot sim` on the saved files."""
+    folder = tmp_path / "my_robot"
+    editor = Editor(folder)
+    try:
+        status, answer = editor.post("new", {"name": "my_robot"})
+        assert status == 200 and answer["compiled"]
+
+        def action(lane: str, node_id: str, call: str) -> dict[str, Any]:
+            return {"op": "add_node", "lane": lane, "node": {"id": node_id, "kind": "action", "call": call}}
+
+        ops: list[dict[str, Any]] = [
+            {"op": "add_lane", "lane": "Stop"},
+            {"op": "remove_node", "lane": "Stop", "id": "end"},
+            {"op": "add_node", "lane": "Stop", "node": {"id": "both", "kind": "fork"}},
+            action("Stop", "left_off", "LeftActuator.enabled(false)"),
+            action("Stop", "right_off", "RightActuator.enabled(false)"),
+            {"op": "add_node", "lane": "Stop", "node": {"id": "stopped", "kind": "join"}},
+            {"op": "add_node", "lane": "Stop", "node": {"id": "end", "kind": "end"}},
+            {"op": "connect", "lane": "Stop", "source": "both", "target": "left_off"},
+            {"op": "connect", "lane": "Stop", "source": "both", "target": "right_off"},
+            {"op": "connect", "lane": "Stop", "source": "left_off", "target": "stopped"},
+            {"op": "remove_node", "lane": "RaspberryPI", "id": "end"},
+            action("RaspberryPI", "left_forward", "LeftActuator.direction(true)"),
+            action("RaspberryPI", "right_forward", "RightActuator.direction(true)"),
+            action("RaspberryPI", "power_left", "LeftActuator.dutycycle(60)"),
+            action("RaspberryPI", "power_right", "RightActuator.dutycycle(60)"),
+            action("RaspberryPI", "left_on", "LeftActuator.enabled(true)"),
+            action("RaspberryPI", "right_on", "RightActuator.enabled(true)"),
+            action("RaspberryPI", "drive", "msleep(1500)"),
+            action("RaspberryPI", "halt", "Stop"),
+            {"op": "add_node", "lane": "RaspberryPI", "node": {"id": "end", "kind": "end"}},
+        ]
+        status, answer = editor.post("edit", {"version": answer["version"], "ops": ops})
+        assert status == 200, answer
+        assert answer["compiled"], [d["text"] for d in answer["diagnostics"]]
+        status, saved = editor.post("save", {"version": answer["version"]})
+        assert status == 200 and "activities/stop.yaml" in saved["saved"]
+    finally:
+        editor.thread.stop()
+    check = subprocess.run(umlbot_argv("check", str(folder)), capture_output=True, text=True, timeout=60,
+                           check=False)
+    assert check.returncode == 0, check.stdout + check.stderr
+    sim = subprocess.run(umlbot_argv("sim", str(folder), "--speed", "5", "--port", "0", "--timeout", "30",
+                                     "--json"), capture_output=True, text=True, timeout=180, check=False,
+                         cwd=REPO)
+    result = json.loads(sim.stdout.strip().splitlines()[-1])
+    assert result["distance_m"] > 0.2, result
+    assert result["reason"] in ("orchestrator ended", "collision", "goal"), result
+
+
+# --- property-like: random edits of real models ------------------------------------------------------
+
+_GENERATED: dict[str, Any] = {}
+
+
+def _generated_files(tmp_root: Path) -> tuple[Path, dict[str, str], Any]:
+    if not _GENERATED:
+        root = _bench_compile().generate(tmp_root / "gen", 600)
+        files = _texts(root)
+        _GENERATED.update(root=root, files=files, compiled=_check(root, files).model)
+    return _GENERATED["root"], _GENERATED["files"], _GENERATED["compiled"]
+
+
+@pytest.fixture(scope="module")
+def generated(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict[str, str], Any]:
+    return _generated_files(tmp_path_factory.mktemp("gen"))
+
+
+@pytest.mark.parametrize("model", ["car", "generated"])
+@given(data=st.data())
+@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+def test_random_value_edits_change_exactly_those_nodes(model: str, data: st.DataObject,
+                                                       generated: tuple[Path, dict[str, str], Any]) -> None:
+    if model == "car":
+        root, files = CAR_MODEL, _texts(CAR_MODEL)
+        compiled = check_model(CAR_MODEL).model
+    else:
+        root, files, compiled = generated
+    assert compiled is not None
+    candidates = sorted((lane.name, node.id, node.kind) for lane in compiled.lanes.values()
+                        for node in lane.nodes.values() if node.kind in ("action", "datastore"))
+    picked = data.draw(st.lists(st.sampled_from(candidates), min_size=1, max_size=6, unique=True))
+    values = data.draw(st.lists(st.integers(0, 5000), min_size=len(picked), max_size=len(picked)))
+    ops: list[dict[str, Any]] = []
+    for (lane, node_id, kind), value in zip(picked, values, strict=True):
+        field = "call" if kind == "action" else "value"
+        text = f"msleep({value})" if kind == "action" else f"{value} + 1"
+        ops.append({"op": "set_node", "lane": lane, "id": node_id, "fields": {field: text}})
+    out = _apply(files, ops)
+    # (b) only the picked nodes' lines differ, and only in their value
+    for rel, before in files.items():
+        removed, added = _changed_lines(before, out[rel])
+        assert len(removed) == len(added)
+        for old, new in zip(removed, added, strict=True):
+            assert re.sub(r"(call|value): [^,}]+(?=[,}])|(call|value): .*$", "X", old) == \
+                re.sub(r"(call|value): [^,}]+(?=[,}])|(call|value): .*$", "X", new), (old, new)
+    assert sum(len(_changed_lines(files[r], out[r])[1]) for r in files) == len(picked)
+    # (a) the compiled model is the original with those nodes' values changed
+    result = _check(root, out)
+    assert result.model is not None, [str(d) for d in result.diagnostics]
+    changed = {(lane, node_id) for lane, node_id, _ in picked}
+    for old_lane in compiled.lanes.values():
+        new_lane = result.model.lanes[old_lane.name]
+        for node in old_lane.nodes.values():
+            if (old_lane.name, node.id) in changed:
+                expected = ops[[(p[0], p[1]) for p in picked].index((old_lane.name, node.id))]["fields"]
+                shown = new_lane.nodes[node.id].label
+                assert shown.endswith(next(iter(expected.values()))), shown
+                assert new_lane.nodes[node.id].model_dump(exclude={"label", "call", "value"}) == \
+                    node.model_dump(exclude={"label", "call", "value"})
+            else:
+                assert new_lane.nodes[node.id] == node
+
+
+@given(data=st.data())
+@settings(max_examples=10, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+def test_nodes_added_and_removed_again_leave_the_files_as_they_were(
+        data: st.DataObject, generated: tuple[Path, dict[str, str], Any]) -> None:
+    _, files, compiled = generated
+    lanes = sorted(compiled.lanes)
+    picked = data.draw(st.lists(st.sampled_from(lanes), min_size=1, max_size=4, unique=True))
+    added = [{"op": "add_node", "lane": lane, "node": {"id": f"new_{i}", "kind": "action",
+                                                       "call": "msleep(1)"}} for i, lane in enumerate(picked)]
+    out = _apply(files, added)
+    for rel in files:
+        removed_lines, added_lines = _changed_lines(files[rel], out[rel])
+        assert removed_lines == []
+        assert all(re.fullmatch(r" +- \{id: new_\d+, kind: action, call: msleep\(1\)\}", x)
+                   for x in added_lines)
+    back = _apply(out, [{"op": "remove_node", "lane": lane, "id": f"new_{i}"}
+                        for i, lane in enumerate(picked)])
+    assert back == files
