@@ -600,3 +600,39 @@ def test_nodes_added_and_removed_again_leave_the_files_as_they_were(
     back = _apply(out, [{"op": "remove_node", "lane": lane, "id": f"new_{i}"}
                         for i, lane in enumerate(picked)])
     assert back == files
+
+
+def test_edits_follow_the_style_of_the_file_block_flow_crlf_and_no_final_newline() -> None:
+    files: dict[str, str | None] = {
+        "activities/a.yaml": "lane: A   # the lane\nnodes:\n  - id: start\n    kind: start\n"
+                             "  # a comment\n  - id: d\n    kind: decision\n    branches:\n"
+                             "      - if: x > 1\n        then: e\n  - id: e\n    kind: end",
+        "activities/b.yaml": "lane: B\r\nnodes:\r\n  - {id: start, kind: start}\r\n"
+                             "  - {id: end, kind: end}\r\n",
+        "activities/c.yaml": "lane: C\nnodes: []\n",
+        "activities/e.yaml": "lane: E\nnodes:\n- {id: start, kind: start}\n- {id: end, kind: end}\n",
+    }
+    out = apply_ops(files, parse_ops([
+        {"op": "set_node", "lane": "A", "id": "start", "fields": {"next": "d"}},
+        {"op": "connect", "lane": "A", "source": "d", "target": "e", "guard": "else"},
+        {"op": "add_node", "lane": "A", "node": {"id": "n", "kind": "action",
+                                                 "call": "RaspberryPI.writePin(17, 1)"}},
+        {"op": "set_guard", "lane": "A", "source": "d", "target": "e", "guard": "x > 2"},
+        {"op": "add_node", "lane": "B", "node": {"id": "n", "kind": "action", "call": "Stop"}},
+        {"op": "add_node", "lane": "C", "node": {"id": "start", "kind": "start"}},
+        {"op": "add_node", "lane": "C", "node": {"id": "end", "kind": "end"}},
+        {"op": "add_node", "lane": "E", "node": {"id": "x", "kind": "join"}},
+        {"op": "set_node", "lane": "E", "id": "start", "fields": {"next": "x"}},
+        {"op": "remove_node", "lane": "E", "id": "end"},
+    ]))
+    assert out == {
+        "activities/a.yaml": "lane: A   # the lane\nnodes:\n  - id: start\n    kind: start\n"
+                             "    next: d\n  # a comment\n  - id: d\n    kind: decision\n    branches:\n"
+                             "      - if: x > 2\n        then: e\n      - {else: e}\n"
+                             "  - id: e\n    kind: end\n"
+                             "  - {id: n, kind: action, call: 'RaspberryPI.writePin(17, 1)'}\n",
+        "activities/b.yaml": "lane: B\r\nnodes:\r\n  - {id: start, kind: start}\r\n"
+                             "  - {id: end, kind: end}\r\n  - {id: n, kind: action, call: Stop}\r\n",
+        "activities/c.yaml": "lane: C\nnodes: [{id: start, kind: start}, {id: end, kind: end}]\n",
+        "activities/e.yaml": "lane: E\nnodes:\n- {id: start, kind: start, next: x}\n- {id: x, kind: join}\n",
+    }
