@@ -7,7 +7,7 @@ import type { Positions } from "./layout";
 import { sameFile } from "./paths";
 import type {
   CompleteAnswer, Completion, ConflictMsg, Diagnostic, EditAnswer, EditInfo, FeatureInfo, FieldInfo, FilesMsg,
-  ImplInfo, JsonSchema, LayoutMap, Library, ModelComponent, ModelLane, ModelNode, ModelView, NodeKind,
+  ImplInfo, JsonSchema, LayoutMap, Library, ModelComponent, ModelEdge, ModelLane, ModelNode, ModelView, NodeKind, RunMsg,
 } from "./types";
 
 export interface EditorHost {
@@ -130,7 +130,7 @@ export class Editor {
     this.host = host;
     this.info = info;
     this.hooks = hooks;
-    this.layout = info.layout ?? {};
+    this.layout = info.layout?.positions ?? {};
     document.body.classList.add("editing");
     this.tools.hidden = false;
     this.palette.hidden = false;
@@ -150,11 +150,28 @@ export class Editor {
   /** A new hello (reconnect): the server's state wins. */
   setInfo(info: EditInfo): void {
     this.info = info;
-    this.layout = info.layout ?? {};
+    this.layout = info.layout?.positions ?? {};
     this.hooks.version = info.version;
     this.setDirty(info.dirty);
     this.renderProps();
     this.renderPalette();
+  }
+
+  /** After the hello's model is drawn: a standing conflict, a run going on. */
+  afterHello(info: EditInfo): void {
+    if (info.conflict?.length) this.showConflict(info.conflict);
+    if (info.run) this.onRun({ type: "run", state: info.run.running ? "running" : "ended", ...info.run });
+  }
+
+  onRun(msg: RunMsg): void {
+    this.setRunning(msg.running ?? msg.state === "running");
+    const r = msg.result;
+    if (msg.state === "ended" && r) {
+      const what = r.goal_reached ? "reached the goal" : `ended: ${r.failure ?? r.reason ?? "stopped"}`;
+      const figures = [r.sim_s !== undefined ? `${r.sim_s.toFixed(1)} s` : "", r.distance_m !== undefined ? `${r.distance_m.toFixed(2)} m` : "",
+        r.collisions ? `${r.collisions} collision${r.collisions === 1 ? "" : "s"}` : ""].filter(Boolean).join(" · ");
+      this.showNotice(r.goal_reached ? "run-goal" : "run-ended", `The run ${what}${figures ? ` (${figures})` : ""}.`, [], 10000);
+    }
   }
 
   positions(diagram: string): Positions {
@@ -203,14 +220,19 @@ export class Editor {
         data = { error: text };
       }
       if (res.status === 409 && quiet409) return data as T;
+      if (res.status === 409 && /^\/api\/(undo|redo)$/.test(path)) {
+        this.showNotice("hint", (data as { error?: string } | null)?.error ?? `nothing to ${path.slice(5)}`, [], 3000);
+        return null;
+      }
       if (!res.ok) {
         const err = (data as { error?: string } | null)?.error ?? `${res.status} ${res.statusText}`;
         if (quiet) return null;
         if (res.status === 409 && (data as { conflict?: string[] } | null)?.conflict) {
           this.showConflict((data as { conflict: string[] }).conflict);
-        } else if (res.status === 409) {
-          this.showNotice("error", "The model changed in another window: reloading it.", []);
-          location.reload();
+        } else if (res.status === 409 && path === "/api/edit") {
+          // another window edited meanwhile: take the server's state (a fresh hello) and say so
+          this.showNotice("error", `${err} — the page takes the server's current model.`, [], 8000);
+          this.resync();
         } else this.showNotice("error", err, []);
         this.hooks.errors.push(err);
         return null;
@@ -246,7 +268,7 @@ export class Editor {
   /** An answer of the server: the new version, model and problems. */
   apply(a: EditAnswer, redraw = true): void {
     this.hooks.version = a.version;
-    if (a.layout) this.layout = a.layout;
+    if (a.layout?.positions) this.layout = a.layout.positions;
     this.setDirty(a.dirty);
     if (redraw && a.model !== undefined) {
       this.host.setModel(a.model, a.diagnostics ?? []);
@@ -254,6 +276,11 @@ export class Editor {
       this.renderPalette();
       this.renderProps();
     }
+  }
+
+  /** Reconnect: the server's hello carries its working copy, version and layout. */
+  private resync(): void {
+    window.dispatchEvent(new Event("studio-resync"));
   }
 
   private setDirty(dirty: boolean): void {
@@ -295,7 +322,7 @@ export class Editor {
   /** A file changed on disk while the page was clean: the server reloaded it. */
   onFiles(msg: FilesMsg): void {
     this.hooks.version = msg.version;
-    if (msg.layout) this.layout = msg.layout;
+    if (msg.layout?.positions) this.layout = msg.layout.positions;
     this.setDirty(msg.dirty ?? false);
     this.host.setModel(msg.model, msg.diagnostics ?? []);
     this.validateSelection();
@@ -306,6 +333,7 @@ export class Editor {
 
   /** A file changed on disk while the page has unsaved edits: the user decides. */
   onConflict(msg: ConflictMsg): void {
+    if (msg.version !== undefined) this.hooks.version = msg.version;
     this.showConflict(msg.changed);
   }
 
@@ -717,7 +745,7 @@ export class Editor {
     const op: Op = { op: "connect", lane, source, target };
     const src = this.lane(lane)?.nodes.find((n) => n.id === source);
     if (src?.kind === "decision") {
-      const hasElse = this.lane(lane)?.edges.some((e) => e.source === source && (e.guard ?? e.label) === "else");
+      const hasElse = this.lane(lane)?.edges.some((e) => e.source === source && guardOf(src, e) === "else");
       op.guard = guard ?? (hasElse ? "true" : "else");
     }
     if (await this.edit([op])) {
@@ -844,7 +872,7 @@ export class Editor {
       const r = el("div", { class: "flow", "data-target": e.target }, body);
       el("span", {}, r, `→ ${e.target}`);
       if (node.kind === "decision") {
-        this.codeInput(r, "guard", e.guard ?? e.label, laneName, (text) => {
+        this.codeInput(r, "guard", guardOf(node, e), laneName, (text) => {
           void this.edit([{ op: "set_guard", lane: laneName, source: id, target: e.target, guard: text.trim() }]);
         }, { "data-target": e.target });
       }
@@ -872,7 +900,7 @@ export class Editor {
     el("div", { class: "props-sub" }, body, `swimlane ${laneName}`);
     if (src?.kind === "decision") {
       const r = this.row(body, "guard");
-      this.codeInput(r, "guard", e.guard ?? e.label, laneName, (text) => {
+      this.codeInput(r, "guard", src ? guardOf(src, e) : e.label, laneName, (text) => {
         void this.edit([{ op: "set_guard", lane: laneName, source, target, guard: text.trim() }]);
       }, { "data-target": target });
       el("div", { class: "hint" }, body, "a condition, or else");
@@ -1201,6 +1229,18 @@ function features(impl: ImplInfo, library: Library | null): Record<string, Featu
   if (!Array.isArray(impl.features)) return impl.features;
   const kind = library?.kinds[impl.kind]?.features ?? {};
   return Object.fromEntries(impl.features.map((f) => [f, kind[f] ?? null]));
+}
+
+/** The guard of a decision's branch to `e.target` as written (`else` for the else branch). */
+function guardOf(node: ModelNode, e: ModelEdge): string {
+  const branches = node.fields?.branches;
+  if (Array.isArray(branches)) {
+    for (const b of branches as Record<string, unknown>[]) {
+      if (b && b.then === e.target && typeof b.if === "string") return b.if;
+      if (b && b.else === e.target) return "else";
+    }
+  }
+  return e.guard ?? e.label;
 }
 
 function fieldText(node: ModelNode, field: string): string {

@@ -205,7 +205,7 @@ function setDiagnostics(list: Diagnostic[]): void {
     li.className = d.severity;
     li.textContent = d.text;
     diagEl.append(li);
-    const at = nodeAtLine(d.file, d.line);
+    const at = d.lane !== undefined ? nodeNamed(d.lane ?? "", d.node ?? "") : nodeAtLine(d.file, d.line);
     if (at) {
       const key = nodeKey(at.lane, at.node);
       const old = renderer.marks.get(key);
@@ -236,6 +236,13 @@ function setDiagnostics(list: Diagnostic[]): void {
     li.querySelector("small")?.before(badge);
   }
   state.markAllDirty();
+}
+
+/** The diagram of a node the server named (null when it is not drawn). */
+function nodeNamed(lane: string, node: string): { diagram: string; lane: string; node: string } | null {
+  const diagram = laneDiagram.get(lane);
+  if (!diagram || !node) return null;
+  return index.lanes.get(lane)?.nodes.has(node) ? { diagram, lane, node } : null;
 }
 
 /**
@@ -766,12 +773,15 @@ function resetSession(hello: HelloMsg): void {
   frameGaps = 0;
   lostFrames = 0;
   dropped = 0;
-  index = new ModelIndex(hello.model);
+  // The editor draws the model as written (it exists while the model has errors too).
+  const shown = hello.edit ? (hello.edit.model ?? null) : hello.model;
+  const shownDiagnostics = hello.edit ? (hello.edit.diagnostics ?? hello.diagnostics ?? []) : (hello.diagnostics ?? []);
+  index = new ModelIndex(shown);
   state = new StudioState(index);
   callRows = new Map();
   callsBody.replaceChildren();
   robotName = hello.robot;
-  const name = hello.model?.name ?? "(no model)";
+  const name = shown?.name ?? "(no model)";
   titleEl.textContent = `${name} · robot ${hello.robot}`;
   $<HTMLElement>("#source").textContent = hello.source;
   titleEl.title = hello.source;
@@ -786,7 +796,8 @@ function resetSession(hello: HelloMsg): void {
       editor = new Editor(editorHost, hello.edit, hooks.edit);
     }
   }
-  setModel(hello.model, hello.diagnostics ?? []);
+  setModel(shown, shownDiagnostics);
+  if (hello.edit) editor?.afterHello(hello.edit);
   if (mode === "replay") setupReplay(hello.replay?.events ?? []);
   state.markAllDirty();
   schedule();
@@ -829,8 +840,12 @@ function onMessage(msg: ServerMsg): void {
       editor?.setRunning(true);
       break;
     case "run":
-      editor?.setRunning(msg.state === "running" || msg.state === "starting");
-      if (msg.track !== undefined) sim.setTrack(msg.track);
+      if (msg.state === "running") {
+        // a new run: the sim panel shows its track, the counts start from zero
+        sim.setTrack(msg.track ?? null);
+        resetLive();
+      }
+      editor?.onRun(msg);
       break;
     case "model":
       if (!msg.model && model) {
@@ -848,6 +863,9 @@ function onMessage(msg: ServerMsg): void {
       break;
   }
 }
+
+// The editor asks for a fresh hello (the server's working copy) after a stale edit.
+window.addEventListener("studio-resync", () => ws?.close());
 
 function connect(): void {
   const url = `${location.protocol === "https:" ? "wss" : "ws"}://${location.host}/ws`;

@@ -72,6 +72,9 @@ export interface Diagnostic {
   line: number;
   column: number;
   text: string;
+  relpath?: string;
+  lane?: string | null;
+  node?: string | null;
 }
 
 export interface TrackView {
@@ -125,13 +128,25 @@ export interface HelloMsg {
 /** Positions the user chose: diagram id -> "<lane>/<node>" (or component name) -> [x, y]. */
 export type LayoutMap = Record<string, Record<string, [number, number]>>;
 
+export interface RunInfo {
+  running: boolean;
+  robot?: string;
+  track?: TrackView | null;
+  result?: { reason?: string; goal_reached?: boolean; collisions?: number; sim_s?: number; distance_m?: number; failure?: string | null };
+}
+
 export interface EditInfo {
   token: string;
   root: string;
   empty: boolean;
   dirty: boolean;
   version: number;
-  layout: LayoutMap;
+  layout: { positions?: LayoutMap } | null;
+  conflict?: string[];
+  model?: ModelView | null; // the model as written (also while it has errors)
+  compiled?: boolean;
+  diagnostics?: Diagnostic[];
+  run?: RunInfo;
 }
 
 export interface ParamInfo { name: string; type?: string; minimum?: number | null; maximum?: number | null; unit?: string | null }
@@ -174,10 +189,11 @@ export interface Library {
 export interface EditAnswer {
   version: number;
   model: ModelView | null;
+  compiled?: boolean;
   diagnostics: Diagnostic[];
   changed?: string[];
   dirty: boolean;
-  layout?: LayoutMap;
+  layout?: { positions?: LayoutMap } | null;
 }
 
 export interface Completion { label: string; kind: string; detail?: string; insert?: string }
@@ -192,11 +208,11 @@ export interface FilesMsg {
   diagnostics: Diagnostic[];
   version: number;
   dirty?: boolean;
-  layout?: LayoutMap;
+  layout?: { positions?: LayoutMap } | null;
 }
-export interface ConflictMsg { type: "conflict"; changed: string[] }
+export interface ConflictMsg { type: "conflict"; changed: string[]; version?: number }
 export interface TrackMsg { type: "track"; track: TrackView | null; run?: unknown }
-export interface RunMsg { type: "run"; state: string; detail?: string; track?: TrackView | null }
+export interface RunMsg extends RunInfo { type: "run"; state: string }
 
 export interface EventsMsg {
   type: "events";
