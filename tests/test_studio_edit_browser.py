@@ -371,3 +371,51 @@ def test_run_drives_the_edited_model_in_the_simulator_and_the_page_follows_it(
             CAR_MODEL / "activities" / "main.yaml").read_bytes()
         assert errors == [], errors
         page.close()
+
+
+def test_the_component_diagram_adds_a_part_from_the_library_with_its_deployment_ports_and_link(
+    browser: Browser, tmp_path: Path
+) -> None:
+    folder = tmp_path / "car"
+    complete_car(folder)
+    errors: list[str] = []
+    with studio(["studio", str(folder), "--port", "0"], tmp_path) as proc:
+        page = open_page(browser, proc.url, errors)
+        show(page, "components")
+        servo = page.locator('#palette [data-impl="servo"]')
+        expect(servo.locator('[data-feature="angle"]')).to_contain_text("0..180")  # features with ranges
+        servo.click()
+        page.locator('#props [name="name"]').fill("Pan")
+        # the driver's settings model checks the deployment: the error names the bad setting
+        page.locator('#props [name="setting-gpio"]').fill("99")
+        page.locator('#props [name="add"]').click()
+        settled(page)
+        expect(page.locator('#notice[data-kind="error"]')).to_contain_text("gpio")
+        expect(page.locator('g.component[data-component="Pan"]')).to_have_count(0)
+        page.locator('#props [name="setting-gpio"]').fill("17")
+        page.locator('#props [name="add"]').click()
+        settled(page)
+        pan = page.locator('g.component[data-component="Pan"]')
+        expect(pan).to_have_count(1)
+        expect(page.locator("#props .props-head")).to_contain_text("Pan")
+        page.locator('#props [name="port"]').fill("aim")
+        page.locator('#props [name="port-feature"]').select_option("angle")
+        page.locator('#props [name="add-port"]').click()
+        settled(page)
+        expect(pan.locator("text.port-label")).to_have_text("aim → angle")
+        page.locator('#props [name="link-to"]').select_option("DistanceRead.range")
+        page.locator('#props [name="add-link"]').click()
+        settled(page)
+        expect(page.locator("g.link")).to_have_count(2)
+        shot(page, "studio-edit-component.png")
+        page.keyboard.press("Control+s")
+        expect(page.locator("#save")).to_have_attribute("data-dirty", "false")
+        model = (folder / "model.yaml").read_text(encoding="utf-8")
+        assert "Pan: {kind: actuator, ports: {aim: angle}}" in model
+        deployment = (folder / "deployment.yaml").read_text(encoding="utf-8")
+        assert "gpio: 17" in deployment
+        assert "min_pulse_us" not in deployment  # the defaults are not written
+        code, lines = check_lines(folder, tmp_path)
+        assert code == 0, lines
+        assert errors == [], errors
+        page.close()

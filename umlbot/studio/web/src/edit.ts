@@ -930,7 +930,7 @@ export class Editor {
     const impl = this.library?.implementations.find((i) => i.id === implId);
     if (!impl) return;
     el("div", { class: "props-head" }, body, `new ${impl.kind} · ${impl.id}`);
-    const form = el("form", { class: "new-component" }, body);
+    const form = el("form", { class: "new-component", novalidate: "" }, body);
     const m = this.host.model();
     const taken = new Set(m?.components.map((c) => c.name) ?? []);
     const seed = impl.aliases.find((a) => !taken.has(a));
@@ -967,17 +967,23 @@ export class Editor {
       const r = this.row(box, key + (required.has(key) ? " *" : ""));
       const type = Array.isArray(s.type) ? s.type.find((t) => t !== "null") : s.type;
       const cur = key in current ? current[key] : s.default;
-      const hint = [impl.settings_doc?.[key] ?? s.description ?? "", s.minimum !== undefined || s.maximum !== undefined ? `range ${s.minimum ?? "…"}..${s.maximum ?? "…"}` : ""].filter(Boolean).join(" · ");
+      const range = s.minimum !== undefined && s.maximum !== undefined ? `${s.minimum}..${s.maximum}`
+        : s.minimum !== undefined ? `≥ ${s.minimum}` : s.maximum !== undefined ? `≤ ${s.maximum}` : "";
+      const hint = [impl.settings_doc?.[key] ?? s.description ?? "", range && `range ${range}`].filter(Boolean).join(" · ");
+      // sent: what the deployment has, what is required, and what the user changed from the default
+      const keep = key in current || required.has(key);
       if (s.enum) {
         const sel = el("select", { name: `setting-${key}` }, r);
         el("option", { value: "" }, sel, "");
         for (const v of s.enum) el("option", { value: JSON.stringify(v) }, sel, String(v));
         if (cur !== undefined) sel.value = JSON.stringify(cur);
-        readers.push([key, () => ({ ok: true, value: sel.value ? JSON.parse(sel.value) : undefined })]);
+        const initial = sel.value;
+        readers.push([key, () => ({ ok: true, value: sel.value && (keep || sel.value !== initial) ? JSON.parse(sel.value) : undefined })]);
       } else if (type === "boolean") {
         const cb = el("input", { type: "checkbox", name: `setting-${key}` }, r);
         cb.checked = cur === true;
-        readers.push([key, () => ({ ok: true, value: cb.checked })]);
+        const initial = cb.checked;
+        readers.push([key, () => ({ ok: true, value: keep || cb.checked !== initial ? cb.checked : undefined })]);
       } else {
         const numeric = type === "integer" || type === "number";
         const input = el("input", { name: `setting-${key}`, autocomplete: "off", spellcheck: "false" }, r);
@@ -989,10 +995,12 @@ export class Editor {
         }
         if (cur !== undefined && cur !== null) input.value = typeof cur === "string" || typeof cur === "number" ? String(cur) : JSON.stringify(cur);
         if (type === "array" || type === "object") input.placeholder = type === "array" ? "[1, 2]" : "{}";
+        const initial = input.value;
         readers.push([key, () => {
           const t = input.value.trim();
           if (!t) return { ok: !required.has(key) };
-          if (numeric) return { ok: t !== "" && !Number.isNaN(Number(t)), value: Number(t) };
+          if (!keep && input.value === initial) return { ok: true }; // the default: not written
+          if (numeric) return Number.isNaN(Number(t)) ? { ok: true, value: t } : { ok: true, value: Number(t) }; // the server says what is wrong
           if (type === "array" || type === "object") {
             try {
               return { ok: true, value: JSON.parse(t) };
@@ -1027,7 +1035,7 @@ export class Editor {
     el("div", { class: "props-head" }, body, `${c.kind} · ${name}`);
     el("div", { class: "props-sub" }, body, `${c.impl} · ${c.service} · ${c.driver}`);
     // deployment
-    const dep = el("form", { class: "deployment" }, body);
+    const dep = el("form", { class: "deployment", novalidate: "" }, body);
     el("div", { class: "props-section" }, dep, "Deployment");
     const implSel = el("select", { name: "impl" }, this.row(dep, "impl"));
     for (const i of this.implsOf(c.kind)) el("option", { value: i.id }, implSel, i.id);
