@@ -34,7 +34,13 @@ type Selection =
   | { type: "new-component"; impl: string }
   | null;
 
-export interface EditHooks { version: number; busy: boolean; dirty: boolean; requests: number; errors: string[] }
+export interface EditHooks {
+  version: number; busy: boolean; dirty: boolean; requests: number; errors: string[];
+  /** the version whose model the shown diagram draws (tests wait for it after an edit) */
+  drawn: number;
+  /** send operations as the page does (dev checks) */
+  send?: (ops: Op[]) => Promise<boolean>;
+}
 
 const NODE_KINDS: NodeKind[] = ["start", "end", "action", "datastore", "decision", "fork", "join", "send", "accept"];
 const NODE_DOC: Record<string, string> = {
@@ -136,6 +142,7 @@ export class Editor {
     this.palette.hidden = false;
     this.props.hidden = false;
     this.hooks.version = info.version;
+    this.hooks.send = (ops) => this.edit(ops);
     this.setDirty(info.dirty);
     this.saveBtn.onclick = () => void this.save();
     this.undoBtn.onclick = () => void this.history("undo");

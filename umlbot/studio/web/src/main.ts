@@ -54,6 +54,7 @@ let laneDiagram = new Map<string, string>();
 let replaced = new Map<string, DiagramView>(); // drawings shown until their redraw is ready
 let editor: Editor | null = null;
 let robotName = "";
+let drawnVersion = -1;
 const savedViews = new Map<string, { x: number; y: number; k: number }>(); // pan/zoom kept across redraws
 
 // ---------------------------------------------------------------- model and diagrams
@@ -63,6 +64,7 @@ function diagramIds(m: ModelView | null): string[] {
 }
 
 function setModel(m: ModelView | null, diagnostics: Diagnostic[]): void {
+  drawnVersion = hooks.edit?.version ?? -1;
   generation += 1;
   const gen = generation;
   model = m;
@@ -143,12 +145,13 @@ async function layoutAll(m: ModelView, first: string, gen: number): Promise<void
         const layout = await layoutActivity(d, positions);
         if (gen !== generation) return;
         t1 = performance.now();
-        view = await renderer.buildActivity(layout, () => gen !== generation);
+        view = await renderer.buildActivity(layout, () => gen !== generation, replaced.get(id));
         if (!view || gen !== generation) return;
       }
       view.svg.style.display = id === current ? "" : "none";
-      canvas.append(view.svg);
-      replaced.get(id)?.svg.remove();
+      const was = replaced.get(id);
+      if (was && was.svg !== view.svg) was.svg.remove();
+      if (view.svg.parentNode !== canvas) canvas.append(view.svg);
       replaced.delete(id);
       views.set(id, view);
       const saved = savedViews.get(id);
@@ -160,6 +163,7 @@ async function layoutAll(m: ModelView, first: string, gen: number): Promise<void
       renderer.adoptFresh(state);
       const sel = editor?.highlightSelection();
       if (sel && id === current) showElement(view, sel);
+      if (hooks.edit && id === current) hooks.edit.drawn = drawnVersion;
       state.dirtyOrch = true;
       schedule();
       console.debug(`studio: ${id} laid out in ${(t1 - t0).toFixed(0)} ms, drawn in ${(performance.now() - t1).toFixed(0)} ms`);
@@ -792,7 +796,7 @@ function resetSession(hello: HelloMsg): void {
   if (hello.edit) {
     if (editor) editor.setInfo(hello.edit);
     else {
-      hooks.edit = { version: hello.edit.version, busy: false, dirty: hello.edit.dirty, requests: 0, errors: [] };
+      hooks.edit = { version: hello.edit.version, busy: false, dirty: hello.edit.dirty, requests: 0, errors: [], drawn: -1 };
       editor = new Editor(editorHost, hello.edit, hooks.edit);
     }
   }

@@ -100,7 +100,8 @@ export class Renderer {
   }
 
   reset(model: ModelView | null): void {
-    this.pool = this.built;
+    // lanes of an unfinished redraw stay reusable
+    for (const [name, b] of this.built) this.pool.set(name, b);
     this.built = new Map();
     this.freshNodes = [];
     this.freshEdges = [];
@@ -133,11 +134,17 @@ export class Renderer {
    * Draw an activity diagram lane by lane, yielding to the browser between lanes (a big diagram
    * drawn in the background must not block a frame); null when `stale()` turns true meanwhile.
    */
-  async buildActivity(layout: ActivityLayout, stale: () => boolean): Promise<DiagramView | null> {
+  async buildActivity(layout: ActivityLayout, stale: () => boolean, reuse?: DiagramView): Promise<DiagramView | null> {
     const d = layout.diagram;
-    const v = this.newSvg(d.id, layout.width, layout.height);
+    // After an edit the diagram's drawing is updated in place: unchanged lanes stay where they are
+    // (moving thousands of elements into a new <svg> would restyle all of them), changed lanes are
+    // drawn anew and swapped in.
+    const v = reuse ?? this.newSvg(d.id, layout.width, layout.height);
+    v.width = layout.width;
+    v.height = layout.height;
     const marker = `url(#arrow-${d.id})`;
     let budget = performance.now();
+    const mine = new Set<SVGGElement>();
     for (const lg of layout.lanes) {
       if (performance.now() - budget > 12) {
         await new Promise((resolve) => setTimeout(resolve, 0));
@@ -149,7 +156,11 @@ export class Renderer {
       const old = this.pool.get(lane.name);
       if (old && old.key === key) {
         this.pool.delete(lane.name);
-        v.viewport.append(old.g);
+        if (old.g.parentNode !== v.viewport) v.viewport.append(old.g);
+        const at = `translate(${lg.x},${lg.y})`;
+        if (old.g.getAttribute("transform") !== at) old.g.setAttribute("transform", at);
+        const bg = old.g.querySelector(".lane-bg");
+        if (bg && bg.getAttribute("height") !== String(lg.h)) bg.setAttribute("height", String(lg.h));
         for (const [k, ne] of old.nodes) {
           this.nodeEls.set(k, ne);
           this.freshNodes.push(k);
@@ -162,12 +173,14 @@ export class Renderer {
         }
         this.freshLanes.add(lane.name);
         this.built.set(lane.name, old);
+        mine.add(old.g);
         continue;
       }
       const laneNodes = new Map<string, NodeEl>();
       const laneEdges = new Map<string, EdgeEl>();
-      const g = svgEl("g", { class: "lane", "data-lane": lane.name, transform: `translate(${lg.x},${lg.y})` }, v.viewport);
+      const g = svgEl("g", { class: "lane", "data-lane": lane.name, transform: `translate(${lg.x},${lg.y})` });
       this.built.set(lane.name, { key, g, nodes: laneNodes, edges: laneEdges });
+      mine.add(g);
       svgEl("rect", { class: "lane-bg", x: 0, y: 0, width: lg.w, height: lg.h }, g);
       svgEl("rect", { class: "lane-header", x: 0, y: 0, width: lg.w, height: lg.headerH }, g);
       svgEl("text", { class: "lane-title", x: lg.w / 2, y: 22 }, g, lane.name);
@@ -197,7 +210,15 @@ export class Renderer {
         laneNodes.set(k, this.nodeEls.get(k)!);
       }
       this.freshLanes.add(lane.name);
+      // swap it in whole (its old drawing, if any, goes below)
+      const was = old && old.g.parentNode === v.viewport ? old.g : null;
+      if (was) {
+        was.replaceWith(g);
+        this.pool.delete(lane.name);
+      } else v.viewport.append(g);
     }
+    for (const g of [...v.viewport.children]) if (g.classList.contains("lane") && !mine.has(g as SVGGElement)) g.remove();
+    for (const [name, b] of this.pool) if (!b.g.isConnected) this.pool.delete(name);
     return v;
   }
 
@@ -500,7 +521,7 @@ interface BuiltLane { key: string; g: SVGGElement; nodes: Map<string, NodeEl>; e
 function laneKey(lg: ActivityLayout["lanes"][number], virtualLanes: Set<string>): string {
   const l = lg.lane;
   return JSON.stringify([
-    lg.x, lg.y, lg.w, lg.h, l.name, l.file, l.virtual, l.component,
+    lg.y, lg.w, l.name, l.file, l.virtual, l.component, // x and the column height are updated in place
     lg.nodes.map((nb) => [nb.node.id, nb.node.kind, nb.node.label, nb.x, nb.y, nb.w, nb.h, nb.statsX, nb.statsY,
       nb.node.kind === "action" && virtualLanes.has(nb.node.label.replace(/\(\s*\)$/, ""))]),
     lg.edges.map((e) => [e.source, e.target, e.label, e.points, e.labelBox]),
