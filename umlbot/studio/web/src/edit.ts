@@ -1000,8 +1000,11 @@ export class Editor {
           if (s.maximum !== undefined) input.max = String(s.maximum);
           if (type === "number") input.step = "any";
         }
-        if (cur !== undefined && cur !== null) input.value = typeof cur === "string" || typeof cur === "number" ? String(cur) : JSON.stringify(cur);
-        if (type === "array" || type === "object") input.placeholder = type === "array" ? "[1, 2]" : "{}";
+        const show = (x: unknown): string => (typeof x === "string" || typeof x === "number" ? String(x) : JSON.stringify(x));
+        // the deployment's value, else the default as a placeholder (a default is not written)
+        if (key in current && current[key] !== null) input.value = show(current[key]);
+        else if (s.default !== undefined && s.default !== null) input.placeholder = `default ${show(s.default)}`;
+        if (!input.placeholder && (type === "array" || type === "object")) input.placeholder = type === "array" ? "[1, 2]" : "{}";
         const initial = input.value;
         readers.push([key, () => {
           const t = input.value.trim();
