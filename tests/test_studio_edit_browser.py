@@ -419,3 +419,40 @@ def test_the_component_diagram_adds_a_part_from_the_library_with_its_deployment_
         assert code == 0, lines
         assert errors == [], errors
         page.close()
+
+
+def test_a_dragged_node_keeps_its_place_in_the_layout_file(browser: Browser, tmp_path: Path) -> None:
+    folder = tmp_path / "car"
+    complete_car(folder)
+    errors: list[str] = []
+    with studio(["studio", str(folder), "--port", "0"], tmp_path) as proc:
+        page = open_page(browser, proc.url, errors)
+        show(page, "activity-motion")
+        moved = page.locator(node(page, "Stop", "left_off"))
+        before = float(moved.get_attribute("data-x") or "nan"), float(moved.get_attribute("data-y") or "nan")
+        box = moved.bounding_box()
+        assert box
+        page.mouse.move(box["x"] + 20, box["y"] + 15)
+        page.mouse.down()
+        page.mouse.move(box["x"] - 60, box["y"] + 140, steps=8)
+        page.mouse.up()
+        settled(page)
+        after = float(moved.get_attribute("data-x") or "nan"), float(moved.get_attribute("data-y") or "nan")
+        assert after[1] > before[1] + 40 and after[0] < before[0], (before, after)
+        # the flow into it follows it; the other lanes stay laid out automatically
+        edge = page.locator('svg.diagram g.edge[data-lane="Stop"][data-target="left_off"] path.line')
+        assert str(round(after[1])) in (edge.get_attribute("d") or "")
+        page.keyboard.press("Control+s")
+        expect(page.locator("#save")).to_have_attribute("data-dirty", "false")
+        layout = json.loads((folder / ".umlbot-studio.json").read_text(encoding="utf-8"))
+        assert layout["positions"]["activity-motion"]["Stop/left_off"] == [round(after[0]), round(after[1])]
+        assert (folder / "activities" / "motion.yaml").read_bytes() == (
+            CAR_MODEL / "activities" / "motion.yaml").read_bytes()  # positions never go into the model
+        page.close()
+        again = open_page(browser, proc.url, errors)  # a new page draws it where it was put
+        show(again, "activity-motion")
+        there = again.locator(node(again, "Stop", "left_off"))
+        assert float(there.get_attribute("data-x") or "nan") == round(after[0])
+        assert float(there.get_attribute("data-y") or "nan") == round(after[1])
+        assert errors == [], errors
+        again.close()
