@@ -26,7 +26,6 @@ from umlbot.studio.textedit import (
     delete_key,
     flow,
     get,
-    is_null,
     replace_node,
     set_key,
 )
@@ -214,6 +213,11 @@ def _node_ids(nodes: yaml.SequenceNode) -> list[str]:
     return [text for item in nodes.value if (text := _scalar_text(get(item, "id"))) is not None]
 
 
+def _a(kind: str) -> str:
+    """`a fork`, `an action`."""
+    return f"an {kind}" if kind[:1] in "aeiou" else f"a {kind}"
+
+
 def _need(value: str | None, what: str, op: Op) -> str:
     if value is None or value == "":
         raise EditError(f"{op.op} needs '{what}'")
@@ -248,7 +252,7 @@ def add_node(e: Edits, op: Op) -> None:
         raise EditError(f"swimlane {lane!r} has a node {node_id!r} already")
     unknown = [key for key in node if key not in NODE_FIELDS[kind]]
     if unknown:
-        raise EditError(f"a {kind} node has no {', '.join(map(repr, unknown))} "
+        raise EditError(f"{_a(kind)} node has no {', '.join(map(repr, unknown))} "
                         f"(its keys: {', '.join(NODE_FIELDS[kind]) or 'none'})")
     item: dict[str, Any] = {"id": node_id, "kind": kind}
     item.update((key, node[key]) for key in NODE_FIELDS[kind] if node.get(key) is not None)
@@ -264,7 +268,7 @@ def set_node(e: Edits, op: Op) -> None:
         _, item = _find_node(nodes, lane, node_id)
         kind = _scalar_text(get(item, "kind")) or ""
         if key not in NODE_FIELDS.get(kind, ()):
-            raise EditError(f"a {kind} node has no {key!r} (its keys: "
+            raise EditError(f"{_a(kind)} node has no {key!r} (its keys: "
                             f"{', '.join(NODE_FIELDS.get(kind, ())) or 'none'})")
         if value is None or value == "":
             delete_key(t, item, key)
@@ -649,4 +653,4 @@ def apply_ops(files: Mapping[str, str | None], ops: list[Op]) -> dict[str, str |
     return {rel: edits.files[rel] for rel in sorted(edits.changed) if edits.files[rel] != files.get(rel)}
 
 
-__all__ = ["OPS", "EditError", "Op", "apply_ops", "is_null", "parse_ops"]
+__all__ = ["OPS", "EditError", "Op", "apply_ops", "parse_ops"]

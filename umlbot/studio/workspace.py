@@ -14,6 +14,7 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import re
 import secrets
 import tempfile
 import threading
@@ -43,11 +44,11 @@ STARTER: dict[str, str] = {
 # A robot car: two L298N motor channels, a sonar on a servo (see docs/model-format.md).
 name: {name}
 components:
-  RaspberryPI: {{kind: system}}
-  LeftActuator: {{kind: actuator, ports: {{drive: enabled}}}}
-  RightActuator: {{kind: actuator, ports: {{drive: enabled}}}}
-  Sensor: {{kind: actuator, ports: {{pointing: angle}}}}
-  DistanceRead: {{kind: sensor, ports: {{range: value}}}}
+  RaspberryPI: {kind: system}
+  LeftActuator: {kind: actuator, ports: {drive: enabled}}
+  RightActuator: {kind: actuator, ports: {drive: enabled}}
+  Sensor: {kind: actuator, ports: {pointing: angle}}
+  DistanceRead: {kind: sensor, ports: {range: value}}
 """,
     "deployment.yaml": """\
 # Which part realises each component, and its wiring (BCM pins).
@@ -354,11 +355,10 @@ class Workspace:
         if not self.empty:
             raise Conflict({"error": "the folder holds a model already", "version": self.version})
         model_name = name or self.root.resolve().name
-        if not all(c.isalnum() or c in "_-" for c in model_name) or not model_name:
+        if not re.fullmatch(r"[A-Za-z0-9_][A-Za-z0-9_-]*", model_name):
             raise EditError(f"a model's name is a plain name (letters, digits, _ and -), not {model_name!r}")
         self.root.mkdir(exist_ok=True)
-        self.files = {rel: text.replace("{name}", model_name).replace("{{", "{").replace("}}", "}")
-                      .encode("utf-8") if rel == MODEL_FILE else text.encode("utf-8")
+        self.files = {rel: text.replace("{name}", model_name).encode("utf-8")
                       for rel, text in STARTER.items()}
         self.version += 1
         result = self.save(self.version)
