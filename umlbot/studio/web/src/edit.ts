@@ -816,7 +816,20 @@ export class Editor {
 
   renderProps(): void {
     const p = this.props;
+    // An answer redraws the panel: a field being typed in keeps its text, caret and focus.
+    const a = document.activeElement;
+    const typing = a instanceof HTMLInputElement && p.contains(a) && a.name
+      ? { sel: `[name="${CSS.escape(a.name)}"]${a.dataset.target ? `[data-target="${CSS.escape(a.dataset.target)}"]` : ""}`,
+        value: a.value, start: a.selectionStart, end: a.selectionEnd, what: JSON.stringify(this.sel) }
+      : null;
     p.replaceChildren();
+    if (typing) queueMicrotask(() => {
+      const again = p.querySelector<HTMLInputElement>(typing.sel);
+      if (!again || typing.what !== JSON.stringify(this.sel)) return;
+      if (again.value !== typing.value) again.value = typing.value;
+      again.focus();
+      if (typing.start !== null && typing.end !== null) again.setSelectionRange(typing.start, typing.end);
+    });
     el("div", { class: "panel-title" }, p, "Properties");
     const body = el("div", { class: "props-body" }, p);
     const s = this.sel;
