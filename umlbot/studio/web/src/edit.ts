@@ -759,6 +759,8 @@ export class Editor {
       this.sel = src?.kind === "decision" ? { type: "edge", lane, source, target } : { type: "node", lane, id: source };
       this.renderProps();
       this.highlightSelection();
+      // a decision's new branch: type its guard now (the first one is the else branch)
+      if (op.guard === "true") this.props.querySelector<HTMLInputElement>('[name="guard"]')?.select();
     }
   }
 
