@@ -185,10 +185,6 @@ export class Editor {
     return this.layout[diagram] ?? {};
   }
 
-  emptyMessage(): string | null {
-    return this.info.empty ? "" : null;
-  }
-
   /** The canvas content for a folder with no model: offer a starter model. */
   showEmpty(target: HTMLElement): void {
     target.replaceChildren();
@@ -211,7 +207,8 @@ export class Editor {
 
   // ------------------------------------------------------------------ server
 
-  private async request<T>(path: string, body: Record<string, unknown>, quiet409 = false, quiet = false): Promise<T | null> {
+  /** POST to the studio with the token; null (and a notice, unless `quiet`) when it failed. */
+  private async request<T>(path: string, body: Record<string, unknown>, quiet = false): Promise<T | null> {
     this.hooks.requests += 1;
     try {
       const res = await fetch(path, {
@@ -226,7 +223,6 @@ export class Editor {
       } catch {
         data = { error: text };
       }
-      if (res.status === 409 && quiet409) return data as T;
       if (res.status === 409 && /^\/api\/(undo|redo)$/.test(path)) {
         this.showNotice("hint", (data as { error?: string } | null)?.error ?? `nothing to ${path.slice(5)}`, [], 3000);
         return null;
@@ -1162,7 +1158,7 @@ export class Editor {
     const ask = async (): Promise<void> => {
       const mine = ++seq;
       const cursor = input.selectionStart ?? input.value.length;
-      const a = await this.request<CompleteAnswer>("/api/complete", { lane, text: input.value, cursor, field: name }, false, true);
+      const a = await this.request<CompleteAnswer>("/api/complete", { lane, text: input.value, cursor, field: name }, true);
       if (mine !== seq || document.activeElement !== input) return;
       answer = a;
       answered = input.value;

@@ -838,11 +838,6 @@ function onMessage(msg: ServerMsg): void {
     case "conflict":
       editor?.onConflict(msg);
       break;
-    case "track":
-      sim.setTrack(msg.track);
-      resetLive();
-      editor?.setRunning(true);
-      break;
     case "run":
       if (msg.state === "running") {
         // a new run: the sim panel shows its track, the counts start from zero

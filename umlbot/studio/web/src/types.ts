@@ -1,4 +1,4 @@
-// Wire types of the page/server contract (docs: /work/notes/studio-protocol.md, v1).
+// Wire types of the page/server contract (docs/studio.md: "The page's data", "Editing requests").
 
 export type NodeKind =
   | "start" | "end" | "action" | "datastore" | "decision" | "fork" | "join" | "send" | "accept";
@@ -211,7 +211,6 @@ export interface FilesMsg {
   layout?: { positions?: LayoutMap } | null;
 }
 export interface ConflictMsg { type: "conflict"; changed: string[]; version?: number }
-export interface TrackMsg { type: "track"; track: TrackView | null; run?: unknown }
 export interface RunMsg extends RunInfo { type: "run"; state: string }
 
 export interface EventsMsg {
@@ -246,4 +245,4 @@ export interface ModelMsg {
   diagnostics: Diagnostic[];
 }
 
-export type ServerMsg = HelloMsg | EventsMsg | WorldMsg | ModelMsg | FilesMsg | ConflictMsg | TrackMsg | RunMsg;
+export type ServerMsg = HelloMsg | EventsMsg | WorldMsg | ModelMsg | FilesMsg | ConflictMsg | RunMsg;
