@@ -464,6 +464,7 @@ def test_run_drives_the_working_copy_in_the_simulator_and_the_page_follows(
     assert status == 200 and answer["running"] is False
     assert answer["result"]["reason"] in ("interrupted", "goal", "collision"), answer
     assert editor.post("run", {"track": "../../etc/passwd"})[0] == 400
+    assert editor.post("run", {"track": "s_bend", "speed": 1000})[0] == 400
 
 
 def test_a_robot_built_in_an_empty_folder_checks_and_drives_in_the_simulator(tmp_path: Path) -> None:

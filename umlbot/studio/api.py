@@ -19,7 +19,7 @@ from aiohttp import web
 
 from umlbot.logs import get_logger
 from umlbot.studio.hub import dumps
-from umlbot.studio.run import StudioRun, bundled_tracks, resolve_track
+from umlbot.studio.run import RUN_SPEED, StudioRun, bundled_tracks, resolve_track
 from umlbot.studio.textedit import EditError
 from umlbot.studio.workspace import Conflict, Workspace
 
@@ -110,7 +110,11 @@ class EditApi:
         if ws.result is None or ws.result.model is None:
             raise Conflict({"error": "the model has errors: fix them before running it",
                             "version": ws.version})
-        return self._sim().start(dict(ws.files), resolve_track(body.get("track") or "s_bend", ws.root))
+        speed = body.get("speed", RUN_SPEED)
+        if isinstance(speed, bool) or not isinstance(speed, int | float) or not 0.1 <= speed <= 100:
+            raise EditError("'speed' is sim seconds per wall second, 0.1 to 100")
+        return self._sim().start(dict(ws.files), resolve_track(body.get("track") or "s_bend", ws.root),
+                                 float(speed))
 
     def broadcast(self, frame: dict[str, Any]) -> None:
         """Send a frame to every page (from any thread)."""
