@@ -29,52 +29,13 @@ _Loader: Any = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 
 
 def compose(text: str, name: str) -> yaml.Node | None:
-    """The node tree of `text` (positions and texts only); EditError when it is not valid YAML.
-
-    Built from the parser's events without resolving tags (PyYAML's composer resolves every
-    scalar in Python, which costs more than the parse itself on a big file).
-    """
+    """The node tree of `text` (positions and texts; no Python object is constructed);
+    EditError when it is not valid YAML."""
     try:
-        return _build(yaml.parse(text, Loader=_Loader))
+        node: yaml.Node | None = yaml.compose(text, Loader=_Loader)
     except yaml.YAMLError as exc:
         raise EditError(f"{name} is not valid YAML ({exc}); fix it in the file first") from None
-
-
-def _build(events: Any) -> yaml.Node | None:
-    stack: list[tuple[yaml.CollectionNode, list[Any]]] = []
-    anchors: dict[str, yaml.Node] = {}
-    root: yaml.Node | None = None
-    for event in events:
-        cls = type(event)
-        node: yaml.Node
-        if cls is yaml.ScalarEvent:
-            node = yaml.ScalarNode(None, event.value, event.start_mark, event.end_mark, event.style)
-        elif cls is yaml.AliasEvent:
-            node = anchors[event.anchor]
-        elif cls is yaml.SequenceStartEvent or cls is yaml.MappingStartEvent:
-            kind = yaml.SequenceNode if cls is yaml.SequenceStartEvent else yaml.MappingNode
-            collection = kind(None, [], event.start_mark, None, event.flow_style)
-            if event.anchor:
-                anchors[event.anchor] = collection
-            stack.append((collection, []))
-            continue
-        elif cls is yaml.SequenceEndEvent or cls is yaml.MappingEndEvent:
-            collection, items = stack.pop()
-            collection.end_mark = event.end_mark
-            if isinstance(collection, yaml.MappingNode):
-                collection.value = list(zip(items[0::2], items[1::2], strict=True))
-            else:
-                collection.value = items
-            node = collection
-        else:
-            continue
-        if cls is yaml.ScalarEvent and event.anchor:
-            anchors[event.anchor] = node
-        if stack:
-            stack[-1][1].append(node)
-        else:
-            root = node
-    return root
+    return node
 
 
 # --- scalars and one-line values -------------------------------------------------------------------
