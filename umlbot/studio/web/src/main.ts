@@ -217,6 +217,8 @@ function setDiagnostics(list: Diagnostic[]): void {
       li.dataset.diagram = at.diagram;
       li.dataset.lane = at.lane;
       li.dataset.node = at.node;
+    } else if (d.lane && laneDiagram.has(d.lane)) {
+      li.dataset.diagram = laneDiagram.get(d.lane)!; // a problem of the lane itself: its diagram
     }
     li.addEventListener("click", () => {
       if (!li.dataset.diagram) return;
