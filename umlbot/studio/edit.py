@@ -17,6 +17,7 @@ import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from compiler.source import ACTIVITIES_DIR, DEPLOYMENT_FILES, MODEL_FILE, NODE_FIELDS, NODE_KINDS
+from umlbot.studio.library_view import check_settings
 from umlbot.studio.textedit import (
     EditError,
     Text,
@@ -516,15 +517,8 @@ def _deployment_root(t: Text) -> yaml.MappingNode:
     return root
 
 
-#: checks a component's settings for an implementation: (impl, settings) -> error text or None.
-SettingsCheck = Callable[[str, Mapping[str, Any]], str | None]
-
-
-def _write_deployment(e: Edits, component: str, impl: str, settings: dict[str, Any] | None,
-                      check: SettingsCheck | None = None) -> None:
-    from umlbot.studio.library_view import check_settings
-
-    problem = (check or check_settings)(impl, settings or {})
+def _write_deployment(e: Edits, component: str, impl: str, settings: dict[str, Any] | None) -> None:
+    problem = check_settings(impl, settings or {})
     if problem is not None:
         raise EditError(f"{component}: {problem}")
     entry: dict[str, Any] = {"impl": impl}
