@@ -412,11 +412,12 @@ export class Editor {
 
   private async run(): Promise<void> {
     await this.settle();
-    const a = await this.request<{ running?: boolean; error?: string }>("/api/run", { track: this.trackSel.value });
+    const speed = Number($<HTMLSelectElement>("#run-speed").value) || 2;
+    const a = await this.request<{ running?: boolean; error?: string }>("/api/run", { track: this.trackSel.value, speed });
     if (!a) return;
     this.setRunning(true);
     this.host.resetLive();
-    this.showNotice("run", `Running the edited model in the simulator on ${this.trackSel.value}.`, [], 4000);
+    this.showNotice("run", `Running the edited model in the simulator on ${this.trackSel.value} at ${speed}×.`, [], 4000);
   }
 
   private async stop(): Promise<void> {
