@@ -637,3 +637,17 @@ def test_edits_follow_the_style_of_the_file_block_flow_crlf_and_no_final_newline
         "activities/c.yaml": "lane: C\nnodes: [{id: start, kind: start}, {id: end, kind: end}]\n",
         "activities/e.yaml": "lane: E\nnodes:\n- {id: start, kind: start, next: x}\n- {id: x, kind: join}\n",
     }
+
+
+def test_a_page_opened_after_a_save_gets_the_saved_model_as_the_hellos_model(tmp_path: Path) -> None:
+    folder = tmp_path / "fresh"
+    editor = Editor(folder)
+    try:
+        assert read_frames(editor.url, lambda f: len(f) >= 1)[0]["model"] is None
+        assert editor.post("new", {"name": "fresh"})[0] == 200
+        hello = read_frames(editor.url, lambda f: len(f) >= 1)[0]
+        assert hello["model"]["name"] == "fresh"
+        assert [lane["name"] for d in hello["model"]["diagrams"] for lane in d["lanes"]] == ["RaspberryPI"]
+        assert hello["diagnostics"] == []
+    finally:
+        editor.thread.stop()

@@ -56,9 +56,10 @@ class EditApi:
             "edit": lambda body: self.workspace.edit(body.get("version"), body.get("ops")),
             "undo": lambda body: self.workspace.undo(),
             "redo": lambda body: self.workspace.redo(),
-            "save": lambda body: self.workspace.save(body.get("version"), bool(body.get("force"))),
-            "reload": lambda body: self.workspace.reload(),
-            "new": lambda body: self.workspace.new_model(body.get("name")),
+            "save": lambda body: self._on_disk(self.workspace.save(body.get("version"),
+                                                                    bool(body.get("force")))),
+            "reload": lambda body: self._on_disk(self.workspace.reload()),
+            "new": lambda body: self._on_disk(self.workspace.new_model(body.get("name"))),
             "complete": self._complete,
             "run": self._run,
             "stop": lambda body: self._sim().stop(),
@@ -115,6 +116,24 @@ class EditApi:
             raise EditError("'speed' is sim seconds per wall second, 0.1 to 100")
         return self._sim().start(dict(ws.files), resolve_track(body.get("track") or "s_bend", ws.root),
                                  float(speed))
+
+    def _poll(self, _: dict[str, Any]) -> list[dict[str, Any]]:
+        frames = self.workspace.poll()
+        if frames:
+            self._on_disk({})
+        return frames
+
+    def _on_disk(self, answer: dict[str, Any]) -> dict[str, Any]:
+        """The files on disk are the working copy now: the hello's `model` and `diagnostics` (the
+        model a robot would run) become theirs, for pages that open from now on."""
+        ws = self.workspace
+        if self.server is not None and not ws.dirty and ws.result is not None:
+            from umlbot.studio.model_view import diagnostic_view, model_view
+
+            data = self.server.data
+            data.model = model_view(ws.result.model) if ws.result.model is not None else None
+            data.diagnostics = [diagnostic_view(d) for d in ws.result.diagnostics]
+        return answer
 
     def broadcast(self, frame: dict[str, Any]) -> None:
         """Send a frame to every page (from any thread)."""
@@ -174,8 +193,7 @@ class EditApi:
             await asyncio.sleep(WATCH_EVERY_S)
             try:
                 async with self._lock:
-                    frames = await loop.run_in_executor(None, self._locked, lambda _: self.workspace.poll(),
-                                                        {})
+                    frames = await loop.run_in_executor(None, self._locked, self._poll, {})
             except Exception as exc:
                 log.warning("studio: looking at the model's files failed", error=str(exc))
                 continue
