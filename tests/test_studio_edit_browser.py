@@ -360,7 +360,7 @@ def test_run_drives_the_edited_model_in_the_simulator_and_the_page_follows_it(
         page.locator("#track").select_option("corridor")
         page.locator("#run-speed").select_option("1")
         page.locator("#run").click()
-        expect(page.locator('#notice[data-kind="run"]')).to_contain_text("corridor at 1×")
+        expect(page.locator('#notice[data-kind="run"]')).to_contain_text("corridor at 1\u00d7")
         expect(page.locator("#sim svg")).to_be_visible()
         expect(page.locator('g.node.active[data-lane="RaspberryPI"]')).to_have_count(1)
         speed = page.locator(node(page, "RaspberryPI", "set_speed"))
