@@ -8,6 +8,7 @@ problems. Both never raise anything but `ModelError` for a bad model.
 from __future__ import annotations
 
 import gc
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -39,8 +40,13 @@ class CheckResult:
         return [d for d in self.diagnostics if d.severity == "warning"]
 
 
-def check_model(path: str | Path, deployment: str | Path | None = None) -> CheckResult:
-    """Check the model at `path` (a folder or one file); `deployment` overrides its deployment file."""
+def check_model(path: str | Path, deployment: str | Path | None = None,
+                files: Mapping[str, bytes] | None = None) -> CheckResult:
+    """Check the model at `path` (a folder or one file); `deployment` overrides its deployment file.
+
+    `files` (path relative to the folder -> content) checks those files as the folder `path`
+    instead of what is on disk (the studio's working copy); messages name them as on disk.
+    """
     diagnostics = Diagnostics()
     source: SourceModel | None = None
     model: CompiledModel | None = None
@@ -49,7 +55,7 @@ def check_model(path: str | Path, deployment: str | Path | None = None) -> Check
     collecting = gc.isenabled()
     gc.disable()
     try:
-        source = load_source(path, diagnostics, deployment)
+        source = load_source(path, diagnostics, deployment, files)
         model = check_source(source, diagnostics)
     except ModelError as exc:
         diagnostics.add_model_error(exc)

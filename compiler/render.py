@@ -53,9 +53,13 @@ def diagrams(model: CompiledModel) -> dict[str, list[Lane]]:
     """The activity diagrams: name -> its swimlanes (one diagram per activity source file)."""
     result: dict[str, list[Lane]] = {}
     for lane in sorted(model.lanes.values(), key=lambda x: (x.file, x.line, x.name)):
-        stem = PurePosixPath(lane.file).stem or "activities"
-        result.setdefault(f"activity-{_slug(stem)}", []).append(lane)
+        result.setdefault(diagram_id(lane.file), []).append(lane)
     return result
+
+
+def diagram_id(file: str) -> str:
+    """The activity diagram of the lanes in one source file: `activity-<file's stem>`."""
+    return f"activity-{_slug(PurePosixPath(file).stem or 'activities')}"
 
 
 def _slug(text: str) -> str:

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import hashlib
 import re
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -120,12 +121,33 @@ class SourceModel:
 
 
 class _Reader:
-    """Reads files of one model, remembering their bytes for the content hash."""
+    """Reads files of one model, remembering their bytes for the content hash.
 
-    def __init__(self, root: Path, diagnostics: Diagnostics) -> None:
+    With `files` (relative path -> bytes) the model's files are those, not the disk's: the studio
+    checks its working copy this way, with the same messages and positions as on disk.
+    """
+
+    def __init__(self, root: Path, diagnostics: Diagnostics,
+                 files: Mapping[str, bytes] | None = None) -> None:
         self.root = root
         self.diagnostics = diagnostics
+        self.files = files
         self.contents: dict[str, bytes] = {}
+
+    def is_file(self, path: Path) -> bool:
+        if self.files is None:
+            return path.is_file()
+        return self.relative(path) in self.files
+
+    def activity_files(self) -> list[Path]:
+        """The activity files (`activities/*.yaml`, `*.yml`), sorted."""
+        folder = self.root / ACTIVITIES_DIR
+        if self.files is None:
+            if not folder.is_dir():
+                return []
+            return sorted([*folder.glob("*.yaml"), *folder.glob("*.yml")])
+        return sorted(folder / rel.split("/", 1)[1] for rel in self.files
+                      if _ACTIVITY_FILE.fullmatch(rel))
 
     def display(self, path: Path) -> str:
         return str(path)
@@ -138,13 +160,23 @@ class _Reader:
 
     def read_text(self, path: Path) -> str:
         shown = self.display(path)
-        try:
-            size = path.stat().st_size
-            if size > MAX_FILE_BYTES:
-                raise ModelError(f"file too large ({size} bytes, at most {MAX_FILE_BYTES})", shown, 1, 1)
-            data = path.read_bytes()
-        except OSError as exc:
-            raise ModelError(f"cannot read: {exc.strerror}", shown, 1, 1) from None
+        if self.files is not None:
+            given = self.files.get(self.relative(path))
+            if given is None:
+                raise ModelError("cannot read: No such file or directory", shown, 1, 1)
+            if len(given) > MAX_FILE_BYTES:
+                raise ModelError(f"file too large ({len(given)} bytes, at most {MAX_FILE_BYTES})",
+                                 shown, 1, 1)
+            data = given
+        else:
+            try:
+                size = path.stat().st_size
+                if size > MAX_FILE_BYTES:
+                    raise ModelError(f"file too large ({size} bytes, at most {MAX_FILE_BYTES})",
+                                     shown, 1, 1)
+                data = path.read_bytes()
+            except OSError as exc:
+                raise ModelError(f"cannot read: {exc.strerror}", shown, 1, 1) from None
         self.contents[self.relative(path)] = data
         try:
             return data.decode("utf-8")
@@ -171,26 +203,26 @@ def byte_position(data: bytes, offset: int) -> tuple[int, int]:
 
 
 def load_source(path: str | Path, diagnostics: Diagnostics,
-                deployment_path: str | Path | None = None) -> SourceModel:
+                deployment_path: str | Path | None = None,
+                files: Mapping[str, bytes] | None = None) -> SourceModel:
     """Read a model folder or a one-file model; shape problems go to `diagnostics`.
 
+    `files` (path relative to the folder -> content) replaces the folder's files on disk: the
+    model is read from them, and positions name the files as if they were on disk.
     Raises `ModelError` only when nothing sensible can be read (missing folder, no model.yaml).
     """
     p = Path(path)
-    if p.is_dir():
-        reader = _Reader(p, diagnostics)
+    if files is not None or p.is_dir():
+        reader = _Reader(p, diagnostics, files)
         model_file = p / MODEL_FILE
-        if not model_file.is_file():
+        if not reader.is_file(model_file):
             raise ModelError(f"not a model: no {MODEL_FILE} in this folder", str(p), 1, 1)
         model = _read_model_file_safe(reader, model_file, default_name=p.resolve().name)
-        activities = p / ACTIVITIES_DIR
-        if activities.is_dir():
-            files = sorted([*activities.glob("*.yaml"), *activities.glob("*.yml")])
-            for lane_file in files:
-                _read_lane_file(reader, lane_file, model)
+        for lane_file in reader.activity_files():
+            _read_lane_file(reader, lane_file, model)
         if deployment_path is None and model.deployment is None:
             for name in DEPLOYMENT_FILES:
-                if (p / name).is_file():
+                if reader.is_file(p / name):
                     deployment_path = p / name
                     break
     elif p.is_file():
@@ -491,6 +523,7 @@ def _locate(root: YNode, path: tuple[int | str, ...]) -> Location:
 # --- helpers ---------------------------------------------------------------------------------------
 
 _IDENT = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+_ACTIVITY_FILE = re.compile(rf"{ACTIVITIES_DIR}/[^/]+\.ya?ml")
 _IDENT_DASH = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_\-]*")
 
 

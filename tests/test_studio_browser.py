@@ -80,16 +80,18 @@ def test_a_live_run_is_highlighted_with_counts_timings_calls_and_availability(
         show(page, "activity-main")
         # the main lane's current node is highlighted, and nodes it ran show counts and timings
         expect(page.locator('g.node.active[data-lane="RaspberryPI"]')).to_have_count(1)
-        halt = page.locator('g.node[data-lane="RaspberryPI"][data-node="halt"]')
+        # (the sonar's value is read once a loop: a datastore set from a call, with its timings)
+        selector = 'g.node[data-lane="RaspberryPI"][data-node="ping_ahead"]'
+        ping = page.locator(selector)
         page.wait_for_function(
-            """() => Number(document.querySelector('g.node[data-lane="RaspberryPI"][data-node="halt"]')
-                   ?.getAttribute('data-count') || 0) >= 2""")
-        assert float(halt.get_attribute("data-p50-ms") or "nan") > 0
-        expect(halt.locator("text.stats")).to_contain_text("ms")
+            "s => Number(document.querySelector(s)?.getAttribute('data-count') || 0) >= 2", arg=selector)
+        assert float(ping.get_attribute("data-p50-ms") or "nan") > 0
+        expect(ping.locator("text.stats")).to_contain_text("ms")
         # the tuning datastore shows its value; the decision shows which branch it took
         speed = page.locator('g.node[data-lane="RaspberryPI"][data-node="set_speed"]')
         expect(speed.locator("text.value")).to_have_text("70")
-        taken = page.locator('g.edge[data-lane="RaspberryPI"][data-source="running"][data-target="measure"]')
+        taken = page.locator('g.edge[data-lane="RaspberryPI"][data-source="running"]'
+                             '[data-target="ping_ahead"]')
         expect(taken).not_to_have_attribute("data-count", "0")
         # calls, with boolean arguments shown as they are
         enabled = page.locator('#calls tbody tr[data-component="LeftActuator"][data-feature="enabled"]')

@@ -167,6 +167,7 @@ def test_the_port_in_use_is_one_clear_error(tmp_path: Path) -> None:
 
 
 def test_a_missing_model_is_a_usage_error(tmp_path: Path) -> None:
-    result = subprocess.run(umlbot_argv("studio", str(tmp_path / "nothing")), capture_output=True, text=True,
-                            timeout=60, check=False)
+    # (a missing folder whose parent exists is a new model: tests/test_studio_edit.py)
+    result = subprocess.run(umlbot_argv("studio", str(tmp_path / "no" / "nothing")), capture_output=True,
+                            text=True, timeout=60, check=False)
     assert result.returncode == 2 and "does not exist" in result.stderr

@@ -11,7 +11,7 @@ from umlbot.stopsignals import StopSignals
 
 
 @click.command(name="studio")
-@click.argument("model", type=click.Path(exists=True, path_type=Path))
+@click.argument("model", type=click.Path(path_type=Path))
 @click.option("--broker", "broker_url", default=None, metavar="URL",
               help="Broker URL, e.g. mqtt://user:pass@host:1883 "
               "(default: $UMLBOT_BROKER or mqtt://127.0.0.1:1883).")
@@ -36,6 +36,7 @@ def command(model: Path, broker_url: str | None, ca_file: Path | None, robot: st
     """Serve the studio for MODEL: its diagrams, the robot's running nodes live, or a replay.
 
     The model is compiled by the studio; when it does not compile, the page lists the problems.
+    A model folder can be edited in the page (a new or empty folder is offered a starter model).
     Runs until Ctrl-C or SIGTERM.
     """
     from services.bus import BrokerSettings, resolve_broker_url
@@ -43,9 +44,20 @@ def command(model: Path, broker_url: str | None, ca_file: Path | None, robot: st
     from umlbot.studio.server import StudioServer, StudioThread, check_bind
     from umlbot.studio.sources import BrokerSource, replay_events, studio_data
 
+    editable = replay_file is None and (model.is_dir() or (not model.exists() and model.parent.is_dir()))
+    if not model.exists() and not editable:
+        raise click.BadParameter(f"{model} does not exist (a new model folder needs an existing "
+                                 "parent folder)", param_hint="'MODEL'")
     check_bind(host, allow_remote)
     data, _compiled = studio_data(model, robot, mode="replay" if replay_file else "live")
     server = StudioServer(data, host=host, port=port, allow_remote=allow_remote)
+    if editable:
+        from umlbot.studio.api import EditApi
+        from umlbot.studio.workspace import Workspace
+
+        workspace = Workspace(model)
+        server.api = EditApi(workspace)
+        data.edit = server.api.hello
     source: BrokerSource | None = None
     what = f"replay of {replay_file}"
     if replay_file is not None:

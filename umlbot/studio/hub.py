@@ -166,6 +166,12 @@ class Hub:
             for page in self.pages:
                 page.queue.put_nowait(text)
 
+    def broadcast(self, frame: dict[str, Any]) -> None:
+        """Send one frame to every page now (on the event loop; e.g. a file changed on disk)."""
+        text = dumps(frame)
+        for page in self.pages:
+            page.queue.put_nowait(text)
+
     def _remember(self, event: dict[str, Any]) -> None:
         kind = event.get("type")
         if kind == "trace":

@@ -8,6 +8,7 @@ second edge between the same pair). One activity diagram per activity source fil
 
 from __future__ import annotations
 
+import bisect
 from typing import Any
 
 from compiler.compiled import (
@@ -22,7 +23,9 @@ from compiler.compiled import (
     SendNode,
 )
 from compiler.diagnostics import Diagnostic
-from compiler.render import diagrams
+from compiler.render import diagram_id, diagrams
+from compiler.source import SourceLane, SourceModel, SourceNode
+from compiler.yamlsrc import YMap, YNode, YScalar, YSeq, to_python
 
 #: the version of the JSON shape below; bumped on an incompatible change.
 VIEW_VERSION = 1
@@ -118,3 +121,156 @@ def diagnostic_view(diagnostic: Diagnostic) -> dict[str, Any]:
     loc = diagnostic.location
     return {"severity": diagnostic.severity, "message": diagnostic.message, "file": loc.file,
             "line": loc.line, "column": loc.column, "text": str(diagnostic)}
+
+
+# --- the model as written (the editor's view: also when it does not compile) ------------------------
+
+#: node kinds whose one outgoing flow is `next`, else the node written below.
+_NEXT_KINDS = ("start", "action", "datastore", "join", "send", "accept")
+
+
+def _text(node: YNode | None) -> str | None:
+    return node.text if isinstance(node, YScalar) else None
+
+
+def _source_fields(src: SourceNode) -> dict[str, Any]:
+    """A node's keys besides id and kind, as written (expressions as their text)."""
+    fields: dict[str, Any] = {}
+    for key in src.fields:
+        if key in ("id", "kind"):
+            continue
+        value = src.fields.items[key]
+        if key == "branches" and isinstance(value, YSeq):
+            fields[key] = [{k: _text(b.items[k]) for k in b} for b in value.items if isinstance(b, YMap)]
+        elif key == "targets" and isinstance(value, YSeq):
+            fields[key] = [_text(t) for t in value.items]
+        else:
+            fields[key] = _text(value) if isinstance(value, YScalar) else to_python(value)
+    return fields
+
+
+def _source_label(kind: str, node_id: str, fields: dict[str, Any]) -> str:
+    if kind == "action":
+        return str(fields.get("call") or node_id)
+    if kind == "datastore":
+        return f"{fields.get('name')} = {fields.get('value')}"
+    if kind in ("start", "end", "fork", "join"):
+        return kind
+    if kind == "send":
+        payload = fields.get("payload")
+        return f"send {fields.get('signal')}" + (f"({payload})" if payload else "")
+    if kind == "accept":
+        store = fields.get("store")
+        return f"accept {fields.get('signal')}" + (f" -> {store}" if store else "")
+    return node_id
+
+
+def _source_edges(kind: str, fields: dict[str, Any], following: str | None) -> list[tuple[str, str]]:
+    if kind in _NEXT_KINDS:
+        target = fields.get("next") if "next" in fields else following
+        return [(str(target), "")] if target else []
+    if kind == "decision":
+        out = [(str(b["then"]), str(b.get("if") or "")) for b in fields.get("branches") or []
+               if isinstance(b, dict) and b.get("then") and "else" not in b]
+        out += [(str(b["else"]), "else") for b in fields.get("branches") or []
+                if isinstance(b, dict) and b.get("else")]
+        return out
+    if kind == "fork":
+        return [(str(t), "") for t in fields.get("targets") or [] if t]
+    return []
+
+
+def source_lane_view(lane: SourceLane, components: set[str]) -> dict[str, Any]:
+    """One swimlane as written: its nodes in file order (with their fields) and their flows."""
+    nodes: list[dict[str, Any]] = []
+    edges: list[dict[str, Any]] = []
+    seen: dict[tuple[str, str], int] = {}
+    datastores: list[str] = []
+    for index, src in enumerate(lane.nodes):
+        fields = _source_fields(src)
+        nodes.append({"id": src.id, "kind": src.kind, "label": _source_label(src.kind, src.id, fields),
+                      "line": src.loc.line, "column": src.loc.column, "fields": fields})
+        written = {"datastore": "name", "accept": "store"}.get(src.kind)
+        name = fields.get(written) if written else None
+        if isinstance(name, str) and name not in datastores:
+            datastores.append(name)
+        following = lane.nodes[index + 1].id if index + 1 < len(lane.nodes) else None
+        for target, label in _source_edges(src.kind, fields, following):
+            pair = (src.id, target)
+            seen[pair] = seen.get(pair, 0) + 1
+            edge_id = f"{src.id}->{target}" + (f"#{seen[pair]}" if seen[pair] > 1 else "")
+            edges.append({"id": edge_id, "source": src.id, "target": target, "label": label})
+    start = next((n.id for n in lane.nodes if n.kind == "start"), None)
+    return {"name": lane.name, "virtual": lane.name not in components,
+            "component": lane.name if lane.name in components else None, "file": lane.file,
+            "line": lane.loc.line, "start": start, "datastores": sorted(datastores), "nodes": nodes,
+            "edges": edges}
+
+
+def source_view(source: SourceModel) -> dict[str, Any]:
+    """The model as its files say, in `model_view`'s shape plus each node's `fields`, each
+    component's `settings`; drawn by the editor also while the model has errors."""
+    from umlbot.library import component_kinds, resolve_implementation
+
+    deployment = source.deployment.deployment if source.deployment is not None else None
+    components = []
+    for name, comp in sorted(source.components.items()):
+        entry = deployment.components.get(name) if deployment is not None else None
+        impl = resolve_implementation(entry.impl) if entry is not None else None
+        kinds = component_kinds()
+        kind_features = kinds.get(comp.kind or "", {})
+        components.append({
+            "name": name, "kind": comp.kind,
+            "impl": impl.id if impl is not None else (entry.impl if entry is not None else None),
+            "service": impl.service if impl is not None else None,
+            "driver": (entry.driver or deployment.driver) if entry is not None and deployment is not None
+            else None,
+            "features": list(impl.features if impl is not None else kind_features),
+            "ports": {port: feature for port, (feature, _) in comp.ports.items()},
+            "settings": dict(entry.settings) if entry is not None else {},
+            "line": comp.loc.line,
+        })
+    links = [{"id": link.id,
+              "source": {"component": link.source.component, "port": link.source.port},
+              "target": {"component": link.target.component, "port": link.target.port}}
+             for link in source.links if link.source is not None and link.target is not None]
+    names = set(source.components)
+    grouped: dict[str, list[SourceLane]] = {}
+    for lane in sorted(source.lanes, key=lambda x: (x.file, x.loc.line, x.name)):
+        grouped.setdefault(diagram_id(lane.file), []).append(lane)
+    signals = sorted({text for lane in source.lanes for n in lane.nodes if n.kind in ("send", "accept")
+                      and (text := _text(n.fields.get("signal")))})
+    return {
+        "version": VIEW_VERSION,
+        "name": source.name,
+        "signals": signals,
+        "components": components,
+        "links": links,
+        "diagrams": [{"id": key, "title": key.removeprefix("activity-"), "file": lanes[0].file,
+                      "lanes": [source_lane_view(lane, names) for lane in lanes]}
+                     for key, lanes in grouped.items()],
+    }
+
+
+def node_index(source: SourceModel) -> dict[str, list[tuple[int, str, str | None]]]:
+    """Per file (relative path): (line, lane, node id or None for the lane's header), sorted."""
+    index: dict[str, list[tuple[int, str, str | None]]] = {}
+    for lane in source.lanes:
+        rows = index.setdefault(lane.file, [])
+        rows.append((lane.loc.line, lane.name, None))
+        rows.extend((node.loc.line, lane.name, node.id) for node in lane.nodes)
+    for rows in index.values():
+        rows.sort(key=lambda row: row[0])
+    return index
+
+
+def attribute(view: dict[str, Any], rel: str | None,
+              index: dict[str, list[tuple[int, str, str | None]]]) -> dict[str, Any]:
+    """Add `relpath` and the `lane`/`node` a diagnostic points into (by its file and line)."""
+    view["relpath"] = rel
+    rows = index.get(rel or "")
+    if rows:
+        at = bisect.bisect_right(rows, view["line"], key=lambda row: row[0]) - 1
+        if at >= 0:
+            view["lane"], view["node"] = rows[at][1], rows[at][2]
+    return view

@@ -1,9 +1,11 @@
 """The studio's web server (aiohttp): one page, its static assets and one WebSocket.
 
-The page is read-only in this version: the socket carries the model and the robot's traffic from
-the server to the page, nothing back. The socket checks `Origin` (a page of another site in the
-same browser may not read the robot) and, on a loopback bind, `Host` (no DNS rebinding).
-docs/studio.md describes the frames; `umlbot/studio/web/` holds the page's sources.
+The socket carries the model and the robot's traffic from the server to the page. With a
+`Workspace` (a model folder) the page also edits the model through `/api/*` requests (see
+`umlbot.studio.api`); the server is the only writer of files. The socket and every write check
+`Origin` (a page of another site in the same browser may neither read nor write) and, on a loopback
+bind, `Host` (no DNS rebinding); a write also needs the per-run token the socket's hello carries.
+docs/studio.md describes the frames and requests; `umlbot/studio/web/` holds the page's sources.
 """
 
 from __future__ import annotations
@@ -16,7 +18,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 from urllib.parse import urlsplit
 
 from aiohttp import WSMsgType, web
@@ -24,6 +26,9 @@ from aiohttp import WSMsgType, web
 from umlbot.errors import ConfigError
 from umlbot.logs import get_logger
 from umlbot.studio.hub import Hub, Page, dumps
+
+if TYPE_CHECKING:
+    from umlbot.studio.api import EditApi
 
 log = get_logger(__name__)
 
@@ -69,11 +74,14 @@ class StudioData:
     diagnostics: list[dict[str, Any]]
     track: dict[str, Any] | None = None
     replay: dict[str, Any] | None = None
+    #: the editing session's part of the hello (None: the page cannot edit).
+    edit: Callable[[], dict[str, Any]] | None = None
 
     def hello(self) -> dict[str, Any]:
         return {"type": "hello", "version": PROTOCOL_VERSION, "mode": self.mode, "robot": self.robot,
                 "source": self.source, "model": self.model, "diagnostics": self.diagnostics,
-                "track": self.track, "replay": self.replay}
+                "track": self.track, "replay": self.replay,
+                "edit": self.edit() if self.edit is not None else None}
 
 
 @dataclass
@@ -87,6 +95,8 @@ class StudioServer:
     allow_remote: bool = False
     #: called about once a second on the event loop (expire unanswered calls, poll a world, …).
     tick: Callable[[], None] | None = None
+    #: the editing requests (`/api/*`), when the studio edits a model folder.
+    api: EditApi | None = None
     _runner: web.AppRunner | None = None
     _tasks: list[asyncio.Task[None]] = field(default_factory=list)
 
@@ -97,6 +107,8 @@ class StudioServer:
         app.router.add_get("/", self._index)
         app.router.add_get("/ws", self._socket)
         app.router.add_static("/static/", static_dir(), follow_symlinks=False)
+        if self.api is not None:
+            self.api.routes(app, self)
         return app
 
     async def start(self) -> str:
@@ -119,6 +131,8 @@ class StudioServer:
             self.port = int(sockets[0].getsockname()[1])
         self._tasks = [asyncio.create_task(self.hub.run(), name="studio-flush"),
                        asyncio.create_task(self._ticker(), name="studio-tick")]
+        if self.api is not None:
+            self._tasks.append(asyncio.create_task(self.api.watch(), name="studio-watch"))
         return self.url
 
     @property
@@ -128,6 +142,8 @@ class StudioServer:
 
     async def stop(self) -> None:
         """Close every page and the listener; safe to call twice."""
+        if self.api is not None:
+            await asyncio.get_running_loop().run_in_executor(None, self.api.close)
         for task in self._tasks:
             task.cancel()
         for task in self._tasks:
@@ -160,11 +176,7 @@ class StudioServer:
         return web.FileResponse(index, headers={"Cache-Control": "no-store"})
 
     async def _socket(self, request: web.Request) -> web.StreamResponse:
-        self._check_host(request)
-        origin = request.headers.get("Origin")
-        if origin is not None and urlsplit(origin).netloc != request.host:
-            log.warning("studio socket refused: foreign origin", origin=origin)
-            raise web.HTTPForbidden(text="foreign origin")
+        self.check_origin(request)
         ws = web.WebSocketResponse(heartbeat=20.0, max_msg_size=1 << 16)
         await ws.prepare(request)
         page = Page(ws.send_str)
@@ -181,6 +193,14 @@ class StudioServer:
                 await asyncio.wait_for(pump, timeout=1.0)
             pump.cancel()
         return ws
+
+    def check_origin(self, request: web.Request) -> None:
+        """Refuse a request from a page of another origin (and, on loopback, a foreign Host)."""
+        self._check_host(request)
+        origin = request.headers.get("Origin")
+        if origin is not None and urlsplit(origin).netloc != request.host:
+            log.warning("studio request refused: foreign origin", origin=origin, path=request.path)
+            raise web.HTTPForbidden(text="foreign origin")
 
     def _check_host(self, request: web.Request) -> None:
         """On a loopback bind, only loopback host names (a rebinding DNS name is refused)."""

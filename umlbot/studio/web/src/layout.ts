@@ -169,16 +169,95 @@ function cached<T extends Layout>(key: string, make: () => Promise<T>): Promise<
   return p as Promise<T>;
 }
 
-export function layoutActivity(d: ModelDiagram): Promise<ActivityLayout> {
-  return cached("a" + JSON.stringify(d), () => layoutActivityNow(d));
+/** Positions the user chose in one diagram ("<lane>/<node>" or a component's name -> [x, y]). */
+export type Positions = Record<string, [number, number]>;
+
+// Lanes are laid out one by one and cached by their own text: an edit relays out only its lane.
+const laneCache = new Map<string, Promise<LaneGeom>>();
+function laneLayout(lane: ModelLane): Promise<LaneGeom> {
+  const key = JSON.stringify(lane);
+  let p = laneCache.get(key);
+  if (!p) {
+    if (laneCache.size > 4096) laneCache.clear();
+    p = layoutLane(lane);
+    laneCache.set(key, p);
+    p.catch(() => laneCache.delete(key));
+  }
+  return p;
 }
 
-export function layoutComponents(model: ModelView): Promise<ComponentLayout> {
-  return cached("c" + JSON.stringify([model.name, model.components, model.links]), () => layoutComponentsNow(model));
+export function layoutActivity(d: ModelDiagram, positions: Positions = {}): Promise<ActivityLayout> {
+  const mine = Object.entries(positions).filter(([k]) => d.lanes.some((l) => k.startsWith(`${l.name}/`)));
+  return cached("a" + JSON.stringify([d, mine]), () => layoutActivityNow(d, positions));
 }
 
-async function layoutActivityNow(d: ModelDiagram): Promise<ActivityLayout> {
-  const lanes = await Promise.all(d.lanes.map(layoutLane));
+export function layoutComponents(model: ModelView, positions: Positions = {}): Promise<ComponentLayout> {
+  return cached("c" + JSON.stringify([model.name, model.components, model.links, positions]), () => layoutComponentsNow(model, positions));
+}
+
+/** A lane with the user's positions applied: moved nodes, their edges re-routed, the lane grown to fit. */
+function placeLane(auto: LaneGeom, positions: Positions): LaneGeom {
+  const name = auto.lane.name;
+  const moved = new Set<string>();
+  const nodes = auto.nodes.map((nb) => {
+    const p = positions[`${name}/${nb.node.id}`];
+    if (!p) return nb;
+    moved.add(nb.node.id);
+    const dx = p[0] - nb.x;
+    const dy = p[1] - nb.y;
+    return { ...nb, x: p[0], y: p[1], statsX: nb.statsX + dx, statsY: nb.statsY + dy };
+  });
+  if (!moved.size) return auto;
+  const box = new Map(nodes.map((nb) => [nb.node.id, nb]));
+  const edges = auto.edges.map((e) => {
+    if (!moved.has(e.source) && !moved.has(e.target)) return e;
+    const a = box.get(e.source);
+    const b = box.get(e.target);
+    if (!a || !b) return e;
+    const points = routeEdge(a, b);
+    const mid = points[Math.floor((points.length - 1) / 2)];
+    const labelBox = e.labelBox ? { ...e.labelBox, x: mid.x + 4, y: mid.y - 8 } : null;
+    return { ...e, points, labelBox };
+  });
+  let w = auto.w;
+  let h = auto.h - auto.headerH;
+  for (const nb of nodes) {
+    w = Math.max(w, nb.x + nb.w + (nb.statsInside ? 24 : STATS2_W() + 24));
+    h = Math.max(h, nb.y + nb.h + 24);
+  }
+  return { ...auto, w, h: h + auto.headerH, nodes, edges };
+}
+
+/** An orthogonal route from a's bottom to b's top (or side to side when b is beside a). */
+function routeEdge(a: NodeBox, b: NodeBox): Point[] {
+  const ax = a.x + a.w / 2;
+  const bx = b.x + b.w / 2;
+  if (b.y >= a.y + a.h + 12) {
+    const y0 = a.y + a.h;
+    const y1 = b.y;
+    const my = (y0 + y1) / 2;
+    return Math.abs(ax - bx) < 1 ? [{ x: ax, y: y0 }, { x: bx, y: y1 }] : [{ x: ax, y: y0 }, { x: ax, y: my }, { x: bx, y: my }, { x: bx, y: y1 }];
+  }
+  if (b.y + b.h + 12 <= a.y) {
+    // upwards: leave on the right side, come back into b's right side
+    const x = Math.max(a.x + a.w, b.x + b.w) + 20;
+    const ay = a.y + a.h / 2;
+    const by = b.y + b.h / 2;
+    return [{ x: a.x + a.w, y: ay }, { x, y: ay }, { x, y: by }, { x: b.x + b.w, y: by }];
+  }
+  const ay = a.y + a.h / 2;
+  const by = b.y + b.h / 2;
+  const right = bx > ax;
+  const x0 = right ? a.x + a.w : a.x;
+  const x1 = right ? b.x : b.x + b.w;
+  const mx = (x0 + x1) / 2;
+  return [{ x: x0, y: ay }, { x: mx, y: ay }, { x: mx, y: by }, { x: x1, y: by }];
+}
+
+async function layoutActivityNow(d: ModelDiagram, positions: Positions): Promise<ActivityLayout> {
+  const auto = await Promise.all(d.lanes.map(laneLayout));
+  // copies: the cached lane geometry is shared and must not be changed
+  const lanes = auto.map((l) => placeLane({ ...l }, positions));
   let x = 0;
   let height = 0;
   for (const l of lanes) height = Math.max(height, l.h);
@@ -203,7 +282,7 @@ export interface ComponentLayout {
   components: ComponentGeom[]; links: LinkGeom[]; orch: { x: number; y: number; w: number; h: number };
 }
 
-async function layoutComponentsNow(model: ModelView): Promise<ComponentLayout> {
+async function layoutComponentsNow(model: ModelView, positions: Positions): Promise<ComponentLayout> {
   const incoming = new Set(model.links.map((l) => `${l.target.component}.${l.target.port}`));
   const orchW = 420;
   const orchH = 70;
@@ -260,24 +339,40 @@ async function layoutComponentsNow(model: ModelView): Promise<ComponentLayout> {
   for (const c of out.children ?? []) {
     const m = model.components.find((mc) => mc.name === c.id);
     if (!m) continue;
-    const x = c.x ?? 0;
-    const y = c.y ?? 0;
+    const pos = positions[c.id];
+    const dx = pos ? pos[0] - (c.x ?? 0) : 0;
+    const dy = pos ? pos[1] - (c.y ?? 0) : 0;
+    const x = (c.x ?? 0) + dx;
+    const y = (c.y ?? 0) + dy;
     const ports: PortGeom[] = (c.ports ?? []).map((p) => {
       const name = p.id.slice(c.id.length + 1);
       // elk.json.shapeCoords ROOT: ports and their labels are in root coordinates too.
-      const px = p.x ?? x;
-      const py = p.y ?? y;
+      const px = (p.x ?? x - dx) + dx;
+      const py = (p.y ?? y - dy) + dy;
       const l = p.labels?.[0];
       const side = incoming.has(p.id) ? "WEST" : "EAST";
       return {
         name, feature: m.ports[name] ?? "", x: px, y: py, w: p.width ?? 10, h: p.height ?? 10, side,
-        labelX: l && l.x !== undefined ? l.x : px + 14,
-        labelY: l && l.y !== undefined ? l.y + 11 : py - 4,
+        labelX: l && l.x !== undefined ? l.x + dx : px + 14,
+        labelY: l && l.y !== undefined ? l.y + dy + 11 : py - 4,
       };
     });
     components.push({ name: c.id, x, y, w: c.width ?? 200, h: c.height ?? 100, ports });
   }
+  const portAt = new Map<string, PortGeom>();
+  for (const c of components) for (const p of c.ports) portAt.set(`${c.name}.${p.name}`, p);
   const links: LinkGeom[] = (out.edges ?? []).map((e) => {
+    const link = model.links.find((l) => l.id === e.id);
+    const from = link ? portAt.get(`${link.source.component}.${link.source.port}`) : undefined;
+    const to = link ? portAt.get(`${link.target.component}.${link.target.port}`) : undefined;
+    if (link && from && to && (positions[link.source.component] || positions[link.target.component])) {
+      // a moved component: a plain orthogonal route between the two ports
+      const a = { x: from.x + from.w, y: from.y + from.h / 2 };
+      const b = { x: to.x, y: to.y + to.h / 2 };
+      const mx = (a.x + b.x) / 2;
+      const points = [a, { x: mx, y: a.y }, { x: mx, y: b.y }, b];
+      return { id: e.id, points, label: e.id, labelX: mx + 4, labelY: (a.y + b.y) / 2 };
+    }
     const points: Point[] = [];
     for (const s of e.sections ?? []) points.push(s.startPoint, ...(s.bendPoints ?? []), s.endPoint);
     const l = e.labels?.[0];
@@ -286,10 +381,16 @@ async function layoutComponentsNow(model: ModelView): Promise<ComponentLayout> {
       labelX: l?.x ?? points[0]?.x ?? 0, labelY: (l?.y ?? points[0]?.y ?? 0) + 11,
     };
   });
+  let width = Math.max(out.width ?? 300, orchW + 60);
+  let height = out.height ?? 200;
+  for (const c of components) {
+    width = Math.max(width, c.x + c.w + 200);
+    height = Math.max(height, c.y + c.h + 30);
+  }
   return {
     kind: "components",
-    width: Math.max(out.width ?? 300, orchW + 60),
-    height: out.height ?? 200,
+    width,
+    height,
     components, links,
     orch: { x: 30, y: 24, w: orchW, h: orchH },
   };

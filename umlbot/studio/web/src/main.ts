@@ -1,6 +1,9 @@
 // umlbot studio page: connection, diagram list, live/replay driving, panels.
 
+import type { EditHooks } from "./edit";
+import { Editor } from "./edit";
 import { layoutActivity, layoutComponents, warmUp } from "./layout";
+import { sameFile } from "./paths";
 import type { DiagramView } from "./render";
 import { Renderer, fmtMs } from "./render";
 import { SimPanel } from "./sim";
@@ -8,11 +11,11 @@ import type { CallRow, Snapshot } from "./state";
 import { ModelIndex, StudioState, nodeKey } from "./state";
 import type { Diagnostic, HelloMsg, ModelView, MonitorEvent, ServerMsg } from "./types";
 
-interface StudioHooks { latencies: number[]; frames: number[]; ready: boolean; applied: number }
+interface StudioHooks { latencies: number[]; frames: number[]; ready: boolean; applied: number; edit: EditHooks | null }
 declare global {
   interface Window { __studio: StudioHooks }
 }
-const hooks: StudioHooks = { latencies: [], frames: [], ready: false, applied: 0 };
+const hooks: StudioHooks = { latencies: [], frames: [], ready: false, applied: 0, edit: null };
 window.__studio = hooks;
 const KEEP = 10_000;
 const pushCapped = (a: number[], v: number): void => {
@@ -48,6 +51,10 @@ let views = new Map<string, DiagramView>();
 let current = "";
 let generation = 0;
 let laneDiagram = new Map<string, string>();
+let replaced = new Map<string, DiagramView>(); // drawings shown until their redraw is ready
+let editor: Editor | null = null;
+let robotName = "";
+let drawnVersion = -1;
 const savedViews = new Map<string, { x: number; y: number; k: number }>(); // pan/zoom kept across redraws
 
 // ---------------------------------------------------------------- model and diagrams
@@ -57,15 +64,19 @@ function diagramIds(m: ModelView | null): string[] {
 }
 
 function setModel(m: ModelView | null, diagnostics: Diagnostic[]): void {
+  drawnVersion = hooks.edit?.version ?? -1;
   generation += 1;
   const gen = generation;
   model = m;
   index = new ModelIndex(m);
   state.index = index;
   renderer.reset(m);
-  for (const v of views.values()) {
-    if (v.view) savedViews.set(v.id, v.view);
-    v.svg.remove();
+  // The old drawings stay on screen until their new ones are ready (an edit redraws in place).
+  for (const v of views.values()) if (v.view) savedViews.set(v.id, v.view);
+  for (const [id, v] of views) {
+    // a drawing that was itself waiting for its redraw is dropped for the newer one
+    replaced.get(id)?.svg.remove();
+    replaced.set(id, v);
   }
   views = new Map();
   laneDiagram = new Map();
@@ -91,12 +102,23 @@ function setModel(m: ModelView | null, diagnostics: Diagnostic[]): void {
   setDiagnostics(diagnostics);
 
   if (!m) {
+    for (const v of replaced.values()) v.svg.remove();
+    replaced = new Map();
     messageEl.textContent = "The model does not compile: see the diagnostics.";
+    if (editor && editor.info.empty) editor.showEmpty(messageEl);
     messageEl.hidden = false;
+    editor?.renderPalette();
     hooks.ready = true;
     return;
   }
   messageEl.hidden = true;
+  titleEl.textContent = `${m.name} · robot ${robotName}`;
+  for (const [id, v] of replaced) {
+    if (!diagramIds(m).includes(id)) {
+      v.svg.remove();
+      replaced.delete(id);
+    }
+  }
   const wanted = hashDiagram();
   const ids = diagramIds(m);
   const first = wanted && ids.includes(wanted) ? wanted : current && ids.includes(current) ? current : (m.diagrams[0]?.id ?? "components");
@@ -112,28 +134,36 @@ async function layoutAll(m: ModelView, first: string, gen: number): Promise<void
       const t0 = performance.now();
       let view: DiagramView | null;
       let t1: number;
+      const positions = editor?.positions(id) ?? {};
       if (id === "components") {
-        const layout = await layoutComponents(m);
+        const layout = await layoutComponents(m, positions);
         if (gen !== generation) return;
         t1 = performance.now();
         view = renderer.buildComponents(layout, m);
       } else {
         const d = m.diagrams.find((x) => x.id === id)!;
-        const layout = await layoutActivity(d);
+        const layout = await layoutActivity(d, positions);
         if (gen !== generation) return;
         t1 = performance.now();
-        view = await renderer.buildActivity(layout, () => gen !== generation);
+        view = await renderer.buildActivity(layout, () => gen !== generation, replaced.get(id));
         if (!view || gen !== generation) return;
       }
       view.svg.style.display = id === current ? "" : "none";
-      canvas.append(view.svg);
+      const was = replaced.get(id);
+      if (was && was.svg !== view.svg) was.svg.remove();
+      if (view.svg.parentNode !== canvas) canvas.append(view.svg);
+      replaced.delete(id);
       views.set(id, view);
       const saved = savedViews.get(id);
       if (saved) {
         view.view = { ...saved };
+        if (editor) keepInView(view);
         applyView(view);
       } else if (id === current) fit(view);
       renderer.adoptFresh(state);
+      const sel = editor?.highlightSelection();
+      if (sel && id === current) showElement(view, sel);
+      if (hooks.edit && id === current) hooks.edit.drawn = drawnVersion;
       state.dirtyOrch = true;
       schedule();
       console.debug(`studio: ${id} laid out in ${(t1 - t0).toFixed(0)} ms, drawn in ${(performance.now() - t1).toFixed(0)} ms`);
@@ -153,6 +183,8 @@ function select(id: string): void {
   current = id;
   for (const li of listEl.querySelectorAll<HTMLLIElement>("li")) li.classList.toggle("selected", li.dataset.diagram === id);
   for (const [vid, v] of views) v.svg.style.display = vid === id ? "" : "none";
+  for (const [vid, v] of replaced) v.svg.style.display = vid === id ? "" : "none";
+  editor?.diagramShown(id);
   const v = views.get(id);
   if (v && !v.view) fit(v);
   if (hashDiagram() !== id) history.replaceState(null, "", `#diagram=${encodeURIComponent(id)}`);
@@ -167,7 +199,9 @@ window.addEventListener("hashchange", () => {
   if (id && id !== current) select(id);
 });
 
+let diagnostics: Diagnostic[] = [];
 function setDiagnostics(list: Diagnostic[]): void {
+  diagnostics = list;
   diagEl.replaceChildren();
   renderer.marks.clear();
   for (const d of list) {
@@ -175,19 +209,16 @@ function setDiagnostics(list: Diagnostic[]): void {
     li.className = d.severity;
     li.textContent = d.text;
     diagEl.append(li);
-    for (const dg of model?.diagrams ?? []) {
-      for (const lane of dg.lanes) {
-        if (lane.file !== d.file) continue;
-        for (const n of lane.nodes) {
-          if (n.line !== d.line) continue;
-          const key = nodeKey(lane.name, n.id);
-          const old = renderer.marks.get(key);
-          if (!old || (old.level === "warning" && d.severity === "error")) renderer.marks.set(key, { level: d.severity, message: d.text });
-          li.dataset.diagram = dg.id;
-          li.dataset.lane = lane.name;
-          li.dataset.node = n.id;
-        }
-      }
+    const at = d.lane !== undefined ? nodeNamed(d.lane ?? "", d.node ?? "") : nodeAtLine(d.file, d.line);
+    if (at) {
+      const key = nodeKey(at.lane, at.node);
+      const old = renderer.marks.get(key);
+      if (!old || (old.level === "warning" && d.severity === "error")) renderer.marks.set(key, { level: d.severity, message: d.text });
+      li.dataset.diagram = at.diagram;
+      li.dataset.lane = at.lane;
+      li.dataset.node = at.node;
+    } else if (d.lane && laneDiagram.has(d.lane)) {
+      li.dataset.diagram = laneDiagram.get(d.lane)!; // a problem of the lane itself: its diagram
     }
     li.addEventListener("click", () => {
       if (!li.dataset.diagram) return;
@@ -201,8 +232,8 @@ function setDiagnostics(list: Diagnostic[]): void {
     li.querySelector(".badge")?.remove();
     const d = model?.diagrams.find((x) => x.id === li.dataset.diagram);
     if (!d) continue;
-    const files = new Set(d.lanes.map((l) => l.file).concat([d.file]));
-    const mine = list.filter((x) => files.has(x.file));
+    const files = d.lanes.map((l) => l.file).concat([d.file]);
+    const mine = list.filter((x) => files.some((f) => sameFile(f, x.file)));
     if (!mine.length) continue;
     const badge = document.createElement("span");
     badge.className = `badge ${mine.some((x) => x.severity === "error") ? "error" : "warning"}`;
@@ -211,6 +242,30 @@ function setDiagnostics(list: Diagnostic[]): void {
     li.querySelector("small")?.before(badge);
   }
   state.markAllDirty();
+}
+
+/** The diagram of a node the server named (null when it is not drawn). */
+function nodeNamed(lane: string, node: string): { diagram: string; lane: string; node: string } | null {
+  const diagram = laneDiagram.get(lane);
+  if (!diagram || !node) return null;
+  return index.lanes.get(lane)?.nodes.has(node) ? { diagram, lane, node } : null;
+}
+
+/**
+ * The node a diagnostic at file:line belongs to: the node of that file whose first line is the last
+ * one at or before it (a bad guard on a branch's line marks its decision).
+ */
+function nodeAtLine(file: string, line: number): { diagram: string; lane: string; node: string } | null {
+  let best: { diagram: string; lane: string; node: string; line: number } | null = null;
+  for (const dg of model?.diagrams ?? []) {
+    for (const lane of dg.lanes) {
+      if (!sameFile(lane.file, file)) continue;
+      for (const n of lane.nodes) {
+        if (n.line <= line && (!best || n.line > best.line)) best = { diagram: dg.id, lane: lane.name, node: n.id, line: n.line };
+      }
+    }
+  }
+  return best;
 }
 
 // ---------------------------------------------------------------- pan / zoom
@@ -244,6 +299,43 @@ function reveal(lane: string, node: string): void {
   v.view.y += c.top + c.height / 2 - (b.top + b.height / 2);
   applyView(v);
   g.animate([{ opacity: 0.2 }, { opacity: 1 }, { opacity: 0.2 }, { opacity: 1 }], { duration: 900 });
+}
+
+/** After an edit: a diagram that fits the canvas (at its zoom, or zoomed out to >= 0.6) is shown whole. */
+function keepInView(v: DiagramView): void {
+  if (!v.view) return;
+  const W = canvas.clientWidth || 800;
+  const H = canvas.clientHeight || 600;
+  const pad = 16;
+  const kFit = Math.min((W - 2 * pad) / v.width, (H - 2 * pad) / v.height);
+  if (kFit < v.view.k && kFit >= 0.6) {
+    // grown past the canvas but still readable whole: zoom out to show all of it
+    v.view.x = (W - v.width * kFit) / 2;
+    v.view.y = (H - v.height * kFit) / 2;
+    v.view.k = kFit;
+  }
+  const w = v.width * v.view.k;
+  const h = v.height * v.view.k;
+  if (w <= W - 2 * pad) v.view.x = Math.min(Math.max(v.view.x, pad), W - pad - w);
+  if (h <= H - 2 * pad) v.view.y = Math.min(Math.max(v.view.y, pad), H - pad - h);
+}
+
+/** Pan (no zoom) so that `el` is inside the canvas. */
+function showElement(v: DiagramView, el: Element): void {
+  if (!v.view) return;
+  const c = canvas.getBoundingClientRect();
+  const b = el.getBoundingClientRect();
+  const pad = 24;
+  let dx = 0;
+  let dy = 0;
+  if (b.right > c.right - pad) dx = c.right - pad - b.right;
+  if (b.left + dx < c.left + pad) dx = c.left + pad - b.left;
+  if (b.bottom > c.bottom - pad) dy = c.bottom - pad - b.bottom;
+  if (b.top + dy < c.top + pad) dy = c.top + pad - b.top;
+  if (!dx && !dy) return;
+  v.view.x += dx;
+  v.view.y += dy;
+  applyView(v);
 }
 
 /** Show the whole diagram; `readable`: when that is too small to read, fit its width from the top. */
@@ -286,6 +378,7 @@ canvas.addEventListener("wheel", (ev) => {
 
 let drag: { x: number; y: number; vx: number; vy: number; moved: boolean; id: number } | null = null;
 canvas.addEventListener("pointerdown", (ev) => {
+  if (editor?.pointerDown(ev)) return;
   const v = views.get(current);
   if (!v || !v.view || ev.button !== 0) return;
   drag = { x: ev.clientX, y: ev.clientY, vx: v.view.x, vy: v.view.y, moved: false, id: ev.pointerId };
@@ -636,6 +729,42 @@ timeInput.addEventListener("input", () => {
   render(); // a scrub shows its moment at once, not a frame later
 });
 
+// ---------------------------------------------------------------- editing
+
+/** Forget the counts of the previous run (a new run starts). */
+function resetLive(): void {
+  queue.length = 0;
+  qpos = 0;
+  state = new StudioState(index);
+  callRows = new Map();
+  callsBody.replaceChildren();
+  state.markAllDirty();
+  schedule();
+}
+
+const editorHost = {
+  canvas,
+  model: (): ModelView | null => model,
+  current: (): string => current,
+  scale: (): number => views.get(current)?.view?.k ?? 1,
+  select,
+  setModel: (m: ModelView | null, d: Diagnostic[]): void => {
+    if (!m && model && !(editor?.info.empty)) {
+      // Broken by an edit: keep the last good diagrams, list the problems.
+      setDiagnostics(d);
+      bannerEl.textContent = "The model does not compile now (see Diagnostics): the diagram shows its last version that did.";
+      bannerEl.hidden = false;
+    } else {
+      bannerEl.hidden = true;
+      setModel(m, d);
+    }
+    schedule();
+  },
+  relayout: (): void => setModel(model, diagnostics),
+  diagnostics: (): Diagnostic[] => diagnostics,
+  resetLive,
+};
+
 // ---------------------------------------------------------------- connection
 
 let ws: WebSocket | null = null;
@@ -653,11 +782,15 @@ function resetSession(hello: HelloMsg): void {
   frameGaps = 0;
   lostFrames = 0;
   dropped = 0;
-  index = new ModelIndex(hello.model);
+  // The editor draws the model as written (it exists while the model has errors too).
+  const shown = hello.edit ? (hello.edit.model ?? null) : hello.model;
+  const shownDiagnostics = hello.edit ? (hello.edit.diagnostics ?? hello.diagnostics ?? []) : (hello.diagnostics ?? []);
+  index = new ModelIndex(shown);
   state = new StudioState(index);
   callRows = new Map();
   callsBody.replaceChildren();
-  const name = hello.model?.name ?? "(no model)";
+  robotName = hello.robot;
+  const name = shown?.name ?? "(no model)";
   titleEl.textContent = `${name} · robot ${hello.robot}`;
   $<HTMLElement>("#source").textContent = hello.source;
   titleEl.title = hello.source;
@@ -665,7 +798,15 @@ function resetSession(hello: HelloMsg): void {
   modeEl.dataset.mode = mode;
   document.title = `umlbot studio — ${name} (${mode})`;
   sim.setTrack(hello.track);
-  setModel(hello.model, hello.diagnostics ?? []);
+  if (hello.edit) {
+    if (editor) editor.setInfo(hello.edit);
+    else {
+      hooks.edit = { version: hello.edit.version, busy: false, dirty: hello.edit.dirty, requests: 0, errors: [], drawn: -1 };
+      editor = new Editor(editorHost, hello.edit, hooks.edit);
+    }
+  }
+  setModel(shown, shownDiagnostics);
+  if (hello.edit) editor?.afterHello(hello.edit);
   if (mode === "replay") setupReplay(hello.replay?.events ?? []);
   state.markAllDirty();
   schedule();
@@ -695,6 +836,21 @@ function onMessage(msg: ServerMsg): void {
       sim.push(msg);
       schedule();
       break;
+    case "files":
+      editor?.onFiles(msg);
+      schedule();
+      break;
+    case "conflict":
+      editor?.onConflict(msg);
+      break;
+    case "run":
+      if (msg.state === "running") {
+        // a new run: the sim panel shows its track, the counts start from zero
+        sim.setTrack(msg.track ?? null);
+        resetLive();
+      }
+      editor?.onRun(msg);
+      break;
     case "model":
       if (!msg.model && model) {
         // Broken by an edit: keep the last good diagrams, list the problems.
@@ -711,6 +867,9 @@ function onMessage(msg: ServerMsg): void {
       break;
   }
 }
+
+// The editor asks for a fresh hello (the server's working copy) after a stale edit.
+window.addEventListener("studio-resync", () => ws?.close());
 
 function connect(): void {
   const url = `${location.protocol === "https:" ? "wss" : "ws"}://${location.host}/ws`;
@@ -741,6 +900,7 @@ function connect(): void {
 }
 
 window.addEventListener("keydown", (ev) => {
+  if (editor?.key(ev)) return;
   const t = ev.target as HTMLElement;
   if (ev.ctrlKey || ev.metaKey || ev.altKey || /^(INPUT|SELECT|TEXTAREA|BUTTON)$/.test(t.tagName)) return;
   if (ev.key === " " && replay) {

@@ -76,6 +76,10 @@ export class Renderer {
   private freshEdges: string[] = [];
   private freshLanes = new Set<string>();
   private freshComps: string[] = [];
+  // Lanes drawn so far, by name: an identical lane (same geometry) is moved into the new drawing
+  // as it is after an edit, so an edit redraws only the lanes it changed.
+  private built = new Map<string, BuiltLane>();
+  private pool = new Map<string, BuiltLane>();
 
   /** Bring elements built since the last call up to date with `state` (nodes within the budget). */
   adoptFresh(state: StudioState): void {
@@ -96,6 +100,9 @@ export class Renderer {
   }
 
   reset(model: ModelView | null): void {
+    // lanes of an unfinished redraw stay reusable
+    for (const [name, b] of this.built) this.pool.set(name, b);
+    this.built = new Map();
     this.freshNodes = [];
     this.freshEdges = [];
     this.freshLanes.clear();
@@ -127,11 +134,17 @@ export class Renderer {
    * Draw an activity diagram lane by lane, yielding to the browser between lanes (a big diagram
    * drawn in the background must not block a frame); null when `stale()` turns true meanwhile.
    */
-  async buildActivity(layout: ActivityLayout, stale: () => boolean): Promise<DiagramView | null> {
+  async buildActivity(layout: ActivityLayout, stale: () => boolean, reuse?: DiagramView): Promise<DiagramView | null> {
     const d = layout.diagram;
-    const v = this.newSvg(d.id, layout.width, layout.height);
+    // After an edit the diagram's drawing is updated in place: unchanged lanes stay where they are
+    // (moving thousands of elements into a new <svg> would restyle all of them), changed lanes are
+    // drawn anew and swapped in.
+    const v = reuse ?? this.newSvg(d.id, layout.width, layout.height);
+    v.width = layout.width;
+    v.height = layout.height;
     const marker = `url(#arrow-${d.id})`;
     let budget = performance.now();
+    const mine = new Set<SVGGElement>();
     for (const lg of layout.lanes) {
       if (performance.now() - budget > 12) {
         await new Promise((resolve) => setTimeout(resolve, 0));
@@ -139,7 +152,35 @@ export class Renderer {
         budget = performance.now();
       }
       const lane = lg.lane;
-      const g = svgEl("g", { class: "lane", "data-lane": lane.name, transform: `translate(${lg.x},${lg.y})` }, v.viewport);
+      const key = laneKey(lg, this.virtualLanes);
+      const old = this.pool.get(lane.name);
+      if (old && old.key === key) {
+        this.pool.delete(lane.name);
+        if (old.g.parentNode !== v.viewport) v.viewport.append(old.g);
+        const at = `translate(${lg.x},${lg.y})`;
+        if (old.g.getAttribute("transform") !== at) old.g.setAttribute("transform", at);
+        const bg = old.g.querySelector(".lane-bg");
+        if (bg && bg.getAttribute("height") !== String(lg.h)) bg.setAttribute("height", String(lg.h));
+        for (const [k, ne] of old.nodes) {
+          this.nodeEls.set(k, ne);
+          this.freshNodes.push(k);
+          ne.count = -2;
+        }
+        for (const [k, ee] of old.edges) {
+          this.edgeEls.set(k, ee);
+          this.freshEdges.push(k);
+          ee.count = -1;
+        }
+        this.freshLanes.add(lane.name);
+        this.built.set(lane.name, old);
+        mine.add(old.g);
+        continue;
+      }
+      const laneNodes = new Map<string, NodeEl>();
+      const laneEdges = new Map<string, EdgeEl>();
+      const g = svgEl("g", { class: "lane", "data-lane": lane.name, transform: `translate(${lg.x},${lg.y})` });
+      this.built.set(lane.name, { key, g, nodes: laneNodes, edges: laneEdges });
+      mine.add(g);
       svgEl("rect", { class: "lane-bg", x: 0, y: 0, width: lg.w, height: lg.h }, g);
       svgEl("rect", { class: "lane-header", x: 0, y: 0, width: lg.w, height: lg.headerH }, g);
       svgEl("text", { class: "lane-title", x: lg.w / 2, y: 22 }, g, lane.name);
@@ -151,22 +192,37 @@ export class Renderer {
       const nodesG = svgEl("g", { class: "nodes" }, body);
       for (const e of lg.edges) {
         const eg = svgEl("g", { class: "edge", "data-lane": lane.name, "data-source": e.source, "data-target": e.target, "data-count": 0 }, edgesG);
-        svgEl("path", { class: "line", d: roundedPath(e.points), "marker-end": marker }, eg);
+        const d = roundedPath(e.points);
+        svgEl("path", { class: "line", d, "marker-end": marker }, eg);
+        svgEl("path", { class: "hit", d }, eg); // a wide invisible stroke to click an edge (edit mode)
         let label: SVGTextElement | null = null;
         if (e.labelBox) {
           label = svgEl("text", { class: "elabel", x: e.labelBox.x + 2, y: e.labelBox.y + 12 }, eg, e.label);
         }
         const ek = edgeKey(lane.name, e.source, e.target);
-        this.edgeEls.set(ek, { g: eg, label, guard: e.label, count: -1 });
+        const ee = { g: eg, label, guard: e.label, count: -1 };
+        this.edgeEls.set(ek, ee);
+        laneEdges.set(ek, ee);
         this.freshEdges.push(ek);
       }
-      for (const nb of lg.nodes) this.buildNode(nodesG, lane.name, nb);
+      for (const nb of lg.nodes) {
+        const k = this.buildNode(nodesG, lane.name, nb);
+        laneNodes.set(k, this.nodeEls.get(k)!);
+      }
       this.freshLanes.add(lane.name);
+      // swap it in whole (its old drawing, if any, goes below)
+      const was = old && old.g.parentNode === v.viewport ? old.g : null;
+      if (was) {
+        was.replaceWith(g);
+        this.pool.delete(lane.name);
+      } else v.viewport.append(g);
     }
+    for (const g of [...v.viewport.children]) if (g.classList.contains("lane") && !mine.has(g as SVGGElement)) g.remove();
+    for (const [name, b] of this.pool) if (!b.g.isConnected) this.pool.delete(name);
     return v;
   }
 
-  private buildNode(parent: SVGGElement, lane: string, nb: NodeBox): void {
+  private buildNode(parent: SVGGElement, lane: string, nb: NodeBox): string {
     const n = nb.node;
     const { w, h } = nb;
     // Absolute coordinates, no transform per node: thousands of transform nodes make Chromium's
@@ -176,6 +232,7 @@ export class Renderer {
     const pts = (list: [number, number][]): string => list.map(([a, b]) => `${X(a)},${Y(b)}`).join(" ");
     const g = svgEl("g", {
       class: `node kind-${n.kind}`, "data-lane": lane, "data-node": n.id, "data-kind": n.kind, "data-count": 0,
+      "data-x": attrNum(nb.x), "data-y": attrNum(nb.y), "data-w": nb.w, "data-h": nb.h,
     }, parent);
     const title = svgEl("title", {}, g, n.label);
     let labelY = 21;
@@ -238,6 +295,7 @@ export class Renderer {
       g, stats, statsLines, value, title, label: n.label, count: -2, level: "info", message: "", valueText: "",
     });
     this.freshNodes.push(key);
+    return key;
   }
 
   buildComponents(layout: ComponentLayout, model: ModelView): DiagramView {
@@ -262,7 +320,9 @@ export class Renderer {
     for (const c of layout.components) {
       const m = model.components.find((mc) => mc.name === c.name);
       if (!m) continue;
-      const g = svgEl("g", { class: "component unknown", "data-component": c.name, "data-state": "unknown" }, v.viewport);
+      const g = svgEl("g", {
+        class: "component unknown", "data-component": c.name, "data-state": "unknown", "data-x": attrNum(c.x), "data-y": attrNum(c.y),
+      }, v.viewport);
       const inner = svgEl("g", { transform: `translate(${c.x},${c.y})` }, g);
       const box = svgEl("rect", { class: "box", width: c.w, height: c.h, rx: 3 }, inner);
       // UML component icon
@@ -453,6 +513,19 @@ export class Renderer {
       ce.state.textContent = "no retained state";
     }
   }
+}
+
+interface BuiltLane { key: string; g: SVGGElement; nodes: Map<string, NodeEl>; edges: Map<string, EdgeEl> }
+
+/** What a lane's drawing depends on (not the nodes' source lines, which shift with edits elsewhere). */
+function laneKey(lg: ActivityLayout["lanes"][number], virtualLanes: Set<string>): string {
+  const l = lg.lane;
+  return JSON.stringify([
+    lg.y, lg.w, l.name, l.file, l.virtual, l.component, // x and the column height are updated in place
+    lg.nodes.map((nb) => [nb.node.id, nb.node.kind, nb.node.label, nb.x, nb.y, nb.w, nb.h, nb.statsX, nb.statsY,
+      nb.node.kind === "action" && virtualLanes.has(nb.node.label.replace(/\(\s*\)$/, ""))]),
+    lg.edges.map((e) => [e.source, e.target, e.label, e.points, e.labelBox]),
+  ]);
 }
 
 function roundedPath(pts: Point[]): string {

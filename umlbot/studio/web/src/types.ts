@@ -1,4 +1,4 @@
-// Wire types of the page/server contract (docs: /work/notes/studio-protocol.md, v1).
+// Wire types of the page/server contract (docs/studio.md: "The page's data", "Editing requests").
 
 export type NodeKind =
   | "start" | "end" | "action" | "datastore" | "decision" | "fork" | "join" | "send" | "accept";
@@ -10,6 +10,7 @@ export interface ModelNode {
   line: number;
   store?: string;
   signal?: string;
+  fields?: Record<string, unknown>; // editable fields as written (edit mode)
 }
 
 export interface ModelEdge {
@@ -17,6 +18,7 @@ export interface ModelEdge {
   source: string;
   target: string;
   label: string;
+  guard?: string;
 }
 
 export interface ModelLane {
@@ -70,6 +72,9 @@ export interface Diagnostic {
   line: number;
   column: number;
   text: string;
+  relpath?: string;
+  lane?: string | null;
+  node?: string | null;
 }
 
 export interface TrackView {
@@ -115,7 +120,98 @@ export interface HelloMsg {
   diagnostics: Diagnostic[];
   track: TrackView | null;
   replay: { file: string; events: MonitorEvent[] } | null;
+  edit?: EditInfo | null;
 }
+
+// ---- editing (contract: /work/notes/edit-contract.md) ----
+
+/** Positions the user chose: diagram id -> "<lane>/<node>" (or component name) -> [x, y]. */
+export type LayoutMap = Record<string, Record<string, [number, number]>>;
+
+export interface RunInfo {
+  running: boolean;
+  robot?: string;
+  track?: TrackView | null;
+  result?: { reason?: string; goal_reached?: boolean; collisions?: number; sim_s?: number; distance_m?: number; failure?: string | null };
+}
+
+export interface EditInfo {
+  token: string;
+  root: string;
+  empty: boolean;
+  dirty: boolean;
+  version: number;
+  layout: { positions?: LayoutMap } | null;
+  conflict?: string[];
+  model?: ModelView | null; // the model as written (also while it has errors)
+  compiled?: boolean;
+  diagnostics?: Diagnostic[];
+  run?: RunInfo;
+}
+
+export interface ParamInfo { name: string; type?: string; minimum?: number | null; maximum?: number | null; unit?: string | null }
+export interface FeatureInfo { params: ParamInfo[] | null; returns?: string | null; doc?: string }
+export interface ImplInfo {
+  id: string;
+  kind: string;
+  service?: string;
+  title?: string;
+  features: Record<string, FeatureInfo> | string[];
+  aliases: string[];
+  settings_schema: JsonSchema | null;
+  settings_doc?: Record<string, string>;
+  doc?: string;
+}
+export interface JsonSchema {
+  type?: string | string[];
+  properties?: Record<string, JsonSchema>;
+  required?: string[];
+  title?: string;
+  description?: string;
+  default?: unknown;
+  minimum?: number;
+  maximum?: number;
+  enum?: unknown[];
+  items?: JsonSchema;
+  anyOf?: JsonSchema[];
+  $ref?: string;
+  $defs?: Record<string, JsonSchema>;
+}
+export interface FieldInfo { type?: string; required?: boolean; doc?: string }
+export interface Library {
+  kinds: Record<string, { features: Record<string, FeatureInfo>; doc?: string }>;
+  implementations: ImplInfo[];
+  builtins: ({ name: string } & FeatureInfo)[];
+  node_kinds: Record<string, { fields: Record<string, FieldInfo>; doc?: string }>;
+  expression_help?: unknown;
+}
+
+export interface EditAnswer {
+  version: number;
+  model: ModelView | null;
+  compiled?: boolean;
+  diagnostics: Diagnostic[];
+  changed?: string[];
+  dirty: boolean;
+  layout?: { positions?: LayoutMap } | null;
+}
+
+export interface Completion { label: string; kind: string; detail?: string; insert?: string }
+export interface Signature { label: string; params: ParamInfo[]; active: number; returns?: string; doc?: string }
+export interface CompleteAnswer { items: Completion[]; signature: Signature | null; replace?: [number, number] }
+
+export interface FilesMsg {
+  type: "files";
+  reason: string;
+  changed: string[];
+  model: ModelView | null;
+  diagnostics: Diagnostic[];
+  version: number;
+  dirty?: boolean;
+  layout?: { positions?: LayoutMap } | null;
+}
+export interface ConflictMsg { type: "conflict"; changed: string[]; version?: number }
+export interface RunMsg extends RunInfo { type: "run"; state: string }
 
 export interface EventsMsg {
   type: "events";
@@ -149,4 +245,4 @@ export interface ModelMsg {
   diagnostics: Diagnostic[];
 }
 
-export type ServerMsg = HelloMsg | EventsMsg | WorldMsg | ModelMsg;
+export type ServerMsg = HelloMsg | EventsMsg | WorldMsg | ModelMsg | FilesMsg | ConflictMsg | RunMsg;

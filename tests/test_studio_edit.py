@@ -1,0 +1,655 @@
+"""The studio's editing over real sockets: operations as text edits, checks with `umlbot check`'s
+messages, undo/redo, saving (atomic, inside the folder, byte-identical round trip), files changed
+on disk, a new model, and who may write."""
+
+from __future__ import annotations
+
+import asyncio
+import difflib
+import importlib.util
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import aiohttp
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from robot_run import CAR_MODEL, umlbot_argv
+from studio_support import read_frames, studio
+
+from compiler.api import check_model
+from umlbot.studio.api import EditApi
+from umlbot.studio.edit import EditError, apply_ops, parse_ops
+from umlbot.studio.model_view import model_view, source_view
+from umlbot.studio.server import StudioData, StudioServer, StudioThread
+from umlbot.studio.workspace import LAYOUT_FILE, Workspace, model_files, safe_path
+
+REPO = Path(__file__).resolve().parent.parent
+
+
+def _bench_compile() -> Any:
+    spec = importlib.util.spec_from_file_location("bench_compile", REPO / "bench" / "compile.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["bench_compile"] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+def _texts(root: Path) -> dict[str, str]:
+    return {rel: data.decode("utf-8") for rel, data in model_files(root).items()}
+
+
+def _apply(files: dict[str, str], ops: list[dict[str, Any]]) -> dict[str, str]:
+    out: dict[str, str | None] = dict(files)
+    out.update(apply_ops(files, parse_ops(ops)))
+    return {rel: text for rel, text in out.items() if text is not None}
+
+
+def _check(root: Path, files: dict[str, str]) -> Any:
+    return check_model(root, files={rel: text.encode() for rel, text in files.items()})
+
+
+def _changed_lines(before: str, after: str) -> tuple[list[str], list[str]]:
+    removed, added = [], []
+    for line in difflib.ndiff(before.splitlines(), after.splitlines()):
+        if line.startswith("- "):
+            removed.append(line[2:])
+        elif line.startswith("+ "):
+            added.append(line[2:])
+    return removed, added
+
+
+# --- operations as text edits ------------------------------------------------------------------------
+
+
+def test_set_node_changes_only_that_value_and_compiles_to_the_new_value() -> None:
+    files = _texts(CAR_MODEL)
+    out = _apply(files, [{"op": "set_node", "lane": "RaspberryPI", "id": "set_speed",
+                          "fields": {"value": "55"}}])
+    removed, added = _changed_lines(files["activities/main.yaml"], out["activities/main.yaml"])
+    assert removed == ["  - {id: set_speed, kind: datastore, name: speed_percent, value: 70}"]
+    assert added == ["  - {id: set_speed, kind: datastore, name: speed_percent, value: 55}"]
+    assert all(out[rel] == files[rel] for rel in files if rel != "activities/main.yaml")
+    result = _check(CAR_MODEL, out)
+    assert result.model is not None
+    node = result.model.lanes["RaspberryPI"].nodes["set_speed"]
+    assert node.label == "speed_percent = 55"
+
+
+def test_every_node_of_the_car_rewritten_with_its_own_fields_leaves_the_files_identical() -> None:
+    """set_node of a node's own values is a no-op: located and written exactly."""
+    files = _texts(CAR_MODEL)
+    view = source_view(_check(CAR_MODEL, files).source)
+    ops = [{"op": "set_node", "lane": lane["name"], "id": node["id"],
+            "fields": {k: v for k, v in node["fields"].items() if isinstance(v, str)}}
+           for diagram in view["diagrams"] for lane in diagram["lanes"] for node in lane["nodes"]]
+    assert len(ops) > 50
+    assert _apply(files, ops) == files
+
+
+def test_building_the_stop_lane_from_a_starter_gives_the_reference_cars_stop(tmp_path: Path) -> None:
+    ws = Workspace(tmp_path / "my_robot")
+    assert ws.empty
+    ws.new_model(None)
+    ops: list[dict[str, Any]] = [
+        {"op": "add_lane", "lane": "Stop"},
+        {"op": "add_node", "lane": "Stop", "node": {"id": "both", "kind": "fork"}},
+        {"op": "add_node", "lane": "Stop", "node": {"id": "left_off", "kind": "action",
+                                                   "call": "LeftActuator.enabled(false)"}},
+        {"op": "add_node", "lane": "Stop", "node": {"id": "right_off", "kind": "action"}},
+        {"op": "set_node", "lane": "Stop", "id": "right_off",
+         "fields": {"call": "RightActuator.enabled(false)"}},
+        {"op": "add_node", "lane": "Stop", "node": {"id": "stopped", "kind": "join"}},
+        {"op": "connect", "lane": "Stop", "source": "start", "target": "both"},
+        {"op": "connect", "lane": "Stop", "source": "both", "target": "left_off"},
+        {"op": "connect", "lane": "Stop", "source": "both", "target": "right_off"},
+        {"op": "connect", "lane": "Stop", "source": "left_off", "target": "stopped"},
+        {"op": "connect", "lane": "Stop", "source": "right_off", "target": "stopped"},
+        {"op": "connect", "lane": "Stop", "source": "stopped", "target": "end"},
+        {"op": "add_node", "lane": "RaspberryPI", "node": {"id": "halt", "kind": "action",
+                                                          "call": "Stop"}},
+        {"op": "connect", "lane": "RaspberryPI", "source": "start", "target": "halt"},
+        {"op": "connect", "lane": "RaspberryPI", "source": "halt", "target": "end"},
+    ]
+    answer = ws.edit(ws.version, ops)
+    assert answer["compiled"], answer["diagnostics"]
+    assert ws.result is not None and ws.result.model is not None
+    ws.save(ws.version)
+    built = check_model(tmp_path / "my_robot")
+    reference = check_model(CAR_MODEL)
+    assert built.model is not None and reference.model is not None
+    mine = model_view(built.model)
+    ref = model_view(reference.model)
+
+    def lane(view: dict[str, Any], name: str) -> dict[str, Any]:
+        return next(x for d in view["diagrams"] for x in d["lanes"] if x["name"] == name)
+
+    def shape(x: dict[str, Any]) -> tuple[Any, ...]:
+        return (sorted((n["id"], n["kind"], n["label"]) for n in x["nodes"]),
+                sorted((e["source"], e["target"], e["label"]) for e in x["edges"]))
+
+    assert shape(lane(mine, "Stop")) == shape(lane(ref, "Stop"))
+    text = (tmp_path / "my_robot" / "activities" / "stop.yaml").read_text(encoding="utf-8")
+    assert "  - {id: left_off, kind: action, call: LeftActuator.enabled(false), next: stopped}\n" in text
+
+
+def test_edits_on_a_generated_model_touch_only_the_edited_lines(tmp_path: Path) -> None:
+    root = _bench_compile().generate(tmp_path / "gen", 1_000)
+    files = _texts(root)
+    before = _check(root, files)
+    assert before.model is not None
+    rel = "activities/lane0003.yaml"
+    ops: list[dict[str, Any]] = [
+        {"op": "set_node", "lane": "Helper3", "id": "b2_wait", "fields": {"call": "usleep(5)"}},
+        {"op": "set_guard", "lane": "Helper3", "source": "b4_choose", "target": "b4_fork",
+         "guard": "d4 > 30"},
+        {"op": "add_node", "lane": "Helper3", "node": {"id": "extra", "kind": "action", "call": "msleep(2)"}},
+        {"op": "connect", "lane": "Helper3", "source": "extra", "target": "b1_x"},
+        {"op": "connect", "lane": "Helper3", "source": "b0_wait", "target": "extra"},
+    ]
+    out = _apply(files, ops)
+    assert [r for r in files if out[r] != files[r]] == [rel]
+    removed, added = _changed_lines(files[rel], out[rel])
+    assert removed == ["  - {id: b0_wait, kind: action, call: usleep(x0 * 10)}",
+                       "  - {id: b2_wait, kind: action, call: usleep(x2 * 10)}",
+                       "    branches: [{if: d4 > 20 and not Application.exit, then: b4_fork}, "
+                       "{else: b4_call}]"]
+    assert added == ["  - {id: b0_wait, kind: action, call: usleep(x0 * 10), next: extra}",
+                     "  - {id: b2_wait, kind: action, call: usleep(5)}",
+                     "    branches: [{if: d4 > 30, then: b4_fork}, {else: b4_call}]",
+                     "  - {id: extra, kind: action, call: msleep(2), next: b1_x}"]
+    after = _check(root, out)
+    assert after.model is not None, [str(d) for d in after.diagnostics]
+    lane = after.model.lanes["Helper3"]
+    assert lane.nodes["b0_wait"].next == "extra" and lane.nodes["extra"].next == "b1_x"
+    assert len(lane.nodes) == len(before.model.lanes["Helper3"].nodes) + 1
+
+
+def test_impossible_operations_name_the_problem() -> None:
+    files = _texts(CAR_MODEL)
+    cases = [
+        ({"op": "add_node", "lane": "Nope", "node": {"kind": "end"}}, "no swimlane 'Nope'"),
+        ({"op": "add_node", "lane": "Stop", "node": {"id": "both", "kind": "end"}}, "has a node 'both'"),
+        ({"op": "add_node", "lane": "Stop", "node": {"kind": "action", "guard": "x"}}, "no 'guard'"),
+        ({"op": "set_node", "lane": "Stop", "id": "both", "fields": {"call": "x"}},
+         "fork node has no 'call'"),
+        ({"op": "connect", "lane": "Stop", "source": "end", "target": "start"}, "no outgoing flow"),
+        ({"op": "set_deployment", "component": "Sensor", "impl": "servo", "settings": {"gpio": 40}},
+         "Sensor: invalid settings: gpio"),
+        ({"op": "frobnicate"}, "unknown op 'frobnicate'"),
+    ]
+    for op, message in cases:
+        with pytest.raises(EditError, match=message):
+            apply_ops(files, parse_ops([op]))
+
+
+def test_paths_outside_the_model_folder_are_refused(tmp_path: Path) -> None:
+    root = tmp_path / "m"
+    root.mkdir()
+    (tmp_path / "outside").mkdir()
+    os.symlink(tmp_path / "outside", root / "activities")
+    for rel in ("../x.yaml", "/etc/passwd", "activities/x.yaml", "", "a/../../x"):
+        with pytest.raises(ValueError):
+            safe_path(root, rel)
+    assert safe_path(root, "model.yaml") == (root / "model.yaml").resolve()
+
+
+# --- the server ------------------------------------------------------------------------------------
+
+
+class Editor:
+    """A studio editing `root`, served on a free port, and a client for its requests."""
+
+    def __init__(self, root: Path) -> None:
+        self.workspace = Workspace(root)
+        data = StudioData(mode="live", robot="car", source=str(root), model=None, diagnostics=[])
+        self.server = StudioServer(data, port=0)
+        self.server.api = EditApi(self.workspace)
+        data.edit = self.server.api.hello
+        self.thread = StudioThread(self.server)
+        self.url = self.thread.start()
+        self.token = self.workspace.token
+
+    def post(self, name: str, body: dict[str, Any], headers: dict[str, str] | None = None,
+             token: str | None = None) -> tuple[int, dict[str, Any]]:
+        async def go() -> tuple[int, dict[str, Any]]:
+            async with aiohttp.ClientSession() as client, client.post(
+                    f"{self.url}api/{name}", json={"token": token or self.token, **body},
+                    headers=headers) as resp:
+                text = await resp.text()
+                return resp.status, json.loads(text) if text.startswith("{") else {"text": text}
+
+        return asyncio.run(go())
+
+    def get(self, name: str) -> dict[str, Any]:
+        async def go() -> dict[str, Any]:
+            async with aiohttp.ClientSession() as client, client.get(f"{self.url}api/{name}") as resp:
+                assert resp.status == 200
+                result: dict[str, Any] = await resp.json()
+                return result
+
+        return asyncio.run(go())
+
+
+@pytest.fixture
+def car(tmp_path: Path) -> Iterator[tuple[Path, Editor]]:
+    root = tmp_path / "car"
+    shutil.copytree(CAR_MODEL, root)
+    editor = Editor(root)
+    try:
+        yield root, editor
+    finally:
+        editor.thread.stop()
+
+
+def _snapshot(root: Path) -> dict[str, bytes]:
+    return {p.relative_to(root).as_posix(): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
+
+
+def test_open_then_save_without_edits_writes_nothing(car: tuple[Path, Editor]) -> None:
+    root, editor = car
+    before = _snapshot(root)
+    mtimes = {p: p.stat().st_mtime_ns for p in root.rglob("*") if p.is_file()}
+    hello = read_frames(editor.url, lambda f: len(f) >= 1)[0]
+    assert hello["edit"]["token"] == editor.token and hello["edit"]["dirty"] is False
+    status, answer = editor.post("save", {"version": hello["edit"]["version"]})
+    assert status == 200 and answer["saved"] == []
+    assert _snapshot(root) == before
+    assert {p: p.stat().st_mtime_ns for p in root.rglob("*") if p.is_file()} == mtimes
+
+
+def test_generated_model_round_trip_and_undo_is_byte_identical(tmp_path: Path) -> None:
+    root = _bench_compile().generate(tmp_path / "gen", 500)
+    before = _snapshot(root)
+    editor = Editor(root)
+    try:
+        status, answer = editor.post("edit", {"version": 0, "ops": [
+            {"op": "set_node", "lane": "Helper2", "id": "b3_x", "fields": {"value": "7"}},
+            {"op": "remove_node", "lane": "Helper2", "id": "b3_wait"}]})
+        assert status == 200 and answer["changed"] == ["activities/lane0002.yaml"] and answer["dirty"]
+        status, answer = editor.post("undo", {})
+        assert status == 200 and not answer["dirty"]
+        status, answer = editor.post("save", {"version": answer["version"]})
+        assert status == 200 and answer["saved"] == []
+    finally:
+        editor.thread.stop()
+    assert _snapshot(root) == before
+
+
+def test_an_edit_answers_with_umlbot_checks_messages_on_the_node(car: tuple[Path, Editor]) -> None:
+    root, editor = car
+    status, answer = editor.post("edit", {"version": 0, "ops": [
+        {"op": "connect", "lane": "RaspberryPI", "source": "choose", "target": "halt",
+         "guard": "Measure.center > 'far'"}]})
+    assert status == 200 and not answer["compiled"]
+    assert answer["model"]["diagrams"]  # the editor still draws the model
+    shown = [d for d in answer["diagnostics"] if d["severity"] == "error"]
+    assert [(d["lane"], d["node"]) for d in shown] == [("RaspberryPI", "choose")]
+    # the same text on disk gives the same lines from `umlbot check`
+    status, saved = editor.post("save", {"version": answer["version"]})
+    assert status == 200 and saved["saved"] == ["activities/main.yaml"]
+    check = subprocess.run(umlbot_argv("check", str(root)), capture_output=True, text=True, timeout=60,
+                           check=False)
+    assert check.returncode == 1
+    printed = [line for line in check.stdout.splitlines() + check.stderr.splitlines() if ": error: " in line]
+    assert printed == [d["text"] for d in shown]
+    # undo brings the old text back; redo the new one
+    status, undone = editor.post("undo", {})
+    assert status == 200 and undone["compiled"] and undone["dirty"]
+    status, redone = editor.post("redo", {})
+    assert status == 200 and not redone["compiled"] and not redone["dirty"]
+
+
+def test_writes_need_the_token_the_origin_and_the_current_version(car: tuple[Path, Editor]) -> None:
+    root, editor = car
+    before = _snapshot(root)
+    op = {"version": 0, "ops": [{"op": "remove_lane", "lane": "Stop"}]}
+    assert editor.post("edit", op, token="guess")[0] == 403
+    assert editor.post("edit", op, headers={"Origin": "http://evil.example"})[0] == 403
+    assert editor.post("edit", {**op, "version": 5})[0] == 409
+    status, answer = editor.post("edit", {"version": 0, "ops": [{"op": "add_node", "lane": "Nope",
+                                                                 "node": {"kind": "end"}}]})
+    assert status == 400 and "no swimlane 'Nope'" in answer["error"]
+    status, answer = editor.post("edit", op, headers={"Origin": editor.url.rstrip("/")})
+    assert status == 200 and answer["version"] == 1
+    assert _snapshot(root) == before  # nothing written before a save
+
+
+def test_a_file_changed_on_disk_is_taken_in_or_reported_as_a_conflict(car: tuple[Path, Editor]) -> None:
+    root, editor = car
+    main = root / "activities" / "main.yaml"
+    measure = root / "activities" / "measure.yaml"
+
+    def frames_after(change: Any, kind: str) -> list[dict[str, Any]]:
+        return read_frames(editor.url, lambda f: (len(f) == 1 and change() is None)
+                           or any(x.get("type") == kind for x in f[1:]), timeout=20)
+
+    # clean: a change on disk is reloaded and pushed
+    text = main.read_text(encoding="utf-8").replace("value: 70}", "value: 65}")
+    assert "value: 65}" in text
+    frames = frames_after(lambda: main.write_text(text, encoding="utf-8"), "files")
+    pushed = next(f for f in frames if f.get("type") == "files")
+    assert pushed["changed"] == ["activities/main.yaml"] and pushed["reason"] == "changed on disk"
+    assert editor.get("files")["files"]["activities/main.yaml"] == text
+    # dirty: my edit of main.yaml and a change on disk of the same file conflict
+    version = pushed["version"]
+    status, answer = editor.post("edit", {"version": version, "ops": [
+        {"op": "set_node", "lane": "RaspberryPI", "id": "set_turn", "fields": {"value": "400"}}]})
+    assert status == 200
+    theirs = text.replace("value: 8}", "value: 9}")
+    assert theirs != text
+    frames = frames_after(lambda: main.write_text(theirs, encoding="utf-8"), "conflict")
+    assert next(f for f in frames if f.get("type") == "conflict")["changed"] == ["activities/main.yaml"]
+    status, refused = editor.post("save", {"version": answer["version"]})
+    assert status == 409 and refused["conflict"] == ["activities/main.yaml"]
+    assert main.read_text(encoding="utf-8") == theirs  # nothing overwritten
+    # a change of a file I did not edit is taken in, my edit stays
+    measure.write_text(measure.read_text(encoding="utf-8") + "# a note\n", encoding="utf-8")
+    deadline = time.monotonic() + 10
+    while "# a note" not in editor.get("files")["files"]["activities/measure.yaml"]:
+        assert time.monotonic() < deadline
+        time.sleep(0.1)
+    files = editor.get("files")
+    assert "value: 400}" in files["files"]["activities/main.yaml"]
+    # keep mine: save with force
+    status, saved = editor.post("save", {"version": files["version"], "force": True})
+    assert status == 200 and saved["saved"] == ["activities/main.yaml"]
+    assert "value: 400}" in main.read_text(encoding="utf-8")
+    assert "value: 8}" in main.read_text(encoding="utf-8")  # mine was made from the earlier text
+
+
+def test_reload_discards_my_edits(car: tuple[Path, Editor]) -> None:
+    root, editor = car
+    before = _snapshot(root)
+    status, answer = editor.post("edit", {"version": 0, "ops": [{"op": "remove_lane", "lane": "Measure"}]})
+    assert status == 200 and answer["changed"] == ["activities/measure.yaml"]
+    assert "lane: Measure" not in editor.get("files")["files"]["activities/measure.yaml"]
+    status, answer = editor.post("reload", {})
+    assert status == 200 and not answer["dirty"] and answer["compiled"]
+    assert editor.post("undo", {})[0] == 409  # nothing to undo after a reload
+    assert _snapshot(root) == before
+
+
+def test_layout_is_kept_in_its_own_file(car: tuple[Path, Editor]) -> None:
+    root, editor = car
+    status, answer = editor.post("edit", {"version": 0, "ops": [
+        {"op": "set_layout", "diagram": "activity-main", "positions": {"RaspberryPI/start": [10, 20.55]}}]})
+    assert status == 200 and answer["dirty"] and answer["changed"] == []
+    status, saved = editor.post("save", {"version": answer["version"]})
+    assert saved["saved"] == [LAYOUT_FILE]
+    layout = json.loads((root / LAYOUT_FILE).read_text(encoding="utf-8"))
+    assert layout == {"positions": {"activity-main": {"RaspberryPI/start": [10.0, 20.6]}}}
+    assert check_model(root).model is not None
+
+
+def test_library_comes_from_the_component_library(car: tuple[Path, Editor]) -> None:
+    _, editor = car
+    lib = editor.get("library")
+    servo = next(i for i in lib["implementations"] if i["id"] == "servo")
+    assert servo["features"]["angle"]["params"][0]["maximum"] == 180
+    assert "CModelActuator" in servo["aliases"]
+    assert "gpio" in servo["settings_schema"]["properties"]
+    assert set(lib["node_kinds"]) == {"start", "end", "action", "datastore", "decision", "fork", "join",
+                                      "send", "accept"}
+    assert lib["node_kinds"]["action"]["fields"]["call"]["required"] is True
+    assert {b["name"] for b in lib["builtins"]} == {"usleep", "msleep", "Application.exit"}
+
+
+def test_studio_on_a_new_folder_offers_and_writes_the_starter(tmp_path: Path) -> None:
+    folder = tmp_path / "my_robot"
+    with studio(["studio", str(folder), "--port", "0"], tmp_path) as proc:
+        hello = read_frames(proc.url, lambda f: len(f) >= 1)[0]
+        assert hello["edit"]["empty"] is True
+
+        async def new() -> tuple[int, dict[str, Any]]:
+            async with aiohttp.ClientSession() as client, client.post(
+                    f"{proc.url}api/new", json={"token": hello["edit"]["token"], "name": "my_robot"}) as r:
+                return r.status, await r.json()
+
+        status, answer = asyncio.run(new())
+        assert status == 200 and answer["compiled"], answer
+    assert sorted(answer["saved"]) == ["activities/main.yaml", "deployment.yaml", "model.yaml"]
+    check = subprocess.run(umlbot_argv("check", str(folder)), capture_output=True, text=True, timeout=60,
+                           check=False)
+    assert check.returncode == 0, check.stdout + check.stderr
+
+
+def test_completion_offers_features_datastores_lanes_and_argument_ranges(car: tuple[Path, Editor]) -> None:
+    _, editor = car
+
+    def complete(text: str, lane: str = "RaspberryPI") -> dict[str, Any]:
+        status, answer = editor.post("complete", {"lane": lane, "text": text, "cursor": len(text),
+                                                  "field": "call"})
+        assert status == 200
+        return answer
+
+    assert [i["label"] for i in complete("LeftActuator.")["items"]] == ["enabled", "direction", "dutycycle"]
+    assert [i["label"] for i in complete("Measure.")["items"]] == ["left", "right"]
+    labels = {i["label"]: i["kind"] for i in complete("")["items"]}
+    assert labels["speed_percent"] == "datastore" and labels["Stop"] == "lane"
+    assert labels["msleep"] == "builtin" and labels["Sensor"] == "component"
+    hint = complete("Sensor.angle(")["signature"]
+    assert hint["params"][0] == {"name": "degrees", "type": "int", "minimum": 0, "maximum": 180, "unit": "°"}
+    assert complete("RaspberryPI.writePin(4, ")["signature"]["active"] == 1
+    assert complete("Measure.ri")["replace"] == [8, 10]
+
+
+def test_run_drives_the_working_copy_in_the_simulator_and_the_page_follows(
+        car: tuple[Path, Editor]) -> None:
+    _, editor = car
+    assert "s_bend" in editor.get("tracks")["tracks"]
+    status, answer = editor.post("run", {"track": "s_bend"})
+    assert status == 200 and answer["running"], answer
+    assert editor.post("run", {"track": "s_bend"})[0] == 409  # one run at a time
+
+    def until(frames: list[dict[str, Any]]) -> bool:
+        xs = {f["car"]["x"] for f in frames if f.get("type") == "world"}
+        traced = any(e.get("type") == "trace" for f in frames if f.get("type") == "events"
+                     for e in f["events"])
+        return len(xs) > 1 and traced
+
+    frames = read_frames(editor.url, until, timeout=120)
+    run = frames[0]["edit"]["run"]
+    if not run["running"]:  # the page opened before the sim's broker ran: the frame follows
+        run = next(f for f in frames if f.get("type") == "run")
+    assert run["robot"] == "car" and run["track"]["name"]
+    status, answer = editor.post("stop", {})
+    assert status == 200 and answer["running"] is False
+    assert answer["result"]["reason"] in ("interrupted", "goal", "collision"), answer
+    assert editor.post("run", {"track": "../../etc/passwd"})[0] == 400
+    assert editor.post("run", {"track": "s_bend", "speed": 1000})[0] == 400
+
+
+def test_a_robot_built_in_an_empty_folder_checks_and_drives_in_the_simulator(tmp_path: Path) -> None:
+    """From nothing to a car that drives, through the server only; then `umlbot check` and
+    `umlbot sim` on the saved files."""
+    folder = tmp_path / "my_robot"
+    editor = Editor(folder)
+    try:
+        status, answer = editor.post("new", {"name": "my_robot"})
+        assert status == 200 and answer["compiled"]
+
+        def action(lane: str, node_id: str, call: str) -> dict[str, Any]:
+            return {"op": "add_node", "lane": lane, "node": {"id": node_id, "kind": "action", "call": call}}
+
+        ops: list[dict[str, Any]] = [
+            {"op": "add_lane", "lane": "Stop"},
+            {"op": "remove_node", "lane": "Stop", "id": "end"},
+            {"op": "add_node", "lane": "Stop", "node": {"id": "both", "kind": "fork"}},
+            action("Stop", "left_off", "LeftActuator.enabled(false)"),
+            action("Stop", "right_off", "RightActuator.enabled(false)"),
+            {"op": "add_node", "lane": "Stop", "node": {"id": "stopped", "kind": "join"}},
+            {"op": "add_node", "lane": "Stop", "node": {"id": "end", "kind": "end"}},
+            {"op": "connect", "lane": "Stop", "source": "both", "target": "left_off"},
+            {"op": "connect", "lane": "Stop", "source": "both", "target": "right_off"},
+            {"op": "connect", "lane": "Stop", "source": "left_off", "target": "stopped"},
+            {"op": "remove_node", "lane": "RaspberryPI", "id": "end"},
+            action("RaspberryPI", "left_forward", "LeftActuator.direction(true)"),
+            action("RaspberryPI", "right_forward", "RightActuator.direction(true)"),
+            action("RaspberryPI", "power_left", "LeftActuator.dutycycle(60)"),
+            action("RaspberryPI", "power_right", "RightActuator.dutycycle(60)"),
+            action("RaspberryPI", "left_on", "LeftActuator.enabled(true)"),
+            action("RaspberryPI", "right_on", "RightActuator.enabled(true)"),
+            action("RaspberryPI", "drive", "msleep(1500)"),
+            action("RaspberryPI", "halt", "Stop"),
+            {"op": "add_node", "lane": "RaspberryPI", "node": {"id": "end", "kind": "end"}},
+        ]
+        status, answer = editor.post("edit", {"version": answer["version"], "ops": ops})
+        assert status == 200, answer
+        assert answer["compiled"], [d["text"] for d in answer["diagnostics"]]
+        status, saved = editor.post("save", {"version": answer["version"]})
+        assert status == 200 and "activities/stop.yaml" in saved["saved"]
+    finally:
+        editor.thread.stop()
+    check = subprocess.run(umlbot_argv("check", str(folder)), capture_output=True, text=True, timeout=60,
+                           check=False)
+    assert check.returncode == 0, check.stdout + check.stderr
+    sim = subprocess.run(umlbot_argv("sim", str(folder), "--speed", "5", "--port", "0", "--timeout", "30",
+                                     "--json"), capture_output=True, text=True, timeout=180, check=False,
+                         cwd=REPO)
+    result = json.loads(sim.stdout.strip().splitlines()[-1])
+    assert result["distance_m"] > 0.2, result
+    assert result["reason"] in ("orchestrator ended", "collision", "goal"), result
+
+
+# --- property-like: random edits of real models ------------------------------------------------------
+
+_GENERATED: dict[str, Any] = {}
+
+
+def _generated_files(tmp_root: Path) -> tuple[Path, dict[str, str], Any]:
+    if not _GENERATED:
+        root = _bench_compile().generate(tmp_root / "gen", 600)
+        files = _texts(root)
+        _GENERATED.update(root=root, files=files, compiled=_check(root, files).model)
+    return _GENERATED["root"], _GENERATED["files"], _GENERATED["compiled"]
+
+
+@pytest.fixture(scope="module")
+def generated(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict[str, str], Any]:
+    return _generated_files(tmp_path_factory.mktemp("gen"))
+
+
+@pytest.mark.parametrize("model", ["car", "generated"])
+@given(data=st.data())
+@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+def test_random_value_edits_change_exactly_those_nodes(model: str, data: st.DataObject,
+                                                       generated: tuple[Path, dict[str, str], Any]) -> None:
+    if model == "car":
+        root, files = CAR_MODEL, _texts(CAR_MODEL)
+        compiled = check_model(CAR_MODEL).model
+    else:
+        root, files, compiled = generated
+    assert compiled is not None
+    candidates = sorted((lane.name, node.id, node.kind) for lane in compiled.lanes.values()
+                        for node in lane.nodes.values() if node.kind in ("action", "datastore"))
+    picked = data.draw(st.lists(st.sampled_from(candidates), min_size=1, max_size=6, unique=True))
+    values = data.draw(st.lists(st.integers(0, 5000), min_size=len(picked), max_size=len(picked)))
+    ops: list[dict[str, Any]] = []
+    for (lane, node_id, kind), value in zip(picked, values, strict=True):
+        field = "call" if kind == "action" else "value"
+        text = f"msleep({value})" if kind == "action" else f"{value} + 1"
+        ops.append({"op": "set_node", "lane": lane, "id": node_id, "fields": {field: text}})
+    out = _apply(files, ops)
+    # (b) only the picked nodes' lines differ, and only in their value
+    for rel, before in files.items():
+        removed, added = _changed_lines(before, out[rel])
+        assert len(removed) == len(added)
+        for old, new in zip(removed, added, strict=True):
+            assert re.sub(r"(call|value): [^,}]+(?=[,}])|(call|value): .*$", "X", old) == \
+                re.sub(r"(call|value): [^,}]+(?=[,}])|(call|value): .*$", "X", new), (old, new)
+    assert sum(len(_changed_lines(files[r], out[r])[1]) for r in files) == len(picked)
+    # (a) the compiled model is the original with those nodes' values changed
+    result = _check(root, out)
+    assert result.model is not None, [str(d) for d in result.diagnostics]
+    changed = {(lane, node_id) for lane, node_id, _ in picked}
+    for old_lane in compiled.lanes.values():
+        new_lane = result.model.lanes[old_lane.name]
+        for node in old_lane.nodes.values():
+            if (old_lane.name, node.id) in changed:
+                expected = ops[[(p[0], p[1]) for p in picked].index((old_lane.name, node.id))]["fields"]
+                shown = new_lane.nodes[node.id].label
+                assert shown.endswith(next(iter(expected.values()))), shown
+                assert new_lane.nodes[node.id].model_dump(exclude={"label", "call", "value"}) == \
+                    node.model_dump(exclude={"label", "call", "value"})
+            else:
+                assert new_lane.nodes[node.id] == node
+
+
+@given(data=st.data())
+@settings(max_examples=10, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+def test_nodes_added_and_removed_again_leave_the_files_as_they_were(
+        data: st.DataObject, generated: tuple[Path, dict[str, str], Any]) -> None:
+    _, files, compiled = generated
+    lanes = sorted(compiled.lanes)
+    picked = data.draw(st.lists(st.sampled_from(lanes), min_size=1, max_size=4, unique=True))
+    added = [{"op": "add_node", "lane": lane, "node": {"id": f"new_{i}", "kind": "action",
+                                                       "call": "msleep(1)"}} for i, lane in enumerate(picked)]
+    out = _apply(files, added)
+    for rel in files:
+        removed_lines, added_lines = _changed_lines(files[rel], out[rel])
+        assert removed_lines == []
+        assert all(re.fullmatch(r" +- \{id: new_\d+, kind: action, call: msleep\(1\)\}", x)
+                   for x in added_lines)
+    back = _apply(out, [{"op": "remove_node", "lane": lane, "id": f"new_{i}"}
+                        for i, lane in enumerate(picked)])
+    assert back == files
+
+
+def test_edits_follow_the_style_of_the_file_block_flow_crlf_and_no_final_newline() -> None:
+    files: dict[str, str | None] = {
+        "activities/a.yaml": "lane: A   # the lane\nnodes:\n  - id: start\n    kind: start\n"
+                             "  # a comment\n  - id: d\n    kind: decision\n    branches:\n"
+                             "      - if: x > 1\n        then: e\n  - id: e\n    kind: end",
+        "activities/b.yaml": "lane: B\r\nnodes:\r\n  - {id: start, kind: start}\r\n"
+                             "  - {id: end, kind: end}\r\n",
+        "activities/c.yaml": "lane: C\nnodes: []\n",
+        "activities/e.yaml": "lane: E\nnodes:\n- {id: start, kind: start}\n- {id: end, kind: end}\n",
+    }
+    out = apply_ops(files, parse_ops([
+        {"op": "set_node", "lane": "A", "id": "start", "fields": {"next": "d"}},
+        {"op": "connect", "lane": "A", "source": "d", "target": "e", "guard": "else"},
+        {"op": "add_node", "lane": "A", "node": {"id": "n", "kind": "action",
+                                                 "call": "RaspberryPI.writePin(17, 1)"}},
+        {"op": "set_guard", "lane": "A", "source": "d", "target": "e", "guard": "x > 2"},
+        {"op": "add_node", "lane": "B", "node": {"id": "n", "kind": "action", "call": "Stop"}},
+        {"op": "add_node", "lane": "C", "node": {"id": "start", "kind": "start"}},
+        {"op": "add_node", "lane": "C", "node": {"id": "end", "kind": "end"}},
+        {"op": "add_node", "lane": "E", "node": {"id": "x", "kind": "join"}},
+        {"op": "set_node", "lane": "E", "id": "start", "fields": {"next": "x"}},
+        {"op": "remove_node", "lane": "E", "id": "end"},
+    ]))
+    assert out == {
+        "activities/a.yaml": "lane: A   # the lane\nnodes:\n  - id: start\n    kind: start\n"
+                             "    next: d\n  # a comment\n  - id: d\n    kind: decision\n    branches:\n"
+                             "      - if: x > 2\n        then: e\n      - {else: e}\n"
+                             "  - id: e\n    kind: end\n"
+                             "  - {id: n, kind: action, call: 'RaspberryPI.writePin(17, 1)'}\n",
+        "activities/b.yaml": "lane: B\r\nnodes:\r\n  - {id: start, kind: start}\r\n"
+                             "  - {id: end, kind: end}\r\n  - {id: n, kind: action, call: Stop}\r\n",
+        "activities/c.yaml": "lane: C\nnodes: [{id: start, kind: start}, {id: end, kind: end}]\n",
+        "activities/e.yaml": "lane: E\nnodes:\n- {id: start, kind: start, next: x}\n- {id: x, kind: join}\n",
+    }
+
+
+def test_a_page_opened_after_a_save_gets_the_saved_model_as_the_hellos_model(tmp_path: Path) -> None:
+    folder = tmp_path / "fresh"
+    editor = Editor(folder)
+    try:
+        assert read_frames(editor.url, lambda f: len(f) >= 1)[0]["model"] is None
+        assert editor.post("new", {"name": "fresh"})[0] == 200
+        hello = read_frames(editor.url, lambda f: len(f) >= 1)[0]
+        assert hello["model"]["name"] == "fresh"
+        assert [lane["name"] for d in hello["model"]["diagrams"] for lane in d["lanes"]] == ["RaspberryPI"]
+        assert hello["diagnostics"] == []
+    finally:
+        editor.thread.stop()

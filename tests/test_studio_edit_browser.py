@@ -1,0 +1,462 @@
+"""umlbot studio as an editor, in a real browser (Debian's Chromium driven by Playwright).
+
+From an empty folder, the reference car's "Stop" swimlane (models/robot_car/activities/motion.yaml)
+is built by clicking and typing only: start -> fork -> LeftActuator.enabled(false) and
+RightActuator.enabled(false) -> join -> end. After Save the folder passes `umlbot check`. The rest
+of the car (the other swimlanes) is then copied into the folder *through the file system* while the
+page is open — the page reloads it with a notice — and `umlbot sim` drives the car to the goal.
+A bad guard shows the checker's own message on its node and Undo removes it; a file changed on
+disk while the page has unsaved edits raises a notice and overwrites nothing. Screenshots under out/.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import shutil
+import subprocess
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+from playwright.sync_api import Browser, Page, expect, sync_playwright
+from robot_run import CAR_MODEL, umlbot_argv
+from studio_support import studio
+
+REPO = Path(__file__).resolve().parent.parent
+OUT = REPO / "out"
+CHROMIUM = "/usr/bin/chromium"
+WAIT_MS = 30_000
+TRACK = REPO / "models" / "tracks" / "corridor.yaml"
+
+
+@pytest.fixture(scope="module")
+def browser() -> Iterator[Browser]:
+    if not Path(CHROMIUM).exists():
+        pytest.fail(f"{CHROMIUM} is required: apt-get install chromium (make test installs it)")
+    with sync_playwright() as pw:
+        launched = pw.chromium.launch(executable_path=CHROMIUM, args=[
+            "--no-sandbox", "--disable-gpu", "--disable-background-networking",
+            "--disable-component-update", "--disable-sync", "--no-first-run"])
+        try:
+            yield launched
+        finally:
+            launched.close()
+
+
+def open_page(browser: Browser, url: str, errors: list[str]) -> Page:
+    page = browser.new_page(viewport={"width": 1600, "height": 1000})
+    page.on("pageerror", lambda exc: errors.append(str(exc)))
+    page.goto(url)
+    page.set_default_timeout(WAIT_MS)
+    page.wait_for_function("window.__studio && window.__studio.ready === true && !!window.__studio.edit")
+    return page
+
+
+def shot(page: Page, name: str) -> None:
+    OUT.mkdir(exist_ok=True)
+    page.screenshot(path=str(OUT / name))
+
+
+def settled(page: Page) -> None:
+    """Every edit the page sent has been answered and drawn."""
+    page.wait_for_function("window.__studio.edit.busy === false")
+    page.wait_for_function("window.__studio.ready === true")
+
+
+def show(page: Page, diagram: str) -> None:
+    page.locator(f'#diagram-list [data-diagram="{diagram}"]').click()
+    expect(page.locator(f'svg[data-diagram="{diagram}"]')).to_be_visible()
+
+
+def node(page: Page, lane: str, node_id: str) -> str:
+    return f'svg.diagram g.node[data-lane="{lane}"][data-node="{node_id}"]'
+
+
+def click_node(page: Page, lane: str, node_id: str) -> None:
+    page.locator(node(page, lane, node_id)).click()
+
+
+def drag_kind_onto_lane(page: Page, kind: str, lane: str) -> None:
+    """Drag a node kind from the palette and drop it on the swimlane."""
+    item = page.locator(f'#palette [data-kind="{kind}"]').bounding_box()
+    target = page.locator(f'svg.diagram g.lane[data-lane="{lane}"] rect.lane-bg').bounding_box()
+    assert item and target
+    page.mouse.move(item["x"] + item["width"] / 2, item["y"] + item["height"] / 2)
+    page.mouse.down()
+    page.mouse.move(target["x"] + target["width"] / 2, target["y"] + target["height"] - 30, steps=8)
+    page.mouse.up()
+    settled(page)
+
+
+def click_kind(page: Page, kind: str) -> None:
+    """Click a node kind in the palette: it is added to the selected swimlane."""
+    page.locator(f'#palette [data-kind="{kind}"]').click()
+    settled(page)
+
+
+def selected_node(page: Page) -> str:
+    """The id of the node the properties panel shows (a new node is selected)."""
+    return str(page.locator("svg.diagram g.node.selected").get_attribute("data-node"))
+
+
+def connect(page: Page, lane: str, source: str, target: str) -> None:
+    click_node(page, lane, source)
+    page.locator('#props [name="connect"]').click()
+    click_node(page, lane, target)
+    settled(page)
+    edge = f'svg.diagram g.edge[data-lane="{lane}"][data-source="{source}"][data-target="{target}"]'
+    expect(page.locator(edge)).to_have_count(1)
+
+
+def type_call(page: Page, lane: str, node_id: str, component: str, feature: str, args: str) -> None:
+    """Type `Component.feature(args)` into the action's call editor, picking the completions."""
+    click_node(page, lane, node_id)
+    call = page.locator('#props input[name="call"]')
+    call.click()
+    call.press_sequentially(component[:4], delay=20)
+    option = page.locator(f'#props .completions li[data-label="{component}"]')
+    expect(option).to_be_visible()
+    option.click()  # picks the component with the mouse
+    if not call.input_value().endswith("."):
+        call.press_sequentially(".", delay=20)
+    feat = page.locator(f'#props .completions li[data-label="{feature}"]')
+    expect(feat).to_be_visible()
+    while page.locator("#props .completions li.active").get_attribute("data-label") != feature:
+        call.press("ArrowDown")
+    call.press("Tab")  # picks the feature with the keyboard
+    if not call.input_value().endswith("("):
+        call.press_sequentially("(", delay=20)
+    # the argument hint names the parameter (with its allowed range when it has one)
+    expect(page.locator("#props .signature")).to_be_visible()
+    expect(page.locator("#props .signature")).to_contain_text(feature)
+    call.press_sequentially(args + ")", delay=20)
+    call.press("Enter")
+    settled(page)
+    expect(page.locator(node(page, lane, node_id)).locator("text.label")).to_have_text(
+        f"{component}.{feature}({args})")
+
+
+def check_lines(folder: Path, cwd: Path) -> tuple[int, list[str]]:
+    done = subprocess.run(umlbot_argv("check", str(folder)), capture_output=True, text=True,
+                          timeout=120, check=False, cwd=cwd)
+    printed = (done.stdout + done.stderr).splitlines()
+    lines = [line for line in printed if re.search(r": (error|warning): ", line)]
+    return done.returncode, lines
+
+
+def test_build_the_stop_lane_from_an_empty_folder_save_check_and_sim(
+    browser: Browser, tmp_path: Path
+) -> None:
+    folder = tmp_path / "models" / "my_robot"  # does not exist yet: the studio offers a starter model
+    folder.parent.mkdir()
+    errors: list[str] = []
+    with studio(["studio", str(folder), "--port", "0"], tmp_path) as proc:
+        page = open_page(browser, proc.url, errors)
+        form = page.locator("#new-model-form")
+        expect(form).to_be_visible()
+        shot(page, "studio-edit-empty.png")
+        form.locator('[name="model-name"]').fill("car")
+        page.locator("#new-model").click()
+        expect(page.locator('#diagram-list [data-diagram="components"]')).to_be_visible()
+        settled(page)
+        assert (folder / "model.yaml").is_file()  # the starter model is written at once
+
+        # the component diagram's palette is the component library (kinds, implementations, seeds)
+        show(page, "components")
+        expect(page.locator('#palette [data-impl="l298n"]')).to_contain_text("enabled")
+        shot(page, "studio-edit-components.png")
+
+        # a virtual swimlane "Stop" in its own file
+        show(page, "activity-main")
+        page.locator('#palette [name="lane-name"]').fill("Stop")
+        page.locator('#palette [data-action="add-lane"]').click()
+        settled(page)
+        lane = page.locator('svg.diagram g.lane[data-lane="Stop"]')
+        expect(lane).to_be_visible()
+        start = lane.locator('g.node[data-kind="start"]')
+        expect(start).to_have_count(1)
+        start_id = str(start.get_attribute("data-node"))
+        # a new lane is start -> end
+        end = str(lane.locator('g.node[data-kind="end"]').get_attribute("data-node"))
+
+        drag_kind_onto_lane(page, "fork", "Stop")  # dragged from the palette
+        fork = selected_node(page)
+        click_kind(page, "action")  # clicked: added to the selected node's lane
+        left = selected_node(page)
+        click_kind(page, "action")
+        right = selected_node(page)
+        click_kind(page, "join")
+        join = selected_node(page)
+        assert len({fork, left, right, join, end}) == 5
+
+        connect(page, "Stop", start_id, fork)
+        connect(page, "Stop", fork, left)
+        connect(page, "Stop", fork, right)
+        connect(page, "Stop", left, join)
+        connect(page, "Stop", right, join)
+        connect(page, "Stop", join, end)
+        type_call(page, "Stop", left, "LeftActuator", "enabled", "false")
+        type_call(page, "Stop", right, "RightActuator", "enabled", "false")
+        expect(page.locator("#save")).to_have_attribute("data-dirty", "true")
+        shot(page, "studio-edit-stop.png")
+
+        page.keyboard.press("Control+s")
+        expect(page.locator("#save")).to_have_attribute("data-dirty", "false")
+        written = (folder / "activities" / "stop.yaml").read_text(encoding="utf-8")
+        assert "LeftActuator.enabled(false)" in written and "RightActuator.enabled(false)" in written
+        code, lines = check_lines(folder, tmp_path)
+        assert code == 0, lines
+
+        # The rest of the car: the reference lanes other than Stop, copied into the folder through the
+        # file system while the page is open (it reloads them and says so).
+        motion = (CAR_MODEL / "activities" / "motion.yaml").read_text(encoding="utf-8")
+        others = motion[: motion.index("  - lane: Stop")]
+        (folder / "activities" / "motion.yaml").write_text(others, encoding="utf-8")
+        for name in ("main.yaml", "measure.yaml"):
+            shutil.copyfile(CAR_MODEL / "activities" / name, folder / "activities" / name)
+        expect(page.locator('#notice[data-kind="reloaded"]')).to_be_visible()
+        expect(page.locator('#diagram-list [data-diagram="activity-motion"]')).to_be_visible()
+        code, lines = check_lines(folder, tmp_path)
+        assert code == 0, lines
+
+        sim = subprocess.run(umlbot_argv("sim", str(folder), "--track", str(TRACK), "--port", "0",
+                                         "--speed", "4", "--timeout", "120", "--json"),
+                             capture_output=True, text=True, timeout=300, check=False, cwd=tmp_path)
+        summary = json.loads(sim.stdout.strip().splitlines()[-1])
+        assert sim.returncode == 0 and summary["goal"], (summary, sim.stderr[-2000:])
+        assert errors == [], errors
+        page.close()
+
+
+def complete_car(folder: Path) -> None:
+    shutil.copytree(CAR_MODEL, folder)
+
+
+def test_a_bad_guard_shows_the_checkers_message_on_its_node_and_undo_removes_it(
+    browser: Browser, tmp_path: Path
+) -> None:
+    folder = tmp_path / "car"
+    complete_car(folder)
+    errors: list[str] = []
+    with studio(["studio", str(folder), "--port", "0"], tmp_path) as proc:
+        page = open_page(browser, proc.url, errors)
+        show(page, "activity-main")
+        decision = page.locator(node(page, "RaspberryPI", "running"))
+        click_node(page, "RaspberryPI", "running")
+        guard = page.locator('#props input[name="guard"][data-target="finish"]')
+        expect(guard).to_have_value("Application.exit")
+        guard.fill("Application.exit >")
+        guard.press("Enter")
+        settled(page)
+        expect(decision).to_have_class(re.compile(r"(^|\s)error(\s|$)"))
+        expect(page.locator("#save")).to_have_attribute("data-dirty", "true")
+        # exactly what `umlbot check` prints for the same files
+        files = page.evaluate("() => fetch('/api/files').then((r) => r.json())")["files"]
+        copy = tmp_path / "copy"
+        for rel, text in files.items():
+            (copy / rel).parent.mkdir(parents=True, exist_ok=True)
+            (copy / rel).write_text(text, encoding="utf-8")
+        code, lines = check_lines(copy, tmp_path)
+        assert code != 0 and lines
+        expected = sorted(line.replace(str(copy), str(folder)) for line in lines)
+        assert sorted(page.locator("#diagnostics li").all_text_contents()) == expected
+        assert decision.get_attribute("data-message") in expected
+        shot(page, "studio-edit-bad-guard.png")
+
+        page.locator("#undo").click()
+        settled(page)
+        expect(decision).not_to_have_class(re.compile(r"(^|\s)error(\s|$)"))
+        expect(page.locator("#diagnostics li.error")).to_have_count(0)
+        click_node(page, "RaspberryPI", "running")
+        guard = page.locator('#props input[name="guard"][data-target="finish"]')
+        expect(guard).to_have_value("Application.exit")
+        page.keyboard.press("Control+Shift+z")  # redo brings it back
+        settled(page)
+        expect(decision).to_have_class(re.compile(r"(^|\s)error(\s|$)"))
+        page.keyboard.press("Control+z")
+        settled(page)
+        expect(decision).not_to_have_class(re.compile(r"(^|\s)error(\s|$)"))
+        # nothing was saved: the file on disk is the reference file
+        assert (folder / "activities" / "main.yaml").read_bytes() == (
+            CAR_MODEL / "activities" / "main.yaml").read_bytes()
+        assert errors == [], errors
+        page.close()
+
+
+def test_a_file_changed_on_disk_while_editing_raises_a_notice_and_nothing_is_lost(
+    browser: Browser, tmp_path: Path
+) -> None:
+    folder = tmp_path / "car"
+    complete_car(folder)
+    main = folder / "activities" / "main.yaml"
+    errors: list[str] = []
+    with studio(["studio", str(folder), "--port", "0"], tmp_path) as proc:
+        page = open_page(browser, proc.url, errors)
+        show(page, "activity-main")
+        click_node(page, "RaspberryPI", "set_speed")
+        value = page.locator('#props input[name="value"]')
+        value.fill("55")
+        value.press("Enter")
+        settled(page)
+        expect(page.locator("#save")).to_have_attribute("data-dirty", "true")
+
+        # someone else edits the same file on disk meanwhile
+        theirs = main.read_text(encoding="utf-8").replace("value: 300}", "value: 333}")
+        assert "value: 333}" in theirs
+        main.write_text(theirs, encoding="utf-8")
+        notice = page.locator('#notice[data-kind="conflict"]')
+        expect(notice).to_be_visible()
+        expect(notice).to_contain_text("activities/main.yaml")
+        shot(page, "studio-edit-conflict.png")
+        # nothing was overwritten: the disk has their edit, the page still has mine
+        assert main.read_text(encoding="utf-8") == theirs
+        click_node(page, "RaspberryPI", "set_speed")
+        expect(page.locator('#props input[name="value"]')).to_have_value("55")
+        expect(page.locator("#save")).to_have_attribute("data-dirty", "true")
+
+        # a plain save is refused while the conflict stands (no silent overwrite)
+        page.locator("#save").click()
+        expect(page.locator('#notice[data-kind="conflict"]')).to_be_visible()
+        assert main.read_text(encoding="utf-8") == theirs
+
+        # "Keep mine" then Save writes my version (the user chose it)
+        page.locator('#notice [data-action="keep"]').click()
+        page.locator("#save").click()
+        expect(page.locator("#save")).to_have_attribute("data-dirty", "false")
+        assert "value: 55}" in main.read_text(encoding="utf-8")
+
+        # and "Reload from disk" takes theirs (again: only because the user chose it)
+        click_node(page, "RaspberryPI", "set_speed")
+        value = page.locator('#props input[name="value"]')
+        value.fill("60")
+        value.press("Enter")
+        settled(page)
+        theirs = main.read_text(encoding="utf-8").replace("value: 300}", "value: 310}")
+        assert "value: 310}" in theirs
+        main.write_text(theirs, encoding="utf-8")
+        expect(page.locator('#notice[data-kind="conflict"]')).to_be_visible()
+        page.locator('#notice [data-action="reload"]').click()
+        expect(page.locator("#save")).to_have_attribute("data-dirty", "false")
+        click_node(page, "RaspberryPI", "set_speed")
+        expect(page.locator('#props input[name="value"]')).to_have_value("55")
+        assert "value: 310}" in main.read_text(encoding="utf-8")
+        assert errors == [], errors
+        page.close()
+
+
+def test_run_drives_the_edited_model_in_the_simulator_and_the_page_follows_it(
+    browser: Browser, tmp_path: Path
+) -> None:
+    folder = tmp_path / "car"
+    complete_car(folder)
+    errors: list[str] = []
+    with studio(["studio", str(folder), "--port", "0"], tmp_path) as proc:
+        page = open_page(browser, proc.url, errors)
+        show(page, "activity-main")
+        click_node(page, "RaspberryPI", "set_speed")
+        value = page.locator('#props input[name="value"]')
+        value.fill("80")  # an unsaved edit: Run runs the working copy
+        value.press("Enter")
+        settled(page)
+        page.locator("#track").select_option("corridor")
+        page.locator("#run-speed").select_option("1")
+        page.locator("#run").click()
+        expect(page.locator('#notice[data-kind="run"]')).to_contain_text("corridor at 1\u00d7")
+        expect(page.locator("#sim svg")).to_be_visible()
+        expect(page.locator('g.node.active[data-lane="RaspberryPI"]')).to_have_count(1)
+        speed = page.locator(node(page, "RaspberryPI", "set_speed"))
+        expect(speed.locator("text.value")).to_have_text("80")
+        page.wait_for_function("document.querySelectorAll('#sim .ping').length > 0")
+        shot(page, "studio-edit-run.png")
+        page.locator("#stop").click()
+        expect(page.locator("#stop")).to_be_disabled()
+        assert (folder / "activities" / "main.yaml").read_bytes() == (
+            CAR_MODEL / "activities" / "main.yaml").read_bytes()
+        assert errors == [], errors
+        page.close()
+
+
+def test_the_component_diagram_adds_a_part_from_the_library_with_its_deployment_ports_and_link(
+    browser: Browser, tmp_path: Path
+) -> None:
+    folder = tmp_path / "car"
+    complete_car(folder)
+    errors: list[str] = []
+    with studio(["studio", str(folder), "--port", "0"], tmp_path) as proc:
+        page = open_page(browser, proc.url, errors)
+        show(page, "components")
+        servo = page.locator('#palette [data-impl="servo"]')
+        expect(servo.locator('[data-feature="angle"]')).to_contain_text("0..180")  # features with ranges
+        servo.click()
+        page.locator('#props [name="name"]').fill("Pan")
+        # the driver's settings model checks the deployment: the error names the bad setting
+        page.locator('#props [name="setting-gpio"]').fill("99")
+        page.locator('#props [name="add"]').click()
+        settled(page)
+        expect(page.locator('#notice[data-kind="error"]')).to_contain_text("gpio")
+        expect(page.locator('g.component[data-component="Pan"]')).to_have_count(0)
+        page.locator('#props [name="setting-gpio"]').fill("17")
+        page.locator('#props [name="add"]').click()
+        settled(page)
+        pan = page.locator('g.component[data-component="Pan"]')
+        expect(pan).to_have_count(1)
+        expect(page.locator("#props .props-head")).to_contain_text("Pan")
+        page.locator('#props [name="port"]').fill("aim")
+        page.locator('#props [name="port-feature"]').select_option("angle")
+        page.locator('#props [name="add-port"]').click()
+        settled(page)
+        expect(pan.locator("text.port-label")).to_have_text("aim → angle")
+        page.locator('#props [name="link-to"]').select_option("DistanceRead.range")
+        page.locator('#props [name="add-link"]').click()
+        settled(page)
+        expect(page.locator("g.link")).to_have_count(2)
+        shot(page, "studio-edit-component.png")
+        page.keyboard.press("Control+s")
+        expect(page.locator("#save")).to_have_attribute("data-dirty", "false")
+        model = (folder / "model.yaml").read_text(encoding="utf-8")
+        assert "Pan: {kind: actuator, ports: {aim: angle}}" in model
+        deployment = (folder / "deployment.yaml").read_text(encoding="utf-8")
+        assert "gpio: 17" in deployment
+        assert "min_pulse_us" not in deployment  # the defaults are not written
+        code, lines = check_lines(folder, tmp_path)
+        assert code == 0, lines
+        assert errors == [], errors
+        page.close()
+
+
+def test_a_dragged_node_keeps_its_place_in_the_layout_file(browser: Browser, tmp_path: Path) -> None:
+    folder = tmp_path / "car"
+    complete_car(folder)
+    errors: list[str] = []
+    with studio(["studio", str(folder), "--port", "0"], tmp_path) as proc:
+        page = open_page(browser, proc.url, errors)
+        show(page, "activity-motion")
+        moved = page.locator(node(page, "Stop", "left_off"))
+        before = float(moved.get_attribute("data-x") or "nan"), float(moved.get_attribute("data-y") or "nan")
+        box = moved.bounding_box()
+        assert box
+        page.mouse.move(box["x"] + 20, box["y"] + 15)
+        page.mouse.down()
+        page.mouse.move(box["x"] - 60, box["y"] + 140, steps=8)
+        page.mouse.up()
+        settled(page)
+        after = float(moved.get_attribute("data-x") or "nan"), float(moved.get_attribute("data-y") or "nan")
+        assert after[1] > before[1] + 40 and after[0] < before[0], (before, after)
+        # the flow into it follows it; the other lanes stay laid out automatically
+        edge = page.locator('svg.diagram g.edge[data-lane="Stop"][data-target="left_off"] path.line')
+        assert str(round(after[1])) in (edge.get_attribute("d") or "")
+        page.keyboard.press("Control+s")
+        expect(page.locator("#save")).to_have_attribute("data-dirty", "false")
+        layout = json.loads((folder / ".umlbot-studio.json").read_text(encoding="utf-8"))
+        assert layout["positions"]["activity-motion"]["Stop/left_off"] == [round(after[0]), round(after[1])]
+        assert (folder / "activities" / "motion.yaml").read_bytes() == (
+            CAR_MODEL / "activities" / "motion.yaml").read_bytes()  # positions never go into the model
+        page.close()
+        again = open_page(browser, proc.url, errors)  # a new page draws it where it was put
+        show(again, "activity-motion")
+        there = again.locator(node(again, "Stop", "left_off"))
+        assert float(there.get_attribute("data-x") or "nan") == round(after[0])
+        assert float(there.get_attribute("data-y") or "nan") == round(after[1])
+        assert errors == [], errors
+        again.close()

@@ -1,0 +1,207 @@
+"""The studio's editing requests: `/api/library`, `/api/files`, `/api/edit`, undo/redo, save, …
+
+Every write (a POST) needs the per-run token the socket's hello carries and passes the server's
+Origin and Host checks; the work (text edits, the compiler's check, file writes) runs in a worker
+thread, one request at a time, so the page's live view never waits for it. docs/studio.md,
+"Editing", is the reference of the requests and their answers.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import json
+import secrets
+from collections.abc import Awaitable, Callable
+from typing import TYPE_CHECKING, Any
+
+from aiohttp import web
+
+from umlbot.logs import get_logger
+from umlbot.studio.hub import dumps
+from umlbot.studio.run import RUN_SPEED, StudioRun, bundled_tracks, resolve_track
+from umlbot.studio.textedit import EditError
+from umlbot.studio.workspace import Conflict, Workspace
+
+if TYPE_CHECKING:
+    from umlbot.studio.server import StudioServer
+
+log = get_logger(__name__)
+
+#: seconds between two looks at the model's files on disk.
+WATCH_EVERY_S = 0.5
+#: the largest request body accepted (an edit batch, a completion request).
+MAX_BODY = 1 << 20
+
+Handler = Callable[[dict[str, Any]], Any]
+
+
+class EditApi:
+    """The editing requests of one studio, over one `Workspace`."""
+
+    def __init__(self, workspace: Workspace) -> None:
+        self.workspace = workspace
+        self.server: StudioServer | None = None
+        self._lock = asyncio.Lock()
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self.run: StudioRun | None = None
+
+    def routes(self, app: web.Application, server: StudioServer) -> None:
+        self.server = server
+        self.run = StudioRun(server.hub, self.broadcast)
+        app.router.add_get("/api/library", self._library)
+        app.router.add_get("/api/files", self._files)
+        app.router.add_get("/api/tracks", self._tracks)
+        posts: dict[str, Handler] = {
+            "edit": lambda body: self.workspace.edit(body.get("version"), body.get("ops")),
+            "undo": lambda body: self.workspace.undo(),
+            "redo": lambda body: self.workspace.redo(),
+            "save": lambda body: self._on_disk(self.workspace.save(body.get("version"),
+                                                                    bool(body.get("force")))),
+            "reload": lambda body: self._on_disk(self.workspace.reload()),
+            "new": lambda body: self._on_disk(self.workspace.new_model(body.get("name"))),
+            "complete": self._complete,
+            "run": self._run,
+            "stop": lambda body: self._sim().stop(),
+        }
+        for name, handler in posts.items():
+            app.router.add_post(f"/api/{name}", self._post(handler))
+
+    # --- reading ---------------------------------------------------------------------------------
+
+    async def _library(self, request: web.Request) -> web.StreamResponse:
+        from umlbot.studio.library_view import library
+
+        self._guard(request)
+        return _json(library())
+
+    async def _files(self, request: web.Request) -> web.StreamResponse:
+        self._guard(request)
+        async with self._lock:
+            ws = self.workspace
+            return _json({"files": ws.texts(), "version": ws.version, "dirty": ws.dirty})
+
+    def hello(self) -> dict[str, Any]:
+        """The `edit` part of the socket's hello: the session, the model, a run going on."""
+        return {**self.workspace.hello(), "run": self.run.current if self.run is not None
+                else {"running": False}}
+
+    async def _tracks(self, request: web.Request) -> web.StreamResponse:
+        self._guard(request)
+        return _json({"tracks": list(bundled_tracks())})
+
+    def _complete(self, body: dict[str, Any]) -> dict[str, Any]:
+        from umlbot.studio.completion import complete
+
+        text = body.get("text")
+        cursor = body.get("cursor")
+        if not isinstance(text, str) or not (cursor is None or isinstance(cursor, int)):
+            raise EditError("complete needs 'text' (a string) and 'cursor' (an index into it)")
+        field = body.get("field")
+        lane = body.get("lane")
+        return complete(self.workspace.answer_cache.get("model"), lane if isinstance(lane, str) else None,
+                        text, cursor, field if isinstance(field, str) else None)
+
+    def _sim(self) -> StudioRun:
+        assert self.run is not None
+        return self.run
+
+    def _run(self, body: dict[str, Any]) -> dict[str, Any]:
+        ws = self.workspace
+        if ws.result is None or ws.result.model is None:
+            raise Conflict({"error": "the model has errors: fix them before running it",
+                            "version": ws.version})
+        speed = body.get("speed", RUN_SPEED)
+        if isinstance(speed, bool) or not isinstance(speed, int | float) or not 0.1 <= speed <= 100:
+            raise EditError("'speed' is sim seconds per wall second, 0.1 to 100")
+        return self._sim().start(dict(ws.files), resolve_track(body.get("track") or "s_bend", ws.root),
+                                 float(speed))
+
+    def _poll(self, _: dict[str, Any]) -> list[dict[str, Any]]:
+        frames = self.workspace.poll()
+        if frames:
+            self._on_disk({})
+        return frames
+
+    def _on_disk(self, answer: dict[str, Any]) -> dict[str, Any]:
+        """The files on disk are the working copy now: the hello's `model` and `diagnostics` (the
+        model a robot would run) become theirs, for pages that open from now on."""
+        ws = self.workspace
+        if self.server is not None and not ws.dirty and ws.result is not None:
+            from umlbot.studio.model_view import diagnostic_view, model_view
+
+            data = self.server.data
+            data.model = model_view(ws.result.model) if ws.result.model is not None else None
+            data.diagnostics = [diagnostic_view(d) for d in ws.result.diagnostics]
+        return answer
+
+    def broadcast(self, frame: dict[str, Any]) -> None:
+        """Send a frame to every page (from any thread)."""
+        loop = self._loop
+        if loop is not None and self.server is not None:
+            with contextlib.suppress(RuntimeError):  # the loop has closed
+                loop.call_soon_threadsafe(self.server.hub.broadcast, frame)
+
+    def close(self) -> None:
+        """End a run that is going on (the studio stops)."""
+        if self.run is not None and self.run.running:
+            self.run.stop()
+
+    # --- writing ---------------------------------------------------------------------------------
+
+    def _guard(self, request: web.Request) -> None:
+        assert self.server is not None
+        self.server.check_origin(request)
+
+    def _post(self, handler: Handler) -> Callable[[web.Request], Awaitable[web.StreamResponse]]:
+        async def handle(request: web.Request) -> web.StreamResponse:
+            self._guard(request)
+            if request.content_length is not None and request.content_length > MAX_BODY:
+                return _json({"error": f"request too large (at most {MAX_BODY} bytes)"}, 413)
+            try:
+                body = json.loads(await request.text())
+            except ValueError:
+                return _json({"error": "the request body is not JSON"}, 400)
+            if not isinstance(body, dict):
+                return _json({"error": "the request body is a JSON object"}, 400)
+            token = body.get("token")
+            if not isinstance(token, str) or not secrets.compare_digest(token, self.workspace.token):
+                log.warning("studio write refused: bad token", path=request.path)
+                return _json({"error": "missing or wrong token (reload the page)"}, 403)
+            loop = self._loop = asyncio.get_running_loop()
+            async with self._lock:
+                try:
+                    answer = await loop.run_in_executor(None, self._locked, handler, body)
+                except Conflict as exc:
+                    return _json(exc.body, 409)
+                except (EditError, ValueError) as exc:
+                    return _json({"error": str(exc)}, 400)
+            return _json(answer)
+
+        return handle
+
+    def _locked(self, handler: Handler, body: dict[str, Any]) -> Any:
+        with self.workspace.lock:
+            return handler(body)
+
+    # --- files on disk -----------------------------------------------------------------------------
+
+    async def watch(self) -> None:
+        """Look at the model's files every `WATCH_EVERY_S` and tell the pages what changed."""
+        loop = self._loop = asyncio.get_running_loop()
+        while True:
+            await asyncio.sleep(WATCH_EVERY_S)
+            try:
+                async with self._lock:
+                    frames = await loop.run_in_executor(None, self._locked, self._poll, {})
+            except Exception as exc:
+                log.warning("studio: looking at the model's files failed", error=str(exc))
+                continue
+            if self.server is not None:
+                for frame in frames:
+                    self.server.hub.broadcast(frame)
+
+
+def _json(data: Any, status: int = 200) -> web.Response:
+    return web.Response(text=dumps(data), status=status, content_type="application/json",
+                        headers={"Cache-Control": "no-store"})

@@ -1,0 +1,156 @@
+"""Completion and argument hints for the page's call and guard editor.
+
+Built from the model as it is now (the editor's view of the working copy) and the component
+library: components and their implementation's features (with the implementation's ranges),
+swimlanes (virtual lanes can be called, any lane's datastores read as `Lane.name`), the lane's own
+datastores, builtins and keywords. Nothing here parses the model format itself.
+"""
+
+from __future__ import annotations
+
+import re
+from typing import Any
+
+from compiler.checker import SLEEP_BUILTINS
+from umlbot import library as lib
+
+KEYWORDS = ("and", "or", "not", "true", "false", "null")
+#: the (dotted) name just before the cursor.
+_WORD = re.compile(r"(?<![\w.])[A-Za-z_][\w.]*$")
+_CALLEE = re.compile(r"([A-Za-z_]\w*(?:\.[A-Za-z_]\w*)?)\s*$")
+
+
+def _param_text(param: dict[str, Any]) -> str:
+    text = f"{param['name']}: {param['type']}"
+    if param.get("minimum") is not None and param.get("maximum") is not None:
+        text += f" {param['minimum']:g}..{param['maximum']:g}"
+    elif param.get("minimum") is not None:
+        text += f" >= {param['minimum']:g}"
+    if param.get("unit"):
+        text += f" {param['unit']}"
+    return text
+
+
+def _params(spec: lib.FeatureSpec) -> list[dict[str, Any]]:
+    return [{"name": p.name, "type": p.type, "minimum": p.minimum, "maximum": p.maximum, "unit": p.unit}
+            for p in spec.params]
+
+
+def _features(component: dict[str, Any]) -> dict[str, lib.FeatureSpec]:
+    """The features a component of the model offers: its implementation's, else its kind's."""
+    impl = lib.resolve_implementation(component.get("impl") or "")
+    if impl is not None:
+        return dict(impl.features)
+    kind = component.get("kind")
+    kinds = lib.component_kinds()
+    return dict(kinds[kind]) if kind in kinds else {}
+
+
+def _signature_of(callee: str, components: dict[str, dict[str, Any]]) -> dict[str, Any] | None:
+    if callee in SLEEP_BUILTINS:
+        unit = SLEEP_BUILTINS[callee]
+        params = [{"name": unit, "type": "int", "minimum": 0, "maximum": None, "unit": unit}]
+        return {"label": f"{callee}({unit}: int {unit})", "params": params, "returns": "none",
+                "doc": f"wait {unit}"}
+    head, _, feature = callee.partition(".")
+    component = components.get(head)
+    if component is None or not feature:
+        return None
+    spec = _features(component).get(feature)
+    if spec is None:
+        return None
+    params = _params(spec)
+    label = f"{head}.{feature}({', '.join(_param_text(p) for p in params)})"
+    if spec.returns != "none":
+        label += f" -> {spec.returns}"
+    return {"label": label, "params": params, "returns": spec.returns, "doc": spec.doc}
+
+
+def _open_call(before: str) -> tuple[str, int] | None:
+    """(callee, index of the argument being typed) of the innermost call the cursor is in."""
+    depth = 0
+    commas = 0
+    quote = ""
+    # strings first: blank them out so their brackets and commas do not count
+    cleaned = []
+    for ch in before:
+        if quote:
+            cleaned.append(" ")
+            if ch == quote:
+                quote = ""
+            continue
+        if ch in "'\"":
+            quote = ch
+            cleaned.append(" ")
+            continue
+        cleaned.append(ch)
+    text = "".join(cleaned)
+    for index in range(len(text) - 1, -1, -1):
+        ch = text[index]
+        if ch == ")":
+            depth += 1
+        elif ch == "(":
+            if depth == 0:
+                match = _CALLEE.search(text[:index])
+                return (match.group(1), commas) if match else None
+            depth -= 1
+        elif ch == "," and depth == 0:
+            commas += 1
+    return None
+
+
+def complete(model: dict[str, Any] | None, lane: str | None, text: str, cursor: int | None,
+             field: str | None = None) -> dict[str, Any]:
+    """Completions at `cursor` in `text` (a call, guard or value of a node of `lane`)."""
+    cursor = len(text) if cursor is None else max(0, min(cursor, len(text)))
+    before = text[:cursor]
+    components = {c["name"]: c for c in (model or {}).get("components", [])}
+    lanes = {x["name"]: x for d in (model or {}).get("diagrams", []) for x in d["lanes"]}
+    word = _WORD.search(before)
+    typed = word.group(0) if word else ""
+    head: str | None = None
+    partial = typed
+    if "." in typed:
+        head, _, partial = typed.rpartition(".")
+    items: list[dict[str, Any]] = []
+    if head is not None:
+        if head in components:
+            for name, spec in _features(components[head]).items():
+                sig = _signature_of(f"{head}.{name}", components)
+                items.append({"label": name, "kind": "feature", "detail": sig["label"] if sig else name,
+                              "insert": f"{name}(" if spec.params else f"{name}()"})
+        if head in lanes:
+            for store in lanes[head]["datastores"]:
+                items.append({"label": store, "kind": "datastore", "detail": f"datastore of {head}",
+                              "insert": store})
+        if head == "Application":
+            items.append({"label": "exit", "kind": "builtin", "detail": "Application.exit -> bool",
+                          "insert": "exit"})
+    else:
+        own = lanes.get(lane or "")
+        if own is not None:
+            items += [{"label": s, "kind": "datastore", "detail": f"datastore of {lane}", "insert": s}
+                      for s in own["datastores"]]
+        items += [{"label": name, "kind": "component", "detail": f"{c.get('kind')} ({c.get('impl')})",
+                   "insert": f"{name}."} for name, c in sorted(components.items())]
+        for name, other in sorted(lanes.items()):
+            if other["virtual"] and field in (None, "call"):
+                items.append({"label": name, "kind": "lane", "detail": "call the virtual swimlane",
+                              "insert": name})
+            elif other["datastores"] and name != lane:
+                items.append({"label": name, "kind": "lane", "detail": "its datastores: Lane.name",
+                              "insert": f"{name}."})
+        items += [{"label": name, "kind": "builtin", "detail": f"{name}({unit})", "insert": f"{name}("}
+                  for name, unit in SLEEP_BUILTINS.items()]
+        items.append({"label": "Application", "kind": "builtin", "detail": "Application.exit",
+                      "insert": "Application."})
+        items += [{"label": k, "kind": "keyword", "detail": "", "insert": k} for k in KEYWORDS]
+    low = partial.lower()
+    items = [item for item in items if item["label"].lower().startswith(low)]
+    signature = None
+    call = _open_call(before)
+    if call is not None:
+        sig = _signature_of(call[0], components)
+        if sig is not None:
+            signature = {**sig, "active": min(call[1], max(len(sig["params"]) - 1, 0))}
+    return {"items": items, "replace": [cursor - len(partial), cursor], "signature": signature}

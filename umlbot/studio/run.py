@@ -1,0 +1,128 @@
+"""The studio's Run button: the working copy in the simulator, followed live by the page.
+
+One run at a time, in a thread: the working copy is written to a private temp folder (nothing is
+saved), then `run_sim` runs it exactly as `umlbot sim` does (embedded broker, sim drivers); its
+`observe` hook connects the studio's hub to the run's broker and world, as `umlbot sim --studio`
+does, so the page's live view follows it.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import shutil
+import tempfile
+import threading
+from collections.abc import Callable
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from umlbot.logs import get_logger
+from umlbot.studio.sources import BrokerSource, WorldSource, track_view
+from umlbot.studio.workspace import Conflict
+
+if TYPE_CHECKING:
+    from umlbot.sim.world import World
+    from umlbot.studio.hub import Hub
+
+log = get_logger(__name__)
+
+#: simulation speed of a studio run (sim seconds per wall second): slow enough to watch.
+RUN_SPEED = 2.0
+
+
+def bundled_tracks() -> dict[str, Path]:
+    """The tracks that come with umlbot, by name (`s_bend`, …)."""
+    from umlbot.sim.track import tracks_dir
+
+    folder = tracks_dir()
+    return {p.stem: p for p in sorted(folder.glob("*.yaml"))} if folder.is_dir() else {}
+
+
+def resolve_track(track: Any, model_root: Path) -> Path:
+    """A bundled track's name, or a track file inside the model folder (nothing else)."""
+    from umlbot.studio.workspace import safe_path
+
+    if not isinstance(track, str) or not track:
+        raise ValueError("'track' names a bundled track (see /api/tracks) or a file in the model folder")
+    bundled = bundled_tracks()
+    if track in bundled:
+        return bundled[track]
+    path = safe_path(model_root, track)
+    if not path.is_file():
+        raise ValueError(f"no track {track!r} (bundled: {', '.join(bundled)})")
+    return path
+
+
+class StudioRun:
+    """Runs the working copy in the simulator, one run at a time; frames go through `broadcast`."""
+
+    def __init__(self, hub: Hub, broadcast: Callable[[dict[str, Any]], None]) -> None:
+        self.hub = hub
+        self.broadcast = broadcast
+        self._thread: threading.Thread | None = None
+        self._stop = threading.Event()
+        self._sources: list[BrokerSource | WorldSource] = []
+        self.last: dict[str, Any] | None = None
+        #: the run going on, for a page that opens during it (hello.edit.run).
+        self.current: dict[str, Any] = {"running": False}
+
+    @property
+    def running(self) -> bool:
+        return self._thread is not None and self._thread.is_alive()
+
+    def start(self, files: dict[str, bytes], track: Path, speed: float = RUN_SPEED) -> dict[str, Any]:
+        if self.running:
+            raise Conflict({"error": "a run is going on: stop it first"})
+        folder = Path(tempfile.mkdtemp(prefix="umlbot-studio-run-"))
+        model = folder / "model"
+        for rel, data in files.items():
+            target = model / rel
+            target.parent.mkdir(parents=True, exist_ok=True)
+            target.write_bytes(data)
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, args=(folder, model, track, speed),
+                                        name="studio-run", daemon=True)
+        self._thread.start()
+        return {"running": True, "track": track.stem}
+
+    def stop(self, timeout: float = 30.0) -> dict[str, Any]:
+        self._stop.set()
+        thread = self._thread
+        if thread is not None and thread is not threading.current_thread():
+            thread.join(timeout)
+        return {"running": self.running, "result": self.last}
+
+    def _observe(self, world: World, broker_url: str, robot: str) -> Callable[[], None]:
+        from services.bus import BrokerSettings
+
+        self.current = {"running": True, "robot": robot, "track": track_view(world)}
+        self.broadcast({"type": "run", "state": "running", **self.current})
+        self._sources = [BrokerSource(BrokerSettings.from_url(broker_url), robot, self.hub),
+                         WorldSource(world, self.hub)]
+        for source in self._sources:
+            source.start()
+        return self._finish
+
+    def _finish(self) -> None:
+        for source in self._sources:
+            with contextlib.suppress(Exception):
+                source.close()
+        self._sources = []
+
+    def _run(self, folder: Path, model: Path, track: Path, speed: float) -> None:
+        from umlbot.sim.runner import SimOptions, run_sim
+
+        try:
+            result = run_sim(SimOptions(model=model, track=track, speed=speed, port=0), stop=self._stop,
+                             observe=self._observe)
+            self.last = {"reason": result.reason, "goal_reached": result.goal_reached,
+                         "collisions": result.collisions, "sim_s": round(result.sim_s, 2),
+                         "distance_m": round(result.distance_m, 2), "failure": result.failure}
+        except Exception as exc:  # a bad model or track: tell the page, never crash the studio
+            log.warning("studio run failed", error=str(exc))
+            self.last = {"reason": "failed", "failure": str(exc)}
+        finally:
+            self._finish()
+            shutil.rmtree(folder, ignore_errors=True)
+        self.current = {"running": False, "result": self.last}
+        self.broadcast({"type": "run", "state": "ended", **self.current})

@@ -1,0 +1,1303 @@
+// Edit mode: palette, properties, call/guard editor with completion, undo/redo, save, notices
+// for files changed on disk, run/stop. The page never writes the model format: it sends
+// operations to the server (contract: docs/studio.md, "Editing") and draws the model view it
+// answers with; the server's compiler checks every edit.
+
+import type { Positions } from "./layout";
+import { sameFile } from "./paths";
+import type {
+  CompleteAnswer, Completion, ConflictMsg, Diagnostic, EditAnswer, EditInfo, FeatureInfo, FieldInfo, FilesMsg,
+  ImplInfo, JsonSchema, LayoutMap, Library, ModelComponent, ModelEdge, ModelLane, ModelNode, ModelView, NodeKind, RunMsg,
+} from "./types";
+
+export interface EditorHost {
+  canvas: HTMLElement;
+  model(): ModelView | null;
+  current(): string;
+  scale(): number;
+  select(id: string): void;
+  setModel(m: ModelView | null, diagnostics: Diagnostic[]): void;
+  /** Draw the model again (the user's positions changed). */
+  relayout(): void;
+  diagnostics(): Diagnostic[];
+  /** A new run starts: forget the previous run's counts. */
+  resetLive(): void;
+}
+
+export type Op = Record<string, unknown> & { op: string };
+
+type Selection =
+  | { type: "node"; lane: string; id: string }
+  | { type: "edge"; lane: string; source: string; target: string }
+  | { type: "component"; name: string }
+  | { type: "lane"; lane: string }
+  | { type: "new-component"; impl: string }
+  | null;
+
+export interface EditHooks {
+  version: number; busy: boolean; dirty: boolean; requests: number; errors: string[];
+  /** the version whose model the shown diagram draws (tests wait for it after an edit) */
+  drawn: number;
+  /** send operations as the page does (dev checks) */
+  send?: (ops: Op[]) => Promise<boolean>;
+}
+
+const NODE_KINDS: NodeKind[] = ["start", "end", "action", "datastore", "decision", "fork", "join", "send", "accept"];
+const NODE_DOC: Record<string, string> = {
+  start: "where the lane begins", end: "where the lane ends", action: "calls a feature, a lane or a builtin",
+  datastore: "a named value", decision: "branches on guards", fork: "runs branches at once",
+  join: "waits for every branch", send: "sends a signal", accept: "waits for a signal",
+};
+/** Fields edited elsewhere (structure: connect/disconnect), never as text. */
+const STRUCTURAL = new Set(["id", "kind", "next", "targets", "branches"]);
+/** Fields written as an expression or a call: edited with completion. */
+const CODE_FIELDS = new Set(["call", "value", "guard", "when", "payload", "expr"]);
+
+const $ = <T extends HTMLElement>(sel: string): T => document.querySelector(sel) as T;
+
+function el<K extends keyof HTMLElementTagNameMap>(
+  tag: K, attrs: Record<string, string> = {}, parent?: Element | null, text?: string,
+): HTMLElementTagNameMap[K] {
+  const e = document.createElement(tag);
+  for (const [k, v] of Object.entries(attrs)) e.setAttribute(k, v);
+  if (text !== undefined) e.textContent = text;
+  if (parent) parent.append(e);
+  return e;
+}
+
+export function signatureText(name: string, f: FeatureInfo): string {
+  const ret = f.returns && f.returns !== "none" ? ` → ${f.returns}` : "";
+  return f.params === null ? `${name}${ret}` : `${name}(${f.params.map(paramText).join(", ")})${ret}`;
+}
+export function paramText(p: { name: string; type?: string; minimum?: number | null; maximum?: number | null; unit?: string | null }): string {
+  let s = p.name;
+  if (p.type) s += `: ${p.type}`;
+  const lo = p.minimum ?? null;
+  const hi = p.maximum ?? null;
+  if (lo !== null && hi !== null) s += ` ${lo}..${hi}`;
+  else if (lo !== null) s += ` ≥ ${lo}`;
+  else if (hi !== null) s += ` ≤ ${hi}`;
+  if (p.unit) s += ` ${p.unit}`;
+  return s;
+}
+
+/** A typed text as the value to send: numbers and booleans as such, the rest as text. */
+function typed(field: string, text: string, type: string | undefined): unknown {
+  const t = text.trim();
+  if (t === "") return null;
+  if (field === "call" || field === "name" || field === "signal" || field === "store") return t;
+  if (/^-?\d+(\.\d+)?$/.test(t) && (!type || /number|integer|float|value|any/.test(type) || field === "value")) return Number(t);
+  if ((t === "true" || t === "false") && (!type || /bool|value|any/.test(type) || field === "value")) return t === "true";
+  return t;
+}
+
+function resolve(s: JsonSchema, root: JsonSchema): JsonSchema {
+  let cur = s;
+  for (let i = 0; i < 8; i++) {
+    if (cur.$ref) {
+      const name = cur.$ref.split("/").pop() ?? "";
+      cur = { ...(root.$defs?.[name] ?? {}), ...cur, $ref: undefined };
+      continue;
+    }
+    if (cur.anyOf) {
+      const pick = cur.anyOf.find((x) => x.type !== "null") ?? cur.anyOf[0];
+      cur = { ...pick, ...cur, anyOf: undefined, type: pick.type };
+      continue;
+    }
+    break;
+  }
+  return cur;
+}
+
+export class Editor {
+  info: EditInfo;
+  library: Library | null = null;
+  hooks: EditHooks;
+  private host: EditorHost;
+  private layout: LayoutMap;
+  private sel: Selection = null;
+  private connectFrom: { lane: string; id: string } | null = null;
+  private queue: { ops: Op[]; resolve: (ok: boolean) => void }[] = [];
+  private forceSave = false;
+  private laneFile = "";
+
+  private tools = $<HTMLElement>("#edit-tools");
+  private palette = $<HTMLElement>("#palette");
+  private props = $<HTMLElement>("#props");
+  private notice = $<HTMLElement>("#notice");
+  private saveBtn = $<HTMLButtonElement>("#save");
+  private undoBtn = $<HTMLButtonElement>("#undo");
+  private redoBtn = $<HTMLButtonElement>("#redo");
+  private runBtn = $<HTMLButtonElement>("#run");
+  private stopBtn = $<HTMLButtonElement>("#stop");
+  private trackSel = $<HTMLSelectElement>("#track");
+
+  constructor(host: EditorHost, info: EditInfo, hooks: EditHooks) {
+    this.host = host;
+    this.info = info;
+    this.hooks = hooks;
+    this.layout = info.layout?.positions ?? {};
+    document.body.classList.add("editing");
+    this.tools.hidden = false;
+    this.palette.hidden = false;
+    this.props.hidden = false;
+    this.hooks.version = info.version;
+    this.hooks.send = (ops) => this.edit(ops);
+    this.setDirty(info.dirty);
+    this.saveBtn.onclick = () => void this.save();
+    this.undoBtn.onclick = () => void this.history("undo");
+    this.redoBtn.onclick = () => void this.history("redo");
+    this.runBtn.onclick = () => void this.run();
+    this.stopBtn.onclick = () => void this.stop();
+    void this.loadLibrary();
+    void this.loadTracks();
+    this.renderProps();
+  }
+
+  /** A new hello (reconnect): the server's state wins. */
+  setInfo(info: EditInfo): void {
+    this.info = info;
+    this.layout = info.layout?.positions ?? {};
+    this.hooks.version = info.version;
+    this.setDirty(info.dirty);
+    this.renderProps();
+    this.renderPalette();
+  }
+
+  /** After the hello's model is drawn: a standing conflict, a run going on. */
+  afterHello(info: EditInfo): void {
+    if (info.conflict?.length) this.showConflict(info.conflict);
+    if (info.run) this.onRun({ type: "run", state: info.run.running ? "running" : "ended", ...info.run });
+  }
+
+  onRun(msg: RunMsg): void {
+    this.setRunning(msg.running ?? msg.state === "running");
+    const r = msg.result;
+    if (msg.state === "ended" && r) {
+      const what = r.goal_reached ? "reached the goal" : `ended: ${r.failure ?? r.reason ?? "stopped"}`;
+      const figures = [r.sim_s !== undefined ? `${r.sim_s.toFixed(1)} s` : "", r.distance_m !== undefined ? `${r.distance_m.toFixed(2)} m` : "",
+        r.collisions ? `${r.collisions} collision${r.collisions === 1 ? "" : "s"}` : ""].filter(Boolean).join(" · ");
+      this.showNotice(r.goal_reached ? "run-goal" : "run-ended", `The run ${what}${figures ? ` (${figures})` : ""}.`, [], 10000);
+    }
+  }
+
+  positions(diagram: string): Positions {
+    return this.layout[diagram] ?? {};
+  }
+
+  /** The canvas content for a folder with no model: offer a starter model. */
+  showEmpty(target: HTMLElement): void {
+    target.replaceChildren();
+    const form = el("form", { id: "new-model-form" }, target);
+    el("h2", {}, form, "This folder has no model yet");
+    el("p", {}, form, `Start one in ${this.info.root}: a starter model with the car's components, their deployment and a main activity (start → end).`);
+    const name = el("input", { name: "model-name", placeholder: "robot name", value: this.info.root.split("/").filter(Boolean).pop() ?? "my_robot", required: "" }, form);
+    const btn = el("button", { id: "new-model", type: "submit" }, form, "Create the model");
+    form.onsubmit = async (ev) => {
+      ev.preventDefault();
+      btn.disabled = true;
+      const a = await this.request<EditAnswer>("/api/new", { name: name.value.trim() });
+      btn.disabled = false;
+      if (a) {
+        this.info.empty = false;
+        this.apply(a);
+      }
+    };
+  }
+
+  // ------------------------------------------------------------------ server
+
+  /** POST to the studio with the token; null (and a notice, unless `quiet`) when it failed. */
+  private async request<T>(path: string, body: Record<string, unknown>, quiet = false): Promise<T | null> {
+    this.hooks.requests += 1;
+    try {
+      const res = await fetch(path, {
+        method: "POST",
+        headers: { "Content-Type": "application/json" },
+        body: JSON.stringify({ token: this.info.token, ...body }),
+      });
+      const text = await res.text();
+      let data: unknown = null;
+      try {
+        data = text ? JSON.parse(text) : null;
+      } catch {
+        data = { error: text };
+      }
+      if (res.status === 409 && /^\/api\/(undo|redo)$/.test(path)) {
+        this.showNotice("hint", (data as { error?: string } | null)?.error ?? `nothing to ${path.slice(5)}`, [], 3000);
+        return null;
+      }
+      if (!res.ok) {
+        const err = (data as { error?: string } | null)?.error ?? `${res.status} ${res.statusText}`;
+        if (quiet) return null;
+        if (res.status === 409 && (data as { conflict?: string[] } | null)?.conflict) {
+          this.showConflict((data as { conflict: string[] }).conflict);
+        } else if (res.status === 409 && path === "/api/edit") {
+          // another window edited meanwhile: take the server's state (a fresh hello) and say so
+          this.showNotice("error", `${err} — the page takes the server's current model.`, [], 8000);
+          this.resync();
+        } else this.showNotice("error", err, []);
+        this.hooks.errors.push(err);
+        return null;
+      }
+      return data as T;
+    } catch (exc) {
+      if (quiet) return null;
+      this.showNotice("error", `The studio server did not answer: ${String(exc)}`, []);
+      return null;
+    }
+  }
+
+  /** Apply operations (queued: one request at a time, each with the version it edits). */
+  edit(ops: Op[]): Promise<boolean> {
+    return new Promise((resolve) => {
+      this.queue.push({ ops, resolve });
+      if (this.queue.length === 1) void this.pump();
+    });
+  }
+
+  private async pump(): Promise<void> {
+    this.hooks.busy = true;
+    while (this.queue.length) {
+      const { ops, resolve } = this.queue[0];
+      const a = await this.request<EditAnswer>("/api/edit", { version: this.hooks.version, ops });
+      if (a) this.apply(a, !ops.every((o) => o.op === "set_layout"));
+      this.queue.shift();
+      resolve(!!a);
+    }
+    this.hooks.busy = false;
+  }
+
+  /** An answer of the server: the new version, model and problems. */
+  apply(a: EditAnswer, redraw = true): void {
+    this.hooks.version = a.version;
+    if (a.layout?.positions) this.layout = a.layout.positions;
+    this.setDirty(a.dirty);
+    if (redraw && a.model !== undefined) {
+      this.host.setModel(a.model, a.diagnostics ?? []);
+      this.validateSelection();
+      this.renderPalette();
+      this.renderProps();
+    }
+  }
+
+  /** Reconnect: the server's hello carries its working copy, version and layout. */
+  private resync(): void {
+    window.dispatchEvent(new Event("studio-resync"));
+  }
+
+  private setDirty(dirty: boolean): void {
+    this.hooks.dirty = dirty;
+    this.saveBtn.dataset.dirty = String(dirty);
+    this.saveBtn.textContent = dirty ? "Save •" : "Saved";
+    this.saveBtn.title = dirty ? "Write the edits to the model files (Ctrl-S)" : "Nothing to save";
+    document.title = document.title.replace(/^• /, "");
+    if (dirty) document.title = `• ${document.title}`;
+  }
+
+  async save(): Promise<void> {
+    await this.settle();
+    const a = await this.request<{ saved: string[]; dirty: boolean; version?: number }>(
+      "/api/save", { version: this.hooks.version, force: this.forceSave });
+    if (!a) return;
+    this.forceSave = false;
+    if (a.version !== undefined) this.hooks.version = a.version;
+    this.setDirty(a.dirty);
+    this.showNotice("saved", a.saved.length ? `Saved ${a.saved.join(", ")}` : "Nothing changed: no file written", [], 3000);
+  }
+
+  /** Wait until every queued edit is answered. */
+  private async settle(): Promise<void> {
+    if (!this.queue.length) return;
+    await new Promise<void>((resolve) => {
+      this.queue.push({ ops: [], resolve: () => resolve() });
+    });
+  }
+
+  async history(which: "undo" | "redo"): Promise<void> {
+    await this.settle();
+    this.hooks.busy = true;
+    const a = await this.request<EditAnswer>(`/api/${which}`, {});
+    if (a) this.apply(a);
+    this.hooks.busy = false;
+  }
+
+  /** A file changed on disk while the page was clean: the server reloaded it. */
+  onFiles(msg: FilesMsg): void {
+    this.hooks.version = msg.version;
+    if (msg.layout?.positions) this.layout = msg.layout.positions;
+    this.setDirty(msg.dirty ?? false);
+    this.host.setModel(msg.model, msg.diagnostics ?? []);
+    this.validateSelection();
+    this.renderPalette();
+    this.renderProps();
+    this.showNotice("reloaded", `${msg.changed.join(", ")} ${msg.changed.length === 1 ? "was" : "were"} changed on disk: reloaded.`, [], 8000);
+  }
+
+  /** A file changed on disk while the page has unsaved edits: the user decides. */
+  onConflict(msg: ConflictMsg): void {
+    if (msg.version !== undefined) this.hooks.version = msg.version;
+    this.showConflict(msg.changed);
+  }
+
+  private showConflict(changed: string[]): void {
+    this.showNotice("conflict",
+      `${changed.join(", ")} changed on disk while you have unsaved edits. Nothing was overwritten.`,
+      [
+        ["reload", "Reload from disk (discard my edits)", async () => {
+          const a = await this.request<EditAnswer>("/api/reload", {});
+          if (a) {
+            this.forceSave = false;
+            this.apply(a);
+            this.showNotice("reloaded", "Reloaded from disk: your unsaved edits were discarded.", [], 6000);
+          }
+        }],
+        ["keep", "Keep mine", () => {
+          this.forceSave = true;
+          this.showNotice("kept", `Your edits are kept; Save will replace ${changed.join(", ")} on disk.`, [], 8000);
+        }],
+      ]);
+    this.notice.dataset.files = changed.join(" ");
+  }
+
+  showNotice(kind: string, text: string, actions: [string, string, () => void | Promise<void>][], hideAfterMs = 0): void {
+    const n = this.notice;
+    n.replaceChildren();
+    n.dataset.kind = kind;
+    delete n.dataset.files;
+    el("span", { class: "text" }, n, text);
+    for (const [action, label, fn] of actions) {
+      const b = el("button", { type: "button", "data-action": action }, n, label);
+      b.onclick = () => void fn();
+    }
+    const close = el("button", { type: "button", "data-action": "dismiss", title: "Dismiss" }, n, "×");
+    close.onclick = () => { n.hidden = true; };
+    n.hidden = false;
+    if (hideAfterMs) {
+      const stamp = String(performance.now());
+      n.dataset.stamp = stamp;
+      setTimeout(() => {
+        if (n.dataset.stamp === stamp) n.hidden = true;
+      }, hideAfterMs);
+    } else delete n.dataset.stamp;
+  }
+
+  // ------------------------------------------------------------------ library, tracks, run
+
+  private async loadLibrary(): Promise<void> {
+    try {
+      const res = await fetch("/api/library");
+      if (!res.ok) throw new Error(`${res.status}`);
+      this.library = (await res.json()) as Library;
+    } catch (exc) {
+      console.error("studio: no component library", exc);
+    }
+    this.renderPalette();
+    this.renderProps();
+  }
+
+  private async loadTracks(): Promise<void> {
+    try {
+      const res = await fetch("/api/tracks");
+      const data = (await res.json()) as { tracks: ({ name: string; title?: string } | string)[] };
+      this.trackSel.replaceChildren();
+      for (const t of data.tracks ?? []) {
+        const name = typeof t === "string" ? t : t.name;
+        el("option", { value: name }, this.trackSel, typeof t === "string" ? t : (t.title ?? t.name));
+      }
+    } catch (exc) {
+      console.error("studio: no tracks", exc);
+    }
+  }
+
+  private async run(): Promise<void> {
+    await this.settle();
+    const speed = Number($<HTMLSelectElement>("#run-speed").value) || 2;
+    const a = await this.request<{ running?: boolean; error?: string }>("/api/run", { track: this.trackSel.value, speed });
+    if (!a) return;
+    this.setRunning(true);
+    this.host.resetLive();
+    this.showNotice("run", `Running the edited model in the simulator on ${this.trackSel.value} at ${speed}×.`, [], 4000);
+  }
+
+  private async stop(): Promise<void> {
+    await this.request("/api/stop", {});
+    this.setRunning(false);
+  }
+
+  setRunning(running: boolean): void {
+    this.runBtn.dataset.running = String(running);
+    this.stopBtn.disabled = !running;
+  }
+
+  // ------------------------------------------------------------------ palette
+
+  diagramShown(_id: string): void {
+    if (this.sel?.type === "new-component" && this.host.current() !== "components") this.sel = null;
+    this.renderPalette();
+    this.renderProps();
+  }
+
+  renderPalette(): void {
+    const p = this.palette;
+    p.replaceChildren();
+    const m = this.host.model();
+    const cur = this.host.current();
+    if (cur === "components" || !m) {
+      el("div", { class: "panel-title" }, p, "Component library");
+      if (!this.library) {
+        el("div", { class: "hint" }, p, "loading…");
+        return;
+      }
+      const byKind = new Map<string, ImplInfo[]>();
+      for (const impl of this.library.implementations) {
+        const list = byKind.get(impl.kind) ?? [];
+        list.push(impl);
+        byKind.set(impl.kind, list);
+      }
+      for (const [kind, impls] of byKind) {
+        const group = el("div", { class: "group", "data-group": kind }, p);
+        el("div", { class: "group-title" }, group, kind);
+        for (const impl of impls) {
+          const item = el("div", { class: "item impl", "data-impl": impl.id, "data-kind": impl.kind, tabindex: "0" }, group);
+          el("b", {}, item, impl.id);
+          if (impl.service) el("small", {}, item, ` · ${impl.service}`);
+          const feats = features(impl, this.library);
+          const list = el("div", { class: "features" }, item);
+          for (const [f, info] of Object.entries(feats)) el("div", { "data-feature": f }, list, info ? signatureText(f, info) : f);
+          if (impl.aliases.length) el("div", { class: "aliases" }, item, `seeds: ${impl.aliases.join(", ")}`);
+          item.title = impl.title ?? impl.doc ?? `${impl.kind} ${impl.id}`;
+          item.onclick = () => {
+            this.sel = { type: "new-component", impl: impl.id };
+            this.renderProps();
+            this.props.querySelector<HTMLInputElement>('[name="name"]')?.focus();
+          };
+        }
+      }
+      return;
+    }
+    el("div", { class: "panel-title" }, p, "Nodes");
+    el("div", { class: "hint" }, p, "drag onto a swimlane, or click to add to the selected one");
+    const grid = el("div", { class: "kinds" }, p);
+    const kinds = this.library ? NODE_KINDS.filter((k) => k in this.library!.node_kinds || !Object.keys(this.library!.node_kinds).length) : NODE_KINDS;
+    for (const kind of kinds) {
+      const item = el("div", { class: `item node-kind kind-${kind}`, "data-kind": kind, tabindex: "0", title: this.library?.node_kinds[kind]?.doc ?? NODE_DOC[kind] }, grid);
+      el("i", { class: "icon" }, item);
+      el("span", {}, item, kind);
+      item.addEventListener("pointerdown", (ev) => this.dragKind(ev, kind));
+    }
+    el("div", { class: "panel-title" }, p, "Swimlanes");
+    const form = el("form", { class: "add-lane" }, p);
+    const lane = el("input", { name: "lane-name", placeholder: "component or new activity", list: "lane-options", autocomplete: "off" }, form);
+    const dl = el("datalist", { id: "lane-options" }, form);
+    const used = new Set(m.diagrams.flatMap((d) => d.lanes.map((l) => l.name)));
+    for (const c of m.components) if (!used.has(c.name)) el("option", { value: c.name }, dl);
+    const file = el("select", { name: "lane-file", title: "where the lane is written" }, form);
+    el("option", { value: "" }, file, "in a new file");
+    for (const d of m.diagrams) el("option", { value: d.file }, file, `in ${d.file}`);
+    file.value = this.laneFile;
+    file.onchange = () => { this.laneFile = file.value; };
+    el("button", { type: "submit", "data-action": "add-lane" }, form, "Add swimlane");
+    el("div", { class: "hint" }, form, "a component's name runs on it; any other name is a virtual lane (a called activity)");
+    form.onsubmit = async (ev) => {
+      ev.preventDefault();
+      const name = lane.value.trim();
+      if (!name) return;
+      const op: Op = { op: "add_lane", lane: name };
+      if (file.value) op.file = file.value;
+      if (await this.edit([op])) {
+        lane.value = "";
+        const d = this.host.model()?.diagrams.find((x) => x.lanes.some((l) => l.name === name));
+        if (d) this.host.select(d.id);
+        this.sel = { type: "lane", lane: name };
+        this.renderProps();
+      }
+    };
+  }
+
+  /** Drag a node kind from the palette onto a lane (a click adds it to the selected lane). */
+  private dragKind(ev: PointerEvent, kind: NodeKind): void {
+    if (ev.button !== 0) return;
+    ev.preventDefault();
+    const ghost = el("div", { class: "drag-ghost", "data-kind": kind }, document.body, kind);
+    let moved = false;
+    const sx = ev.clientX;
+    const sy = ev.clientY;
+    const move = (e: PointerEvent): void => {
+      if (Math.hypot(e.clientX - sx, e.clientY - sy) > 4) moved = true;
+      ghost.style.left = `${e.clientX + 6}px`;
+      ghost.style.top = `${e.clientY + 6}px`;
+      ghost.hidden = !moved;
+      const lane = this.laneAt(e.clientX, e.clientY);
+      for (const g of this.host.canvas.querySelectorAll("g.lane.drop")) g.classList.remove("drop");
+      if (lane) this.laneG(lane)?.classList.add("drop");
+    };
+    const up = (e: PointerEvent): void => {
+      window.removeEventListener("pointermove", move);
+      window.removeEventListener("pointerup", up);
+      ghost.remove();
+      for (const g of this.host.canvas.querySelectorAll("g.lane.drop")) g.classList.remove("drop");
+      const lane = moved ? this.laneAt(e.clientX, e.clientY) : this.selectedLane();
+      if (!lane) {
+        if (!moved) this.showNotice("hint", "Select a swimlane first (click its header or one of its nodes), or drag the node onto it.", [], 4000);
+        return;
+      }
+      void this.addNode(lane, kind);
+    };
+    window.addEventListener("pointermove", move);
+    window.addEventListener("pointerup", up);
+  }
+
+  private laneG(lane: string): SVGGElement | null {
+    return this.host.canvas.querySelector<SVGGElement>(`svg[data-diagram="${CSS.escape(this.host.current())}"] g.lane[data-lane="${CSS.escape(lane)}"]`);
+  }
+
+  private laneAt(x: number, y: number): string | null {
+    const hit = document.elementFromPoint(x, y);
+    const g = hit?.closest?.("g.lane");
+    return g ? g.getAttribute("data-lane") : null;
+  }
+
+  private selectedLane(): string | null {
+    const s = this.sel;
+    if (s && (s.type === "node" || s.type === "lane" || s.type === "edge")) return s.lane;
+    const d = this.host.model()?.diagrams.find((x) => x.id === this.host.current());
+    return d && d.lanes.length === 1 ? d.lanes[0].name : null;
+  }
+
+  private lane(name: string): ModelLane | undefined {
+    for (const d of this.host.model()?.diagrams ?? []) for (const l of d.lanes) if (l.name === name) return l;
+    return undefined;
+  }
+
+  private async addNode(lane: string, kind: NodeKind): Promise<void> {
+    const l = this.lane(lane);
+    const ids = new Set(l?.nodes.map((n) => n.id) ?? []);
+    let n = 1;
+    while (ids.has(`${kind}${n}`)) n += 1;
+    const id = `${kind}${n}`;
+    const node: Record<string, unknown> = { id, kind };
+    if (await this.edit([{ op: "add_node", lane, node }])) {
+      this.sel = { type: "node", lane, id };
+      this.renderProps();
+      this.highlightSelection();
+      this.props.querySelector<HTMLInputElement>("input.code, input[name]")?.focus();
+    }
+  }
+
+  // ------------------------------------------------------------------ canvas interaction
+
+  /** A pointer press on the canvas in edit mode; true when the editor took it (no panning). */
+  pointerDown(ev: PointerEvent): boolean {
+    if (ev.button !== 0) return false;
+    const target = ev.target as Element;
+    const nodeG = target.closest?.("g.node");
+    const compG = target.closest?.("g.component");
+    const edgeG = target.closest?.("g.edge");
+    const header = target.closest?.(".lane-header, .lane-title, .lane-sub");
+    if (nodeG) {
+      const lane = nodeG.getAttribute("data-lane")!;
+      const id = nodeG.getAttribute("data-node")!;
+      if (this.connectFrom) {
+        const from = this.connectFrom;
+        this.connectFrom = null;
+        this.host.canvas.classList.remove("connecting");
+        if (this.notice.dataset.kind === "hint") this.notice.hidden = true;
+        if (from.lane !== lane) {
+          this.showNotice("error", "A flow stays inside its swimlane: connect nodes of the same lane.", [], 5000);
+          return true;
+        }
+        void this.connect(lane, from.id, id);
+        return true;
+      }
+      this.dragNode(ev, nodeG as SVGGElement, lane, id);
+      return true;
+    }
+    if (compG) {
+      this.dragComponent(ev, compG as SVGGElement);
+      return true;
+    }
+    if (edgeG && target.classList.contains("hit")) {
+      this.sel = { type: "edge", lane: edgeG.getAttribute("data-lane")!, source: edgeG.getAttribute("data-source")!, target: edgeG.getAttribute("data-target")! };
+      this.renderProps();
+      this.highlightSelection();
+      return true;
+    }
+    if (header) {
+      const lane = header.closest("g.lane")?.getAttribute("data-lane");
+      if (lane) {
+        this.sel = { type: "lane", lane };
+        this.renderProps();
+        this.highlightSelection();
+        return true;
+      }
+    }
+    if (this.connectFrom) {
+      this.connectFrom = null;
+      this.host.canvas.classList.remove("connecting");
+    }
+    return false;
+  }
+
+  /** Click selects a node; dragging it moves it (its position is kept in the layout file). */
+  private dragNode(ev: PointerEvent, g: SVGGElement, lane: string, id: string): void {
+    const sx = ev.clientX;
+    const sy = ev.clientY;
+    let moved = false;
+    const k = this.host.scale();
+    const move = (e: PointerEvent): void => {
+      const dx = (e.clientX - sx) / k;
+      const dy = (e.clientY - sy) / k;
+      if (!moved && Math.hypot(e.clientX - sx, e.clientY - sy) > 4) moved = true;
+      if (moved) g.setAttribute("transform", `translate(${dx},${dy})`);
+    };
+    const up = (e: PointerEvent): void => {
+      window.removeEventListener("pointermove", move);
+      window.removeEventListener("pointerup", up);
+      if (!moved) {
+        const rake = (e.target as Element).closest?.(".rake");
+        const called = g.getAttribute("data-calls");
+        if (rake && called) {
+          const d = this.host.model()?.diagrams.find((x) => x.lanes.some((l) => l.name === called));
+          if (d) this.host.select(d.id);
+          return;
+        }
+        this.sel = { type: "node", lane, id };
+        this.renderProps();
+        this.highlightSelection();
+        return;
+      }
+      const x = Number(g.getAttribute("data-x")) + (e.clientX - sx) / k;
+      const y = Number(g.getAttribute("data-y")) + (e.clientY - sy) / k;
+      const diagram = this.host.current();
+      const pos = { ...(this.layout[diagram] ?? {}) };
+      pos[`${lane}/${id}`] = [Math.round(Math.max(0, x)), Math.round(Math.max(0, y))];
+      this.layout = { ...this.layout, [diagram]: pos };
+      this.sel = { type: "node", lane, id };
+      this.host.relayout();
+      void this.edit([{ op: "set_layout", diagram, positions: pos }]);
+    };
+    window.addEventListener("pointermove", move);
+    window.addEventListener("pointerup", up);
+  }
+
+  private dragComponent(ev: PointerEvent, g: SVGGElement): void {
+    const name = g.getAttribute("data-component")!;
+    const sx = ev.clientX;
+    const sy = ev.clientY;
+    let moved = false;
+    const k = this.host.scale();
+    const move = (e: PointerEvent): void => {
+      if (!moved && Math.hypot(e.clientX - sx, e.clientY - sy) > 4) moved = true;
+      if (moved) g.setAttribute("transform", `translate(${(e.clientX - sx) / k},${(e.clientY - sy) / k})`);
+    };
+    const up = (e: PointerEvent): void => {
+      window.removeEventListener("pointermove", move);
+      window.removeEventListener("pointerup", up);
+      this.sel = { type: "component", name };
+      if (!moved) {
+        this.renderProps();
+        this.highlightSelection();
+        return;
+      }
+      const x = Number(g.getAttribute("data-x")) + (e.clientX - sx) / k;
+      const y = Number(g.getAttribute("data-y")) + (e.clientY - sy) / k;
+      const pos = { ...(this.layout.components ?? {}) };
+      pos[name] = [Math.round(Math.max(0, x)), Math.round(Math.max(0, y))];
+      this.layout = { ...this.layout, components: pos };
+      this.host.relayout();
+      void this.edit([{ op: "set_layout", diagram: "components", positions: pos }]);
+      this.renderProps();
+    };
+    window.addEventListener("pointermove", move);
+    window.addEventListener("pointerup", up);
+  }
+
+  /** Outline the selected node/edge/component/lane (after every redraw too); the selected element. */
+  highlightSelection(): Element | null {
+    for (const e of this.host.canvas.querySelectorAll(".selected")) e.classList.remove("selected");
+    const s = this.sel;
+    if (!s) return null;
+    let q = "";
+    if (s.type === "node") q = `g.node[data-lane="${CSS.escape(s.lane)}"][data-node="${CSS.escape(s.id)}"]`;
+    else if (s.type === "edge") q = `g.edge[data-lane="${CSS.escape(s.lane)}"][data-source="${CSS.escape(s.source)}"][data-target="${CSS.escape(s.target)}"]`;
+    else if (s.type === "component") q = `g.component[data-component="${CSS.escape(s.name)}"]`;
+    else if (s.type === "lane") q = `g.lane[data-lane="${CSS.escape(s.lane)}"]`;
+    let shown: Element | null = null;
+    if (q) {
+      for (const e of this.host.canvas.querySelectorAll(q)) {
+        e.classList.add("selected");
+        if (e.closest("svg")?.getAttribute("data-diagram") === this.host.current()) shown = e;
+      }
+    }
+    return s.type === "lane" ? null : shown;
+  }
+
+  private validateSelection(): void {
+    const s = this.sel;
+    const m = this.host.model();
+    if (!s || !m) return;
+    if (s.type === "node" || s.type === "edge" || s.type === "lane") {
+      const l = this.lane(s.lane);
+      if (!l) this.sel = null;
+      else if (s.type === "node" && !l.nodes.some((n) => n.id === s.id)) this.sel = null;
+      else if (s.type === "edge" && !l.edges.some((e) => e.source === s.source && e.target === s.target)) this.sel = null;
+    } else if (s.type === "component" && !m.components.some((c) => c.name === s.name)) this.sel = null;
+  }
+
+  private async connect(lane: string, source: string, target: string, guard?: string): Promise<void> {
+    const op: Op = { op: "connect", lane, source, target };
+    const src = this.lane(lane)?.nodes.find((n) => n.id === source);
+    if (src?.kind === "decision") {
+      const hasElse = this.lane(lane)?.edges.some((e) => e.source === source && guardOf(src, e) === "else");
+      op.guard = guard ?? (hasElse ? "true" : "else");
+    }
+    if (await this.edit([op])) {
+      this.sel = src?.kind === "decision" ? { type: "edge", lane, source, target } : { type: "node", lane, id: source };
+      this.renderProps();
+      this.highlightSelection();
+      // a decision's new branch: type its guard now (the first one is the else branch)
+      if (op.guard === "true") this.props.querySelector<HTMLInputElement>('[name="guard"]')?.select();
+    }
+  }
+
+  /** Keys of the editor; true when handled. */
+  key(ev: KeyboardEvent): boolean {
+    const t = ev.target as HTMLElement;
+    const typing = /^(INPUT|SELECT|TEXTAREA)$/.test(t.tagName);
+    const mod = ev.ctrlKey || ev.metaKey;
+    const k = ev.key.toLowerCase();
+    if (mod && k === "s") {
+      ev.preventDefault();
+      if (typing) t.blur();
+      void this.save();
+      return true;
+    }
+    if (typing) return false;
+    if (mod && k === "z") {
+      ev.preventDefault();
+      void this.history(ev.shiftKey ? "redo" : "undo");
+      return true;
+    }
+    if (mod && k === "y") {
+      ev.preventDefault();
+      void this.history("redo");
+      return true;
+    }
+    if (ev.key === "Escape") {
+      this.connectFrom = null;
+      this.host.canvas.classList.remove("connecting");
+      return true;
+    }
+    if ((ev.key === "Delete" || ev.key === "Backspace") && this.sel) {
+      ev.preventDefault();
+      void this.removeSelection();
+      return true;
+    }
+    return false;
+  }
+
+  private async removeSelection(): Promise<void> {
+    const s = this.sel;
+    if (!s) return;
+    let op: Op | null = null;
+    if (s.type === "node") op = { op: "remove_node", lane: s.lane, id: s.id };
+    else if (s.type === "edge") op = { op: "disconnect", lane: s.lane, source: s.source, target: s.target };
+    else if (s.type === "component") op = { op: "remove_component", name: s.name };
+    else if (s.type === "lane") op = { op: "remove_lane", lane: s.lane };
+    if (op && (await this.edit([op]))) {
+      this.sel = null;
+      this.renderProps();
+    }
+  }
+
+  // ------------------------------------------------------------------ properties
+
+  renderProps(): void {
+    const p = this.props;
+    // An answer redraws the panel: a field being typed in keeps its text, caret and focus.
+    const a = document.activeElement;
+    const typing = a instanceof HTMLInputElement && p.contains(a) && a.name
+      ? { sel: `[name="${CSS.escape(a.name)}"]${a.dataset.target ? `[data-target="${CSS.escape(a.dataset.target)}"]` : ""}`,
+        value: a.value, start: a.selectionStart, end: a.selectionEnd, what: JSON.stringify(this.sel) }
+      : null;
+    p.replaceChildren();
+    if (typing) queueMicrotask(() => {
+      const again = p.querySelector<HTMLInputElement>(typing.sel);
+      if (!again || typing.what !== JSON.stringify(this.sel)) return;
+      if (again.value !== typing.value) again.value = typing.value;
+      again.focus();
+      if (typing.start !== null && typing.end !== null) again.setSelectionRange(typing.start, typing.end);
+    });
+    el("div", { class: "panel-title" }, p, "Properties");
+    const body = el("div", { class: "props-body" }, p);
+    const s = this.sel;
+    this.highlightSelection();
+    p.dataset.selection = s ? s.type : "";
+    if (!s) {
+      el("div", { class: "hint" }, body, this.host.current() === "components"
+        ? "Click a component to edit its deployment, ports and links, or pick one from the library to add it."
+        : "Click a node, a flow or a swimlane header to edit it; drag nodes from the palette.");
+      return;
+    }
+    if (s.type === "node") this.nodeProps(body, s.lane, s.id);
+    else if (s.type === "edge") this.edgeProps(body, s.lane, s.source, s.target);
+    else if (s.type === "lane") this.laneProps(body, s.lane);
+    else if (s.type === "component") this.componentProps(body, s.name);
+    else if (s.type === "new-component") this.newComponentProps(body, s.impl);
+  }
+
+  private row(parent: HTMLElement, label: string): HTMLElement {
+    const r = el("label", { class: "row" }, parent);
+    el("span", { class: "key" }, r, label);
+    return r;
+  }
+
+  private button(parent: HTMLElement, name: string, text: string, fn: () => void, cls = ""): HTMLButtonElement {
+    const b = el("button", { type: "button", name, class: cls }, parent, text);
+    b.onclick = fn;
+    return b;
+  }
+
+  private nodeProps(body: HTMLElement, laneName: string, id: string): void {
+    const lane = this.lane(laneName);
+    const node = lane?.nodes.find((n) => n.id === id);
+    if (!lane || !node) return;
+    el("div", { class: "props-head" }, body, `${node.kind} · ${id}`);
+    el("div", { class: "props-sub" }, body, `swimlane ${laneName} · ${lane.file}:${node.line}`);
+    const marks = this.host.diagnostics().filter((d) => sameFile(d.file, lane.file) && d.line >= node.line && d.line < nextLine(lane, node));
+    for (const d of marks) el("div", { class: `problem ${d.severity}`, "data-severity": d.severity }, body, d.text);
+    const fields = this.library?.node_kinds[node.kind]?.fields ?? defaultFields(node.kind);
+    for (const [field, info] of Object.entries(fields)) {
+      if (STRUCTURAL.has(field)) continue;
+      const r = this.row(body, field + (info.required ? " *" : ""));
+      const current = fieldText(node, field);
+      if (CODE_FIELDS.has(field)) {
+        this.codeInput(r, field, current, laneName, (text) => {
+          void this.edit([{ op: "set_node", lane: laneName, id, fields: { [field]: typed(field, text, info.type) } }]);
+        });
+      } else {
+        const input = el("input", { name: field, value: current, autocomplete: "off", spellcheck: "false" }, r);
+        if (info.doc) input.title = info.doc;
+        input.onchange = () => {
+          void this.edit([{ op: "set_node", lane: laneName, id, fields: { [field]: typed(field, input.value, info.type) } }]);
+        };
+      }
+    }
+    // outgoing flows
+    const out = lane.edges.filter((e) => e.source === id);
+    if (out.length || node.kind !== "end") el("div", { class: "props-section" }, body, "Flows out");
+    for (const e of out) {
+      const r = el("div", { class: "flow", "data-target": e.target }, body);
+      el("span", {}, r, `→ ${e.target}`);
+      if (node.kind === "decision") {
+        this.codeInput(r, "guard", guardOf(node, e), laneName, (text) => {
+          void this.edit([{ op: "set_guard", lane: laneName, source: id, target: e.target, guard: text.trim() }]);
+        }, { "data-target": e.target });
+      }
+      const x = this.button(r, "disconnect", "×", () => void this.edit([{ op: "disconnect", lane: laneName, source: id, target: e.target }]), "small");
+      x.dataset.target = e.target;
+      x.title = `remove the flow to ${e.target}`;
+    }
+    const actions = el("div", { class: "actions" }, body);
+    if (node.kind !== "end") {
+      this.button(actions, "connect", "Connect to…", () => {
+        this.connectFrom = { lane: laneName, id };
+        this.host.canvas.classList.add("connecting");
+        this.showNotice("hint", `Click the node that follows ${id} (Esc cancels).`, [], 5000);
+      });
+    }
+    this.button(actions, "remove", "Delete node", () => void this.removeSelection(), "danger");
+  }
+
+  private edgeProps(body: HTMLElement, laneName: string, source: string, target: string): void {
+    const lane = this.lane(laneName);
+    const e = lane?.edges.find((x) => x.source === source && x.target === target);
+    if (!lane || !e) return;
+    const src = lane.nodes.find((n) => n.id === source);
+    el("div", { class: "props-head" }, body, `flow ${source} → ${target}`);
+    el("div", { class: "props-sub" }, body, `swimlane ${laneName}`);
+    if (src?.kind === "decision") {
+      const r = this.row(body, "guard");
+      this.codeInput(r, "guard", src ? guardOf(src, e) : e.label, laneName, (text) => {
+        void this.edit([{ op: "set_guard", lane: laneName, source, target, guard: text.trim() }]);
+      }, { "data-target": target });
+      el("div", { class: "hint" }, body, "a condition, or else");
+    }
+    const actions = el("div", { class: "actions" }, body);
+    this.button(actions, "remove", "Delete flow", () => void this.removeSelection(), "danger");
+  }
+
+  private laneProps(body: HTMLElement, laneName: string): void {
+    const lane = this.lane(laneName);
+    if (!lane) return;
+    el("div", { class: "props-head" }, body, `swimlane ${laneName}`);
+    el("div", { class: "props-sub" }, body,
+      `${lane.virtual ? "virtual: an activity that other lanes call" : `runs on the component ${lane.component ?? laneName}`} · ${lane.file}:${lane.line}`);
+    el("div", { class: "hint" }, body, "Drag nodes from the palette into it, or click a node kind to add it here.");
+    const actions = el("div", { class: "actions" }, body);
+    this.button(actions, "remove-lane", "Delete swimlane", () => void this.removeSelection(), "danger");
+  }
+
+  // ------------------------------------------------------------------ components
+
+  private implsOf(kind: string): ImplInfo[] {
+    return (this.library?.implementations ?? []).filter((i) => i.kind === kind);
+  }
+
+  private newComponentProps(body: HTMLElement, implId: string): void {
+    const impl = this.library?.implementations.find((i) => i.id === implId);
+    if (!impl) return;
+    el("div", { class: "props-head" }, body, `new ${impl.kind} · ${impl.id}`);
+    const form = el("form", { class: "new-component", novalidate: "" }, body);
+    const m = this.host.model();
+    const taken = new Set(m?.components.map((c) => c.name) ?? []);
+    const seed = impl.aliases.find((a) => !taken.has(a));
+    let n = 1;
+    const base = impl.kind[0].toUpperCase() + impl.kind.slice(1);
+    while (taken.has(`${base}${n}`)) n += 1;
+    const name = el("input", { name: "name", value: seed ?? `${base}${n}`, autocomplete: "off", spellcheck: "false" }, this.row(form, "name"));
+    el("div", { class: "hint" }, form, `features: ${Object.keys(features(impl, this.library)).join(", ")}`);
+    const settings = this.settingsForm(form, impl, {});
+    el("button", { type: "submit", name: "add" }, form, "Add component");
+    form.onsubmit = async (ev) => {
+      ev.preventDefault();
+      const values = settings();
+      if (values === null) return;
+      const op: Op = { op: "add_component", name: name.value.trim(), kind: impl.kind, impl: impl.id, settings: values };
+      if (await this.edit([op])) {
+        this.sel = { type: "component", name: name.value.trim() };
+        this.renderProps();
+      }
+    };
+  }
+
+  /** Inputs for an implementation's driver settings from its JSON Schema; returns a reader (null when invalid). */
+  private settingsForm(parent: HTMLElement, impl: ImplInfo, current: Record<string, unknown>): () => Record<string, unknown> | null {
+    const root = impl.settings_schema ?? {};
+    const props = root.properties ?? {};
+    const required = new Set(root.required ?? []);
+    const box = el("fieldset", { class: "settings", "data-impl": impl.id }, parent);
+    el("legend", {}, box, `settings of ${impl.id}`);
+    const readers: [string, () => { ok: boolean; value?: unknown }][] = [];
+    if (!Object.keys(props).length) el("div", { class: "hint" }, box, "no settings");
+    for (const [key, raw] of Object.entries(props)) {
+      const s = resolve(raw, root);
+      const r = this.row(box, key + (required.has(key) ? " *" : ""));
+      const type = Array.isArray(s.type) ? s.type.find((t) => t !== "null") : s.type;
+      const cur = key in current ? current[key] : s.default;
+      const range = s.minimum !== undefined && s.maximum !== undefined ? `${s.minimum}..${s.maximum}`
+        : s.minimum !== undefined ? `≥ ${s.minimum}` : s.maximum !== undefined ? `≤ ${s.maximum}` : "";
+      const hint = [impl.settings_doc?.[key] ?? s.description ?? "", range && `range ${range}`].filter(Boolean).join(" · ");
+      // sent: what the deployment has, what is required, and what the user changed from the default
+      const keep = key in current || required.has(key);
+      if (s.enum) {
+        const sel = el("select", { name: `setting-${key}` }, r);
+        el("option", { value: "" }, sel, "");
+        for (const v of s.enum) el("option", { value: JSON.stringify(v) }, sel, String(v));
+        if (cur !== undefined) sel.value = JSON.stringify(cur);
+        const initial = sel.value;
+        readers.push([key, () => ({ ok: true, value: sel.value && (keep || sel.value !== initial) ? JSON.parse(sel.value) : undefined })]);
+      } else if (type === "boolean") {
+        const cb = el("input", { type: "checkbox", name: `setting-${key}` }, r);
+        cb.checked = cur === true;
+        const initial = cb.checked;
+        readers.push([key, () => ({ ok: true, value: keep || cb.checked !== initial ? cb.checked : undefined })]);
+      } else {
+        const numeric = type === "integer" || type === "number";
+        const input = el("input", { name: `setting-${key}`, autocomplete: "off", spellcheck: "false" }, r);
+        if (numeric) {
+          input.type = "number";
+          if (s.minimum !== undefined) input.min = String(s.minimum);
+          if (s.maximum !== undefined) input.max = String(s.maximum);
+          if (type === "number") input.step = "any";
+        }
+        const show = (x: unknown): string => (typeof x === "string" || typeof x === "number" ? String(x) : JSON.stringify(x));
+        // the deployment's value, else the default as a placeholder (a default is not written)
+        if (key in current && current[key] !== null) input.value = show(current[key]);
+        else if (s.default !== undefined && s.default !== null) input.placeholder = `default ${show(s.default)}`;
+        if (!input.placeholder && (type === "array" || type === "object")) input.placeholder = type === "array" ? "[1, 2]" : "{}";
+        const initial = input.value;
+        readers.push([key, () => {
+          const t = input.value.trim();
+          if (!t) return { ok: !required.has(key) };
+          if (!keep && input.value === initial) return { ok: true }; // the default: not written
+          if (numeric) return Number.isNaN(Number(t)) ? { ok: true, value: t } : { ok: true, value: Number(t) }; // the server says what is wrong
+          if (type === "array" || type === "object") {
+            try {
+              return { ok: true, value: JSON.parse(t) };
+            } catch {
+              return { ok: false };
+            }
+          }
+          return { ok: true, value: t };
+        }]);
+      }
+      if (hint) el("div", { class: "hint" }, r, hint);
+    }
+    return () => {
+      const out: Record<string, unknown> = {};
+      for (const [key, read] of readers) {
+        const { ok, value } = read();
+        if (!ok) {
+          this.showNotice("error", `settings of ${impl.id}: ${key} needs a valid value`, [], 5000);
+          box.querySelector<HTMLInputElement>(`[name="setting-${CSS.escape(key)}"]`)?.focus();
+          return null;
+        }
+        if (value !== undefined) out[key] = value;
+      }
+      return out;
+    };
+  }
+
+  private componentProps(body: HTMLElement, name: string): void {
+    const m = this.host.model();
+    const c = m?.components.find((x) => x.name === name) as (ModelComponent & { settings?: Record<string, unknown> }) | undefined;
+    if (!m || !c) return;
+    el("div", { class: "props-head" }, body, `${c.kind} · ${name}`);
+    el("div", { class: "props-sub" }, body, `${c.impl} · ${c.service} · ${c.driver}`);
+    // deployment
+    const dep = el("form", { class: "deployment", novalidate: "" }, body);
+    el("div", { class: "props-section" }, dep, "Deployment");
+    const implSel = el("select", { name: "impl" }, this.row(dep, "impl"));
+    for (const i of this.implsOf(c.kind)) el("option", { value: i.id }, implSel, i.id);
+    implSel.value = c.impl;
+    const holder = el("div", {}, dep);
+    let read = (): Record<string, unknown> | null => ({});
+    const drawSettings = (): void => {
+      holder.replaceChildren();
+      const impl = this.library?.implementations.find((i) => i.id === implSel.value);
+      if (impl) read = this.settingsForm(holder, impl, implSel.value === c.impl ? (c.settings ?? {}) : {});
+    };
+    drawSettings();
+    implSel.onchange = drawSettings;
+    el("button", { type: "submit", name: "apply-deployment" }, dep, "Apply deployment");
+    dep.onsubmit = (ev) => {
+      ev.preventDefault();
+      const settings = read();
+      if (settings === null) return;
+      void this.edit([{ op: "set_deployment", component: name, impl: implSel.value, settings }]);
+    };
+    // ports
+    el("div", { class: "props-section" }, body, "Ports");
+    for (const [port, feature] of Object.entries(c.ports)) {
+      const r = el("div", { class: "flow", "data-port": port }, body);
+      el("span", {}, r, `${port} → ${feature}`);
+      this.button(r, "remove-port", "×", () => void this.edit([{ op: "remove_port", component: name, port }]), "small").dataset.port = port;
+    }
+    const pf = el("form", { class: "inline" }, body);
+    const portName = el("input", { name: "port", placeholder: "port", autocomplete: "off", size: "8" }, pf);
+    const feat = el("select", { name: "port-feature" }, pf);
+    for (const f of c.features) el("option", { value: f }, feat, f);
+    el("button", { type: "submit", name: "add-port" }, pf, "Add port");
+    pf.onsubmit = (ev) => {
+      ev.preventDefault();
+      if (!portName.value.trim()) return;
+      void this.edit([{ op: "add_port", component: name, port: portName.value.trim(), feature: feat.value }]);
+    };
+    // links
+    el("div", { class: "props-section" }, body, "Links");
+    for (const l of m.links.filter((x) => x.source.component === name || x.target.component === name)) {
+      const r = el("div", { class: "flow", "data-link": l.id }, body);
+      el("span", {}, r, `${l.id}: ${l.source.component}.${l.source.port} → ${l.target.component}.${l.target.port}`);
+      this.button(r, "remove-link", "×", () => void this.edit([{ op: "remove_link", id: l.id }]), "small").dataset.link = l.id;
+    }
+    const lf = el("form", { class: "inline" }, body);
+    const from = el("select", { name: "link-from" }, lf);
+    for (const port of Object.keys(c.ports)) el("option", { value: `${name}.${port}` }, from, `${name}.${port}`);
+    el("span", {}, lf, "→");
+    const to = el("select", { name: "link-to" }, lf);
+    for (const o of m.components) {
+      if (o.name === name) continue;
+      for (const port of Object.keys(o.ports)) el("option", { value: `${o.name}.${port}` }, to, `${o.name}.${port}`);
+    }
+    el("button", { type: "submit", name: "add-link" }, lf, "Add link");
+    lf.onsubmit = (ev) => {
+      ev.preventDefault();
+      if (!from.value || !to.value) return;
+      void this.edit([{ op: "add_link", from: from.value, to: to.value }]);
+    };
+    const actions = el("div", { class: "actions" }, body);
+    this.button(actions, "remove", "Delete component", () => void this.removeSelection(), "danger");
+  }
+
+  // ------------------------------------------------------------------ call / guard editor
+
+  /** A one-line code input with completion (`/api/complete`) and a signature hint. */
+  private codeInput(parent: HTMLElement, name: string, value: string, lane: string, commit: (text: string) => void,
+    attrs: Record<string, string> = {}): HTMLInputElement {
+    const wrap = el("div", { class: "code-field" }, parent);
+    const input = el("input", { name, value, class: "code", autocomplete: "off", spellcheck: "false", ...attrs }, wrap);
+    const list = el("ul", { class: "completions", role: "listbox" }, wrap);
+    const sig = el("div", { class: "signature" }, wrap);
+    list.hidden = true;
+    sig.hidden = true;
+    let items: Completion[] = [];
+    let active = 0;
+    let answer: CompleteAnswer | null = null;
+    let answered = ""; // the text the shown completions are for
+    let seq = 0;
+    let committed = value;
+    const close = (): void => {
+      list.hidden = true;
+      items = [];
+    };
+    const draw = (): void => {
+      list.replaceChildren();
+      items.forEach((it, i) => {
+        const li = el("li", { "data-label": it.label, "data-kind": it.kind, role: "option" }, list);
+        if (i === active) li.classList.add("active");
+        el("span", { class: "label" }, li, it.label);
+        if (it.detail) el("small", {}, li, it.detail);
+        li.onpointerdown = (ev) => {
+          ev.preventDefault();
+          accept(i);
+        };
+      });
+      list.hidden = items.length === 0;
+    };
+    const ask = async (): Promise<void> => {
+      const mine = ++seq;
+      const cursor = input.selectionStart ?? input.value.length;
+      const a = await this.request<CompleteAnswer>("/api/complete", { lane, text: input.value, cursor, field: name }, true);
+      if (mine !== seq || document.activeElement !== input) return;
+      answer = a;
+      answered = input.value;
+      // nothing to complete right after a closed call, a number or a string
+      const prev = input.value.slice(0, cursor).trimEnd().slice(-1);
+      items = /[)\]0-9'"]/.test(prev) ? [] : (a?.items ?? []);
+      active = 0;
+      draw();
+      const s = a?.signature;
+      if (s) {
+        sig.replaceChildren();
+        el("span", {}, sig, `${s.label.split("(")[0]}(`);
+        s.params.forEach((p, i) => {
+          if (i) sig.append(", ");
+          el(i === s.active ? "b" : "span", { "data-param": p.name }, sig, paramText(p));
+        });
+        sig.append(")");
+        if (s.returns && s.returns !== "none") sig.append(` → ${s.returns}`);
+        if (s.doc) el("div", { class: "doc" }, sig, s.doc);
+        sig.hidden = false;
+      } else sig.hidden = true;
+    };
+    const accept = (i: number): void => {
+      const it = items[i];
+      if (!it) return;
+      const text = it.insert ?? it.label;
+      const cursor = input.selectionStart ?? input.value.length;
+      let from = answer?.replace?.[0];
+      let to = answer?.replace?.[1];
+      if (from === undefined || to === undefined) {
+        // replace the word being typed (after the last dot)
+        const before = input.value.slice(0, cursor);
+        const word = /[A-Za-z_][A-Za-z0-9_]*$/.exec(before);
+        from = word ? cursor - word[0].length : cursor;
+        to = cursor;
+        const after = /^[A-Za-z0-9_]*/.exec(input.value.slice(cursor));
+        if (after) to += after[0].length;
+      }
+      input.value = input.value.slice(0, from) + text + input.value.slice(to);
+      const at = from + text.length;
+      input.setSelectionRange(at, at);
+      close();
+      void ask();
+    };
+    let timer = 0;
+    const later = (): void => {
+      clearTimeout(timer);
+      timer = window.setTimeout(() => void ask(), 60);
+    };
+    input.addEventListener("input", later);
+    input.addEventListener("focus", later);
+    input.addEventListener("click", later);
+    input.addEventListener("keydown", (ev) => {
+      if (!list.hidden && items.length && input.value !== answered) close(); // typed on: stale
+      if (!list.hidden && items.length) {
+        if (ev.key === "ArrowDown" || ev.key === "ArrowUp") {
+          ev.preventDefault();
+          active = (active + (ev.key === "ArrowDown" ? 1 : items.length - 1)) % items.length;
+          draw();
+          return;
+        }
+        if (ev.key === "Tab" || (ev.key === "Enter" && !ev.ctrlKey)) {
+          ev.preventDefault();
+          accept(active);
+          return;
+        }
+        if (ev.key === "Escape") {
+          ev.preventDefault();
+          close();
+          return;
+        }
+      }
+      if (ev.key === "Enter") {
+        ev.preventDefault();
+        close();
+        if (input.value !== committed) {
+          committed = input.value;
+          commit(input.value);
+        }
+      } else if (ev.key === "ArrowLeft" || ev.key === "ArrowRight" || ev.key === "Home" || ev.key === "End") later();
+    });
+    input.addEventListener("blur", () => {
+      seq++;
+      close();
+      sig.hidden = true;
+      if (input.value !== committed) {
+        committed = input.value;
+        commit(input.value);
+      }
+    });
+    return input;
+  }
+}
+
+/** An implementation's features with their parameters (from the implementation, else its kind). */
+function features(impl: ImplInfo, library: Library | null): Record<string, FeatureInfo | null> {
+  if (!Array.isArray(impl.features)) return impl.features;
+  const kind = library?.kinds[impl.kind]?.features ?? {};
+  return Object.fromEntries(impl.features.map((f) => [f, kind[f] ?? null]));
+}
+
+/** The guard of a decision's branch to `e.target` as written (`else` for the else branch). */
+function guardOf(node: ModelNode, e: ModelEdge): string {
+  const branches = node.fields?.branches;
+  if (Array.isArray(branches)) {
+    for (const b of branches as Record<string, unknown>[]) {
+      if (b && b.then === e.target && typeof b.if === "string") return b.if;
+      if (b && b.else === e.target) return "else";
+    }
+  }
+  return e.guard ?? e.label;
+}
+
+function fieldText(node: ModelNode, field: string): string {
+  const v = node.fields?.[field];
+  if (v === undefined || v === null) {
+    if (!node.fields) {
+      if (field === "call" && node.kind === "action") return node.label;
+      if (field === "name" && node.store) return node.store;
+      if (field === "signal" && node.signal) return node.signal;
+    }
+    return "";
+  }
+  return typeof v === "string" ? v : JSON.stringify(v);
+}
+
+function nextLine(lane: ModelLane, node: ModelNode): number {
+  let best = Infinity;
+  for (const n of lane.nodes) if (n.line > node.line && n.line < best) best = n.line;
+  return best;
+}
+
+function defaultFields(kind: NodeKind): Record<string, FieldInfo> {
+  switch (kind) {
+    case "action": return { call: { required: true } };
+    case "datastore": return { name: { required: true }, value: { required: true } };
+    case "send": return { signal: { required: true } };
+    case "accept": return { signal: { required: true }, store: {} };
+    default: return {};
+  }
+}

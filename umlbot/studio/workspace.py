@@ -1,0 +1,368 @@
+"""The studio's working copy of one model folder: edits, undo/redo, checks, saving, files on disk.
+
+The working copy is the model's files (relative path -> bytes) as the page has edited them; the
+compiler checks it in memory (`check_model(root, files=…)`), so its messages are `umlbot check`'s,
+naming the files as on disk. Saving writes only the files that differ, each atomically (a temp
+file in the same folder, then `os.replace`), and only inside the model folder. A file changed on
+disk is taken in when the working copy has not changed it; otherwise it is a conflict the user
+resolves (reload, or save with force). Positions the page chose live in `.umlbot-studio.json`,
+which the compiler never reads.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import re
+import secrets
+import tempfile
+import threading
+from dataclasses import dataclass, field
+from pathlib import Path, PurePosixPath
+from typing import Any
+
+from compiler.api import CheckResult, check_model
+from compiler.source import ACTIVITIES_DIR, DEPLOYMENT_FILES, MODEL_FILE
+from umlbot.studio.edit import EditError, apply_ops, parse_ops
+from umlbot.studio.model_view import attribute, diagnostic_view, node_index, source_view
+
+LAYOUT_FILE = ".umlbot-studio.json"
+HISTORY = 200
+
+
+class Conflict(Exception):
+    """A request that does not fit the working copy's state (HTTP 409); `body` is the answer."""
+
+    def __init__(self, body: dict[str, Any]) -> None:
+        super().__init__(body.get("error", "conflict"))
+        self.body = body
+
+
+STARTER: dict[str, str] = {
+    MODEL_FILE: """\
+# A robot car: two L298N motor channels, a sonar on a servo (see docs/model-format.md).
+name: {name}
+components:
+  RaspberryPI: {kind: system}
+  LeftActuator: {kind: actuator, ports: {drive: enabled}}
+  RightActuator: {kind: actuator, ports: {drive: enabled}}
+  Sensor: {kind: actuator, ports: {pointing: angle}}
+  DistanceRead: {kind: sensor, ports: {range: value}}
+""",
+    "deployment.yaml": """\
+# Which part realises each component, and its wiring (BCM pins).
+driver: pigpio
+components:
+  RaspberryPI: {impl: raspberrypi, settings: {pins: []}}
+  LeftActuator: {impl: l298n, settings: {in1: 22, in2: 23}}
+  RightActuator: {impl: l298n, settings: {in1: 24, in2: 25}}
+  Sensor: {impl: servo, settings: {gpio: 18}}
+  DistanceRead: {impl: hcsr04, settings: {trigger: 8, echo: 7}}
+""",
+    f"{ACTIVITIES_DIR}/main.yaml": """\
+# The main program: the RaspberryPI lane starts when the robot starts.
+lane: RaspberryPI
+nodes:
+  - {id: start, kind: start}
+  - {id: end, kind: end}
+""",
+}
+
+
+def model_files(root: Path) -> dict[str, bytes]:
+    """The files of the model folder `root` that the compiler reads, by relative path."""
+    files: dict[str, bytes] = {}
+    if not root.is_dir():
+        return files
+    candidates = [root / MODEL_FILE, *(root / name for name in DEPLOYMENT_FILES)]
+    activities = root / ACTIVITIES_DIR
+    if activities.is_dir():
+        candidates += [*activities.glob("*.yaml"), *activities.glob("*.yml")]
+    for path in candidates:
+        if path.is_file():
+            with contextlib.suppress(OSError):
+                files[path.relative_to(root).as_posix()] = path.read_bytes()
+    return files
+
+
+def safe_path(root: Path, rel: str) -> Path:
+    """`root / rel`, refused (ValueError) unless it stays inside `root`, symlinks resolved."""
+    pure = PurePosixPath(rel)
+    if pure.is_absolute() or ".." in pure.parts or not pure.parts or "\\" in rel:
+        raise ValueError(f"{rel!r} is not a path inside the model folder")
+    real_root = root.resolve()
+    target = (root / pure).resolve()
+    if not target.is_relative_to(real_root) or target == real_root:
+        raise ValueError(f"{rel!r} is not a path inside the model folder")
+    return target
+
+
+def write_atomic(root: Path, rel: str, data: bytes) -> None:
+    """Write `data` to `rel` inside `root`: a temp file in the same folder, then a rename."""
+    target = safe_path(root, rel)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    safe_path(root, rel)  # the folder just made must not lead outside either
+    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+    try:
+        with os.fdopen(fd, "wb") as handle:
+            handle.write(data)
+            handle.flush()
+            os.fsync(handle.fileno())
+        if target.exists():
+            with contextlib.suppress(OSError):
+                os.chmod(tmp, target.stat().st_mode & 0o777)
+        else:
+            os.chmod(tmp, 0o644)
+        os.replace(tmp, target)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+
+
+def _differ(a: dict[str, bytes], b: dict[str, bytes]) -> list[str]:
+    """The paths whose content differs between two sets of files (or that only one has)."""
+    return sorted(rel for rel in set(a) | set(b) if a.get(rel) != b.get(rel))
+
+
+@dataclass
+class State:
+    """One state of the working copy (what undo and redo go back and forth between)."""
+
+    files: dict[str, bytes]
+
+
+@dataclass
+class Workspace:
+    """The working copy of the model folder `root` (as the user named it: messages show it)."""
+
+    root: Path
+    token: str = field(default_factory=lambda: secrets.token_urlsafe(24))
+    version: int = 0
+    lock: threading.Lock = field(default_factory=threading.Lock)
+
+    def __post_init__(self) -> None:
+        self.disk = model_files(self.root)  # the files as last read from or written to disk
+        self.files = dict(self.disk)
+        self.layout_disk = self._read_layout()
+        self.layout: dict[str, Any] = json.loads(json.dumps(self.layout_disk))
+        self.undo_stack: list[State] = []
+        self.redo_stack: list[State] = []
+        self.conflicts: set[str] = set()
+        self._seen_disk = dict(self.disk)
+        self.result: CheckResult | None = None
+        self.answer_cache: dict[str, Any] = {}
+        self.check()
+
+    # --- reading -----------------------------------------------------------------------------------
+
+    def _read_layout(self) -> dict[str, Any]:
+        try:
+            data = json.loads((self.root / LAYOUT_FILE).read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            return {}
+        return data if isinstance(data, dict) else {}
+
+    @property
+    def empty(self) -> bool:
+        return not self.files
+
+    @property
+    def dirty(self) -> bool:
+        return self.files != self.disk or self.layout != self.layout_disk
+
+    def hello(self) -> dict[str, Any]:
+        """The `edit` part of the socket's hello."""
+        return {"token": self.token, "root": str(self.root), "empty": self.empty, "dirty": self.dirty,
+                "version": self.version, "layout": self.layout, "conflict": sorted(self.conflicts),
+                **self.answer_cache}
+
+    def texts(self) -> dict[str, str]:
+        return {rel: data.decode("utf-8", "replace") for rel, data in sorted(self.files.items())}
+
+    # --- checking ------------------------------------------------------------------------------------
+
+    def check(self) -> dict[str, Any]:
+        """Check the working copy with the compiler; the page's answer (model view, diagnostics)."""
+        result = check_model(self.root, files=self.files)
+        self.result = result
+        index = node_index(result.source) if result.source is not None else {}
+        diagnostics = [attribute(diagnostic_view(d), self._relative(d.location.file), index)
+                       for d in result.diagnostics]
+        self.answer_cache = {
+            "model": source_view(result.source) if result.source is not None and self.files else None,
+            "compiled": result.model is not None,
+            "diagnostics": diagnostics,
+        }
+        return self.answer()
+
+    def _relative(self, shown: str) -> str | None:
+        try:
+            return Path(shown).relative_to(self.root).as_posix()
+        except ValueError:
+            return None
+
+    def answer(self, changed: list[str] | None = None) -> dict[str, Any]:
+        return {"version": self.version, **self.answer_cache, "changed": changed or [],
+                "dirty": self.dirty}
+
+    # --- editing -------------------------------------------------------------------------------------
+
+    def _expect(self, version: Any) -> None:
+        if version != self.version:
+            raise Conflict({"error": f"the model changed meanwhile (version {self.version}, the page "
+                                     f"has {version}): reload it", "version": self.version})
+
+    def edit(self, version: Any, raw_ops: Any) -> dict[str, Any]:
+        """Apply a batch of operations (all or none) and check the result once."""
+        self._expect(version)
+        ops = parse_ops(raw_ops)
+        layout_ops = [op for op in ops if op.op == "set_layout"]
+        text_ops = [op for op in ops if op.op != "set_layout"]
+        texts: dict[str, str | None] = {}
+        for rel, data in self.files.items():
+            try:
+                texts[rel] = data.decode("utf-8")
+            except UnicodeDecodeError:
+                texts[rel] = None  # not editable; the compiler reports it
+        changes = apply_ops(texts, text_ops) if text_ops else {}
+        for op in layout_ops:
+            diagram = op.diagram or "components"
+            positions = op.positions or {}
+            bucket = self.layout.setdefault("positions", {}).setdefault(diagram, {})
+            for key, value in positions.items():
+                if value is None:
+                    bucket.pop(key, None)
+                else:
+                    bucket[key] = [round(float(v), 1) for v in value]
+        self.version += 1
+        if not changes:
+            return self.answer()
+        self.undo_stack.append(State(dict(self.files)))
+        del self.undo_stack[:-HISTORY]
+        self.redo_stack.clear()
+        for rel, text in changes.items():
+            if text is None:
+                self.files.pop(rel, None)
+            else:
+                self.files[rel] = text.encode("utf-8")
+        self.check()
+        return self.answer(sorted(changes))
+
+    def undo(self) -> dict[str, Any]:
+        return self._step(self.undo_stack, self.redo_stack, "undo")
+
+    def redo(self) -> dict[str, Any]:
+        return self._step(self.redo_stack, self.undo_stack, "redo")
+
+    def _step(self, source: list[State], other: list[State], what: str) -> dict[str, Any]:
+        if not source:
+            raise Conflict({"error": f"nothing to {what}", "version": self.version})
+        state = source.pop()
+        other.append(State(dict(self.files)))
+        changed = _differ(state.files, self.files)
+        self.files = state.files
+        self.version += 1
+        self.check()
+        return self.answer(changed)
+
+    # --- files on disk -------------------------------------------------------------------------------
+
+    def changed_files(self) -> list[str]:
+        return _differ(self.files, self.disk)
+
+    def save(self, version: Any, force: bool = False) -> dict[str, Any]:
+        """Write every changed file (atomically, inside the folder); 409 on a conflict."""
+        self._expect(version)
+        changed = self.changed_files()
+        on_disk = model_files(self.root)
+        conflicts = sorted(rel for rel in changed if on_disk.get(rel) != self.disk.get(rel))
+        if conflicts and not force:
+            raise Conflict({"error": "changed on disk since it was loaded: " + ", ".join(conflicts),
+                            "conflict": conflicts, "version": self.version})
+        for rel in changed:
+            data = self.files.get(rel)
+            if data is None:
+                path = safe_path(self.root, rel)
+                with contextlib.suppress(FileNotFoundError):
+                    path.unlink()
+            else:
+                write_atomic(self.root, rel, data)
+        saved = list(changed)
+        if self.layout != self.layout_disk:
+            write_atomic(self.root, LAYOUT_FILE,
+                         (json.dumps(self.layout, indent=1, sort_keys=True) + "\n").encode("utf-8"))
+            self.layout_disk = json.loads(json.dumps(self.layout))
+            saved.append(LAYOUT_FILE)
+        self.disk = dict(self.files)
+        self._seen_disk = model_files(self.root)
+        self.conflicts.clear()
+        return {"saved": saved, "dirty": self.dirty, "version": self.version}
+
+    def reload(self) -> dict[str, Any]:
+        """Discard the working copy's edits: take the files on disk."""
+        self.disk = model_files(self.root)
+        self._seen_disk = dict(self.disk)
+        changed = _differ(self.files, self.disk)
+        self.files = dict(self.disk)
+        self.layout_disk = self._read_layout()
+        self.layout = json.loads(json.dumps(self.layout_disk))
+        self.undo_stack.clear()
+        self.redo_stack.clear()
+        self.conflicts.clear()
+        self.version += 1
+        self.check()
+        return self.answer(changed)
+
+    def poll(self) -> list[dict[str, Any]]:
+        """Look at the disk; the frames to push to the pages (none when nothing changed).
+
+        Files the working copy has not changed are taken in (`files` frame); files it changed too
+        are a conflict (`conflict` frame) until the user reloads or saves with force.
+        """
+        current = model_files(self.root)
+        if current == self._seen_disk:
+            return []
+        self._seen_disk = current
+        changed = _differ(current, self.disk)
+        if not changed:
+            return []
+        frames: list[dict[str, Any]] = []
+        taken = [rel for rel in changed if self.files.get(rel) == self.disk.get(rel)]
+        clashes = [rel for rel in changed if rel not in taken]
+        if taken:
+            for rel in taken:
+                data = current.get(rel)
+                if data is None:
+                    self.files.pop(rel, None)
+                    self.disk.pop(rel, None)
+                else:
+                    self.files[rel] = self.disk[rel] = data
+            # an undo must not bring back what was replaced on disk
+            self.undo_stack.clear()
+            self.redo_stack.clear()
+            self.version += 1
+            self.check()
+            frames.append({"type": "files", "reason": "changed on disk", **self.answer(taken)})
+        if clashes:
+            self.conflicts.update(clashes)
+            frames.append({"type": "conflict", "changed": sorted(self.conflicts), "version": self.version})
+        return frames
+
+    def new_model(self, name: str | None) -> dict[str, Any]:
+        """Write the starter model into an empty folder (and save it)."""
+        if not self.empty:
+            raise Conflict({"error": "the folder holds a model already", "version": self.version})
+        model_name = name or self.root.resolve().name
+        if not re.fullmatch(r"[A-Za-z0-9_][A-Za-z0-9_-]*", model_name):
+            raise EditError(f"a model's name is a plain name (letters, digits, _ and -), not {model_name!r}")
+        self.root.mkdir(exist_ok=True)
+        self.files = {rel: text.replace("{name}", model_name).encode("utf-8")
+                      for rel, text in STARTER.items()}
+        self.version += 1
+        result = self.save(self.version)
+        self.undo_stack.clear()
+        self.redo_stack.clear()
+        self.check()
+        return {**self.answer(result["saved"]), "saved": result["saved"]}
