@@ -14,9 +14,45 @@ from pathlib import Path
 from typing import Any
 
 import aiohttp
+from playwright.sync_api import Browser, Page, sync_playwright
 from robot_run import umlbot_argv
 
 URL_LINE = re.compile(r"umlbot studio: (http://\S+)")
+REPO = Path(__file__).resolve().parent.parent
+OUT = REPO / "out"
+CHROMIUM = "/usr/bin/chromium"
+#: as root and on a closed network: no sandbox, no background traffic (docs/studio.md, tests)
+CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking",
+                 "--disable-component-update", "--disable-sync", "--no-first-run"]
+#: a one-file model whose one action calls a feature the motor does not have
+BROKEN_MODEL = (
+    "name: bad\ncomponents:\n  Motor: {kind: actuator}\n"
+    "lanes:\n  - lane: Motor\n    nodes:\n"
+    "      - {id: start, kind: start}\n"
+    "      - {id: go, kind: action, call: Motor.speed(3)}\n"
+    "      - {id: end, kind: end}\n"
+    "deployment:\n  driver: mock\n  components:\n"
+    "    Motor: {impl: l298n, settings: {in1: 22, in2: 23}}\n"
+)
+
+
+@contextmanager
+def chromium() -> Iterator[Browser]:
+    """Debian's Chromium driven by Playwright (never a downloaded browser)."""
+    if not Path(CHROMIUM).exists():
+        raise AssertionError(f"{CHROMIUM} is required: apt-get install chromium (make test installs it)")
+    with sync_playwright() as pw:
+        launched = pw.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
+        try:
+            yield launched
+        finally:
+            launched.close()
+
+
+def shot(page: Page, name: str) -> None:
+    """A screenshot under out/ for people to look at."""
+    OUT.mkdir(exist_ok=True)
+    page.screenshot(path=str(OUT / name))
 
 
 class StudioProc:

@@ -15,29 +15,19 @@ from typing import Any
 
 import pytest
 from conftest import BrokerProcess
-from playwright.sync_api import Browser, Page, expect, sync_playwright
+from playwright.sync_api import Browser, Page, expect
 from robot_run import CAR_MODEL, Proc, compile_car, processes, start_services, umlbot_argv
-from studio_support import StudioProc, studio
+from studio_support import BROKEN_MODEL, StudioProc, chromium, shot, studio
 
 REPO = Path(__file__).resolve().parent.parent
-OUT = REPO / "out"
-CHROMIUM = "/usr/bin/chromium"
 ROBOT = "car"
 WAIT_MS = 30_000
 
 
 @pytest.fixture(scope="module")
 def browser() -> Iterator[Browser]:
-    if not Path(CHROMIUM).exists():
-        pytest.fail(f"{CHROMIUM} is required: apt-get install chromium (make test installs it)")
-    with sync_playwright() as pw:
-        launched = pw.chromium.launch(executable_path=CHROMIUM, args=[
-            "--no-sandbox", "--disable-gpu", "--disable-background-networking",
-            "--disable-component-update", "--disable-sync", "--no-first-run"])
-        try:
-            yield launched
-        finally:
-            launched.close()
+    with chromium() as launched:
+        yield launched
 
 
 def open_page(browser: Browser, url: str) -> Page:
@@ -49,11 +39,6 @@ def open_page(browser: Browser, url: str) -> Page:
     page.set_default_timeout(WAIT_MS)
     assert errors == [], errors
     return page
-
-
-def shot(page: Page, name: str) -> None:
-    OUT.mkdir(exist_ok=True)
-    page.screenshot(path=str(OUT / name))
 
 
 def show(page: Page, diagram: str) -> None:
@@ -173,14 +158,7 @@ def _has_text(text: str) -> re.Pattern[str]:
 
 def test_the_page_lists_the_checkers_messages_for_a_broken_model(browser: Browser, tmp_path: Path) -> None:
     model = tmp_path / "bad.yaml"
-    model.write_text(
-        "name: bad\ncomponents:\n  Motor: {kind: actuator}\n"
-        "lanes:\n  - lane: Motor\n    nodes:\n"
-        "      - {id: start, kind: start}\n"
-        "      - {id: go, kind: action, call: Motor.speed(3)}\n"
-        "      - {id: end, kind: end}\n"
-        "deployment:\n  driver: mock\n  components:\n"
-        "    Motor: {impl: l298n, settings: {in1: 22, in2: 23}}\n", encoding="utf-8")
+    model.write_text(BROKEN_MODEL, encoding="utf-8")
     check = subprocess.run(umlbot_argv("check", str(model)), capture_output=True, text=True, timeout=60,
                            check=False, cwd=tmp_path)
     printed = [line for line in check.stdout.splitlines() + check.stderr.splitlines() if ": error: " in line]

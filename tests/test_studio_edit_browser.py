@@ -19,29 +19,19 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from playwright.sync_api import Browser, Page, expect, sync_playwright
+from playwright.sync_api import Browser, Page, expect
 from robot_run import CAR_MODEL, umlbot_argv
-from studio_support import studio
+from studio_support import chromium, shot, studio
 
 REPO = Path(__file__).resolve().parent.parent
-OUT = REPO / "out"
-CHROMIUM = "/usr/bin/chromium"
 WAIT_MS = 30_000
 TRACK = REPO / "models" / "tracks" / "corridor.yaml"
 
 
 @pytest.fixture(scope="module")
 def browser() -> Iterator[Browser]:
-    if not Path(CHROMIUM).exists():
-        pytest.fail(f"{CHROMIUM} is required: apt-get install chromium (make test installs it)")
-    with sync_playwright() as pw:
-        launched = pw.chromium.launch(executable_path=CHROMIUM, args=[
-            "--no-sandbox", "--disable-gpu", "--disable-background-networking",
-            "--disable-component-update", "--disable-sync", "--no-first-run"])
-        try:
-            yield launched
-        finally:
-            launched.close()
+    with chromium() as launched:
+        yield launched
 
 
 def open_page(browser: Browser, url: str, errors: list[str]) -> Page:
@@ -51,11 +41,6 @@ def open_page(browser: Browser, url: str, errors: list[str]) -> Page:
     page.set_default_timeout(WAIT_MS)
     page.wait_for_function("window.__studio && window.__studio.ready === true && !!window.__studio.edit")
     return page
-
-
-def shot(page: Page, name: str) -> None:
-    OUT.mkdir(exist_ok=True)
-    page.screenshot(path=str(OUT / name))
 
 
 def settled(page: Page) -> None:

@@ -12,7 +12,7 @@ from typing import Any
 import aiohttp
 from conftest import BrokerProcess
 from robot_run import CAR_MODEL, umlbot_argv
-from studio_support import events_of, read_frames, studio
+from studio_support import BROKEN_MODEL, events_of, read_frames, studio
 
 from compiler.api import check_model
 from umlbot.studio.model_view import model_view
@@ -43,15 +43,7 @@ def _hello(url: str) -> dict[str, Any]:
 
 def test_a_model_with_errors_is_served_with_the_checkers_messages(tmp_path: Path) -> None:
     model = tmp_path / "bad.yaml"
-    model.write_text(
-        "name: bad\ncomponents:\n  Motor: {kind: actuator}\n"
-        "lanes:\n  - lane: Motor\n    nodes:\n"
-        "      - {id: start, kind: start}\n"
-        "      - {id: go, kind: action, call: Motor.speed(3)}\n"
-        "      - {id: end, kind: end}\n"
-        "deployment:\n  driver: mock\n  components:\n"
-        "    Motor: {impl: l298n, settings: {in1: 22, in2: 23}}\n",
-        encoding="utf-8")
+    model.write_text(BROKEN_MODEL, encoding="utf-8")
     check = subprocess.run(umlbot_argv("check", str(model)), capture_output=True, text=True, timeout=60,
                            check=False, cwd=tmp_path)
     assert check.returncode == 1
