@@ -6,6 +6,7 @@ booleans; PWM ranges, frequencies and pin levels stay inside the driver.
 
 from __future__ import annotations
 
+import threading
 from typing import Protocol, runtime_checkable
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
@@ -69,3 +70,120 @@ class L298NSettings(BaseModel):
     def pins(self) -> tuple[BcmPin, ...]:
         """Every GPIO this channel owns."""
         return tuple(p for p in (self.in1, self.in2, self.enable) if p is not None)
+
+
+class PinHandle(Protocol):
+    """What `L298NBridge` needs of a backend's pin connection."""
+
+    closed: bool
+
+    def close(self) -> None: ...
+
+
+class L298NBridge:
+    """The L298N channel's truth table and safety rules, above the pins; satisfies `MotorChannel`.
+
+    Truth table of one channel (EN = enable, IN1/IN2 = inputs): EN 1, IN1 1, IN2 0 clockwise;
+    EN 1, IN1 0, IN2 1 anticlockwise; EN 1 with IN1 = IN2 fast stop (brake); EN 0 coast. With an
+    enable pin the duty cycle is PWM on EN and the inputs set the direction; without one (the
+    ENA/ENB jumper fitted, as on the reference robot) the PWM goes to the input of the direction
+    while the other input is low, and stopped means both inputs low. Changing direction while
+    driving stops first, so both inputs of a bridge arm are never driven at once.
+
+    A backend (pigpio, lgpio) sets `_pins` and provides `_level(pin, level)` (a plain level,
+    ending any PWM on the pin) and `_pwm(pin)` (PWM at the current `_percent`). Starts stopped;
+    `close()` leaves it stopped.
+    """
+
+    _pins: PinHandle
+
+    def __init__(self, component: str, settings: L298NSettings) -> None:
+        self.component = component
+        self.settings = settings
+        self._lock = threading.Lock()
+        self._enabled = False
+        self._clockwise = True
+        self._percent = 0.0
+        self._closed = False
+
+    def _level(self, pin: int, level: int) -> None:
+        raise NotImplementedError
+
+    def _pwm(self, pin: int) -> None:
+        raise NotImplementedError
+
+    # MotorChannel ---------------------------------------------------------------------------
+
+    def set_enabled(self, enabled: bool) -> None:
+        with self._lock:
+            self._enabled = enabled
+            self._apply()
+
+    def set_direction(self, clockwise: bool) -> None:
+        with self._lock:
+            if clockwise != self._clockwise and self._driving():
+                self._halt()  # never drive both inputs of a bridge arm at once while switching
+            self._clockwise = clockwise
+            self._apply()
+
+    def set_duty_cycle(self, percent: float) -> None:
+        if not 0 <= percent <= 100:
+            raise ValueError(f"duty cycle must be 0..100 %, got {percent}")
+        with self._lock:
+            self._percent = float(percent)
+            self._apply()
+
+    def stop(self) -> None:
+        with self._lock:
+            self._enabled = False
+            self._percent = 0.0
+            if not self._pins.closed:
+                self._apply()
+
+    def close(self) -> None:
+        with self._lock:
+            if self._closed:
+                return
+            self._closed = True
+            self._enabled = False
+            self._percent = 0.0
+            try:
+                self._apply()
+            finally:
+                self._pins.close()
+
+    # the truth table ---------------------------------------------------------------------------
+
+    def _driving(self) -> bool:
+        return self._enabled and self._percent > 0
+
+    def _forward_pin(self) -> tuple[int, int]:
+        """(driving input, other input) for the current direction."""
+        s = self.settings
+        forward = self._clockwise != s.invert
+        return (s.in1, s.in2) if forward else (s.in2, s.in1)
+
+    def _halt(self) -> None:
+        s = self.settings
+        if s.enable is not None:
+            self._level(s.enable, 0)
+        self._level(s.in1, 0)
+        self._level(s.in2, 0)
+
+    def _apply(self) -> None:
+        s = self.settings
+        drive, other = self._forward_pin()
+        if not self._driving():
+            if s.enable is not None and s.brake:
+                self._level(s.in1, 0)
+                self._level(s.in2, 0)
+                self._level(s.enable, 1)  # EN high, IN1 = IN2: fast stop
+            else:
+                self._halt()  # EN low: coast; without EN both inputs low (the L298N's stop)
+            return
+        self._level(other, 0)
+        if s.enable is not None:
+            self._level(drive, 1)
+            self._pwm(s.enable)
+        else:
+            self._pwm(drive)
