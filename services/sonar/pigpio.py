@@ -12,15 +12,11 @@ result is the median of the pings that got an echo (None when none did).
 
 from __future__ import annotations
 
-import statistics
-import threading
-import time
 from typing import Any
 
 from services.pigpio_connection import PigpioHandle
 from services.registry import DriverFactory
-from services.sonar.driver import HCSR04Settings
-from umlbot.errors import DriverError
+from services.sonar.driver import HCSR04Pings, HCSR04Settings
 from umlbot.logs import get_logger
 
 log = get_logger("umlbot.sonar.pigpio")
@@ -30,8 +26,6 @@ OUTPUT = 1  # pigpio.OUTPUT
 PUD_DOWN = 1  # pigpio.PUD_DOWN
 EITHER_EDGE = 2  # pigpio.EITHER_EDGE
 TRIGGER_PULSE_US = 10
-US_PER_CM = 58.0
-NO_ECHO_PULSE_US = 30_000
 TICK_WRAP = 1 << 32
 
 
@@ -41,21 +35,13 @@ def tick_diff(t1: int, t2: int) -> int:
     return diff + TICK_WRAP if diff < 0 else diff
 
 
-class PigpioHCSR04:
-    """One HC-SR04; satisfies `DistanceSensor`."""
+class PigpioHCSR04(HCSR04Pings):
+    """One HC-SR04 on pigpio; satisfies `DistanceSensor` (how it is read: `HCSR04Pings`)."""
+
+    _pins: PigpioHandle
 
     def __init__(self, component: str, settings: HCSR04Settings, pi: Any = None) -> None:
-        self.component = component
-        self.settings = settings
-        self.max_range_cm = settings.max_range_cm
-        self._lock = threading.Lock()  # one ping at a time
-        self._edge_lock = threading.Lock()
-        self._echo_done = threading.Event()
-        self._rise_tick: int | None = None
-        self._pulse_us: int | None = None
-        self._armed = False
-        self._last_ping = 0.0
-        self._closed = False
+        super().__init__(component, settings)
         self._pins = PigpioHandle(component, settings.host, settings.port, pi)
         try:
             self._pins.call("set_mode", settings.trigger, OUTPUT)
@@ -69,66 +55,13 @@ class PigpioHCSR04:
         log.info("sonar ready", component=component, trigger=settings.trigger, echo=settings.echo)
 
     def _on_edge(self, gpio: int, level: int, tick: int) -> None:
-        # Runs on pigpio's callback thread.
-        with self._edge_lock:
-            if not self._armed:
-                return
-            if level == 1:
-                self._rise_tick = tick
-            elif level == 0 and self._rise_tick is not None:
-                self._pulse_us = tick_diff(self._rise_tick, tick)
-                self._armed = False
-                self._echo_done.set()
+        self._edge(level, tick)  # on pigpio's callback thread
 
-    def _arm(self) -> None:
-        with self._edge_lock:
-            self._rise_tick = None
-            self._pulse_us = None
-            self._armed = True
-            self._echo_done.clear()
+    def _pulse_us(self, rise: int, fall: int) -> float:
+        return tick_diff(rise, fall)
 
-    def _disarm(self) -> int | None:
-        """Stop listening; the measured pulse length, if a whole pulse was seen."""
-        with self._edge_lock:
-            self._armed = False
-            return self._pulse_us
-
-    def _ping(self) -> float | None:
-        wait = self._last_ping + self.settings.min_interval_s - time.monotonic()
-        if wait > 0:
-            time.sleep(wait)
-        self._arm()
-        self._last_ping = time.monotonic()
+    def _trigger(self) -> None:
         self._pins.call("gpio_trigger", self.settings.trigger, TRIGGER_PULSE_US, 1)
-        got = self._echo_done.wait(self.settings.echo_timeout_s)
-        pulse = self._disarm()
-        if not got:
-            pulse = None  # a half-seen pulse is no echo either
-        if pulse is None or pulse >= NO_ECHO_PULSE_US:
-            return None
-        return min(pulse / US_PER_CM, self.max_range_cm)
-
-    def read_distance_cm(self) -> float | None:
-        with self._lock:
-            if self._closed:
-                raise DriverError(f"{self.component}: sensor is closed")
-            readings = [self._ping() for _ in range(self.settings.samples)]
-        echoes = [r for r in readings if r is not None]
-        if not echoes:
-            return None
-        return float(statistics.median(echoes))
-
-    def close(self) -> None:
-        with self._lock:
-            if self._closed:
-                return
-            self._closed = True
-            try:
-                self._callback.cancel()
-            except Exception as exc:  # the connection may be gone; releasing it is what matters
-                log.warning("cancel echo callback failed", component=self.component, error=str(exc))
-            finally:
-                self._pins.close()
 
 
 def _create(component: str, settings: HCSR04Settings) -> PigpioHCSR04:
