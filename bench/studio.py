@@ -49,9 +49,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 import paho.mqtt.client as mqtt
 from compile import DEPLOYMENT, MODEL, lane_text  # bench/compile.py: the generated lanes
+from orchestrator import run_broker  # Mosquitto with set_tcp_nodelay, as deployed
 from paho.mqtt.enums import CallbackAPIVersion
 from playwright.sync_api import Page, sync_playwright
-from rpc import run_broker
 
 REPO = Path(__file__).resolve().parent.parent
 CAR = REPO / "models" / "robot_car"
