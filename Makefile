@@ -48,6 +48,9 @@ bench: $(STAMP)
 	$(BIN)/python bench/compile.py
 	$(BIN)/python bench/orchestrator.py
 	$(BIN)/python bench/sim.py
+	$(BIN)/python bench/studio.py
+	$(BIN)/python bench/memory.py
+	$(BIN)/python bench/chaos.py
 
 # Rebuild the studio page from its sources (needs Node.js and npm; the built page is committed).
 studio:
