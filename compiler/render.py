@@ -70,15 +70,21 @@ def _ident(*parts: str) -> str:
     return "_".join(re.sub(r"\W", "_", p) for p in parts)
 
 
-def _successors(node: Node) -> list[tuple[str, str]]:
-    """(target, edge label) of every outgoing flow."""
+def successors(node: Node) -> list[tuple[str, str]]:
+    """(target, label) of every outgoing flow; a decision's labels are its guards (`else` last)."""
     if isinstance(node, DecisionNode):
-        return [(b.target, f"[{b.label}]") for b in node.branches]
+        return [(b.target, b.label) for b in node.branches]
     if isinstance(node, ForkNode):
         return [(t, "") for t in node.targets]
     if isinstance(node, EndNode):
         return []
     return [(node.next, "")]
+
+
+def _successors(node: Node) -> list[tuple[str, str]]:
+    """`successors` with a decision's guards in UML's brackets, as the pictures show them."""
+    guarded = isinstance(node, DecisionNode)
+    return [(target, f"[{label}]" if guarded else label) for target, label in successors(node)]
 
 
 def _label(node: Node) -> str:

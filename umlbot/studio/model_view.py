@@ -15,31 +15,17 @@ from compiler.compiled import (
     AcceptNode,
     CompiledModel,
     DatastoreNode,
-    DecisionNode,
-    EndNode,
-    ForkNode,
     Lane,
     Node,
     SendNode,
 )
 from compiler.diagnostics import Diagnostic
-from compiler.render import diagram_id, diagrams
+from compiler.render import diagram_id, diagrams, successors
 from compiler.source import SourceLane, SourceModel, SourceNode
 from compiler.yamlsrc import YMap, YNode, YScalar, YSeq, to_python
 
 #: the version of the JSON shape below; bumped on an incompatible change.
 VIEW_VERSION = 1
-
-
-def _edges(node: Node) -> list[tuple[str, str]]:
-    """(target, label) of every outgoing flow; a decision's labels are its guards (`else` last)."""
-    if isinstance(node, DecisionNode):
-        return [(b.target, b.label or ("else" if b.guard is None else "")) for b in node.branches]
-    if isinstance(node, ForkNode):
-        return [(target, "") for target in node.targets]
-    if isinstance(node, EndNode):
-        return []
-    return [(node.next, "")]
 
 
 def _node_view(node: Node) -> dict[str, Any]:
@@ -61,7 +47,7 @@ def lane_view(lane: Lane) -> dict[str, Any]:
     edges: list[dict[str, Any]] = []
     seen: dict[tuple[str, str], int] = {}
     for node in nodes:
-        for target, label in _edges(node):
+        for target, label in successors(node):
             pair = (node.id, target)
             seen[pair] = seen.get(pair, 0) + 1
             edge_id = f"{node.id}->{target}" + (f"#{seen[pair]}" if seen[pair] > 1 else "")
