@@ -31,6 +31,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from services.fake_pigpio import FakeHCSR04  # the same simulated module behind either fake
+
 # Constants with lgpio's values.
 LOW = 0
 HIGH = 1
@@ -129,19 +131,6 @@ class LineState:
             "servo_pulse_us": self.servo_pulse_us, "servo_frequency": self.servo_frequency,
             "duty_fraction": self.duty_fraction,
         }
-
-
-@dataclass
-class FakeHCSR04:
-    """A simulated HC-SR04: the distance it sees (None = nothing in range) and how it answers."""
-
-    trigger: int
-    echo: int
-    distance_cm: float | None = 100.0
-    #: "silent" = no echo edge at all; "pulse" = a 38 ms high pulse as many modules give.
-    no_echo: str = "pulse"
-    echo_delay_us: int = 450
-    pings: int = 0
 
 
 class FakeCallback:
