@@ -49,15 +49,18 @@ def command(model: Path, broker_url: str | None, ca_file: Path | None, robot: st
         raise click.BadParameter(f"{model} does not exist (a new model folder needs an existing "
                                  "parent folder)", param_hint="'MODEL'")
     check_bind(host, allow_remote)
-    data, _compiled = studio_data(model, robot, mode="replay" if replay_file else "live")
-    server = StudioServer(data, host=host, port=port, allow_remote=allow_remote)
     if editable:
         from umlbot.studio.api import EditApi
         from umlbot.studio.workspace import Workspace
 
-        workspace = Workspace(model)
+        workspace = Workspace(model)  # checks the model once; the page's first view is that check
+        data = studio_data(model, robot, result=workspace.result)
+        server = StudioServer(data, host=host, port=port, allow_remote=allow_remote)
         server.api = EditApi(workspace)
         data.edit = server.api.hello
+    else:
+        data = studio_data(model, robot, mode="replay" if replay_file else "live")
+        server = StudioServer(data, host=host, port=port, allow_remote=allow_remote)
     source: BrokerSource | None = None
     what = f"replay of {replay_file}"
     if replay_file is not None:

@@ -28,7 +28,7 @@ class SimFollower:
     def observe(self, world: World, broker_url: str, robot: str) -> Callable[[], None]:
         from services.bus import BrokerSettings
 
-        data, _ = studio_data(self.model, robot)
+        data = studio_data(self.model, robot)
         data.track = track_view(world)
         server = StudioServer(data, port=self.port)
         broker = BrokerSource(BrokerSettings.from_url(broker_url), robot, server.hub)

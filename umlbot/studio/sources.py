@@ -17,7 +17,7 @@ from umlbot.studio.hub import Hub
 from umlbot.studio.server import StudioData
 
 if TYPE_CHECKING:
-    from compiler.compiled import CompiledModel
+    from compiler.api import CheckResult
     from services.bus.settings import BrokerSettings
     from services.monitor import MonitorEvent
     from services.monitor.live import LiveMonitor
@@ -34,24 +34,20 @@ def event_dict(event: MonitorEvent) -> dict[str, Any]:
     return event.model_dump(mode="json", exclude_none=True)
 
 
-def load_model(path: Path) -> tuple[CompiledModel | None, dict[str, Any] | None, list[dict[str, Any]]]:
-    """Compile the model at `path`: (compiled model, its view, diagnostics) — view None on errors."""
+def studio_data(path: Path, robot: str | None, mode: str = "live",
+                result: CheckResult | None = None) -> StudioData:
+    """The page's data for the model at `path` (compiled here unless `result` is its check already);
+    the robot id is `robot`, else the model's name."""
     from compiler.api import check_model
     from umlbot.studio.model_view import diagnostic_view, model_view
 
-    result = check_model(path)
-    diagnostics = [diagnostic_view(d) for d in result.diagnostics]
-    if result.model is None:
-        return None, None, diagnostics
-    return result.model, model_view(result.model), diagnostics
-
-
-def studio_data(path: Path, robot: str | None, mode: str = "live") -> tuple[StudioData, CompiledModel | None]:
-    """The page's data for the model at `path`; the robot id is `robot`, else the model's name."""
-    compiled, view, diagnostics = load_model(path)
+    if result is None:
+        result = check_model(path)
+    compiled = result.model
     robot_id = robot or (compiled.name if compiled is not None else "car")
-    data = StudioData(mode=mode, robot=robot_id, source=str(path), model=view, diagnostics=diagnostics)
-    return data, compiled
+    return StudioData(mode=mode, robot=robot_id, source=str(path),
+                      model=model_view(compiled) if compiled is not None else None,
+                      diagnostics=[diagnostic_view(d) for d in result.diagnostics])
 
 
 def replay_events(trace_file: Path, robot: str) -> list[dict[str, Any]]:
