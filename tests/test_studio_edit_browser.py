@@ -62,6 +62,15 @@ def click_node(page: Page, lane: str, node_id: str) -> None:
     page.locator(node(page, lane, node_id)).click()
 
 
+def set_value(page: Page, lane: str, node_id: str, value: str) -> None:
+    """Type a new value into a node's `value` field and send it (Enter)."""
+    click_node(page, lane, node_id)
+    field = page.locator('#props input[name="value"]')
+    field.fill(value)
+    field.press("Enter")
+    settled(page)
+
+
 def drag_kind_onto_lane(page: Page, kind: str, lane: str) -> None:
     """Drag a node kind from the palette and drop it on the swimlane."""
     item = page.locator(f'#palette [data-kind="{kind}"]').bounding_box()
@@ -279,11 +288,7 @@ def test_a_file_changed_on_disk_while_editing_raises_a_notice_and_nothing_is_los
     with studio(["studio", str(folder), "--port", "0"], tmp_path) as proc:
         page = open_page(browser, proc.url, errors)
         show(page, "activity-main")
-        click_node(page, "RaspberryPI", "set_speed")
-        value = page.locator('#props input[name="value"]')
-        value.fill("55")
-        value.press("Enter")
-        settled(page)
+        set_value(page, "RaspberryPI", "set_speed", "55")
         expect(page.locator("#save")).to_have_attribute("data-dirty", "true")
 
         # someone else edits the same file on disk meanwhile
@@ -312,11 +317,7 @@ def test_a_file_changed_on_disk_while_editing_raises_a_notice_and_nothing_is_los
         assert "value: 55}" in main.read_text(encoding="utf-8")
 
         # and "Reload from disk" takes theirs (again: only because the user chose it)
-        click_node(page, "RaspberryPI", "set_speed")
-        value = page.locator('#props input[name="value"]')
-        value.fill("60")
-        value.press("Enter")
-        settled(page)
+        set_value(page, "RaspberryPI", "set_speed", "60")
         theirs = main.read_text(encoding="utf-8").replace("value: 300}", "value: 310}")
         assert "value: 310}" in theirs
         main.write_text(theirs, encoding="utf-8")
@@ -339,11 +340,7 @@ def test_run_drives_the_edited_model_in_the_simulator_and_the_page_follows_it(
     with studio(["studio", str(folder), "--port", "0"], tmp_path) as proc:
         page = open_page(browser, proc.url, errors)
         show(page, "activity-main")
-        click_node(page, "RaspberryPI", "set_speed")
-        value = page.locator('#props input[name="value"]')
-        value.fill("80")  # an unsaved edit: Run runs the working copy
-        value.press("Enter")
-        settled(page)
+        set_value(page, "RaspberryPI", "set_speed", "80")  # an unsaved edit: Run runs the working copy
         page.locator("#track").select_option("corridor")
         page.locator("#run-speed").select_option("1")
         page.locator("#run").click()
