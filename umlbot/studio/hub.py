@@ -94,7 +94,6 @@ class Hub:
         self.orchestrator: dict[str, Any] | None = None
         self.trace: collections.deque[dict[str, Any]] = collections.deque(maxlen=keep_trace)
         self.calls: collections.deque[dict[str, Any]] = collections.deque(maxlen=KEEP_CALLS)
-        self.received = 0
         self._loop: asyncio.AbstractEventLoop | None = None
         self._scheduled = False
         self._last_flush = 0.0
@@ -157,7 +156,6 @@ class Hub:
             pings, self._world_pings = self._world_pings, []
         for event in events:
             self._remember(event)
-        self.received += len(events)
         if events:
             for page in self.pages:
                 page.frame(events)
