@@ -46,13 +46,22 @@ def test_embedded_broker_serves_calls_in_process(embedded: EmbeddedBroker) -> No
 
 def test_a_new_client_gets_retained_messages_only_for_its_own_subscriptions(embedded: EmbeddedBroker) -> None:
     settings = BrokerSettings.from_url(embedded.url)
-    with BusConnection(settings, "test", client_id="retainer") as publisher:
-        publisher.publish("umlbot/car/Motor/status", b'{"state":"online"}', retain=True)
-        publisher.publish("umlbot/car/Sonar/status", b'{"state":"online"}', retain=True)
+    watched: set[str] = set()
+    both = threading.Event()
+
+    def watch(message: Message) -> None:
+        watched.add(message.topic)
+        if len(watched) == 2:
+            both.set()
+
     watcher = BusConnection(settings, "test", client_id="watcher")  # holds a filter matching both
-    watcher.subscribe("umlbot/car/+/status", lambda message: None)
+    watcher.subscribe("umlbot/car/+/status", watch)
     watcher.start(3.0)
     try:
+        with BusConnection(settings, "test", client_id="retainer") as publisher:
+            publisher.publish("umlbot/car/Motor/status", b'{"state":"online"}', retain=True)
+            publisher.publish("umlbot/car/Sonar/status", b'{"state":"online"}', retain=True)
+            assert both.wait(5.0)  # the broker has both (and keeps them: retained)
         got: list[str] = []
         done = threading.Event()
 
@@ -73,7 +82,7 @@ def test_a_new_client_gets_retained_messages_only_for_its_own_subscriptions(embe
         newcomer._client.on_message = every_publish
         newcomer.start(3.0)
         try:
-            assert done.wait(3.0)
+            assert done.wait(5.0)
             time.sleep(0.3)  # anything else amqtt would send arrives meanwhile
         finally:
             newcomer.close()
