@@ -16,8 +16,9 @@ from typing import Any
 import pytest
 
 from services.bus import TraceEvent
-from services.orchestrator import TraceRecorder
+from services.orchestrator import TraceRecorder, event_dict
 from services.orchestrator.engine import TraceRecord
+from services.orchestrator.trace import encode_record
 
 
 def rec(i: int, value: Any = None) -> TraceRecord:
@@ -151,6 +152,22 @@ def test_a_value_that_is_not_strict_json_goes_as_text(value: Any, with_file: boo
     if trace_file is not None:
         assert [strict(line.encode())["value"] for line in trace_file.read_text().splitlines()] == [
             repr(value), [1, 2]]
+
+
+@pytest.mark.parametrize("record", [
+    ("Main", "n1", "action", "Motor.dutycycle(50)", 1.5, 1.5012345, 7, None, None),
+    ("Lane \"q\"", "ü\n", "decision", "x < 1 → \\", 1795413440.2197144, 1795413440.9, None, None, "slow"),
+    ("Main", "n3", "action", "Motor.enabled(true)", 2.0, 3.0, {"a": [True, None, 1e300]}, "timed out", None),
+    ("Main", "n4", "datastore", "x = nan", 2.0, 2.0, float("nan"), None, None),
+    ("Main", "n5", "datastore", "x", 2.0, 2.0, "text \u2028 \x00", None, None),
+])
+def test_the_event_text_is_the_event_dict_as_strict_json(record: TraceRecord) -> None:
+    expected = event_dict(record, 42)
+    if record[6] is not None and record[6] != record[6]:  # NaN goes as its repr
+        expected["value"] = repr(record[6])
+    text = encode_record(record, 42)
+    assert strict(text.encode()) == expected
+    TraceEvent.model_validate_json(text)
 
 
 def test_a_failing_publish_does_not_stop_the_file(tmp_path: Path) -> None:
