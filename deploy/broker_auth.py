@@ -1,8 +1,9 @@
 #!/usr/bin/env python3
 """Broker users, passwords and ACLs for one robot, written from its deployment.
 
-One MQTT user per hardware service kind (`umlbot-motor`, `umlbot-sonar`, `umlbot-servo`,
-`umlbot-gpio`), `umlbot-all` for `umlbot service all` (the four kinds' rights together), one for
+One MQTT user per service kind the deployment uses (`umlbot-motor`, `umlbot-sonar`,
+`umlbot-servo`, `umlbot-gpio`, and a plugin's kinds alike, e.g. `umlbot-buzzer`), `umlbot-all` for
+`umlbot service all` (every kind's rights together), one for
 the orchestrator, a read-only `umlbot-monitor` and a full-rights `umlbot-operator` (for
 `umlbot call`, `mosquitto_pub`, exit requests). Each service user may only
 serve the topics of the components the deployment gives its kind. Run it with the venv's Python:
@@ -33,8 +34,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from urllib.parse import urlsplit
 
-SERVICE_KINDS = ("motor", "sonar", "servo", "gpio")
-ROLES = (*SERVICE_KINDS, "all", "orchestrator", "monitor", "operator")
+
+def service_kinds() -> tuple[str, ...]:
+    """Every installed service kind: the built-ins and those plugins add (`umlbot plugins`)."""
+    from umlbot.library import service_kinds as installed
+
+    return installed()
 
 
 def user_of(role: str) -> str:
@@ -53,17 +58,21 @@ class Grants:
 def grants(components: dict[str, str], robot: str) -> dict[str, Grants]:
     """The rights of every role; `components` maps component name -> service kind.
 
+    One role per service kind that `components` uses (in the order of `service_kinds()`: no user
+    without a purpose), then `all`, `orchestrator`, `monitor` and `operator`.
+
     A service serves `<Component>/call/#` and owns `<Component>/status` (its last will) and
     `<Component>/state`; it answers on the callers' reply topics under `_reply/`, and watches the
     orchestrator's status (a motor stops when the orchestrator goes offline). The orchestrator
     calls the deployed components, reads their status and state, owns `orchestrator/#` and the
-    signals. `all` (`umlbot service all`) has the rights of the four service kinds together.
+    signals. `all` (`umlbot service all`) has the rights of every service kind together.
     Every client reads its own replies: on Mosquitto through the `%c` pattern, on amqtt
     (no patterns) through `_reply/#`.
     """
     base = f"umlbot/{robot}"
     table: dict[str, Grants] = {}
-    for kind in SERVICE_KINDS:
+    used = set(components.values())
+    for kind in (k for k in service_kinds() if k in used):
         owned = [f"{base}/{name}/#" for name, k in sorted(components.items()) if k == kind]
         table[kind] = Grants(
             read=[*owned, f"{base}/orchestrator/status"],
@@ -190,7 +199,7 @@ def main(argv: list[str] | None = None) -> int:
 
     scheme = "mqtts" if args.tls else "mqtt"
     passwords: dict[str, str] = {}
-    for role in ROLES:
+    for role in table:
         env_file = out / f"{role}.env"
         passwords[role] = existing_password(env_file) or secrets.token_urlsafe(24)
         write_private(

@@ -23,7 +23,9 @@ usage: install.sh [options]
   --driver NAME       driver for the services: auto (default: lgpio on a Pi 5, pigpio where
                       pigpiod runs), pigpio, lgpio, mock or sim
   --services "K..."   service kinds to enable (default: "motor sonar servo gpio"; "all" is
-                      every kind in one process, for small boards)
+                      every kind in one process, for small boards); a plugin's kinds too
+  --plugin SPEC       also pip-install SPEC (a plugin's folder, wheel or requirement) into the
+                      venv; repeatable. Its service kinds can then be named in --services
   --embedded-broker   also enable umlbot-broker.service (the embedded amqtt broker)
   --secure            one MQTT user per service and for the orchestrator (deploy/broker_auth.py):
                       /etc/umlbot/<role>.env, Mosquitto's conf.d/umlbot.conf, umlbot.passwd and
@@ -52,6 +54,7 @@ VENV=1
 ENABLE=1
 START=0
 PYTHON=python3
+PLUGINS=()
 
 while [ $# -gt 0 ]; do
     case "$1" in
@@ -64,6 +67,7 @@ while [ $# -gt 0 ]; do
         --broker) BROKER="$2"; shift 2 ;;
         --driver) DRIVER="$2"; shift 2 ;;
         --services) SERVICES="$2"; shift 2 ;;
+        --plugin) PLUGINS+=("$2"); shift 2 ;;
         --embedded-broker) EMBEDDED_BROKER=1; shift ;;
         --secure) SECURE=1; shift ;;
         --no-venv) VENV=0; shift ;;
@@ -79,13 +83,14 @@ die() { echo "install.sh: $*" >&2; exit 1; }
 say() { echo "install.sh: $*"; }
 
 case "$PREFIX" in /*) ;; *) die "--prefix must be an absolute path" ;; esac
-for kind in $SERVICES; do
-    case "$kind" in motor|sonar|servo|gpio|all) ;; *) die "unknown service kind '$kind'" ;; esac
+for kind in $SERVICES; do  # the name goes into a unit name: checked against the installed kinds below
+    [[ "$kind" =~ ^[a-z][a-z0-9_]*$ ]] || die "bad service kind name '$kind' (lower-case letters, digits, _)"
 done
 case "$DRIVER" in auto|pigpio|lgpio|mock|sim) ;; *) die "unknown driver '$DRIVER' (auto, pigpio, lgpio, mock or sim)" ;; esac
 [ -z "$MODEL" ] || [ -f "$MODEL" ] || die "compiled model $MODEL not found"
 [ -z "$DEPLOYMENT" ] || [ -f "$DEPLOYMENT" ] || die "deployment $DEPLOYMENT not found"
 [ -f "$SOURCE/pyproject.toml" ] || die "$SOURCE is not an umlbot checkout (no pyproject.toml)"
+if [ "$VENV" -eq 0 ] && [ "${#PLUGINS[@]}" -gt 0 ]; then die "--plugin needs the venv (drop --no-venv)"; fi
 if [ "$SECURE" -eq 1 ] && [ -z "$DEPLOYMENT" ]; then die "--secure needs --deployment"; fi
 case "$BROKER" in
     *@*) if [ "$SECURE" -eq 1 ]; then die "--secure makes the credentials: give --broker without user:password"; fi ;;
@@ -96,6 +101,31 @@ if [ -z "$ROOT" ] && [ -d /run/systemd/system ]; then LIVE=1; fi
 if [ -z "$ROOT" ] && [ "$(id -u)" -ne 0 ]; then die "run as root (or give --root DIR)"; fi
 
 DEST="$ROOT$PREFIX"
+
+# The virtual environment first, with umlbot from the source checkout and the plugins: the service
+# kinds are those it has (built-ins and plugins), checked before anything else is written.
+if [ "$VENV" -eq 1 ]; then
+    "$PYTHON" -c 'import sys; assert sys.version_info >= (3, 11), "umlbot needs Python 3.11+"'
+    say "creating $DEST/venv and installing umlbot from $SOURCE"
+    install -d -m 0755 "$DEST"
+    "$PYTHON" -m venv "$DEST/venv"
+    "$DEST/venv/bin/python" -m pip install --quiet --upgrade pip
+    # the `pi` extra brings the pigpio and lgpio libraries the hardware drivers use
+    "$DEST/venv/bin/python" -m pip install --quiet "$SOURCE[pi]"
+    for plugin in "${PLUGINS[@]}"; do
+        say "installing the plugin $plugin"
+        "$DEST/venv/bin/python" -m pip install --quiet "$plugin"
+    done
+    PY="$DEST/venv/bin/python"
+else
+    PY="$PYTHON"  # --no-venv: umlbot is installed for this Python (or checked from the source)
+fi
+KINDS="$(cd "$SOURCE" && "$PY" -c 'from umlbot.library import service_kinds; print(" ".join(service_kinds()))')" \
+    || die "cannot list the service kinds with $PY (is umlbot installed for it?)"
+for kind in $SERVICES; do
+    case " $KINDS all " in *" $kind "*) ;; *) die "unknown service kind '$kind' (installed: $KINDS, all)" ;; esac
+done
+
 UNITDIR="$ROOT/etc/systemd/system"
 ETC_PATH=/etc/umlbot
 ETC="$ROOT$ETC_PATH"
@@ -116,17 +146,7 @@ if [ -z "$ROOT" ]; then
     if getent group gpio >/dev/null 2>&1; then usermod -aG gpio umlbot; fi
 fi
 
-# 2. The virtual environment with umlbot installed from the source checkout.
-if [ "$VENV" -eq 1 ]; then
-    "$PYTHON" -c 'import sys; assert sys.version_info >= (3, 11), "umlbot needs Python 3.11+"'
-    say "creating $DEST/venv and installing umlbot from $SOURCE"
-    "$PYTHON" -m venv "$DEST/venv"
-    "$DEST/venv/bin/python" -m pip install --quiet --upgrade pip
-    # the `pi` extra brings the pigpio and lgpio libraries the hardware drivers use
-    "$DEST/venv/bin/python" -m pip install --quiet "$SOURCE[pi]"
-fi
-
-# 3. The robot: compiled model and deployment (the robot needs no model sources).
+# 2. The robot: compiled model and deployment (the robot needs no model sources).
 MODEL_PATH="$PREFIX/robot/model.json"
 DEPLOYMENT_PATH="$PREFIX/robot/deployment.yaml"
 if [ -n "$MODEL" ]; then
@@ -138,7 +158,7 @@ if [ -n "$DEPLOYMENT" ]; then
     install -m 0644 "$DEPLOYMENT" "$ROOT$DEPLOYMENT_PATH"
 fi
 
-# 4. Documentation and the broker security files, for reference on the robot.
+# 3. Documentation and the broker security files, for reference on the robot.
 for doc in deploy-pi.md security.md; do
     if [ -f "$SOURCE/docs/$doc" ]; then install -m 0644 "$SOURCE/docs/$doc" "$DEST/share/docs/$doc"; fi
 done
@@ -150,15 +170,13 @@ for f in "$SOURCE"/deploy/amqtt/*; do
 done
 if [ -f "$SOURCE/deploy/broker_auth.py" ]; then install -m 0755 "$SOURCE/deploy/broker_auth.py" "$DEST/share/broker_auth.py"; fi
 
-# 5. Mosquitto, always: send small packets at once (see umlbot-nodelay.conf). Then broker users
+# 4. Mosquitto, always: send small packets at once (see umlbot-nodelay.conf). Then broker users
 #    and ACLs (--secure): per-role env files with each role's own MQTT user.
 install -d -m 0755 "$ROOT/etc/mosquitto/conf.d"
 install -m 0644 "$SOURCE/deploy/mosquitto/umlbot-nodelay.conf" "$ROOT/etc/mosquitto/conf.d/umlbot-nodelay.conf"
 BROKER_ARGS="--bind 127.0.0.1 --port 1883"
 if [ "$SECURE" -eq 1 ]; then
     AUTH="$ETC/auth"
-    PY="$DEST/venv/bin/python"
-    if [ ! -x "$PY" ]; then PY="$PYTHON"; fi
     hostport="${BROKER#*://}"; hostport="${hostport%%/*}"
     host="${hostport%:*}"; port="${hostport##*:}"
     if [ "$port" = "$hostport" ]; then port=1883; fi
@@ -166,8 +184,13 @@ if [ "$SECURE" -eq 1 ]; then
     install -d -m 0750 "$AUTH"
     "$PY" "$SOURCE/deploy/broker_auth.py" --deployment "$DEPLOYMENT" --robot "$ROBOT" --out "$AUTH" \
         --host "$host" --port "$port" "${tls[@]}"
-    for role in motor sonar servo gpio all orchestrator; do
-        install -m 0640 "$AUTH/$role.env" "$ETC/$role.env"
+    for kind in $SERVICES; do
+        if [ "$kind" != all ] && [ ! -f "$AUTH/$kind.env" ]; then
+            say "warning: the deployment has no component of service kind '$kind': its service serves nothing"
+        fi
+    done
+    for role in $KINDS all orchestrator; do  # monitor.env and operator.env stay in auth/ (for people)
+        if [ -f "$AUTH/$role.env" ]; then install -m 0640 "$AUTH/$role.env" "$ETC/$role.env"; fi
     done
     sed "s#^listener 1883 127.0.0.1#listener $port 127.0.0.1#" "$SOURCE/deploy/mosquitto/umlbot.conf" \
         >"$ROOT/etc/mosquitto/conf.d/umlbot.conf"
@@ -183,7 +206,7 @@ if [ "$SECURE" -eq 1 ]; then
     say "broker users written to /etc/umlbot/auth (operator.env and monitor.env are for people)"
 fi
 
-# 6. /etc/umlbot/umlbot.env: written once, never overwritten (it may hold credentials).
+# 5. /etc/umlbot/umlbot.env: written once, never overwritten (it may hold credentials).
 ENVFILE="$ETC/umlbot.env"
 if [ -e "$ENVFILE" ]; then
     say "keeping existing $ENVFILE"
@@ -209,13 +232,13 @@ if [ -z "$ROOT" ] && id umlbot >/dev/null 2>&1; then
     chgrp -R umlbot "$ETC"
 fi
 
-# 7. The units, with the prefix filled in.
+# 6. The units, with the prefix filled in.
 for unit in "$SOURCE"/deploy/systemd/*.service "$SOURCE"/deploy/systemd/*.target; do
     sed "s#/opt/umlbot#$PREFIX#g" "$unit" >"$UNITDIR/$(basename "$unit")"
     chmod 0644 "$UNITDIR/$(basename "$unit")"
 done
 
-# 8. Enable: umlbot.target on boot, and under it every service kind and the orchestrator.
+# 7. Enable: umlbot.target on boot, and under it every service kind and the orchestrator.
 WANTED=()
 for kind in $SERVICES; do WANTED+=("umlbot-service@$kind.service"); done
 if [ -n "$MODEL" ]; then WANTED+=(umlbot-orchestrator.service); fi

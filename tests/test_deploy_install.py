@@ -19,8 +19,10 @@ KINDS = ("motor", "sonar", "servo", "gpio")
 
 
 def run_install(*args: str) -> subprocess.CompletedProcess[str]:
+    """install.sh with this Python (umlbot and the example plugin installed) unless told otherwise."""
+    python = () if "--python" in args else ("--python", sys.executable)
     return subprocess.run(
-        ["bash", str(INSTALL), *args], capture_output=True, text=True, timeout=60, check=False,
+        ["bash", str(INSTALL), *python, *args], capture_output=True, text=True, timeout=60, check=False,
     )
 
 
@@ -136,6 +138,7 @@ def test_existing_env_file_is_kept(tmp_path: Path) -> None:
         (["--model", "/nonexistent/model.json"], "not found"),
         (["--prefix", "relative/dir"], "absolute"),
         (["--bogus"], "unknown option --bogus"),
+        (["--plugin", "umlbot-buzzer"], "--plugin needs the venv"),
     ],
 )
 def test_bad_arguments_are_refused(tmp_path: Path, args: list[str], message: str) -> None:
@@ -223,3 +226,34 @@ def test_secure_adds_users_beside_tcp_nodelay(tmp_path: Path) -> None:
     assert result.returncode == 0, result.stderr
     conf_d = root / "etc" / "mosquitto" / "conf.d"
     assert sorted(p.name for p in conf_d.iterdir()) == ["umlbot-nodelay.conf", "umlbot.conf"]
+
+
+def test_a_plugins_service_kind_is_installed_and_secured_like_a_built_in(tmp_path: Path) -> None:
+    """The example plugin (installed for this Python) adds the service kind `buzzer`."""
+    deployment = tmp_path / "deployment.txt"
+    deployment.write_text("LeftActuator=l298n\nBell=passive_buzzer\n", encoding="utf-8")
+    root = tmp_path / "root"
+    result = run_install("--root", str(root), "--no-venv", "--deployment", str(deployment), "--robot", "car",
+                         "--services", "motor buzzer", "--secure")
+    assert result.returncode == 0, result.stderr
+    wants = root / "etc" / "systemd" / "system" / "umlbot.target.wants"
+    assert sorted(p.name for p in wants.iterdir()) == ["umlbot-service@buzzer.service",
+                                                       "umlbot-service@motor.service"]
+    etc = root / "etc" / "umlbot"
+    assert "UMLBOT_BROKER=mqtt://umlbot-buzzer:" in (etc / "buzzer.env").read_text(encoding="utf-8")
+    assert not (etc / "sonar.env").exists()  # no sonar in this deployment: no user for one
+    acl = (root / "etc" / "mosquitto" / "umlbot.acl").read_text(encoding="utf-8")
+    buzzer = acl.split("user umlbot-buzzer\n", 1)[1].split("\n\n", 1)[0].splitlines()
+    assert buzzer == ["topic readwrite umlbot/car/Bell/#", "topic read umlbot/car/orchestrator/status",
+                      "topic write umlbot/car/_reply/#"]
+    motor = acl.split("user umlbot-motor\n", 1)[1].split("\n\n", 1)[0]
+    assert "Bell" not in motor
+
+
+def test_an_unknown_kind_is_refused_with_the_installed_ones(tmp_path: Path) -> None:
+    result = run_install("--root", str(tmp_path / "root"), "--no-venv", "--services", "motor laser")
+    assert result.returncode != 0
+    assert "unknown service kind 'laser' (installed: motor sonar servo gpio buzzer, all)" in result.stderr
+    result = run_install("--root", str(tmp_path / "root"), "--no-venv", "--services", "motor ../x")
+    assert result.returncode != 0 and "bad service kind name '../x'" in result.stderr
+    assert not (tmp_path / "root").exists()
