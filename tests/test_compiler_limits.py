@@ -99,12 +99,15 @@ def test_an_activity_file_error_is_still_reported_beside_it(tmp_path: Path) -> N
 # --- an unreadable activity file or deployment is one error too ---------------------------------------
 
 
+@pytest.mark.parametrize("name", ["measure.yaml", "main.yaml"])
 @pytest.mark.parametrize("case", sorted(UNREADABLE))
-def test_an_unreadable_activity_file_is_the_only_problem(tmp_path: Path, case: str) -> None:
+def test_an_unreadable_activity_file_is_the_only_problem(tmp_path: Path, case: str, name: str) -> None:
     content, message = UNREADABLE[case]
     model = tmp_path / "car"
-    shutil.copytree(ROBOT_CAR, model)  # main.yaml calls the swimlanes Measure and Glance of measure.yaml
-    activity = model / "activities" / "measure.yaml"
+    # main.yaml calls the swimlanes Measure and Glance of measure.yaml: without measure.yaml they
+    # are unknown, without main.yaml they are never called and its datastores unknown
+    shutil.copytree(ROBOT_CAR, model)
+    activity = model / "activities" / name
     activity.write_bytes(content)
     result = CliRunner().invoke(cli, ["check", str(model)])
     assert result.exit_code == 1
