@@ -1,6 +1,7 @@
 # Two commands on a fresh machine with Python 3.11+: `make sim` and `make test`.
-# `make test` first installs the Debian packages the tests start (scripts/system-packages.sh);
-# `make sim` needs none of them.
+# `make test` first installs the Debian packages the tests start (scripts/system-packages.sh),
+# python3-venv among them when PYTHON is Debian's own Python without it; `make sim` installs
+# nothing: when PYTHON cannot create .venv it stops at once, naming the package to install.
 PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
@@ -18,6 +19,7 @@ all: test
 # user's plugin would be (tests/test_plugin_example.py).
 $(STAMP): pyproject.toml $(EXAMPLE_PLUGIN)/pyproject.toml
 	@$(PYTHON) -c 'import sys; assert sys.version_info >= (3, 11), "umlbot needs Python 3.11+, found " + sys.version.split()[0]'
+	@PYTHON='$(PYTHON)' scripts/system-packages.sh --venv
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e '.[test]' -e $(EXAMPLE_PLUGIN)
@@ -26,7 +28,7 @@ $(STAMP): pyproject.toml $(EXAMPLE_PLUGIN)/pyproject.toml
 install: $(STAMP)
 
 system-packages:
-	@scripts/system-packages.sh
+	@PYTHON='$(PYTHON)' scripts/system-packages.sh
 
 lint: $(STAMP)
 	$(BIN)/ruff check .

@@ -932,8 +932,9 @@ class _Checker:
 def check_source(source: SourceModel, diagnostics: Diagnostics) -> CompiledModel | None:
     """Run every check; the compiled model when there is no error, else None."""
     if not source.complete:
-        # The model file could not be read (its error is reported): every check against its
-        # components would only report follow-on errors ("unknown component", "never called").
+        # A model file could not be read (its error is reported): every check against what it
+        # holds would only report follow-on errors ("unknown component", "unknown swimlane",
+        # "never called").
         return None
     checker = _Checker(source, diagnostics)
     checker.check_components()

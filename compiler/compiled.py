@@ -21,7 +21,8 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from compiler.expr import Call, Expr
-from umlbot.errors import CompiledModelError, ConfigError
+from umlbot.errors import CompiledModelError, ConfigError, ModelError
+from umlbot.files import decode_utf8
 from umlbot.library import ComponentKind, ServiceKind
 
 #: The version of the compiled file's shape; bumped on any incompatible change.
@@ -245,8 +246,13 @@ def load_compiled(source: str | Path | bytes) -> CompiledModel:
         except OSError as exc:
             raise CompiledModelError(f"cannot read compiled model {where}: {exc.strerror}") from exc
     try:
-        data = json.loads(raw.decode("utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
+        text = decode_utf8(raw, where)
+    except ModelError as exc:
+        raise CompiledModelError(f"{where}:{exc.line}:{exc.column}: not a compiled model "
+                                 f"({exc.message})") from None
+    try:
+        data = json.loads(text)
+    except (json.JSONDecodeError, RecursionError) as exc:
         raise CompiledModelError(f"{where}: not a compiled model (not JSON: {exc})") from exc
     if not isinstance(data, dict) or "format_version" not in data:
         raise CompiledModelError(f"{where}: not a compiled model (no format_version)")

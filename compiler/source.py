@@ -20,11 +20,11 @@ from compiler.diagnostics import Diagnostics, Location
 from compiler.yamlsrc import YMap, YNode, YScalar, YSeq, parse_yaml, to_python
 from umlbot.deployment import Deployment, is_plain_format
 from umlbot.errors import ModelError
+from umlbot.files import decode_utf8, too_large
 
 MODEL_FILE = "model.yaml"
 ACTIVITIES_DIR = "activities"
 DEPLOYMENT_FILES = ("deployment.yaml", "deployment.yml", "deployment.txt")
-MAX_FILE_BYTES = 5_000_000
 
 MODEL_KEYS = ("name", "call_timeout_s", "components", "links", "lanes", "deployment")
 LANE_KEYS = ("lane", "nodes")
@@ -116,7 +116,8 @@ class SourceModel:
     lanes: list[SourceLane] = field(default_factory=list)
     deployment: SourceDeployment | None = None
     source_hash: str = ""
-    #: False when the model file itself could not be read (checks that need it are skipped).
+    #: False when one of the model's files (model.yaml or an activity file) could not be read: its
+    #: error is reported and the checks, which would only report what is missing, are skipped.
     complete: bool = True
 
 
@@ -164,26 +165,20 @@ class _Reader:
             given = self.files.get(self.relative(path))
             if given is None:
                 raise ModelError("cannot read: No such file or directory", shown, 1, 1)
-            if len(given) > MAX_FILE_BYTES:
-                raise ModelError(f"file too large ({len(given)} bytes, at most {MAX_FILE_BYTES})",
-                                 shown, 1, 1)
+            problem = too_large(len(given))
+            if problem is not None:
+                raise ModelError(problem, shown, 1, 1)
             data = given
         else:
             try:
-                size = path.stat().st_size
-                if size > MAX_FILE_BYTES:
-                    raise ModelError(f"file too large ({size} bytes, at most {MAX_FILE_BYTES})",
-                                     shown, 1, 1)
+                problem = too_large(path.stat().st_size)
+                if problem is not None:
+                    raise ModelError(problem, shown, 1, 1)
                 data = path.read_bytes()
             except OSError as exc:
                 raise ModelError(f"cannot read: {exc.strerror}", shown, 1, 1) from None
         self.contents[self.relative(path)] = data
-        try:
-            return data.decode("utf-8")
-        except UnicodeDecodeError as exc:
-            line, column = byte_position(data, exc.start)
-            raise ModelError(f"not UTF-8 text: byte 0x{data[exc.start]:02x}: {exc.reason}",
-                             shown, line, column) from None
+        return decode_utf8(data, shown)
 
     def source_hash(self) -> str:
         digest = hashlib.sha256()
@@ -192,14 +187,6 @@ class _Reader:
             digest.update(f"{rel}\0{len(data)}\0".encode())
             digest.update(data)
         return "sha256:" + digest.hexdigest()
-
-
-def byte_position(data: bytes, offset: int) -> tuple[int, int]:
-    """1-based (line, column) of byte `offset`; the column counts the characters before it (the
-    bytes before the first bad one are valid UTF-8)."""
-    line_start = data.rfind(b"\n", 0, offset) + 1
-    before = data[line_start:offset].decode("utf-8", "replace")
-    return data.count(b"\n", 0, offset) + 1, len(before) + 1
 
 
 def load_source(path: str | Path, diagnostics: Diagnostics,
@@ -297,7 +284,9 @@ def _read_lane_file(reader: _Reader, path: Path, model: SourceModel) -> None:
     try:
         root, shown = _parse(reader, path)
     except ModelError as exc:
+        # Its swimlanes are unknown: every call of them would be a follow-on "unknown swimlane".
         reader.diagnostics.add_model_error(exc)
+        model.complete = False
         return
     if root is None:
         reader.diagnostics.warning("empty activity file", Location(shown, 1, 1))
@@ -431,23 +420,26 @@ def _read_node(node: YNode, d: Diagnostics) -> SourceNode | None:
 # --- deployment ------------------------------------------------------------------------------------
 
 
-def _read_deployment_file(reader: _Reader, path: Path) -> SourceDeployment | None:
+def _read_deployment_file(reader: _Reader, path: Path) -> SourceDeployment:
     shown = reader.display(path)
+    # An unreadable or empty deployment file is its one error: a deployment without content (not
+    # None, which the checker would report as a follow-on "the model has no deployment").
+    unreadable = SourceDeployment(None, shown, Location(shown, 1, 1))
     try:
         text = reader.read_text(path)
     except ModelError as exc:
         reader.diagnostics.add_model_error(exc)
-        return None
+        return unreadable
     if is_plain_format(text):
         return _deployment_from_plain(text, shown, reader.diagnostics)
     try:
         root = parse_yaml(text, shown, reader.diagnostics)
     except ModelError as exc:
         reader.diagnostics.add_model_error(exc)
-        return None
+        return unreadable
     if root is None:
         reader.diagnostics.error("empty deployment", Location(shown, 1, 1))
-        return None
+        return unreadable
     return _deployment_from_yaml(root, shown, reader.diagnostics)
 
 
@@ -477,7 +469,8 @@ def _deployment_from_plain(text: str, shown: str, d: Diagnostics) -> SourceDeplo
     return result
 
 
-def _deployment_from_yaml(root: YNode, shown: str, d: Diagnostics) -> SourceDeployment | None:
+def _deployment_from_yaml(root: YNode, shown: str, d: Diagnostics) -> SourceDeployment:
+    """The deployment in `root`; without content (`deployment` None) when it has problems."""
     if isinstance(root, YMap) and isinstance(root.get("deployment"), YMap):
         inner = root.get("deployment")
         assert inner is not None
@@ -486,7 +479,7 @@ def _deployment_from_yaml(root: YNode, shown: str, d: Diagnostics) -> SourceDepl
     if not isinstance(root, YMap):
         d.error("a deployment is a mapping with 'components' (or the plain Component=impl lines)",
                 root.loc)
-        return None
+        return result
     components = root.get("components")
     if isinstance(components, YMap):
         for name in components:

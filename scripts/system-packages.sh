@@ -1,23 +1,54 @@
 #!/usr/bin/env bash
 # The Debian packages `make test` needs besides Python: Mosquitto (the tests start their own),
 # Graphviz's `dot` (SVG diagrams), openssl (test certificates), systemd-analyze (unit checks),
-# chromium and chromium-driver (the studio's browser tests drive /usr/bin/chromium).
+# chromium and chromium-driver (the studio's browser tests drive /usr/bin/chromium), and
+# python3-venv when $PYTHON (default python3) is Debian's own Python without it: there
+# `python3 -m venv` fails (no ensurepip). A pyenv or other Python has its own venv.
 #
 # Installs the missing ones with apt-get (through sudo when not root). When it cannot (no apt-get,
 # neither root nor sudo, or apt-get fails), it names the missing packages and the command that
-# installs them, and exits 1. With --check it only reports, installing nothing. `make sim` needs
-# none of these.
+# installs them, and exits 1. With --check it only reports, installing nothing. With --venv it
+# only checks that $PYTHON can create a virtual environment (all `make sim` needs) and, when it
+# cannot, says in one line what to install and exits 1.
 set -euo pipefail
 
 CHECK_ONLY=0
+VENV_ONLY=0
 case "${1:-}" in
     "") ;;
     --check) CHECK_ONLY=1 ;;
-    -h|--help) sed -n '2,9p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
-    *) echo "system-packages.sh: unknown option $1 (--check, --help)" >&2; exit 2 ;;
+    --venv) VENV_ONLY=1 ;;
+    -h|--help) sed -n '2,12p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    *) echo "system-packages.sh: unknown option $1 (--check, --venv, --help)" >&2; exit 2 ;;
 esac
+PYTHON="${PYTHON:-python3}"
 
 have() { command -v "$1" >/dev/null 2>&1; }
+
+# The Debian package that gives $PYTHON its venv (python3-venv; python3.X-venv for a Debian Python
+# that is not the default python3), printed only when $PYTHON is Debian's own (its prefix is /usr,
+# not a virtual environment's or pyenv's) and lacks ensurepip. Nothing when $PYTHON does not run:
+# the Makefile's version check names that.
+venv_package() {
+    "$PYTHON" - 2>/dev/null <<'PY' || true
+import os, sys
+if sys.prefix == "/usr":
+    try:
+        import ensurepip  # Debian ships it in python3.X-venv
+    except ImportError:
+        version = f"{sys.version_info[0]}.{sys.version_info[1]}"
+        default = os.path.realpath("/usr/bin/python3")
+        print("python3-venv" if default == f"/usr/bin/python{version}" else f"python{version}-venv")
+PY
+}
+
+if [ "$VENV_ONLY" -eq 1 ]; then
+    package="$(venv_package)"
+    [ -z "$package" ] && exit 0
+    echo "system-packages.sh: $PYTHON cannot create a virtual environment (no ensurepip):" \
+        "install Debian's $package as root: apt-get install $package" >&2
+    exit 1
+fi
 
 # The Debian packages whose program is not there (Mosquitto lives in /usr/sbin, often not on
 # a user's PATH).
@@ -29,6 +60,9 @@ find_missing() {
     have systemd-analyze || missing+=(systemd)
     have chromium || missing+=(chromium)
     have chromedriver || missing+=(chromium-driver)
+    local venv
+    venv="$(venv_package)"
+    [ -z "$venv" ] || missing+=("$venv")
 }
 find_missing
 [ ${#missing[@]} -eq 0 ] && exit 0

@@ -97,6 +97,9 @@ def make_files(folder: Path) -> None:
     (folder / "newer.json").write_text('{"format_version": 999}\n')
     (folder / "garbage.txt").write_text("not json at all\n")
     (folder / "binary.bin").write_bytes(b"\xff\xfe\x00\x81 binary")
+    # a bad byte after valid text: line 2, column 15 (the "é" is one character of two bytes)
+    (folder / "bad_byte.yaml").write_bytes(b"# a\ncomponents: {\xc3\xa9\xff}\n")
+    (folder / "bad_byte.jsonl").write_bytes(b'\n\n{"lane": "\xc3\xa9\xff"}\n')  # line 3, column 12
     (folder / "bad.yaml").write_text("components: [\n")
     (folder / "unknown_impl.yaml").write_text("components:\n  LeftActuator: {impl: warpdrive}\n")
     (folder / "unknown_impl.txt").write_text("LeftActuator=CModelWarpDrive\n")
@@ -126,6 +129,8 @@ CASES: list[tuple[str, list[str], int, list[str]]] = [
     ("check-missing", ["check", "{f}/nope"], 2, ["MODEL", "nope", "does not exist"]),
     ("check-folder-without-model", ["check", "{f}/adir"], 1, ["adir:1:1", "no model.yaml"]),
     ("check-binary", ["check", "{f}/binary.bin"], 1, ["binary.bin:1:1", "not UTF-8"]),
+    ("check-bad-byte", ["check", "{f}/bad_byte.yaml"], 1,
+     ["bad_byte.yaml:2:15: error: not UTF-8 text: byte 0xff: invalid start byte"]),
     ("check-compiled-file", ["check", "{f}/good.json"], 1, ["good.json:1:1", "compiled model file"]),
     ("check-unknown-impl", ["check", MODEL, "--deployment", "{f}/unknown_impl.yaml"], 1,
      ["unknown_impl.yaml:2", "unknown implementation id 'warpdrive'"]),
@@ -146,6 +151,8 @@ CASES: list[tuple[str, list[str], int, list[str]]] = [
     ("run-wrong-shape", ["run", "{f}/wrong.json"], 1, ["wrong.json", "not a compiled model"]),
     ("run-json-list", ["run", "{f}/list.json"], 1, ["list.json", "not a compiled model"]),
     ("run-newer-version", ["run", "{f}/newer.json"], 1, ["newer.json", "version 999", "upgrade"]),
+    ("run-bad-byte", ["run", "{f}/bad_byte.yaml"], 1,
+     ["bad_byte.yaml:2:15: not a compiled model (not UTF-8 text: byte 0xff: invalid start byte)"]),
     ("run-truncated", ["run", "{f}/truncated.json"], 1, ["truncated.json", "not JSON"]),
     ("run-source-not-compiled", ["run", "{f}/bad.yaml"], 1, ["bad.yaml", "not a compiled model"]),
     ("run-url-no-host", ["run", "{f}/good.json", "--broker", "mqtt://"], 1, ["mqtt://", "no host"]),
@@ -170,7 +177,9 @@ CASES: list[tuple[str, list[str], int, list[str]]] = [
      ["cannot read deployment", "nope"]),
     ("service-deploy-folder", ["service", "motor", "--deploy", "{f}/adir"], 2, ["is a directory"]),
     ("service-deploy-binary", ["service", "motor", "--deploy", "{f}/binary.bin"], 1,
-     ["binary.bin", "not UTF-8"]),
+     ["binary.bin:1:1: cannot read deployment: not UTF-8 text: byte 0xff"]),
+    ("service-deploy-bad-byte", ["service", "motor", "--deploy", "{f}/bad_byte.yaml"], 1,
+     ["bad_byte.yaml:2:15: cannot read deployment: not UTF-8 text: byte 0xff: invalid start byte"]),
     ("service-deploy-bad-yaml", ["service", "motor", "--deploy", "{f}/bad.yaml"], 1,
      ["bad.yaml:2:1: not valid YAML"]),
     ("service-deploy-wrong-shape", ["service", "motor", "--deploy", "{f}/wrong.json"], 1,
@@ -201,7 +210,10 @@ CASES: list[tuple[str, list[str], int, list[str]]] = [
      ["bad.yaml:2:1: not valid YAML"]),
     ("sim-track-wrong-shape", ["sim", MODEL, "--track", "{f}/track_wrong.yaml", "--port", "0"], 1,
      ["track_wrong.yaml", "invalid track", "walls"]),
-    ("sim-track-binary", ["sim", MODEL, "--track", "{f}/binary.bin", "--port", "0"], 1, ["not UTF-8"]),
+    ("sim-track-binary", ["sim", MODEL, "--track", "{f}/binary.bin", "--port", "0"], 1,
+     ["binary.bin:1:1: cannot read track: not UTF-8 text: byte 0xff"]),
+    ("sim-track-bad-byte", ["sim", MODEL, "--track", "{f}/bad_byte.yaml", "--port", "0"], 1,
+     ["bad_byte.yaml:2:15: cannot read track: not UTF-8 text: byte 0xff: invalid start byte"]),
     ("sim-plot-suffix", ["sim", MODEL, "--track", TRACK, "--port", "0", "--plot", "{f}/run.txt"], 1,
      ["run.txt", ".png"]),
     ("sim-url-http", ["sim", MODEL, "--track", TRACK, "--broker", "http://x"], 1, ["scheme"]),
@@ -214,6 +226,10 @@ CASES: list[tuple[str, list[str], int, list[str]]] = [
      ["passwd:1", "user:<argon2 hash>"]),
     ("broker-acl-bad-yaml", ["broker", "--acl", "{f}/bad.yaml", "--port", "0"], 1,
      ["bad.yaml:2:1: not valid YAML"]),
+    ("broker-acl-bad-byte", ["broker", "--acl", "{f}/bad_byte.yaml", "--port", "0"], 1,
+     ["bad_byte.yaml:2:15: cannot read ACL file: not UTF-8 text: byte 0xff: invalid start byte"]),
+    ("broker-passwd-bad-byte", ["broker", "--passwd", "{f}/bad_byte.yaml", "--port", "0"], 1,
+     ["bad_byte.yaml:2:15: cannot read password file: not UTF-8 text: byte 0xff"]),
     ("broker-acl-wrong-shape", ["broker", "--acl", "{f}/acl_wrong.yaml", "--port", "0"], 1,
      ["acl_wrong.yaml", "publish_acl"]),
     # monitor
@@ -224,7 +240,9 @@ CASES: list[tuple[str, list[str], int, list[str]]] = [
     ("monitor-replay-no-node", ["monitor", "--replay", "{f}/trace_no_node.jsonl", "--json"], 1,
      ["trace_no_node.jsonl:1", "node: Field required"]),
     ("monitor-replay-binary", ["monitor", "--replay", "{f}/binary.bin", "--json"], 1,
-     ["binary.bin:1: not a trace event"]),
+     ["binary.bin:1:1: cannot read trace file: not UTF-8 text: byte 0xff"]),
+    ("monitor-replay-bad-byte", ["monitor", "--replay", "{f}/bad_byte.jsonl", "--json"], 1,
+     ["bad_byte.jsonl:3:12: cannot read trace file: not UTF-8 text: byte 0xff: invalid start byte"]),
     ("monitor-url-http", ["monitor", "--broker", "http://x"], 1, ["scheme"]),
     ("monitor-bad-robot", ["monitor", "--robot", "car/#", "--broker", DEAD, "--json"], 1,
      ["robot id 'car/#'"]),

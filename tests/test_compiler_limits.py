@@ -10,14 +10,17 @@ import shutil
 from pathlib import Path
 
 import pytest
+from click.testing import CliRunner
 from compiler_support import HEADER, MAIN, at, check_text, errors_of, position
 
-from compiler import expr_parser, source, yamlsrc
+from compiler import expr_parser, yamlsrc
 from compiler.api import check_model
 from compiler.compiled import DatastoreNode, DecisionNode, dump_compiled, load_compiled
 from compiler.expr import Expr
 from compiler.expr_parser import parse_expression
 from services.orchestrator.expressions import ExpressionCompiler
+from umlbot import files
+from umlbot.cli import cli
 from umlbot.errors import ModelError
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -58,8 +61,8 @@ def _alias_bomb() -> str:
 
 
 UNREADABLE: dict[str, tuple[bytes, str]] = {
-    "too large": (b"# " + b"x" * source.MAX_FILE_BYTES + b"\n",
-                  f"file too large ({source.MAX_FILE_BYTES + 3} bytes, at most {source.MAX_FILE_BYTES})"),
+    "too large": (b"# " + b"x" * files.MAX_FILE_BYTES + b"\n",
+                  f"file too large ({files.MAX_FILE_BYTES + 3} bytes, at most {files.MAX_FILE_BYTES})"),
     "alias bomb": (_alias_bomb().encode(),
                    f"document too large: its aliases expand it to more than {yamlsrc.MAX_NODES} YAML "
                    "nodes (lists, mappings and scalars)"),
@@ -91,6 +94,60 @@ def test_an_activity_file_error_is_still_reported_beside_it(tmp_path: Path) -> N
     (model / "activities" / "broken.yaml").write_text("lane: [\n", encoding="utf-8")
     files = sorted(Path(d.location.file).name for d in check_model(model).diagnostics)
     assert files == ["broken.yaml", "model.yaml"]
+
+
+# --- an unreadable activity file or deployment is one error too ---------------------------------------
+
+
+@pytest.mark.parametrize("name", ["measure.yaml", "main.yaml"])
+@pytest.mark.parametrize("case", sorted(UNREADABLE))
+def test_an_unreadable_activity_file_is_the_only_problem(tmp_path: Path, case: str, name: str) -> None:
+    content, message = UNREADABLE[case]
+    model = tmp_path / "car"
+    # main.yaml calls the swimlanes Measure and Glance of measure.yaml: without measure.yaml they
+    # are unknown, without main.yaml they are never called and its datastores unknown
+    shutil.copytree(ROBOT_CAR, model)
+    activity = model / "activities" / name
+    activity.write_bytes(content)
+    result = CliRunner().invoke(cli, ["check", str(model)])
+    assert result.exit_code == 1
+    lines = result.stdout.splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"{activity}:"), lines
+    assert f": error: {message}" in lines[0]
+    assert result.stderr == f"{model}: 1 error(s), 0 warning(s)\n"
+
+
+def test_an_activity_path_that_cannot_be_read_is_the_only_problem(tmp_path: Path) -> None:
+    model = tmp_path / "car"
+    shutil.copytree(ROBOT_CAR, model)
+    activity = model / "activities" / "measure.yaml"
+    activity.unlink()
+    activity.mkdir()  # read even by root: not a file
+    result = CliRunner().invoke(cli, ["check", str(model)])
+    assert result.stdout.splitlines() == [f"{activity}:1:1: error: cannot read: Is a directory"]
+
+
+def test_without_the_unreadable_file_its_swimlanes_are_missing(tmp_path: Path) -> None:
+    # the errors the test above keeps out are real when the file is simply not there
+    model = tmp_path / "car"
+    shutil.copytree(ROBOT_CAR, model)
+    (model / "activities" / "measure.yaml").unlink()
+    assert "unknown swimlane or builtin 'Measure'" in CliRunner().invoke(cli, ["check", str(model)]).stdout
+
+
+@pytest.mark.parametrize("content, message", [
+    (b"driver: pigpio\n\xff\n", "2:1: error: not UTF-8 text: byte 0xff: invalid start byte"),
+    (b"driver: [\n", "2:1: error: invalid YAML: "),
+    (b"", "1:1: error: empty deployment"),
+    (b"- a list\n", "1:1: error: a deployment is a mapping with 'components'"),
+])
+def test_an_unreadable_deployment_is_the_only_problem(tmp_path: Path, content: bytes,
+                                                      message: str) -> None:
+    model = tmp_path / "car"
+    shutil.copytree(ROBOT_CAR, model)
+    (model / "deployment.yaml").write_bytes(content)
+    lines = CliRunner().invoke(cli, ["check", str(model)]).stdout.splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"{model / 'deployment.yaml'}:{message}"), lines
 
 
 # --- YAML limits ---------------------------------------------------------------------------------------
@@ -197,7 +254,7 @@ def test_the_limits_table_matches_the_code() -> None:
     numbers = {what: int(re.sub(r"[ ,]", "", re.match(r"\s*([\d ]+)", cell).group(1)))  # type: ignore[union-attr]
                for what, cell in rows.items()}
     assert numbers == {
-        "a source file": source.MAX_FILE_BYTES,
+        "a source file": files.MAX_FILE_BYTES,
         "one YAML document": yamlsrc.MAX_NODES,
         "YAML nesting": yamlsrc.MAX_DEPTH,
         "an expression": expr_parser.MAX_LENGTH,

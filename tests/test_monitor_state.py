@@ -6,6 +6,7 @@ import io
 import json
 import logging
 import math
+import re
 from pathlib import Path
 
 import pytest
@@ -172,12 +173,17 @@ def test_replay_accepts_lines_with_arrays_and_old_lines_without_seq(tmp_path: Pa
     assert [(e.node, e.seq) for e in events] == [("n0", None), ("n1", 1), ("n2", 2)]
 
 
-@pytest.mark.parametrize("line", ["[" * 5000, '{"lane": "L"', "\udcff"])
-def test_a_malformed_replay_line_is_a_config_error(tmp_path: Path, line: str) -> None:
+@pytest.mark.parametrize("line, message", [
+    ("[" * 5000, "trace.jsonl:2: not a trace event"),
+    ('{"lane": "L"', "trace.jsonl:2: not a trace event"),
+    ("\udcff", "trace.jsonl:2:1: cannot read trace file: not UTF-8 text: byte 0xff: invalid start byte"),
+    ('{"lane": "\u00e9\udce9"}', "trace.jsonl:2:12: cannot read trace file: not UTF-8 text: byte 0xe9"),
+])
+def test_a_malformed_replay_line_is_a_config_error(tmp_path: Path, line: str, message: str) -> None:
     path = tmp_path / "trace.jsonl"
     path.write_bytes(trace("L", "n", "action", 1.0, 1.0).model_dump_json().encode() + b"\n"
                      + line.encode("utf-8", errors="surrogateescape") + b"\n")
-    with pytest.raises(ConfigError, match=r"trace.jsonl:2: not a trace event"):
+    with pytest.raises(ConfigError, match=re.escape(message)):
         list(read_trace(path))
 
 

@@ -30,7 +30,7 @@ from umlbot.studio.api import EditApi
 from umlbot.studio.edit import EditError, apply_ops, parse_ops
 from umlbot.studio.model_view import model_view, source_view
 from umlbot.studio.server import StudioData, StudioServer, StudioThread
-from umlbot.studio.workspace import LAYOUT_FILE, Workspace, model_files, safe_path
+from umlbot.studio.workspace import LAYOUT_FILE, Workspace, model_files, read_layout, safe_path
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -389,6 +389,48 @@ def test_layout_is_kept_in_its_own_file(car: tuple[Path, Editor]) -> None:
     layout = json.loads((root / LAYOUT_FILE).read_text(encoding="utf-8"))
     assert layout == {"positions": {"activity-main": {"RaspberryPI/start": [10.0, 20.6]}}}
     assert check_model(root).model is not None
+
+
+@pytest.mark.parametrize("content, problem", [
+    (b'{"positions": {"\xc3\xa9\xff": 1}}', ":1:18: not UTF-8 text: byte 0xff: invalid start byte"),
+    (b'{"positions":\n  {"a": [1, 2],}}', ":2:16: not valid JSON: Expecting property name enclosed in "
+                                         "double quotes"),
+    (b"[1, 2]", ":1:1: not a layout (a JSON object with 'positions')"),
+    (b"[" * 100_000 + b"]" * 100_000, ": not valid JSON: nested too deeply"),
+])
+def test_a_layout_file_that_cannot_be_read_is_named_once(tmp_path: Path, content: bytes,
+                                                          problem: str) -> None:
+    root = tmp_path / "car"
+    shutil.copytree(CAR_MODEL, root)
+    (root / LAYOUT_FILE).write_bytes(content)
+    workspace = Workspace(root)
+    assert workspace.layout == {} and workspace.layout_problem == f"{root / LAYOUT_FILE}{problem}"
+    workspace.reload()
+    assert workspace.layout_problem == f"{root / LAYOUT_FILE}{problem}"
+    (root / LAYOUT_FILE).write_text('{"positions": {}}', encoding="utf-8")
+    workspace.reload()  # a good file again: its positions, no problem
+    assert workspace.layout == {"positions": {}}
+    assert read_layout(root) == ({"positions": {}}, None)
+
+
+def test_no_layout_file_is_no_problem_and_a_folder_is_one(tmp_path: Path) -> None:
+    root = tmp_path / "car"
+    shutil.copytree(CAR_MODEL, root)
+    assert Workspace(root).layout_problem is None
+    (root / LAYOUT_FILE).mkdir()
+    assert Workspace(root).layout_problem == f"cannot read {root / LAYOUT_FILE}: Is a directory"
+
+
+def test_studio_says_on_start_that_the_layout_file_was_not_read(tmp_path: Path) -> None:
+    root = tmp_path / "car"
+    shutil.copytree(CAR_MODEL, root)
+    (root / LAYOUT_FILE).write_bytes(b"{\n\xff}")
+    with studio(["studio", str(root), "--port", "0"], tmp_path) as proc:
+        pass
+    lines = [line for line in proc.log_text().splitlines() if LAYOUT_FILE in line]
+    assert lines == [f"  {root / LAYOUT_FILE}:2:1: not UTF-8 text: byte 0xff: invalid start byte: the page "
+                     "starts without the saved positions (saving rewrites the file)"]
+    assert "Traceback" not in proc.log_text()
 
 
 def test_library_comes_from_the_component_library(car: tuple[Path, Editor]) -> None:

@@ -1,10 +1,11 @@
-"""Reading the user's small text files (deployments, tracks, ACLs) with one-line errors.
+"""Reading the user's files (model files, deployments, tracks, ACLs) with one-line errors.
 
-Every reader of a user's file needs the same two things: an unreadable, binary or non-UTF-8 file
-named in one clear line instead of a traceback, and a YAML syntax error as `file:line:col:` with
-the problem in one line. There is one YAML reader in umlbot, the compiler's positioned reader
-(`compiler.yamlsrc`: libyaml events, YAML 1.2 core schema, size and depth limits); `load_yaml`
-puts it behind the same one-line errors for the small files.
+Every reader of a user's file needs the same things: an unreadable, too large, binary or non-UTF-8
+file named in one clear line instead of a traceback — a bad byte at its `file:line:col`, the same
+for model files (`compiler.source`) and the small files here — and a YAML syntax error as
+`file:line:col:` with the problem in one line. There is one YAML reader in umlbot, the compiler's
+positioned reader (`compiler.yamlsrc`: libyaml events, YAML 1.2 core schema, size and depth
+limits); `load_yaml` puts it behind the same one-line errors for the small files.
 """
 
 from __future__ import annotations
@@ -14,16 +15,50 @@ from typing import Any
 
 from umlbot.errors import ConfigError, ModelError, UmlbotError
 
+#: the largest file a user gives umlbot to read (a model file, a deployment, a track).
+MAX_FILE_BYTES = 5_000_000
+
+
+def too_large(size: int) -> str | None:
+    """The problem with a file of `size` bytes, or None when it is not too large."""
+    return f"file too large ({size} bytes, at most {MAX_FILE_BYTES})" if size > MAX_FILE_BYTES else None
+
+
+def byte_position(data: bytes, offset: int) -> tuple[int, int]:
+    """1-based (line, column) of byte `offset`; the column counts the characters before it (the
+    bytes before the first bad one are valid UTF-8)."""
+    line_start = data.rfind(b"\n", 0, offset) + 1
+    before = data[line_start:offset].decode("utf-8", "replace")
+    return data.count(b"\n", 0, offset) + 1, len(before) + 1
+
+
+def decode_utf8(data: bytes, shown: str) -> str:
+    """The UTF-8 text of a file's bytes; `ModelError` at the line and column of the first bad byte
+    ("not UTF-8 text: byte 0xff: invalid start byte") otherwise."""
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line, column = byte_position(data, exc.start)
+        raise ModelError(f"not UTF-8 text: byte 0x{data[exc.start]:02x}: {exc.reason}",
+                         shown, line, column) from None
+
 
 def read_text(path: str | Path, what: str, error: type[UmlbotError] = ConfigError) -> str:
-    """The UTF-8 text of `path`; raises `error` ("cannot read <what> <path>: <why>") otherwise."""
+    """The UTF-8 text of `path`; raises `error` otherwise, in one line: "cannot read <what>
+    <path>: <why>", or "<path>:<line>:<col>: cannot read <what>: not UTF-8 text: ..." at the
+    first bad byte."""
     file = Path(path)
     try:
-        return file.read_text(encoding="utf-8")
+        problem = too_large(file.stat().st_size)
+        if problem is not None:
+            raise error(f"cannot read {what} {file}: {problem}")
+        data = file.read_bytes()
     except OSError as exc:
         raise error(f"cannot read {what} {file}: {exc.strerror or exc}") from exc
-    except UnicodeDecodeError as exc:
-        raise error(f"cannot read {what} {file}: not UTF-8 text (byte {exc.start})") from exc
+    try:
+        return decode_utf8(data, str(file))
+    except ModelError as exc:
+        raise error(f"{exc.file}:{exc.line}:{exc.column}: cannot read {what}: {exc.message}") from None
 
 
 def load_yaml(text: str, source: str, error: type[UmlbotError] = ConfigError) -> Any:

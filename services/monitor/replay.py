@@ -13,14 +13,15 @@ from pydantic_core import from_json
 
 from services.bus.envelopes import TraceEvent
 from services.monitor.state import MonitorEvent, MonitorState, first_problem, trace_items
-from umlbot.errors import ConfigError
+from umlbot.errors import ConfigError, ModelError
+from umlbot.files import decode_utf8
 
 
 def read_trace(path: str | Path) -> Iterator[TraceEvent]:
     """The events of a trace file in order; a bad line raises ConfigError naming file and line."""
     file = Path(path)
     try:
-        handle = file.open("rb")  # bytes: a line that is not UTF-8 fails in json.loads, named
+        handle = file.open("rb")  # bytes: a line that is not UTF-8 is named with its bad byte
     except OSError as exc:
         raise ConfigError(f"cannot read trace file {file}: {exc.strerror or exc}") from exc
     with handle:
@@ -28,7 +29,12 @@ def read_trace(path: str | Path) -> Iterator[TraceEvent]:
             if not line.strip():
                 continue
             try:
-                events = [TraceEvent.model_validate(item) for item in trace_items(from_json(line))]
+                text = decode_utf8(line, str(file))
+            except ModelError as exc:  # its line and column in the file, not in the line
+                raise ConfigError(f"{file}:{lineno}:{exc.column}: cannot read trace file: "
+                                  f"{exc.message}") from None
+            try:
+                events = [TraceEvent.model_validate(item) for item in trace_items(from_json(text))]
             except (ValueError, ValidationError) as exc:
                 raise ConfigError(f"{file}:{lineno}: not a trace event: {first_problem(exc)}") from exc
             yield from events

@@ -82,6 +82,9 @@ def command(model: Path, broker_url: str | None, ca_file: Path | None, robot: st
             click.echo(f"umlbot studio: {page}  ({what}; Ctrl-C to quit)")
             if errors:
                 click.echo(f"  the model has {errors} error(s): the page lists them", err=True)
+            if editable and workspace.layout_problem is not None:
+                click.echo(f"  {workspace.layout_problem}: the page starts without the saved "
+                           "positions (saving rewrites the file)", err=True)
             if open_browser:
                 import webbrowser
 

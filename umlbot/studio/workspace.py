@@ -24,6 +24,8 @@ from typing import Any
 
 from compiler.api import CheckResult, check_model
 from compiler.source import ACTIVITIES_DIR, DEPLOYMENT_FILES, MODEL_FILE
+from umlbot.errors import ModelError
+from umlbot.files import decode_utf8, too_large
 from umlbot.studio.edit import EditError, apply_ops, parse_ops
 from umlbot.studio.model_view import attribute, diagnostic_view, node_index, source_view
 
@@ -86,6 +88,33 @@ def model_files(root: Path) -> dict[str, bytes]:
     return files
 
 
+def read_layout(root: Path) -> tuple[dict[str, Any], str | None]:
+    """The positions saved in `root`'s layout file, and what was wrong with it (one line, with
+    `file:line:col` where there is one) when it could not be read: the page then starts without
+    them, and saving rewrites the file. No file is no problem."""
+    path = root / LAYOUT_FILE
+    try:
+        problem = too_large(path.stat().st_size)
+        if problem is not None:
+            return {}, f"{path}: {problem}"
+        text = decode_utf8(path.read_bytes(), str(path))
+    except FileNotFoundError:
+        return {}, None
+    except OSError as exc:
+        return {}, f"cannot read {path}: {exc.strerror or exc}"
+    except ModelError as exc:
+        return {}, f"{exc.file}:{exc.line}:{exc.column}: {exc.message}"
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
+        return {}, f"{path}:{exc.lineno}:{exc.colno}: not valid JSON: {exc.msg}"
+    except RecursionError:
+        return {}, f"{path}: not valid JSON: nested too deeply"
+    if not isinstance(data, dict):
+        return {}, f"{path}:1:1: not a layout (a JSON object with 'positions')"
+    return data, None
+
+
 def safe_path(root: Path, rel: str) -> Path:
     """`root / rel`, refused (ValueError) unless it stays inside `root`, symlinks resolved."""
     pure = PurePosixPath(rel)
@@ -143,6 +172,8 @@ class Workspace:
     lock: threading.Lock = field(default_factory=threading.Lock)
 
     def __post_init__(self) -> None:
+        #: why the layout file could not be read (None when it was, or there is none).
+        self.layout_problem: str | None = None
         self.disk = model_files(self.root)  # the files as last read from or written to disk
         self.files = dict(self.disk)
         self.layout_disk = self._read_layout()
@@ -158,11 +189,8 @@ class Workspace:
     # --- reading -----------------------------------------------------------------------------------
 
     def _read_layout(self) -> dict[str, Any]:
-        try:
-            data = json.loads((self.root / LAYOUT_FILE).read_text(encoding="utf-8"))
-        except (OSError, ValueError):
-            return {}
-        return data if isinstance(data, dict) else {}
+        layout, self.layout_problem = read_layout(self.root)
+        return layout
 
     @property
     def empty(self) -> bool:
