@@ -11,11 +11,21 @@ import type { CallRow, Snapshot } from "./state";
 import { ModelIndex, StudioState, nodeKey } from "./state";
 import type { Diagnostic, HelloMsg, ModelView, MonitorEvent, ServerMsg } from "./types";
 
-interface StudioHooks { latencies: number[]; frames: number[]; ready: boolean; applied: number; edit: EditHooks | null }
+interface StudioHooks {
+  latencies: number[]; frames: number[]; ready: boolean; applied: number; edit: EditHooks | null;
+  durationCounters: () => number; // counters the nodes' duration histograms hold (memory; tests)
+}
 declare global {
   interface Window { __studio: StudioHooks }
 }
-const hooks: StudioHooks = { latencies: [], frames: [], ready: false, applied: 0, edit: null };
+const hooks: StudioHooks = {
+  latencies: [], frames: [], ready: false, applied: 0, edit: null,
+  durationCounters: () => {
+    let n = 0;
+    for (const s of state.nodes.values()) n += s.durs.buckets;
+    return n;
+  },
+};
 window.__studio = hooks;
 const KEEP = 10_000;
 const pushCapped = (a: number[], v: number): void => {
