@@ -113,6 +113,9 @@ export class StudioState {
   exitPayload: unknown = undefined;
   private callSerial = 0;
   private gen = 0; // generation of the duration histograms this state may add to
+  /** Counters of the histograms this generation owns (made or copied since the last snapshot):
+   * what the next snapshot keeps beyond its maps. */
+  ownedCounters = 0;
 
   // What changed since the renderer last looked.
   dirtyNodes = new Set<string>();
@@ -179,8 +182,10 @@ export class StudioState {
     const old = this.nodes.get(key);
     const d = typeof e.duration_ms === "number" ? e.duration_ms : 0;
     let durs = old ? old.durs : new Durations(this.gen);
+    const before = old && durs.gen === this.gen ? durs.buckets : 0;
     if (durs.gen !== this.gen) durs = durs.clone(this.gen); // shared with a snapshot
     durs.add(d);
+    this.ownedCounters += durs.buckets - before;
     const count = old ? old.count : 0;
     // The node's last run decides: a failed run is red, a warning amber, a good run clears it.
     let level: Level = "info";
@@ -291,6 +296,7 @@ export class StudioState {
 
   snapshot(): Snapshot {
     this.gen += 1; // the histograms are the snapshot's now
+    this.ownedCounters = 0;
     return {
       nodes: new Map(this.nodes),
       edges: new Map(this.edges),
@@ -317,6 +323,7 @@ export class StudioState {
     this.traceLost = s.traceLost;
     this.exitPayload = s.exitPayload;
     this.gen += 1; // the histograms are still the snapshot's
+    this.ownedCounters = 0;
     this.markAllDirty();
   }
 

@@ -2,6 +2,7 @@
 import assert from "node:assert/strict";
 import { test } from "node:test";
 import { percentiles } from "../src/durations";
+import type { NodeStats } from "../src/state";
 import { ModelIndex, StudioState, edgeKey, nodeKey } from "../src/state";
 import type { ModelView, MonitorEvent } from "../src/types";
 
@@ -110,4 +111,21 @@ test("restoring a snapshot and re-applying gives the same state (replay scrubbin
   s.restore(snaps[8]);
   for (let i = 800; i < events.length; i++) s.apply(events[i]);
   assert.equal(stats(s), end);
+});
+
+test("ownedCounters: the histogram counters the next snapshot would keep", () => {
+  const s = new StudioState(new ModelIndex(model));
+  const a = (): NodeStats => s.nodes.get(nodeKey("L", "a"))!;
+  for (const ms of [10, 12]) s.apply(trace("a", "action", ms));
+  s.apply(trace("b", "action", 5));
+  assert.equal(s.ownedCounters, [...s.nodes.values()].reduce((n, v) => n + v.durs.buckets, 0));
+  const snap = s.snapshot();
+  assert.equal(s.ownedCounters, 0);
+  s.apply(trace("a", "action", 500)); // a's histogram is copied (and grows): b's stays shared
+  assert.equal(s.ownedCounters, a().durs.buckets);
+  assert.notEqual(a().durs, snap.nodes.get(nodeKey("L", "a"))!.durs);
+  assert.equal(snap.nodes.get(nodeKey("L", "a"))!.durs.count, 2);
+  assert.equal(snap.nodes.get(nodeKey("L", "a"))!.durs.max, 12);
+  s.restore(snap);
+  assert.equal(s.ownedCounters, 0);
 });
