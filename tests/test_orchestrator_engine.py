@@ -8,6 +8,7 @@ rules end to end.
 from __future__ import annotations
 
 import asyncio
+import logging
 import time
 from pathlib import Path
 from typing import Any
@@ -370,6 +371,30 @@ lanes:
     asyncio.run(main())
     lanes = {r[0] for r in records[:5000]}
     assert lanes == {"RaspberryPI", "DistanceRead"}
+
+
+def test_a_models_signal_board_holds_only_accepted_names_and_logs_foreign_ones_rarely(
+    caplog: pytest.LogCaptureFixture, capsys: pytest.CaptureFixture[str]
+) -> None:
+    caplog.set_level(logging.DEBUG)
+    now = [0.0]
+    model = compile_model(Path(__file__).parent / "models" / "held_signals.yaml")
+    board = SignalBoard.for_model(model, clock=lambda: now[0])
+    assert board.accepted == frozenset({"go", "note"})
+    assert board.deliver("done", 1) == 0  # the model's own send, accepted by none of its nodes
+    for second in range(150):  # a foreign name every 10 ms for 150 s
+        now[0] = float(second)
+        for i in range(100):
+            assert board.deliver(f"x{second}-{i}", i) == 0
+    board.deliver("note", "n")
+    assert board.held("note") and not board.held("done") and not board.held("x0-0")
+    assert board.ignored == 1 + 150 * 100
+    printed = capsys.readouterr()
+    logged = printed.out + printed.err + "\n".join(str(r.msg) for r in caplog.records)
+    # one line at the first, then at most one a minute (0 s, 60 s, 120 s), each with its count
+    assert logged.count("ignoring signals that no accept node of the model waits for") == 3, logged
+    assert "x0-0" in logged and "x60-0" in logged and "x120-0" in logged and "done" not in logged
+    assert "ignored=6000" in logged or "'ignored': 6000" in logged or '"ignored": 6000' in logged, logged
 
 
 def test_signal_board_holds_the_newest_unconsumed_occurrence() -> None:

@@ -7,6 +7,7 @@ assertions read the trace events and the commands the mock drivers recorded.
 from __future__ import annotations
 
 import json
+import logging
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -105,15 +106,46 @@ def test_signal_from_a_raw_mqtt_client_wakes_the_accept_event(
 def test_held_signal_and_text_payload(broker: BrokerProcess, raw_client: Callable[..., RawClient]) -> None:
     # a signal that arrives before anyone waits is held (newest wins); a non-JSON payload is text
     raw = raw_client(broker)
-    with rig(broker.url, "signals.yaml") as r:
+    raw.subscribe("umlbot/test/signal/done")
+    with rig(broker.url, "held_signals.yaml") as r:
         running = r.start()
         orch = running.orchestrator
         assert wait_for(lambda: orch.signals.waiting("go") == 1, 5.0)
-        raw.publish("umlbot/test/signal/other", "hello there")
-        assert wait_for(lambda: orch.signals.held("other"), 5.0)
-        orch.request_exit("test over")
-        assert running.wait() == 0
-        assert orch.exit_reason == "test over"
+        raw.publish("umlbot/test/signal/note", "1")
+        raw.publish("umlbot/test/signal/note", "hello there")
+        assert wait_for(lambda: orch.signals.held("note"), 5.0)
+        raw.publish("umlbot/test/signal/go", "")
+        assert running.wait() == 0, orch.failure
+        assert orch.engine.stores["RaspberryPI"]["note"] == "hello there"
+        assert json.loads(raw.get(topic="umlbot/test/signal/done").payload) == "hello there"
+
+
+def test_signal_names_no_accept_node_takes_are_ignored_with_one_log_line(
+    broker: BrokerProcess, raw_client: Callable[..., RawClient], caplog: pytest.LogCaptureFixture,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    # any client may publish under the robot's signal prefix: names the model does not accept are
+    # not held (memory stays bounded) and are logged once, not once per message
+    caplog.set_level(logging.DEBUG)
+    raw = raw_client(broker)
+    foreign = 300
+    with rig(broker.url, "held_signals.yaml") as r:
+        running = r.start()
+        orch = running.orchestrator
+        assert wait_for(lambda: orch.signals.waiting("go") == 1, 5.0)
+        for i in range(foreign):
+            raw.publish(f"umlbot/test/signal/intruder{i}", str(i))
+        raw.publish("umlbot/test/signal/note", "kept")
+        assert wait_for(lambda: orch.signals.ignored == foreign and orch.signals.held("note"), 10.0), \
+            orch.signals.ignored
+        assert not any(orch.signals.held(f"intruder{i}") for i in range(foreign))
+        raw.publish("umlbot/test/signal/go", "")
+        assert running.wait() == 0, orch.failure
+        assert orch.engine.stores["RaspberryPI"]["note"] == "kept"
+    printed = capsys.readouterr()
+    logged = printed.out + printed.err + "\n".join(str(r.msg) for r in caplog.records)
+    assert logged.count("ignoring signals that no accept node of the model waits for") == 1, logged[-2000:]
+    assert "intruder0" in logged and "intruder1'" not in logged and '"intruder1"' not in logged
 
 
 def test_exit_request_over_mqtt_sets_application_exit(

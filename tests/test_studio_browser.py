@@ -7,6 +7,8 @@ read what a person sees from the DOM/SVG and keep screenshots under out/ (look a
 from __future__ import annotations
 
 import json
+import math
+import random
 import re
 import subprocess
 from collections.abc import Iterator
@@ -149,6 +151,58 @@ def test_a_replay_scrubbed_to_a_moment_shows_that_moments_node_and_values(
         expect(active).to_have_attribute("data-node", "set_speed")
         expect(speed.locator("text.value")).to_have_text("70")
         expect(failed).not_to_have_class(_has("error"))
+        page.close()
+
+
+def _nearest_rank(samples: list[float], q: float) -> float:
+    ordered = sorted(samples)
+    return ordered[min(len(ordered), max(1, math.ceil(q * len(ordered)))) - 1]
+
+
+def test_p50_p99_of_many_samples_are_within_one_percent_in_bounded_memory(
+    browser: Browser, tmp_path: Path
+) -> None:
+    """20 000 runs of one node, replayed: the page's p50/p99 (a log-bucket histogram per node,
+    docs/studio.md) are within 1 % of the exact nearest-rank values at the end and at a scrubbed
+    moment, and the histogram holds as many counters after 20 000 samples as after 10 000."""
+    count = 20_000
+    rng = random.Random(20_000)
+    # lognormal around 8 ms, with a 2 % tail about ten times slower, at the trace's 1 µs resolution;
+    # the first two runs span the whole range, so no later sample needs a new bucket
+    def one_run() -> float:
+        ms = rng.lognormvariate(math.log(8.0), 0.4) * (10 if rng.random() < 0.02 else 1)
+        return round(min(200.0, max(1.0, ms)), 3)
+
+    durations = [1.0, 200.0] + [one_run() for _ in range(count - 2)]
+    t0 = 1_800_000_000.0
+    trace = tmp_path / "many.jsonl"
+    trace.write_text("".join(_trace_line("look_ahead", "action", t0 + i * 0.01, duration_ms=ms)
+                             for i, ms in enumerate(durations)), encoding="utf-8")
+    with studio(["studio", str(CAR_MODEL), "--replay", str(trace), "--port", "0"], tmp_path) as proc:
+        page = open_page(browser, proc.url)
+        show(page, "activity-main")
+        node = page.locator('g.node[data-lane="RaspberryPI"][data-node="look_ahead"]')
+        slider = page.locator("#replay-time")
+
+        def at(runs: int) -> tuple[float, float, int]:
+            """Scrub to just after the `runs`-th run: the shown p50, p99 and the page's counters."""
+            slider.evaluate("(el, v) => { el.value = String(v); el.dispatchEvent(new Event('input')); }",
+                            f"{(runs - 1) * 0.01 + 0.005:.3f}")
+            expect(node).to_have_attribute("data-count", str(runs))
+            counters = int(page.evaluate("window.__studio.durationCounters()"))
+            return (float(node.get_attribute("data-p50-ms") or "nan"),
+                    float(node.get_attribute("data-p99-ms") or "nan"), counters)
+
+        half, half_counters = count // 2, 0
+        for runs in (half, count, half):  # back in time too: the snapshot's values, not the end's
+            p50, p99, counters = at(runs)
+            for shown, q in ((p50, 0.5), (p99, 0.99)):
+                exact = _nearest_rank(durations[:runs], q)
+                # 1 % (the histogram) + 0.5 µs (the attribute is rounded to the microsecond)
+                assert abs(shown - exact) <= 0.01 * exact + 0.0005, (runs, q, shown, exact)
+            assert 0 < counters < 300, counters  # one node's histogram: ~1.2 % of its samples' count
+            half_counters = half_counters or counters
+            assert counters == half_counters, (runs, counters, half_counters)
         page.close()
 
 

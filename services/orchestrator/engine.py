@@ -170,7 +170,7 @@ class Engine:
     ) -> None:
         self.model = model
         self.port = port
-        self.signals = signals or SignalBoard()
+        self.signals = signals or SignalBoard.for_model(model)
         self.clock = clock or Clock(1.0)
         self.trace = trace
         self.stats = EngineStats()

@@ -121,7 +121,7 @@ class Orchestrator:
         self.exit_reason: str | None = None
         #: the last status published: starting, running, stopping, stopped or failed.
         self.state = "starting"
-        self.signals = SignalBoard()
+        self.signals = SignalBoard.for_model(compiled)
         self.engine = Engine(compiled, self, self.signals, self.clock)
         self.used = sorted(used_components(compiled))
         self.actuators = self._actuator_stops()
@@ -515,7 +515,9 @@ class Orchestrator:
         if message.retain:  # a retained signal is old news; only live occurrences count
             return
         name = message.topic.rsplit("/", 1)[-1]
-        self._to_loop(self.signals.deliver, name, _signal_payload(message.payload))
+        # a name the model does not accept is ignored on the loop (counted, logged rarely): not parsed
+        payload = _signal_payload(message.payload) if self.signals.accepts(name) else None
+        self._to_loop(self.signals.deliver, name, payload)
 
     def _on_exit_message(self, message: Message) -> None:
         if message.retain:  # a retained exit request would end every future run at once

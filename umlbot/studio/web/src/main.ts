@@ -11,11 +11,21 @@ import type { CallRow, Snapshot } from "./state";
 import { ModelIndex, StudioState, nodeKey } from "./state";
 import type { Diagnostic, HelloMsg, ModelView, MonitorEvent, ServerMsg } from "./types";
 
-interface StudioHooks { latencies: number[]; frames: number[]; ready: boolean; applied: number; edit: EditHooks | null }
+interface StudioHooks {
+  latencies: number[]; frames: number[]; ready: boolean; applied: number; edit: EditHooks | null;
+  durationCounters: () => number; // counters the nodes' duration histograms hold (memory; tests)
+}
 declare global {
   interface Window { __studio: StudioHooks }
 }
-const hooks: StudioHooks = { latencies: [], frames: [], ready: false, applied: 0, edit: null };
+const hooks: StudioHooks = {
+  latencies: [], frames: [], ready: false, applied: 0, edit: null,
+  durationCounters: () => {
+    let n = 0;
+    for (const s of state.nodes.values()) n += s.durs.buckets;
+    return n;
+  },
+};
 window.__studio = hooks;
 const KEEP = 10_000;
 const pushCapped = (a: number[], v: number): void => {
@@ -618,13 +628,20 @@ function tick(ts: number): void {
 
 // ---------------------------------------------------------------- replay
 
+// A snapshot of the state every SNAP_EVERY events, further apart when the duration histograms
+// it would keep (copied since the last one) exceed COUNTERS_PER_EVENT per event since then: the
+// snapshots' histograms take at most ~64 bytes per event of the trace (less than the event
+// itself), and a seek applies at most the events between two snapshots (~20 ms for the 22 000
+// of a trace spread evenly over 2 000 nodes).
 const SNAP_EVERY = 1000;
+const COUNTERS_PER_EVENT = 8;
 interface Replay {
   events: MonitorEvent[];
   times: Float64Array;
   t0: number;
   duration: number;
   snaps: Snapshot[];
+  snapPos: number[]; // events applied before each snapshot (ascending)
   pos: number; // events applied
   time: number; // seconds since the first event
   playing: boolean;
@@ -640,13 +657,21 @@ function setupReplay(events: MonitorEvent[]): void {
   sorted.forEach((e, i) => { times[i] = e.time; });
   const t0 = sorted.length ? sorted[0].time : 0;
   const snaps: Snapshot[] = [];
+  const snapPos: number[] = [];
+  let since = 0;
   for (let i = 0; i < sorted.length; i++) {
-    if (i % SNAP_EVERY === 0) snaps.push(state.snapshot());
+    if (i === 0 || (since >= SNAP_EVERY && COUNTERS_PER_EVENT * since >= state.ownedCounters)) {
+      snaps.push(state.snapshot());
+      snapPos.push(i);
+      since = 0;
+    }
     state.apply(sorted[i]);
+    since += 1;
   }
-  if (sorted.length % SNAP_EVERY === 0) snaps.push(state.snapshot());
   const duration = sorted.length ? sorted[sorted.length - 1].time - t0 : 0;
-  replay = { events: sorted, times, t0, duration, snaps, pos: 0, time: 0, playing: false, prevTs: 0, pendingTrace: null };
+  replay = {
+    events: sorted, times, t0, duration, snaps, snapPos, pos: 0, time: 0, playing: false, prevTs: 0, pendingTrace: null,
+  };
   state.restore(snaps[0] ?? state.snapshot());
   timeInput.min = "0";
   timeInput.max = duration.toFixed(3);
@@ -656,7 +681,7 @@ function setupReplay(events: MonitorEvent[]): void {
   updatePlay();
 }
 
-function upperBound(a: Float64Array, v: number): number {
+function upperBound(a: ArrayLike<number>, v: number): number {
   let lo = 0;
   let hi = a.length;
   while (lo < hi) {
@@ -672,10 +697,10 @@ function seek(t: number): void {
   const r = replay;
   r.time = Math.min(Math.max(t, 0), r.duration);
   const target = upperBound(r.times, r.t0 + r.time + 1e-9);
-  if (target < r.pos || target - r.pos > SNAP_EVERY) {
-    const s = Math.floor(target / SNAP_EVERY);
-    state.restore(r.snaps[Math.min(s, r.snaps.length - 1)]);
-    r.pos = Math.min(s, r.snaps.length - 1) * SNAP_EVERY;
+  const s = upperBound(r.snapPos, target) - 1; // the last snapshot at or before the target
+  if (s >= 0 && (target < r.pos || r.snapPos[s] > r.pos)) {
+    state.restore(r.snaps[s]);
+    r.pos = r.snapPos[s];
   }
   while (r.pos < target) {
     const e = r.events[r.pos++];

@@ -1,10 +1,11 @@
 // SVG drawing of the laid-out diagrams, and the live part: the state's changes are applied as
 // attribute/class/text changes on the existing elements (never a redraw), once per frame.
 
+import { percentiles } from "./durations";
 import type { ActivityLayout, ComponentLayout, NodeBox, Point } from "./layout";
 import { COMP_STATE_LINES } from "./layout";
 import type { Level, NodeStats, StudioState, ComponentState } from "./state";
-import { TRAIL, edgeKey, nextNodes, nodeKey, percentiles } from "./state";
+import { TRAIL, edgeKey, nextNodes, nodeKey } from "./state";
 import type { ModelView } from "./types";
 
 const SVGNS = "http://www.w3.org/2000/svg";
@@ -409,7 +410,7 @@ export class Renderer {
       const g = ne.g;
       g.setAttribute("data-count", String(count));
       if (s && count > 0) {
-        const [p50, p99] = percentiles(s.durs, count);
+        const [p50, p99] = percentiles(s.durs);
         g.setAttribute("data-last-ms", attrNum(s.lastMs));
         g.setAttribute("data-p50-ms", attrNum(p50));
         g.setAttribute("data-p99-ms", attrNum(p99));

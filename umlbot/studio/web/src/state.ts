@@ -1,9 +1,10 @@
 // The view state built from MonitorEvents: one code path for the live stream, the snapshot and
 // replay. Every map holds immutable values, so a snapshot is a shallow copy of the maps; the only
-// shared mutable data are the per-node duration arrays, which are written by position (the k-th
-// completion of a node always lands at index k), so replaying the same events rewrites the same
-// values and a snapshot only needs each node's count.
+// mutable data are the per-node duration histograms (durations.ts, bounded whatever the run's
+// length), copied on write: a snapshot starts a new generation, and a histogram of an older one
+// (shared with a snapshot) is cloned before it is added to.
 
+import { Durations } from "./durations";
 import type { ModelEdge, ModelNode, ModelView, MonitorEvent } from "./types";
 
 export type Level = "info" | "warning" | "error";
@@ -11,7 +12,7 @@ export type Level = "info" | "warning" | "error";
 export interface NodeStats {
   count: number;
   lastMs: number;
-  durs: number[]; // shared, positional; only the first `count` entries belong to this state
+  durs: Durations; // p50/p99 over every run; shared with snapshots (copy on write)
   hasValue: boolean; // a datastore's value is known
   value: unknown; // datastore: its value; decision: the node it went to
   level: Level;
@@ -111,6 +112,10 @@ export class StudioState {
   traceLost = 0;
   exitPayload: unknown = undefined;
   private callSerial = 0;
+  private gen = 0; // generation of the duration histograms this state may add to
+  /** Counters of the histograms this generation owns (made or copied since the last snapshot):
+   * what the next snapshot keeps beyond its maps. */
+  ownedCounters = 0;
 
   // What changed since the renderer last looked.
   dirtyNodes = new Set<string>();
@@ -176,9 +181,12 @@ export class StudioState {
     const key = nodeKey(lane, node);
     const old = this.nodes.get(key);
     const d = typeof e.duration_ms === "number" ? e.duration_ms : 0;
-    const durs = old ? old.durs : [];
+    let durs = old ? old.durs : new Durations(this.gen);
+    const before = old && durs.gen === this.gen ? durs.buckets : 0;
+    if (durs.gen !== this.gen) durs = durs.clone(this.gen); // shared with a snapshot
+    durs.add(d);
+    this.ownedCounters += durs.buckets - before;
     const count = old ? old.count : 0;
-    durs[count] = d;
     // The node's last run decides: a failed run is red, a warning amber, a good run clears it.
     let level: Level = "info";
     let message = "";
@@ -287,6 +295,8 @@ export class StudioState {
   }
 
   snapshot(): Snapshot {
+    this.gen += 1; // the histograms are the snapshot's now
+    this.ownedCounters = 0;
     return {
       nodes: new Map(this.nodes),
       edges: new Map(this.edges),
@@ -312,6 +322,8 @@ export class StudioState {
     this.traceSeq = s.traceSeq;
     this.traceLost = s.traceLost;
     this.exitPayload = s.exitPayload;
+    this.gen += 1; // the histograms are still the snapshot's
+    this.ownedCounters = 0;
     this.markAllDirty();
   }
 
@@ -331,49 +343,4 @@ export class StudioState {
     this.calledComponents.clear();
     this.allDirty = false;
   }
-}
-
-// Nearest-rank p50 and p99 of the first `count` samples, by quickselect on a copy.
-export function percentiles(durs: number[], count: number): [number, number] {
-  if (count <= 0) return [0, 0];
-  const a = new Float64Array(count);
-  for (let i = 0; i < count; i++) a[i] = durs[i];
-  const k99 = Math.min(count - 1, Math.max(0, Math.ceil(0.99 * count) - 1));
-  const p99 = select(a, k99);
-  // After selecting k99, everything left of it is <= p99: p50 lies there.
-  const k50 = Math.min(count - 1, Math.max(0, Math.ceil(0.5 * count) - 1));
-  const p50 = select(a, k50, 0, k99);
-  return [p50, p99];
-}
-
-function select(a: Float64Array, k: number, lo = 0, hi = a.length - 1): number {
-  while (hi > lo) {
-    const mid = (lo + hi) >> 1;
-    // median of three pivot
-    if (a[mid] < a[lo]) swap(a, mid, lo);
-    if (a[hi] < a[lo]) swap(a, hi, lo);
-    if (a[hi] < a[mid]) swap(a, hi, mid);
-    const pivot = a[mid];
-    let i = lo;
-    let j = hi;
-    while (i <= j) {
-      while (a[i] < pivot) i++;
-      while (a[j] > pivot) j--;
-      if (i <= j) {
-        swap(a, i, j);
-        i++;
-        j--;
-      }
-    }
-    if (k <= j) hi = j;
-    else if (k >= i) lo = i;
-    else return a[k];
-  }
-  return a[k];
-}
-
-function swap(a: Float64Array, i: number, j: number): void {
-  const t = a[i];
-  a[i] = a[j];
-  a[j] = t;
 }

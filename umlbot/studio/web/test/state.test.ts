@@ -1,7 +1,9 @@
 // Unit tests of the page's view state (run: npm test). The browser tests in tests/ cover the page.
 import assert from "node:assert/strict";
 import { test } from "node:test";
-import { ModelIndex, StudioState, edgeKey, nodeKey, percentiles } from "../src/state";
+import { percentiles } from "../src/durations";
+import type { NodeStats } from "../src/state";
+import { ModelIndex, StudioState, edgeKey, nodeKey } from "../src/state";
 import type { ModelView, MonitorEvent } from "../src/types";
 
 const model: ModelView = {
@@ -36,15 +38,6 @@ const model: ModelView = {
 let clock = 1000;
 const trace = (node: string, kind: string, ms: number, extra: Partial<MonitorEvent> = {}): MonitorEvent =>
   ({ type: "trace", time: (clock += 1), lane: "L", node, kind, duration_ms: ms, level: "info", ...extra });
-
-test("nearest-rank p50 and p99 of the durations", () => {
-  const d = [5, 1, 4, 2, 3];
-  assert.deepEqual(percentiles(d, 5), [3, 5]);
-  assert.deepEqual(percentiles(d, 4), [2, 5]); // only the first four samples: 5 1 4 2
-  const many = Array.from({ length: 1000 }, (_, i) => 1000 - i); // 1000 … 1
-  assert.deepEqual(percentiles(many, 1000), [500, 990]);
-  assert.deepEqual(percentiles([], 0), [0, 0]);
-});
 
 test("counts, last duration, datastore value, branch counts, trail", () => {
   const s = new StudioState(new ModelIndex(model));
@@ -103,12 +96,36 @@ test("restoring a snapshot and re-applying gives the same state (replay scrubbin
     if (i % 100 === 0) snaps.push(s.snapshot());
     s.apply(events[i]);
   }
-  const end = JSON.stringify([...s.nodes].map(([k, v]) => [k, v.count, percentiles(v.durs, v.count)]));
+  const end = JSON.stringify([...s.nodes].map(([k, v]) => [k, v.count, percentiles(v.durs)]));
+  assert.notEqual(end, JSON.stringify([...snaps[4].nodes].map(([k, v]) => [k, v.count, percentiles(v.durs)])));
   // back to event 250, then forward again to the end
+  const stats = (st: StudioState): string =>
+    JSON.stringify([...st.nodes].map(([k, v]) => [k, v.count, percentiles(v.durs)]));
   s.restore(snaps[2]);
   for (let i = 200; i < 250; i++) s.apply(events[i]);
   assert.equal(s.nodes.get(nodeKey("L", "m"))!.count, 83); // 83 rounds of 3 events, then a decision
+  // the snapshot's histograms were not changed by the events applied after it (copy on write)
+  const fresh = new StudioState(new ModelIndex(model));
+  for (let i = 0; i < 250; i++) fresh.apply(events[i]);
+  assert.equal(stats(s), stats(fresh));
   s.restore(snaps[8]);
   for (let i = 800; i < events.length; i++) s.apply(events[i]);
-  assert.equal(JSON.stringify([...s.nodes].map(([k, v]) => [k, v.count, percentiles(v.durs, v.count)])), end);
+  assert.equal(stats(s), end);
+});
+
+test("ownedCounters: the histogram counters the next snapshot would keep", () => {
+  const s = new StudioState(new ModelIndex(model));
+  const a = (): NodeStats => s.nodes.get(nodeKey("L", "a"))!;
+  for (const ms of [10, 12]) s.apply(trace("a", "action", ms));
+  s.apply(trace("b", "action", 5));
+  assert.equal(s.ownedCounters, [...s.nodes.values()].reduce((n, v) => n + v.durs.buckets, 0));
+  const snap = s.snapshot();
+  assert.equal(s.ownedCounters, 0);
+  s.apply(trace("a", "action", 500)); // a's histogram is copied (and grows): b's stays shared
+  assert.equal(s.ownedCounters, a().durs.buckets);
+  assert.notEqual(a().durs, snap.nodes.get(nodeKey("L", "a"))!.durs);
+  assert.equal(snap.nodes.get(nodeKey("L", "a"))!.durs.count, 2);
+  assert.equal(snap.nodes.get(nodeKey("L", "a"))!.durs.max, 12);
+  s.restore(snap);
+  assert.equal(s.ownedCounters, 0);
 });
