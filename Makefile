@@ -11,7 +11,7 @@ TRACK  ?= models/tracks/s_bend.yaml
 SPEED  ?= 10
 OUT    ?= out
 
-.PHONY: all install system-packages test lint typecheck pytest sim bench clean studio
+.PHONY: all install system-packages test lint typecheck pytest web sim bench clean studio
 
 all: test
 
@@ -39,7 +39,16 @@ typecheck: $(STAMP)
 pytest: system-packages $(STAMP)
 	$(BIN)/pytest
 
-test: system-packages lint typecheck pytest
+test: system-packages lint typecheck web pytest
+
+# The studio page's TypeScript: type check, unit tests (node --test), and the committed build in
+# umlbot/studio/static must be what its sources build to (npm ci needs the npm registry).
+WEB := umlbot/studio/web
+web: system-packages
+	cd $(WEB) && npm ci --no-audit --no-fund --loglevel=error && npm run --silent check && npm test --silent
+	@tmp=$$(mktemp -d) && trap 'rm -rf "$$tmp"' EXIT && (cd $(WEB) && node build.mjs --out "$$tmp" >/dev/null) \
+		&& diff -r "$$tmp" umlbot/studio/static >/dev/null \
+		|| { echo "umlbot/studio/static is not what $(WEB) builds to: run 'make studio' and commit it" >&2; exit 1; }
 
 sim: $(STAMP)
 	@mkdir -p $(OUT)
@@ -56,7 +65,7 @@ bench: $(STAMP)
 
 # Rebuild the studio page from its sources (needs Node.js and npm; the built page is committed).
 studio:
-	cd umlbot/studio/web && npm ci --no-audit --no-fund && npm run build
+	cd $(WEB) && npm ci --no-audit --no-fund && npm run build
 
 clean:
 	rm -rf $(VENV) $(OUT) .mypy_cache .ruff_cache .pytest_cache build *.egg-info

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The Debian packages `make test` needs besides Python: Mosquitto (the tests start their own),
 # Graphviz's `dot` (SVG diagrams), openssl (test certificates), systemd-analyze (unit checks),
-# chromium and chromium-driver (the studio's browser tests drive /usr/bin/chromium), and
+# chromium and chromium-driver (the studio's browser tests drive /usr/bin/chromium), nodejs and
+# npm (the studio page's TypeScript checks and unit tests), and
 # python3-venv when $PYTHON (default python3) is Debian's own Python without it: there
 # `python3 -m venv` fails (no ensurepip). A pyenv or other Python has its own venv.
 #
@@ -60,6 +61,8 @@ find_missing() {
     have systemd-analyze || missing+=(systemd)
     have chromium || missing+=(chromium)
     have chromedriver || missing+=(chromium-driver)
+    have node || missing+=(nodejs)
+    have npm || missing+=(npm)
     local venv
     venv="$(venv_package)"
     [ -z "$venv" ] || missing+=("$venv")

@@ -1,11 +1,13 @@
 // Builds the page into ../static (shipped inside the Python package): `npm ci && npm run build`.
+// `node build.mjs --out DIR` builds into DIR instead (`make test` compares it with ../static).
 import { build } from "esbuild";
 import { copyFileSync, mkdirSync, readFileSync, rmSync, writeFileSync } from "node:fs";
 import { dirname, join } from "node:path";
 import { fileURLToPath } from "node:url";
 
 const here = dirname(fileURLToPath(import.meta.url));
-const out = join(here, "..", "static");
+const at = process.argv.indexOf("--out");
+const out = at > 0 && process.argv[at + 1] ? process.argv[at + 1] : join(here, "..", "static");
 rmSync(out, { recursive: true, force: true });
 mkdirSync(out, { recursive: true });
 
