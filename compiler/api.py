@@ -15,7 +15,7 @@ from pathlib import Path
 from compiler.checker import check_source
 from compiler.compiled import CompiledModel
 from compiler.diagnostics import Diagnostic, Diagnostics, ModelErrors
-from compiler.source import SourceModel, load_source
+from compiler.source import SourceModel, Unreadable, load_source
 from umlbot.errors import ModelError
 
 
@@ -41,11 +41,13 @@ class CheckResult:
 
 
 def check_model(path: str | Path, deployment: str | Path | None = None,
-                files: Mapping[str, bytes] | None = None) -> CheckResult:
+                files: Mapping[str, bytes | Unreadable] | None = None) -> CheckResult:
     """Check the model at `path` (a folder or one file); `deployment` overrides its deployment file.
 
     `files` (path relative to the folder -> content) checks those files as the folder `path`
-    instead of what is on disk (the studio's working copy); messages name them as on disk.
+    instead of what is on disk (the studio's working copy); messages name them as on disk. A file
+    that could not be read is there as `Unreadable` (`compiler.source.read_model_folder` reads a
+    folder so): it is reported as `umlbot check` reports it.
     """
     diagnostics = Diagnostics()
     source: SourceModel | None = None

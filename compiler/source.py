@@ -121,15 +121,57 @@ class SourceModel:
     complete: bool = True
 
 
+@dataclass(frozen=True)
+class Unreadable:
+    """A model file that is there but could not be read, in place of its bytes in `files`, and why
+    (one line: "cannot read: Permission denied", "file too large (...)"). The reader reports it as
+    it reports the file on disk: one error at `file:1:1`, and no follow-ons."""
+
+    problem: str
+
+
+def read_model_file(path: Path) -> bytes | Unreadable:
+    """The bytes of one model file, or why they cannot be read (too large, an OS error)."""
+    try:
+        problem = too_large(path.stat().st_size)
+        if problem is not None:
+            return Unreadable(problem)
+        return path.read_bytes()  # grown meanwhile: `_Reader.read_text` measures it again
+    except OSError as exc:
+        return Unreadable(f"cannot read: {exc.strerror or exc}")
+
+
+def _activity_paths(root: Path) -> list[Path]:
+    """The activity files on disk (`activities/*.yaml`, `*.yml`), sorted; whatever has such a
+    name, a folder too (reading it is its error)."""
+    folder = root / ACTIVITIES_DIR
+    if not folder.is_dir():
+        return []
+    return sorted([*folder.glob("*.yaml"), *folder.glob("*.yml")])
+
+
+def read_model_folder(root: Path) -> dict[str, bytes | Unreadable]:
+    """The files of the model folder `root` that `load_source` reads, by relative path, as it
+    reads them: `load_source(root, files=read_model_folder(root))` reports what reading the folder
+    reports, an unreadable file included. The deployment files are all there (the first one is
+    read)."""
+    if not root.is_dir():
+        return {}
+    candidates = [root / MODEL_FILE, *(root / name for name in DEPLOYMENT_FILES)]
+    paths = [path for path in candidates if path.is_file()] + _activity_paths(root)
+    return {path.relative_to(root).as_posix(): read_model_file(path) for path in paths}
+
+
 class _Reader:
     """Reads files of one model, remembering their bytes for the content hash.
 
-    With `files` (relative path -> bytes) the model's files are those, not the disk's: the studio
-    checks its working copy this way, with the same messages and positions as on disk.
+    With `files` (relative path -> bytes, or `Unreadable`) the model's files are those, not the
+    disk's: the studio checks its working copy this way, with the same messages and positions as
+    on disk.
     """
 
     def __init__(self, root: Path, diagnostics: Diagnostics,
-                 files: Mapping[str, bytes] | None = None) -> None:
+                 files: Mapping[str, bytes | Unreadable] | None = None) -> None:
         self.root = root
         self.diagnostics = diagnostics
         self.files = files
@@ -142,11 +184,9 @@ class _Reader:
 
     def activity_files(self) -> list[Path]:
         """The activity files (`activities/*.yaml`, `*.yml`), sorted."""
-        folder = self.root / ACTIVITIES_DIR
         if self.files is None:
-            if not folder.is_dir():
-                return []
-            return sorted([*folder.glob("*.yaml"), *folder.glob("*.yml")])
+            return _activity_paths(self.root)
+        folder = self.root / ACTIVITIES_DIR
         return sorted(folder / rel.split("/", 1)[1] for rel in self.files
                       if _ACTIVITY_FILE.fullmatch(rel))
 
@@ -161,22 +201,17 @@ class _Reader:
 
     def read_text(self, path: Path) -> str:
         shown = self.display(path)
-        if self.files is not None:
-            given = self.files.get(self.relative(path))
-            if given is None:
-                raise ModelError("cannot read: No such file or directory", shown, 1, 1)
-            problem = too_large(len(given))
-            if problem is not None:
-                raise ModelError(problem, shown, 1, 1)
-            data = given
+        if self.files is None:
+            data = read_model_file(path)
         else:
-            try:
-                problem = too_large(path.stat().st_size)
-                if problem is not None:
-                    raise ModelError(problem, shown, 1, 1)
-                data = path.read_bytes()
-            except OSError as exc:
-                raise ModelError(f"cannot read: {exc.strerror}", shown, 1, 1) from None
+            given = self.files.get(self.relative(path))
+            data = Unreadable("cannot read: No such file or directory") if given is None else given
+        if isinstance(data, bytes):
+            problem = too_large(len(data))
+            if problem is not None:
+                data = Unreadable(problem)
+        if isinstance(data, Unreadable):
+            raise ModelError(data.problem, shown, 1, 1)
         self.contents[self.relative(path)] = data
         return decode_utf8(data, shown)
 
@@ -191,11 +226,12 @@ class _Reader:
 
 def load_source(path: str | Path, diagnostics: Diagnostics,
                 deployment_path: str | Path | None = None,
-                files: Mapping[str, bytes] | None = None) -> SourceModel:
+                files: Mapping[str, bytes | Unreadable] | None = None) -> SourceModel:
     """Read a model folder or a one-file model; shape problems go to `diagnostics`.
 
-    `files` (path relative to the folder -> content) replaces the folder's files on disk: the
-    model is read from them, and positions name the files as if they were on disk.
+    `files` (path relative to the folder -> content, or `Unreadable` for a file that is there but
+    could not be read: `read_model_folder`) replaces the folder's files on disk: the model is read
+    from them, and positions and messages name the files as if they were on disk.
     Raises `ModelError` only when nothing sensible can be read (missing folder, no model.yaml).
     """
     p = Path(path)

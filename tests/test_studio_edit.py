@@ -20,12 +20,15 @@ from typing import Any
 
 import aiohttp
 import pytest
+from click.testing import CliRunner
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from robot_run import CAR_MODEL, umlbot_argv
 from studio_support import read_frames, studio
 
 from compiler.api import check_model
+from umlbot import files as user_files
+from umlbot.cli import cli
 from umlbot.studio.api import EditApi
 from umlbot.studio.edit import EditError, apply_ops, parse_ops
 from umlbot.studio.model_view import model_view, source_view
@@ -45,7 +48,10 @@ def _bench_compile() -> Any:
 
 
 def _texts(root: Path) -> dict[str, str]:
-    return {rel: data.decode("utf-8") for rel, data in model_files(root).items()}
+    files = model_files(root)
+    texts = {rel: data.decode("utf-8") for rel, data in files.items() if isinstance(data, bytes)}
+    assert len(texts) == len(files), "every file of the model was read"
+    return texts
 
 
 def _apply(files: dict[str, str], ops: list[dict[str, Any]]) -> dict[str, str]:
@@ -431,6 +437,126 @@ def test_studio_says_on_start_that_the_layout_file_was_not_read(tmp_path: Path) 
     assert lines == [f"  {root / LAYOUT_FILE}:2:1: not UTF-8 text: byte 0xff: invalid start byte: the page "
                      "starts without the saved positions (saving rewrites the file)"]
     assert "Traceback" not in proc.log_text()
+
+
+# --- a model file that cannot be read -----------------------------------------------------------------
+
+UNREADABLE_CASES = ["not UTF-8", "a folder", "a dangling link", "too large", "no read permission"]
+
+
+def _make_unreadable(path: Path, case: str) -> str | None:
+    """Make the model file `path` unreadable as `case` says; the end of the line `umlbot check`
+    prints for it, or None when it is read after all (root reads a file without read permission)."""
+    if case == "not UTF-8":
+        path.write_bytes(b"lanes:\n  - lane: Measure\xff\n")
+        return ":2:18: error: not UTF-8 text: byte 0xff: invalid start byte"
+    if case == "a folder":
+        path.unlink()
+        path.mkdir()
+        return ":1:1: error: cannot read: Is a directory"
+    if case == "a dangling link":
+        path.unlink()
+        path.symlink_to(path.with_name("gone.yaml"))
+        return ":1:1: error: cannot read: No such file or directory"
+    if case == "too large":
+        path.write_bytes(b"#" * (user_files.MAX_FILE_BYTES + 1))
+        return f":1:1: error: file too large ({user_files.MAX_FILE_BYTES + 1} bytes, at most " \
+               f"{user_files.MAX_FILE_BYTES})"
+    assert case == "no read permission"
+    path.chmod(0)
+    return None if os.geteuid() == 0 else ":1:1: error: cannot read: Permission denied"
+
+
+def _fingerprint(path: Path) -> tuple[int, int, int, int, bytes | str]:
+    status = path.lstat()
+    try:
+        content: bytes | str = path.read_bytes()
+    except OSError as exc:
+        content = str(exc.strerror)
+    return status.st_ino, status.st_mode, status.st_size, status.st_mtime_ns, content
+
+
+@pytest.mark.parametrize("case", UNREADABLE_CASES)
+def test_the_studio_shows_umlbot_checks_lines_for_a_file_it_cannot_read(tmp_path: Path, case: str) -> None:
+    root = tmp_path / "car"
+    shutil.copytree(CAR_MODEL, root)
+    # main.yaml calls Measure and Glance of measure.yaml: a studio that skipped the file showed
+    # "unknown swimlane" for them and never named it
+    measure = root / "activities" / "measure.yaml"
+    problem = _make_unreadable(measure, case)
+    check = CliRunner().invoke(cli, ["check", str(root)])
+    workspace = Workspace(root)
+    shown = [d["text"] for d in workspace.check()["diagnostics"]]
+    assert shown == check.stdout.splitlines()
+    if problem is None:  # run as root: the file is read, and the car is fine
+        assert shown == [] and check.exit_code == 0 and workspace.result is not None
+        assert workspace.result.model is not None
+    else:
+        assert shown == [f"{measure}{problem}"] and check.exit_code == 1
+
+
+def test_no_operation_writes_over_a_file_that_cannot_be_read() -> None:
+    files: dict[str, str | None] = {**_texts(CAR_MODEL), "activities/measure.yaml": None,
+                                    "deployment.yaml": None}
+    refused = "cannot be read \\(its error is in the problems\\): the studio does not write over it"
+    cases = [
+        ({"op": "add_lane", "lane": "Look", "file": "activities/measure.yaml"},
+         f"activities/measure.yaml {refused}"),
+        # deployment.yaml comes before deployment.txt: it is the one the compiler reads
+        ({"op": "set_deployment", "component": "Sensor", "impl": "servo", "settings": {"gpio": 18}},
+         f"deployment.yaml {refused}"),
+        ({"op": "add_node", "lane": "Measure", "node": {"kind": "end"}},
+         "no swimlane 'Measure' in the files that can be read \\(activities/measure.yaml cannot be read\\)"),
+    ]
+    for op, message in cases:
+        with pytest.raises(EditError, match=message):
+            apply_ops(files, parse_ops([op]))
+    # a new swimlane goes to a new file, beside the unreadable one of the same name
+    assert list(apply_ops(files, parse_ops([{"op": "add_lane", "lane": "Measure"}]))) == [
+        "activities/measure_2.yaml"]
+
+
+@pytest.mark.parametrize("case", ["not UTF-8", "a folder", "no read permission"])
+def test_saving_leaves_a_file_it_cannot_read_as_it_was(tmp_path: Path, case: str) -> None:
+    root = tmp_path / "car"
+    shutil.copytree(CAR_MODEL, root)
+    measure = root / "activities" / "measure.yaml"
+    problem = _make_unreadable(measure, case)
+    before = _fingerprint(measure)
+    editor = Editor(root)
+    try:
+        into_it = {"op": "add_lane", "lane": "Look", "file": "activities/measure.yaml"}
+        status, answer = editor.post("edit", {"version": 0, "ops": [into_it]})
+        if problem is not None:
+            assert status == 400 and "activities/measure.yaml cannot be read" in answer["error"]
+        else:  # run as root: the file is read, so it can be edited; take the edit back
+            assert status == 200 and answer["changed"] == ["activities/measure.yaml"]
+            status, answer = editor.post("undo", {})
+            assert status == 200 and not answer["dirty"]
+        elsewhere = {"op": "set_node", "lane": "MoveForward", "id": "left_forward",
+                     "fields": {"call": "LeftActuator.direction(false)"}}
+        status, answer = editor.post("edit", {"version": answer.get("version", 0), "ops": [elsewhere]})
+        assert status == 200 and answer["changed"] == ["activities/motion.yaml"]
+        status, saved = editor.post("save", {"version": answer["version"]})
+        assert status == 200 and saved["saved"] == ["activities/motion.yaml"] and not saved["dirty"]
+        assert "LeftActuator.direction(false)" in (root / "activities" / "motion.yaml").read_text("utf-8")
+        assert _fingerprint(measure) == before
+        if problem is not None:  # fixed on disk, it is taken in like any change on disk
+
+            def fix_after_hello(frames: list[dict[str, Any]]) -> bool:
+                if len(frames) == 1:
+                    if measure.is_dir():
+                        measure.rmdir()
+                    shutil.copyfile(CAR_MODEL / "activities" / "measure.yaml", measure)
+                    measure.chmod(0o644)
+                return any(frame.get("type") == "files" for frame in frames[1:])
+
+            frames = read_frames(editor.url, fix_after_hello, timeout=20)
+            pushed = next(f for f in frames if f.get("type") == "files")
+            assert pushed["changed"] == ["activities/measure.yaml"]
+            assert pushed["diagnostics"] == [] and pushed["compiled"]
+    finally:
+        editor.thread.stop()
 
 
 def test_library_comes_from_the_component_library(car: tuple[Path, Editor]) -> None:

@@ -114,7 +114,7 @@ class EditApi:
         speed = body.get("speed", RUN_SPEED)
         if isinstance(speed, bool) or not isinstance(speed, int | float) or not 0.1 <= speed <= 100:
             raise EditError("'speed' is sim seconds per wall second, 0.1 to 100")
-        return self._sim().start(dict(ws.files), resolve_track(body.get("track") or "s_bend", ws.root),
+        return self._sim().start(ws.readable_files(), resolve_track(body.get("track") or "s_bend", ws.root),
                                  float(speed))
 
     def _poll(self, _: dict[str, Any]) -> list[dict[str, Any]]:

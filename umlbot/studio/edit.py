@@ -1,8 +1,9 @@
 """The studio's edit operations: each one a text edit of a model file (see `textedit`).
 
-`apply_ops(files, ops)` takes the working copy (relative path -> text) and a list of operations as
-the page sends them (docs/studio.md, "Editing") and returns the new texts of the files it changed
-(None: the file is removed). An operation that cannot be made raises `EditError` naming what is
+`apply_ops(files, ops)` takes the working copy (relative path -> text, None for a file that is there
+but cannot be read, which no operation changes) and a list of operations as the page sends them
+(docs/studio.md, "Editing") and returns the new texts of the files it changed (None: the file is
+removed). An operation that cannot be made raises `EditError` naming what is
 wrong; the whole batch is then dropped. Meaning is not checked here: the compiler does that on the
 result, so the page shows exactly `umlbot check`'s messages.
 """
@@ -82,16 +83,33 @@ def parse_ops(raw: Any) -> list[Op]:
     return ops
 
 
+_ACTIVITY_FILE = re.compile(rf"{ACTIVITIES_DIR}/[^/]+\.ya?ml")
+
+
 class Edits:
-    """The files being changed by one batch of operations (texts keyed by relative path)."""
+    """The files being changed by one batch of operations (texts keyed by relative path).
+
+    A file given as None is there but cannot be read (not UTF-8, no permission, not a file): an
+    operation that would change, replace or remove it is refused, so saving never loses it.
+    """
 
     def __init__(self, files: Mapping[str, str | None]) -> None:
         self.files: dict[str, str | None] = dict(files)
         self.changed: set[str] = set()
+        self.unreadable = {rel for rel, text in files.items() if text is None}
+
+    def exists(self, rel: str) -> bool:
+        return self.files.get(rel) is not None or rel in self.unreadable
+
+    def _refuse_unreadable(self, rel: str) -> None:
+        if rel in self.unreadable:
+            raise EditError(f"{rel} cannot be read (its error is in the problems): the studio does "
+                            "not write over it; fix or remove it on disk, then edit")
 
     def text(self, rel: str) -> Text:
         content = self.files.get(rel)
         if content is None:
+            self._refuse_unreadable(rel)
             raise EditError(f"{rel} does not exist")
         return Text(content, rel)
 
@@ -102,12 +120,14 @@ class Edits:
             self.changed.add(t.name)
 
     def create(self, rel: str, content: str) -> None:
+        self._refuse_unreadable(rel)
         if self.files.get(rel) is not None:
             raise EditError(f"{rel} exists already")
         self.files[rel] = content
         self.changed.add(rel)
 
     def remove(self, rel: str) -> None:
+        self._refuse_unreadable(rel)
         self.files[rel] = None
         self.changed.add(rel)
 
@@ -116,7 +136,7 @@ class Edits:
     def lane_files(self) -> list[str]:
         """Files that may hold swimlanes: model.yaml, then the activity files in order."""
         names = [rel for rel, text in self.files.items() if text is not None
-                 and re.fullmatch(rf"{ACTIVITIES_DIR}/[^/]+\.ya?ml", rel)]
+                 and _ACTIVITY_FILE.fullmatch(rel)]
         return [MODEL_FILE, *sorted(names)] if self.files.get(MODEL_FILE) is not None else sorted(names)
 
     def find_lane(self, lane: str, whole: bool = False
@@ -145,6 +165,11 @@ class Edits:
                             return t, cast(yaml.MappingNode, item), lanes, index
                 elif rel != MODEL_FILE and _scalar_text(get(root, "lane")) == lane:
                     return t, root, None, None
+        unread = sorted(rel for rel in self.unreadable
+                        if rel == MODEL_FILE or _ACTIVITY_FILE.fullmatch(rel))
+        if unread:
+            raise EditError(f"no swimlane {lane!r} in the files that can be read "
+                            f"({', '.join(unread)} cannot be read)")
         raise EditError(f"no swimlane {lane!r}")
 
     def model_root(self) -> tuple[Text, yaml.MappingNode]:
@@ -155,8 +180,8 @@ class Edits:
         return t, root
 
     def deployment_file(self) -> str | None:
-        for name in DEPLOYMENT_FILES:
-            if self.files.get(name) is not None:
+        for name in DEPLOYMENT_FILES:  # the first there is the one the compiler reads
+            if self.exists(name):
                 return name
         return None
 
@@ -435,7 +460,7 @@ def add_lane(e: Edits, op: Op) -> None:
         return
     stem = snake_case(lane)
     rel, n = f"{ACTIVITIES_DIR}/{stem}.yaml", 1
-    while e.files.get(rel) is not None or e.files.get(rel[:-5] + ".yml") is not None:
+    while e.exists(rel) or e.exists(rel[:-5] + ".yml"):
         n += 1
         rel = f"{ACTIVITIES_DIR}/{stem}_{n}.yaml"
     e.create(rel, f"lane: {lane}\nnodes:\n" + "".join(f"  - {flow(n)}\n" for n in starter))

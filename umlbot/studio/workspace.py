@@ -2,8 +2,10 @@
 
 The working copy is the model's files (relative path -> bytes) as the page has edited them; the
 compiler checks it in memory (`check_model(root, files=…)`), so its messages are `umlbot check`'s,
-naming the files as on disk. Saving writes only the files that differ, each atomically (a temp
-file in the same folder, then `os.replace`), and only inside the model folder. A file changed on
+naming the files as on disk; a model file that cannot be read (no permission, not a file, too
+large) is in it as `Unreadable`, reported as `umlbot check` reports it, never edited and never
+written. Saving writes only the files that differ, each atomically (a temp file in the same
+folder, then `os.replace`), and only inside the model folder. A file changed on
 disk is taken in when the working copy has not changed it; otherwise it is a conflict the user
 resolves (reload, or save with force). Positions the page chose live in `.umlbot-studio.json`,
 which the compiler never reads.
@@ -23,7 +25,7 @@ from pathlib import Path, PurePosixPath
 from typing import Any
 
 from compiler.api import CheckResult, check_model
-from compiler.source import ACTIVITIES_DIR, DEPLOYMENT_FILES, MODEL_FILE
+from compiler.source import ACTIVITIES_DIR, MODEL_FILE, Unreadable, read_model_folder
 from umlbot.errors import ModelError
 from umlbot.files import decode_utf8, too_large
 from umlbot.studio.edit import EditError, apply_ops, parse_ops
@@ -72,20 +74,15 @@ nodes:
 }
 
 
-def model_files(root: Path) -> dict[str, bytes]:
-    """The files of the model folder `root` that the compiler reads, by relative path."""
-    files: dict[str, bytes] = {}
-    if not root.is_dir():
-        return files
-    candidates = [root / MODEL_FILE, *(root / name for name in DEPLOYMENT_FILES)]
-    activities = root / ACTIVITIES_DIR
-    if activities.is_dir():
-        candidates += [*activities.glob("*.yaml"), *activities.glob("*.yml")]
-    for path in candidates:
-        if path.is_file():
-            with contextlib.suppress(OSError):
-                files[path.relative_to(root).as_posix()] = path.read_bytes()
-    return files
+#: a model file's content in the working copy: its bytes, or why it could not be read.
+Content = bytes | Unreadable
+
+
+def model_files(root: Path) -> dict[str, Content]:
+    """The files of the model folder `root` that the compiler reads, by relative path, as the
+    compiler reads them (`compiler.source.read_model_folder`): one it cannot read is there as
+    `Unreadable`, so the check names it as `umlbot check` does, and saving leaves it alone."""
+    return read_model_folder(root)
 
 
 def read_layout(root: Path) -> tuple[dict[str, Any], str | None]:
@@ -150,7 +147,7 @@ def write_atomic(root: Path, rel: str, data: bytes) -> None:
         raise
 
 
-def _differ(a: dict[str, bytes], b: dict[str, bytes]) -> list[str]:
+def _differ(a: dict[str, Content], b: dict[str, Content]) -> list[str]:
     """The paths whose content differs between two sets of files (or that only one has)."""
     return sorted(rel for rel in set(a) | set(b) if a.get(rel) != b.get(rel))
 
@@ -159,7 +156,7 @@ def _differ(a: dict[str, bytes], b: dict[str, bytes]) -> list[str]:
 class State:
     """One state of the working copy (what undo and redo go back and forth between)."""
 
-    files: dict[str, bytes]
+    files: dict[str, Content]
 
 
 @dataclass
@@ -207,7 +204,14 @@ class Workspace:
                 **self.answer_cache}
 
     def texts(self) -> dict[str, str]:
-        return {rel: data.decode("utf-8", "replace") for rel, data in sorted(self.files.items())}
+        """The files' texts (a bad byte shown as U+FFFD); a file that cannot be read is left out
+        (the diagnostics name it)."""
+        return {rel: data.decode("utf-8", "replace") for rel, data in sorted(self.files.items())
+                if isinstance(data, bytes)}
+
+    def readable_files(self) -> dict[str, bytes]:
+        """The files whose bytes the working copy holds (what a run copies)."""
+        return {rel: data for rel, data in self.files.items() if isinstance(data, bytes)}
 
     # --- checking ------------------------------------------------------------------------------------
 
@@ -251,9 +255,10 @@ class Workspace:
         texts: dict[str, str | None] = {}
         for rel, data in self.files.items():
             try:
-                texts[rel] = data.decode("utf-8")
+                texts[rel] = data.decode("utf-8") if isinstance(data, bytes) else None
             except UnicodeDecodeError:
-                texts[rel] = None  # not editable; the compiler reports it
+                texts[rel] = None
+            # None: there but unreadable, which an edit refuses to change; the compiler reports it
         changes = apply_ops(texts, text_ops) if text_ops else {}
         for op in layout_ops:
             diagram = op.diagram or "components"
@@ -315,7 +320,7 @@ class Workspace:
                 path = safe_path(self.root, rel)
                 with contextlib.suppress(FileNotFoundError):
                     path.unlink()
-            else:
+            elif isinstance(data, bytes):  # an unreadable file is never written over
                 write_atomic(self.root, rel, data)
         saved = list(changed)
         if self.layout != self.layout_disk:
