@@ -20,7 +20,7 @@ from compiler.diagnostics import Diagnostics, Location
 from compiler.yamlsrc import YMap, YNode, YScalar, YSeq, parse_yaml, to_python
 from umlbot.deployment import Deployment, is_plain_format
 from umlbot.errors import ModelError
-from umlbot.files import decode_utf8, too_large
+from umlbot.files import decode_utf8, file_problem, too_large
 
 MODEL_FILE = "model.yaml"
 ACTIVITIES_DIR = "activities"
@@ -133,7 +133,7 @@ class Unreadable:
 def read_model_file(path: Path) -> bytes | Unreadable:
     """The bytes of one model file, or why they cannot be read (too large, an OS error)."""
     try:
-        problem = too_large(path.stat().st_size)
+        problem = file_problem(path.stat())
         if problem is not None:
             return Unreadable(problem)
         return path.read_bytes()  # grown meanwhile: `_Reader.read_text` measures it again

@@ -5,8 +5,11 @@ in their errors and documented in docs/model-format.md."""
 from __future__ import annotations
 
 import asyncio
+import os
 import re
 import shutil
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -125,6 +128,18 @@ def test_an_activity_path_that_cannot_be_read_is_the_only_problem(tmp_path: Path
     activity.mkdir()  # read even by root: not a file
     result = CliRunner().invoke(cli, ["check", str(model)])
     assert result.stdout.splitlines() == [f"{activity}:1:1: error: cannot read: Is a directory"]
+
+
+def test_a_fifo_in_place_of_an_activity_file_is_refused_without_waiting(tmp_path: Path) -> None:
+    model = tmp_path / "car"
+    shutil.copytree(ROBOT_CAR, model)
+    activity = model / "activities" / "measure.yaml"
+    activity.unlink()
+    os.mkfifo(activity)  # opening it to read would wait for a writer for ever
+    argv = [sys.executable, "-c", "from umlbot.cli import main; main()", "check", str(model)]
+    result = subprocess.run(argv, capture_output=True, text=True, timeout=60, check=False)
+    assert result.stdout.splitlines() == [f"{activity}:1:1: error: not a regular file (a FIFO)"]
+    assert result.returncode == 1
 
 
 def test_without_the_unreadable_file_its_swimlanes_are_missing(tmp_path: Path) -> None:

@@ -10,6 +10,8 @@ limits); `load_yaml` puts it behind the same one-line errors for the small files
 
 from __future__ import annotations
 
+import os
+import stat
 from pathlib import Path
 from typing import Any
 
@@ -22,6 +24,19 @@ MAX_FILE_BYTES = 5_000_000
 def too_large(size: int) -> str | None:
     """The problem with a file of `size` bytes, or None when it is not too large."""
     return f"file too large ({size} bytes, at most {MAX_FILE_BYTES})" if size > MAX_FILE_BYTES else None
+
+
+_SPECIAL = ((stat.S_ISFIFO, "a FIFO"), (stat.S_ISSOCK, "a socket"), (stat.S_ISCHR, "a character device"),
+            (stat.S_ISBLK, "a block device"))
+
+
+def file_problem(status: os.stat_result) -> str | None:
+    """Why a file with this `stat` is not read (too large; a FIFO or a device, whose reading
+    could wait for ever), or None. A folder is left to the read's own error ("Is a directory")."""
+    for test, name in _SPECIAL:
+        if test(status.st_mode):
+            return f"not a regular file ({name})"
+    return too_large(status.st_size)
 
 
 def byte_position(data: bytes, offset: int) -> tuple[int, int]:
@@ -49,7 +64,7 @@ def read_text(path: str | Path, what: str, error: type[UmlbotError] = ConfigErro
     first bad byte."""
     file = Path(path)
     try:
-        problem = too_large(file.stat().st_size)
+        problem = file_problem(file.stat())
         if problem is not None:
             raise error(f"cannot read {what} {file}: {problem}")
         data = file.read_bytes()

@@ -27,7 +27,7 @@ from typing import Any
 from compiler.api import CheckResult, check_model
 from compiler.source import ACTIVITIES_DIR, MODEL_FILE, Unreadable, read_model_folder
 from umlbot.errors import ModelError
-from umlbot.files import decode_utf8, too_large
+from umlbot.files import decode_utf8, file_problem
 from umlbot.studio.edit import EditError, apply_ops, parse_ops
 from umlbot.studio.model_view import attribute, diagnostic_view, node_index, source_view
 
@@ -91,7 +91,7 @@ def read_layout(root: Path) -> tuple[dict[str, Any], str | None]:
     them, and saving rewrites the file. No file is no problem."""
     path = root / LAYOUT_FILE
     try:
-        problem = too_large(path.stat().st_size)
+        problem = file_problem(path.stat())
         if problem is not None:
             return {}, f"{path}: {problem}"
         text = decode_utf8(path.read_bytes(), str(path))
