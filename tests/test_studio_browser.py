@@ -228,9 +228,11 @@ def test_the_page_lists_the_checkers_messages_for_a_broken_model(browser: Browse
 
 
 def test_sim_studio_draws_the_track_the_car_and_its_pings(browser: Browser, tmp_path: Path) -> None:
-    track = REPO / "models" / "tracks" / "corridor.yaml"
-    proc = StudioProc(["sim", str(CAR_MODEL), "--track", str(track), "--port", "0", "--speed", "2",
-                       "--timeout", "20", "--studio", "--studio-port", "0"], tmp_path)
+    # a long track in real time (about 55 s to its goal): the car still drives when a page on a
+    # loaded machine has opened (on the corridor at twice the speed the run could end first)
+    track = REPO / "models" / "tracks" / "room_exit.yaml"
+    proc = StudioProc(["sim", str(CAR_MODEL), "--track", str(track), "--port", "0", "--speed", "1",
+                       "--timeout", "120", "--studio", "--studio-port", "0"], tmp_path)
     try:
         page = open_page(browser, proc.url)
         expect(page.locator("#sim svg")).to_be_visible()
