@@ -2,13 +2,16 @@
 
 Starts a broker (Mosquitto when installed, else the embedded one) on a free port, then, one after
 the other, `umlbot service KIND --deploy <car> --driver mock` for every kind and `umlbot service
-all`. Each process is measured once all its components are online and it has settled: VmRSS
-(resident set, what the issue's target is about), VmHWM (its peak) and Pss (shared library pages
-split between the processes that map them) from /proc/PID. The raw baselines of the same run are
+all`, with the environment the systemd unit sets (its `Environment=` lines, e.g. glibc's
+`MALLOC_MMAP_THRESHOLD_`, and the log level of deploy/umlbot.env.example). Each process is
+measured once all its components are online and it has settled: VmRSS (resident set, what the
+issue's target is about), VmHWM (its peak) and Pss (shared library pages split between the
+processes that map them) from /proc/PID. The raw baselines of the same run are
 a bare Python interpreter and a plain paho client connected to the broker.
 
-The last output line is one JSON object: {"results": [{"process", "components", "rss_mb",
-"hwm_mb", "pss_mb"}, ...], "four_kinds_rss_mb", "all_rss_mb", "target_rss_mb"}.
+The last output line is one JSON object: {"broker", "environment", "results": [{"process",
+"components", "rss_mb", "hwm_mb", "pss_mb"}, ...], "kinds", "kinds_rss_mb", "all_rss_mb",
+"max_service_rss_mb", "target_rss_mb"}.
 
     python bench/memory.py [--kinds motor,sonar,servo,gpio] [--settle 2] [--repeat 1]
 """
@@ -36,6 +39,8 @@ from rpc import free_port, wait_port
 
 REPO = Path(__file__).resolve().parent.parent
 DEPLOYMENT = REPO / "models" / "robot_car" / "deployment.yaml"
+UNIT = REPO / "deploy" / "systemd" / "umlbot-service@.service"
+ENV_EXAMPLE = REPO / "deploy" / "umlbot.env.example"
 ROBOT = "membench"
 KINDS = ("motor", "sonar", "servo", "gpio")
 #: components of the reference car by service kind
@@ -55,6 +60,20 @@ client.loop_start()
 print("ready", flush=True)
 threading.Event().wait()
 """
+
+
+def unit_environment() -> dict[str, str]:
+    """What the service unit puts in the environment: its `Environment=` lines and the log level
+    of the installed umlbot.env (a quieter or differently tuned service would measure otherwise)."""
+    env: dict[str, str] = {}
+    for line in UNIT.read_text().splitlines():
+        if line.startswith("Environment="):
+            key, _, value = line.removeprefix("Environment=").partition("=")
+            env[key] = value
+    for line in ENV_EXAMPLE.read_text().splitlines():
+        if line.startswith("UMLBOT_LOG_LEVEL="):
+            env["UMLBOT_LOG_LEVEL"] = line.partition("=")[2]
+    return env
 
 
 @contextlib.contextmanager
@@ -130,14 +149,13 @@ class OnlineWatch:
         self.client.loop_stop()
 
 
-def measure_service(kind: str, port: int, watch: OnlineWatch, settle_s: float) -> dict[str, Any]:
+def measure_service(kind: str, port: int, watch: OnlineWatch, settle_s: float,
+                    env: dict[str, str]) -> dict[str, Any]:
     components = set().union(*COMPONENTS.values()) if kind == "all" else COMPONENTS[kind]
     argv = [*umlbot(), "service", kind, "--deploy", str(DEPLOYMENT), "--driver", "mock",
             "--robot", ROBOT, "--broker", f"mqtt://127.0.0.1:{port}"]
     with tempfile.TemporaryFile() as log:
-        # the log level of the systemd units (INFO): a quieter service would look smaller
-        proc = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=log,
-                                env={**os.environ, "UMLBOT_LOG_LEVEL": "INFO"})
+        proc = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=log, env={**os.environ, **env})
         try:
             if not watch.wait(lambda online: components <= online, 30.0):
                 log.seek(0)
@@ -152,8 +170,9 @@ def measure_service(kind: str, port: int, watch: OnlineWatch, settle_s: float) -
     return {"process": f"umlbot service {kind}", "components": len(components), **_mb(memory)}
 
 
-def measure_script(name: str, argv: list[str], settle_s: float) -> dict[str, Any]:
-    proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+def measure_script(name: str, argv: list[str], settle_s: float, env: dict[str, str]) -> dict[str, Any]:
+    proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
+                            env={**os.environ, **env})
     try:
         assert proc.stdout is not None
         if argv[-1] != "bare":
@@ -189,18 +208,19 @@ def main(argv: list[str] | None = None) -> int:
     if unknown:
         parser.error(f"unknown kinds {unknown}; known: {', '.join(KINDS)}")
 
+    env = unit_environment()  # the baselines too, so that they compare like with like
     results: list[dict[str, Any]] = []
     with run_broker() as (broker, port):
         bare = [sys.executable, "-c", "import time; time.sleep(60)", "bare"]
-        results.append(median_of([measure_script("python (bare interpreter)", bare, args.settle)
+        results.append(median_of([measure_script("python (bare interpreter)", bare, args.settle, env)
                                   for _ in range(args.repeat)]))
-        results.append(median_of([measure_script("python + paho client (raw baseline)",
-                                                 [sys.executable, "-c", RAW_PAHO, str(port)], args.settle)
+        raw = [sys.executable, "-c", RAW_PAHO, str(port)]
+        results.append(median_of([measure_script("python + paho client (raw baseline)", raw, args.settle, env)
                                   for _ in range(args.repeat)]))
         watch = OnlineWatch(port)
         try:
             for kind in [*kinds, "all"]:
-                runs = [measure_service(kind, port, watch, args.settle) for _ in range(args.repeat)]
+                runs = [measure_service(kind, port, watch, args.settle, env) for _ in range(args.repeat)]
                 results.append(median_of(runs))
                 print(json.dumps(results[-1]), file=sys.stderr, flush=True)
         finally:
@@ -208,6 +228,7 @@ def main(argv: list[str] | None = None) -> int:
     services = [r for r in results if r["process"] in {f"umlbot service {kind}" for kind in kinds}]
     summary = {
         "broker": broker,
+        "environment": env,
         "results": results,
         "kinds_rss_mb": round(sum(r["rss_mb"] for r in services), 1),
         "kinds": kinds,

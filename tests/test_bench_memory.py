@@ -32,3 +32,9 @@ def test_memory_bench_measures_one_kind_and_all() -> None:
     # five components of four kinds in one process cost far less than two processes would
     assert every["rss_mb"] < 1.5 * motor["rss_mb"]
     assert summary["kinds_rss_mb"] == motor["rss_mb"] and summary["all_rss_mb"] == every["rss_mb"]
+    # measured with what the shipped service unit sets, not with a friendlier environment
+    unit = (REPO / "deploy" / "systemd" / "umlbot-service@.service").read_text().splitlines()
+    assigned = [line.removeprefix("Environment=").partition("=") for line in unit
+                if line.startswith("Environment=")]
+    assert assigned and {key: value for key, _, value in assigned} | {"UMLBOT_LOG_LEVEL": "INFO"} == \
+        summary["environment"]

@@ -9,7 +9,6 @@ came in time; an error reply raises `RemoteError` with its code.
 
 from __future__ import annotations
 
-import asyncio
 import contextlib
 import itertools
 import json
@@ -127,6 +126,8 @@ class BusClient:
     # the same signature as `call` on purpose, so the orchestrator can switch between them
     async def acall(self, component: str, feature: str, *args: Any, timeout: float = 2.0) -> Any:  # noqa: ASYNC109
         """The asyncio form of `call`: awaits the reply without blocking the event loop."""
+        import asyncio  # here: a hardware service never calls it, and asyncio costs it ~2 MB
+
         request_id, future = self._request(component, feature, args)
         try:
             reply = await asyncio.wait_for(asyncio.wrap_future(future), timeout)

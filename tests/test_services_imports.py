@@ -1,0 +1,135 @@
+"""What a hardware service process imports (issue "Memory": ≤ 40 MB resident per service).
+
+A real `umlbot service` runs against Mosquitto, answers a good and a bad call (request validation
+and the warning log line run), and then lists its `sys.modules`: the libraries the service does
+not use at run time must not be there, and the ones the issue keeps (pydantic at the boundary,
+structlog, paho, click) must. bench/memory.py measures the megabytes; this guards the cause
+cheaply and without a flaky RSS threshold.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+from conftest import BrokerProcess
+
+from services.bus import BrokerSettings, BusClient, Message, Topics
+from umlbot.errors import RemoteError
+
+ROOT = Path(__file__).resolve().parent.parent
+DEPLOYMENT = ROOT / "models" / "robot_car" / "deployment.yaml"
+ROBOT = "importcheck"
+
+#: Runs `umlbot service …` (argv after the two paths) and writes sorted(sys.modules) to the second
+#: path once the test creates the first: the modules of a service that has been serving.
+WRAPPER = """
+import sys, threading, time
+from pathlib import Path
+trigger, out = Path(sys.argv[1]), Path(sys.argv[2])
+def dump():
+    while not trigger.exists():
+        time.sleep(0.02)
+    Path(str(out) + ".part").write_text("\\n".join(sorted(sys.modules)))
+    Path(str(out) + ".part").rename(out)
+threading.Thread(target=dump, daemon=True).start()
+sys.argv = ["umlbot", *sys.argv[3:]]
+from umlbot.cli import main
+main()
+"""
+
+#: Imported by other commands only (compiler, simulator, studio, broker, monitor, orchestrator),
+#: by libraries only for features a service does not use (asyncio, rich and greenlet by structlog),
+#: or by the real GPIO drivers (the mock driver is running).
+ABSENT = (
+    "asyncio", "rich", "greenlet", "matplotlib", "numpy", "amqtt", "aiohttp",
+    "compiler.api", "compiler.checker", "compiler.source", "compiler.expr_parser", "compiler.compiled",
+    "compiler.render", "umlbot.sim", "umlbot.studio", "services.orchestrator", "services.monitor",
+    "services.bus.broker", "pigpio", "lgpio",
+)
+#: What the service keeps on purpose: request validation, logging, the MQTT client, the CLI.
+PRESENT = ("pydantic", "services.bus.envelopes", "structlog", "paho.mqtt.client", "click")
+
+
+#: The reference car's components by service kind.
+COMPONENTS = {"motor": {"LeftActuator", "RightActuator"}, "sonar": {"DistanceRead"}, "servo": {"Sensor"},
+              "gpio": {"RaspberryPI"}}
+
+
+def _wait_online(bus: BusClient, components: set[str], timeout_s: float) -> None:
+    """Until every component says `online` on its retained status topic."""
+    online: set[str] = set()
+
+    def on_status(message: Message) -> None:
+        component = message.topic.split("/")[2]
+        if message.payload and json.loads(message.payload).get("state") == "online":
+            online.add(component)
+
+    for component in components:
+        bus.subscribe(Topics(ROBOT).status(component), on_status)
+    deadline = time.monotonic() + timeout_s
+    while not components <= online:
+        assert time.monotonic() < deadline, f"online: {sorted(online)} of {sorted(components)}"
+        time.sleep(0.02)
+
+
+@pytest.mark.parametrize("kind", ["motor", "all"])
+def test_a_serving_service_imports_only_what_it_uses(
+    kind: str, mosquitto_broker: BrokerProcess, tmp_path: Path
+) -> None:
+    trigger, out = tmp_path / "dump-now", tmp_path / "modules.txt"
+    argv = [sys.executable, "-c", WRAPPER, str(trigger), str(out), "service", kind, "--deploy",
+            str(DEPLOYMENT), "--driver", "mock", "--robot", ROBOT, "--broker", mosquitto_broker.url]
+    service = subprocess.Popen(argv, stderr=subprocess.PIPE, text=True,
+                               env={**os.environ, "UMLBOT_LOG_LEVEL": "INFO"})
+    try:
+        with BusClient(BrokerSettings.from_url(mosquitto_broker.url), ROBOT, role="test") as bus:
+            _wait_online(bus, set().union(*COMPONENTS.values()) if kind == "all" else COMPONENTS[kind], 20.0)
+            bus.call("LeftActuator", "enabled", True, timeout=2.0)
+            with pytest.raises(RemoteError) as bad:
+                bus.call("LeftActuator", "enabled", timeout=2.0)  # a missing argument
+            assert bad.value.code == "bad_args"
+        trigger.touch()
+        deadline = time.monotonic() + 10.0
+        while not out.exists() and time.monotonic() < deadline:
+            time.sleep(0.02)
+        modules = set(out.read_text().splitlines())
+    finally:
+        service.terminate()
+        _, stderr = service.communicate(timeout=15)
+    assert service.returncode == 0, stderr[-3000:]
+    assert "service_started" in stderr and "Traceback" not in stderr
+    loaded = sorted(name for name in modules if name.split(".")[0] in ABSENT or name in ABSENT
+                    or any(name.startswith(prefix + ".") for prefix in ABSENT))
+    assert loaded == [], f"a {kind} service imported what it does not use: {loaded}"
+    assert set(PRESENT) <= modules
+
+
+ASYNC_LOGGING = """
+import sys
+from umlbot.logs import configure_logging, get_logger
+assert "asyncio" not in sys.modules, "umlbot.logs imported asyncio"
+configure_logging("INFO", json=True)
+import asyncio
+import structlog.stdlib
+
+async def main():
+    await get_logger("test.imports").ainfo("async_line", loop=type(asyncio.get_running_loop()).__name__)
+
+asyncio.run(main())
+# structlog's own name for asyncio resolves to the one asyncio module of the process
+assert structlog.stdlib.asyncio.get_running_loop is asyncio.get_running_loop
+"""
+
+
+def test_structlog_async_methods_still_work_where_asyncio_is_used() -> None:
+    """umlbot.logs gives structlog asyncio only on first use; its coroutine methods still log."""
+    result = subprocess.run([sys.executable, "-c", ASYNC_LOGGING], capture_output=True, text=True,
+                            timeout=60, check=False)
+    assert result.returncode == 0, result.stderr
+    assert '"event": "async_line"' in result.stderr and '"loop": "_UnixSelectorEventLoop"' in result.stderr
