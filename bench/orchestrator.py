@@ -374,7 +374,7 @@ def _lane_seconds(orchestrator: Orchestrator, began: float) -> float:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
-    parser.add_argument("--n", type=int, default=2000, help="actions per variant and broker")
+    parser.add_argument("--n", type=int, default=4000, help="actions per variant and broker")
     parser.add_argument("--blocks", type=int, default=12, help="rotating measurement blocks")
     parser.add_argument("--window", type=int, default=8, help="actions in one fork")
     parser.add_argument("--steps", type=int, default=100_000, help="loop iterations for node_steps_per_s")
