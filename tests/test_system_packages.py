@@ -11,7 +11,8 @@ ROOT = Path(__file__).resolve().parent.parent
 SCRIPT = ROOT / "scripts" / "system-packages.sh"
 #: Debian package -> the program the script looks for.
 PROGRAMS = {"mosquitto": "mosquitto", "graphviz": "dot", "openssl": "openssl",
-            "systemd": "systemd-analyze", "chromium": "chromium", "chromium-driver": "chromedriver"}
+            "systemd": "systemd-analyze", "chromium": "chromium", "chromium-driver": "chromedriver",
+            "nodejs": "node", "npm": "npm"}
 
 
 def run(path: str, *args: str, python: str | None = None) -> subprocess.CompletedProcess[str]:
