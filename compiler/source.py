@@ -24,6 +24,8 @@ from umlbot.files import decode_utf8, file_problem, too_large
 
 MODEL_FILE = "model.yaml"
 ACTIVITIES_DIR = "activities"
+#: the relative path of an activity file (`activities/<name>.yaml` or `.yml`).
+ACTIVITY_FILE = re.compile(rf"{ACTIVITIES_DIR}/[^/]+\.ya?ml")
 DEPLOYMENT_FILES = ("deployment.yaml", "deployment.yml", "deployment.txt")
 
 MODEL_KEYS = ("name", "call_timeout_s", "components", "links", "lanes", "deployment")
@@ -188,7 +190,7 @@ class _Reader:
             return _activity_paths(self.root)
         folder = self.root / ACTIVITIES_DIR
         return sorted(folder / rel.split("/", 1)[1] for rel in self.files
-                      if _ACTIVITY_FILE.fullmatch(rel))
+                      if ACTIVITY_FILE.fullmatch(rel))
 
     def display(self, path: Path) -> str:
         return str(path)
@@ -552,7 +554,6 @@ def _locate(root: YNode, path: tuple[int | str, ...]) -> Location:
 # --- helpers ---------------------------------------------------------------------------------------
 
 _IDENT = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
-_ACTIVITY_FILE = re.compile(rf"{ACTIVITIES_DIR}/[^/]+\.ya?ml")
 _IDENT_DASH = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_\-]*")
 
 

@@ -17,7 +17,14 @@ from typing import Any, cast
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
-from compiler.source import ACTIVITIES_DIR, DEPLOYMENT_FILES, MODEL_FILE, NODE_FIELDS, NODE_KINDS
+from compiler.source import (
+    ACTIVITIES_DIR,
+    ACTIVITY_FILE,
+    DEPLOYMENT_FILES,
+    MODEL_FILE,
+    NODE_FIELDS,
+    NODE_KINDS,
+)
 from umlbot.studio.library_view import check_settings
 from umlbot.studio.textedit import (
     EditError,
@@ -83,8 +90,6 @@ def parse_ops(raw: Any) -> list[Op]:
     return ops
 
 
-_ACTIVITY_FILE = re.compile(rf"{ACTIVITIES_DIR}/[^/]+\.ya?ml")
-
 
 class Edits:
     """The files being changed by one batch of operations (texts keyed by relative path).
@@ -136,7 +141,7 @@ class Edits:
     def lane_files(self) -> list[str]:
         """Files that may hold swimlanes: model.yaml, then the activity files in order."""
         names = [rel for rel, text in self.files.items() if text is not None
-                 and _ACTIVITY_FILE.fullmatch(rel)]
+                 and ACTIVITY_FILE.fullmatch(rel)]
         return [MODEL_FILE, *sorted(names)] if self.files.get(MODEL_FILE) is not None else sorted(names)
 
     def find_lane(self, lane: str, whole: bool = False
@@ -166,7 +171,7 @@ class Edits:
                 elif rel != MODEL_FILE and _scalar_text(get(root, "lane")) == lane:
                     return t, root, None, None
         unread = sorted(rel for rel in self.unreadable
-                        if rel == MODEL_FILE or _ACTIVITY_FILE.fullmatch(rel))
+                        if rel == MODEL_FILE or ACTIVITY_FILE.fullmatch(rel))
         if unread:
             raise EditError(f"no swimlane {lane!r} in the files that can be read "
                             f"({', '.join(unread)} cannot be read)")
