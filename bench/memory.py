@@ -6,14 +6,17 @@ all`, with the environment the systemd unit sets (its `Environment=` lines, e.g.
 `MALLOC_MMAP_THRESHOLD_`, and the log level of deploy/umlbot.env.example). Each process is
 measured once all its components are online and it has settled: VmRSS (resident set, what the
 issue's target is about), VmHWM (its peak) and Pss (shared library pages split between the
-processes that map them) from /proc/PID. The raw baselines of the same run are
-a bare Python interpreter and a plain paho client connected to the broker.
+processes that map them) from /proc/PID. Then the process is put to work — `--calls` rounds of
+every feature of each of its components, with an argument out of range every tenth round (an
+error reply) — and measured again: `used_rss_mb` is what a service that has served a run holds,
+and the target applies to it as to the idle figure. The raw baselines of the same run are a bare
+Python interpreter and a plain paho client connected to the broker.
 
 The last output line is one JSON object: {"broker", "environment", "results": [{"process",
-"components", "rss_mb", "hwm_mb", "pss_mb"}, ...], "kinds", "kinds_rss_mb", "all_rss_mb",
-"max_service_rss_mb", "target_rss_mb"}.
+"components", "rss_mb", "used_rss_mb", "hwm_mb", "pss_mb"}, ...], "kinds", "kinds_rss_mb",
+"all_rss_mb", "all_used_rss_mb", "max_service_rss_mb", "target_rss_mb"}.
 
-    python bench/memory.py [--kinds motor,sonar,servo,gpio] [--settle 2] [--repeat 1]
+    python bench/memory.py [--kinds motor,sonar,servo,gpio] [--settle 2] [--repeat 1] [--calls 100]
 """
 
 from __future__ import annotations
@@ -37,6 +40,9 @@ import paho.mqtt.client as mqtt
 from paho.mqtt.enums import CallbackAPIVersion
 from rpc import free_port, wait_port
 
+from services.bus import BrokerSettings, BusClient
+from umlbot.errors import RemoteError
+
 REPO = Path(__file__).resolve().parent.parent
 DEPLOYMENT = REPO / "models" / "robot_car" / "deployment.yaml"
 UNIT = REPO / "deploy" / "systemd" / "umlbot-service@.service"
@@ -47,6 +53,17 @@ KINDS = ("motor", "sonar", "servo", "gpio")
 COMPONENTS = {"motor": {"LeftActuator", "RightActuator"}, "sonar": {"DistanceRead"},
               "servo": {"Sensor"}, "gpio": {"RaspberryPI"}}
 TARGET_RSS_MB = 40.0
+#: one round of calls per component: (feature, good arguments, out-of-range arguments); the car's
+#: RaspberryPI has no pins in its deployment, so every call to it is refused
+WORKLOAD: dict[str, list[tuple[str, tuple[Any, ...] | None, tuple[Any, ...]]]] = {
+    "LeftActuator": [("enabled", (True,), ("yes",)), ("direction", (True,), (2,)),
+                     ("dutycycle", (40,), (400,))],
+    "RightActuator": [("enabled", (True,), ("yes",)), ("direction", (False,), (2,)),
+                      ("dutycycle", (60,), (-1,))],
+    "DistanceRead": [("value", (), (1,))],
+    "Sensor": [("angle", (90,), (999,))],
+    "RaspberryPI": [("readPin", None, (4,)), ("writePin", None, (17, 1))],
+}
 
 #: a minimal hand-written MQTT component: what any Python service on paho costs at least
 RAW_PAHO = """
@@ -149,8 +166,21 @@ class OnlineWatch:
         self.client.loop_stop()
 
 
+def put_to_work(client: BusClient, components: set[str], rounds: int) -> None:
+    """`rounds` rounds of every feature of `components`; every tenth round out of range (refused)."""
+    for round_ in range(rounds):
+        for component in sorted(components):
+            for feature, good, bad in WORKLOAD[component]:
+                if good is None or round_ % 10 == 9:
+                    with contextlib.suppress(RemoteError):
+                        client.call(component, feature, *bad)
+                        raise RuntimeError(f"{component}.{feature}{bad} was not refused")
+                else:
+                    client.call(component, feature, *good)
+
+
 def measure_service(kind: str, port: int, watch: OnlineWatch, settle_s: float,
-                    env: dict[str, str]) -> dict[str, Any]:
+                    env: dict[str, str], client: BusClient, rounds: int) -> dict[str, Any]:
     components = set().union(*COMPONENTS.values()) if kind == "all" else COMPONENTS[kind]
     argv = [*umlbot(), "service", kind, "--deploy", str(DEPLOYMENT), "--driver", "mock",
             "--robot", ROBOT, "--broker", f"mqtt://127.0.0.1:{port}"]
@@ -162,12 +192,16 @@ def measure_service(kind: str, port: int, watch: OnlineWatch, settle_s: float,
                 raise RuntimeError(f"service {kind} did not come online: {log.read()[-2000:]!r}")
             time.sleep(settle_s)
             memory = proc_memory(proc.pid)
+            put_to_work(client, components, rounds)
+            time.sleep(settle_s)
+            used = proc_memory(proc.pid)
         finally:
             proc.terminate()
             proc.wait(15)
         if not watch.wait(lambda online: not components & online, 15.0):
             raise RuntimeError(f"service {kind} did not go offline")
-    return {"process": f"umlbot service {kind}", "components": len(components), **_mb(memory)}
+    return {"process": f"umlbot service {kind}", "components": len(components), **_mb(memory),
+            "used_rss_mb": round(used["VmRSS"], 1), "hwm_mb": round(used["VmHWM"], 1)}
 
 
 def measure_script(name: str, argv: list[str], settle_s: float, env: dict[str, str]) -> dict[str, Any]:
@@ -192,8 +226,9 @@ def _mb(memory: dict[str, float]) -> dict[str, float]:
 
 def median_of(runs: list[dict[str, Any]]) -> dict[str, Any]:
     first = dict(runs[0])
-    for key in ("rss_mb", "hwm_mb", "pss_mb"):
-        first[key] = round(statistics.median(run[key] for run in runs), 1)
+    for key in ("rss_mb", "used_rss_mb", "hwm_mb", "pss_mb"):
+        if key in first:
+            first[key] = round(statistics.median(run[key] for run in runs), 1)
     return first
 
 
@@ -202,6 +237,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--kinds", default=",".join(KINDS), help="service kinds to measure one by one")
     parser.add_argument("--settle", type=float, default=2.0, help="seconds online before measuring")
     parser.add_argument("--repeat", type=int, default=1, help="measure each process this often (median)")
+    parser.add_argument("--calls", type=int, default=100,
+                        help="rounds of calls to every feature before the second measurement")
     args = parser.parse_args(argv)
     kinds = [k for k in args.kinds.split(",") if k]
     unknown = sorted(set(kinds) - set(KINDS))
@@ -218,12 +255,16 @@ def main(argv: list[str] | None = None) -> int:
         results.append(median_of([measure_script("python + paho client (raw baseline)", raw, args.settle, env)
                                   for _ in range(args.repeat)]))
         watch = OnlineWatch(port)
+        client = BusClient(BrokerSettings.from_url(f"mqtt://127.0.0.1:{port}"), ROBOT)
+        client.start(10.0)
         try:
             for kind in [*kinds, "all"]:
-                runs = [measure_service(kind, port, watch, args.settle, env) for _ in range(args.repeat)]
+                runs = [measure_service(kind, port, watch, args.settle, env, client, args.calls)
+                        for _ in range(args.repeat)]
                 results.append(median_of(runs))
                 print(json.dumps(results[-1]), file=sys.stderr, flush=True)
         finally:
+            client.close()
             watch.close()
     services = [r for r in results if r["process"] in {f"umlbot service {kind}" for kind in kinds}]
     summary = {
@@ -233,8 +274,9 @@ def main(argv: list[str] | None = None) -> int:
         "kinds_rss_mb": round(sum(r["rss_mb"] for r in services), 1),
         "kinds": kinds,
         "all_rss_mb": next(r["rss_mb"] for r in results if r["process"] == "umlbot service all"),
+        "all_used_rss_mb": next(r["used_rss_mb"] for r in results if r["process"] == "umlbot service all"),
         "target_rss_mb": TARGET_RSS_MB,
-        "max_service_rss_mb": max((r["rss_mb"] for r in services), default=None),
+        "max_service_rss_mb": max((max(r["rss_mb"], r["used_rss_mb"]) for r in services), default=None),
     }
     print(json.dumps(summary))
     return 0

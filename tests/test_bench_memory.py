@@ -16,7 +16,8 @@ REPO = Path(__file__).resolve().parent.parent
 
 def test_memory_bench_measures_one_kind_and_all() -> None:
     result = subprocess.run(
-        [sys.executable, str(REPO / "bench" / "memory.py"), "--kinds", "motor", "--settle", "0.5"],
+        [sys.executable, str(REPO / "bench" / "memory.py"), "--kinds", "motor", "--settle", "0.5",
+         "--calls", "10"],
         capture_output=True, text=True, timeout=180, check=False,
     )
     assert result.returncode == 0, result.stderr[-3000:]
@@ -29,9 +30,12 @@ def test_memory_bench_measures_one_kind_and_all() -> None:
     for row in (motor, every):
         assert bare["rss_mb"] < row["rss_mb"] <= row["hwm_mb"]
         assert 0 < row["pss_mb"] <= row["rss_mb"]
+        assert bare["rss_mb"] < row["used_rss_mb"] <= row["hwm_mb"]  # measured again after the calls
     # five components of four kinds in one process cost far less than two processes would
     assert every["rss_mb"] < 1.5 * motor["rss_mb"]
     assert summary["kinds_rss_mb"] == motor["rss_mb"] and summary["all_rss_mb"] == every["rss_mb"]
+    assert summary["all_used_rss_mb"] == every["used_rss_mb"]
+    assert summary["max_service_rss_mb"] == max(motor["rss_mb"], motor["used_rss_mb"])
     # measured with what the shipped service unit sets, not with a friendlier environment
     unit = (REPO / "deploy" / "systemd" / "umlbot-service@.service").read_text().splitlines()
     assigned = [line.removeprefix("Environment=").partition("=") for line in unit

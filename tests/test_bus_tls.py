@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import shutil
 import subprocess
+import sys
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -65,6 +66,30 @@ def test_calls_over_tls(tls_broker: tuple[int, Path]) -> None:
     with ComponentServer(settings, "tlscar", "Sensor", "hcsr04", features), \
             BusClient(BrokerSettings.from_url(f"mqtts://127.0.0.1:{port}", ca_file=ca), "tlscar") as client:
         assert client.call("Sensor", "value") == 99
+
+
+FRESH_TLS_CALL = """
+import sys
+from services.bus import BrokerSettings, BusClient, ComponentServer, Feature
+from umlbot.library import FeatureSpec
+assert "ssl" not in sys.modules  # paho's ssl is deferred (umlbot.lazy): imported by the first TLS use
+port, ca = int(sys.argv[1]), sys.argv[2]
+features = [Feature(FeatureSpec("value", (), "int"), lambda: 7)]
+with ComponentServer(BrokerSettings.from_url(f"mqtts://127.0.0.1:{port}?ca={ca}"), "tlscar", "Sensor",
+                     "hcsr04", features), \
+        BusClient(BrokerSettings.from_url(f"mqtts://127.0.0.1:{port}", ca_file=ca), "tlscar") as client:
+    assert client.call("Sensor", "value") == 7
+assert "ssl" in sys.modules
+print("tls call ok")
+"""
+
+
+def test_tls_works_in_a_process_that_had_not_imported_ssl(tls_broker: tuple[int, Path]) -> None:
+    port, ca = tls_broker
+    result = subprocess.run([sys.executable, "-c", FRESH_TLS_CALL, str(port), str(ca)], capture_output=True,
+                            text=True, timeout=60, check=False)
+    assert result.returncode == 0, result.stderr[-3000:]
+    assert result.stdout.splitlines()[-1] == "tls call ok"
 
 
 def test_tls_refuses_an_unknown_ca_unless_insecure(tls_broker: tuple[int, Path]) -> None:

@@ -44,10 +44,12 @@ main()
 """
 
 #: Imported by other commands only (compiler, simulator, studio, broker, monitor, orchestrator),
-#: by libraries only for features a service does not use (asyncio, rich and greenlet by structlog),
+#: by libraries only for features a service does not use (asyncio, rich and greenlet by structlog;
+#: ssl, urllib.request and http.client by paho, for TLS and proxies),
 #: or by the real GPIO drivers (the mock driver is running).
 ABSENT = (
-    "asyncio", "rich", "greenlet", "matplotlib", "numpy", "amqtt", "aiohttp",
+    "asyncio", "rich", "greenlet", "ssl", "urllib.request", "http.client", "matplotlib", "numpy", "amqtt",
+    "aiohttp",
     "compiler.api", "compiler.checker", "compiler.source", "compiler.expr_parser", "compiler.compiled",
     "compiler.render", "umlbot.sim", "umlbot.studio", "services.orchestrator", "services.monitor",
     "services.bus.broker", "pigpio", "lgpio",

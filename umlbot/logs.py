@@ -2,58 +2,23 @@
 
 from __future__ import annotations
 
-import importlib
 import logging
 import os
 import sys
-import types
 from typing import Any
 
+from umlbot.lazy import import_lean
 
-class _Deferred(types.ModuleType):
-    """Stands in for a module while structlog is imported; the real one is imported on first use.
-
-    structlog imports asyncio at the top of `structlog.stdlib` but uses it only inside its `a…`
-    coroutine methods (`await log.ainfo(...)`), which the services never call: importing it anyway
-    costs about 2 MB in every process. Attributes are looked up on the real module, imported then
-    (by the import system, with its locks), so the asyncio programs (broker, studio) are unchanged.
-    """
-
-    def __getattr__(self, name: str) -> Any:
-        if sys.modules.get(self.__name__) is self:
-            raise AttributeError(f"{self.__name__}.{name} used while structlog is being imported")
-        return getattr(importlib.import_module(self.__name__), name)
-
-
-def _import_structlog() -> None:
-    """Import structlog without what it only imports, for features umlbot does not use.
-
-    - rich (about 4 MB), when installed, only draws tracebacks on a terminal; its plain tracebacks
-      say the same, and `umlbot monitor` imports rich itself.
-    - greenlet (about 1 MB; installed with the test tools) only backs the deprecated
-      `structlog.threadlocal`, which then uses `threading.local`.
-    - asyncio: see `_Deferred`.
-
-    A module imported before this (e.g. rich by the monitor) is used as it is. The stand-ins are
-    taken out of `sys.modules` again afterwards, so later imports get the real modules.
-    """
-    stand_ins: dict[str, types.ModuleType | None] = {}
-    for name in ("rich", "greenlet"):
-        if name not in sys.modules:
-            stand_ins[name] = None  # makes `import rich` raise ImportError
-    if "asyncio" not in sys.modules:
-        stand_ins["asyncio"] = _Deferred("asyncio")
-    sys.modules.update(stand_ins)  # type: ignore[arg-type]  # None blocks an import
-    try:
-        import structlog  # noqa: F401  # bound globally below
-    finally:
-        for name, stand_in in stand_ins.items():
-            if sys.modules.get(name) is stand_in:
-                del sys.modules[name]
-
-
-_import_structlog()
-import structlog  # noqa: E402  # already imported by _import_structlog
+# structlog without what it imports only for features umlbot does not use:
+# - rich (about 4 MB), when installed, only draws tracebacks on a terminal; its plain tracebacks
+#   say the same, and `umlbot monitor` imports rich itself;
+# - greenlet (about 1 MB; installed with the test tools) only backs the deprecated
+#   `structlog.threadlocal`, which then uses `threading.local`;
+# - asyncio (about 2 MB), imported at the top of `structlog.stdlib`, is used only inside its `a…`
+#   coroutine methods (`await log.ainfo(...)`), which the services never call: deferred, so the
+#   asyncio programs (broker, studio, orchestrator) are unchanged.
+import_lean("structlog.stdlib", deferred=("asyncio",), blocked=("rich", "greenlet"))
+import structlog  # noqa: E402  # already imported, lean
 
 _configured = False
 

@@ -12,14 +12,12 @@ import contextlib
 import queue
 import random
 import socket
-import ssl
 import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import paho.mqtt.client as mqtt
 from paho.mqtt.enums import CallbackAPIVersion, MQTTErrorCode, MQTTProtocolVersion
 from paho.mqtt.packettypes import PacketTypes
 from paho.mqtt.properties import Properties
@@ -27,7 +25,15 @@ from paho.mqtt.properties import Properties
 from services.bus.envelopes import parse_json, to_payload
 from services.bus.settings import BrokerSettings, make_client_id
 from umlbot.errors import BrokerRefused, BusError, ConfigError, NotConnected
+from umlbot.lazy import import_lean
 from umlbot.logs import get_logger
+
+if TYPE_CHECKING:
+    import paho.mqtt.client as mqtt
+else:
+    # paho imports ssl (about 1.2 MB) for TLS, and urllib.request (2.6 MB with http.client) only to
+    # read proxy settings when PySocks is installed: both deferred until used (docs/performance.md)
+    mqtt = import_lean("paho.mqtt.client", deferred=("ssl", "urllib.request"))
 
 log = get_logger(__name__)
 
@@ -190,6 +196,8 @@ class BusConnection:
             password = settings.password.get_secret_value() if settings.password is not None else None
             client.username_pw_set(settings.username, password)
         if settings.tls:
+            import ssl
+
             try:
                 client.tls_set(
                     ca_certs=str(settings.ca_file) if settings.ca_file else None,
@@ -562,7 +570,7 @@ class BusConnection:
                     self._client.connect(self.settings.host, self.settings.port, self.settings.keepalive_s)
                 else:
                     self._client.reconnect()
-            except (OSError, ssl.SSLError) as exc:
+            except OSError as exc:  # ssl.SSLError is an OSError
                 self._last_error = f"{type(exc).__name__}: {exc}"
                 if self._closing.is_set():  # start() gave up meanwhile and said why
                     break
