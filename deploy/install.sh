@@ -214,7 +214,7 @@ else
     umask 027
     cat >"$ENVFILE" <<EOF
 # /etc/umlbot/umlbot.env — read by every umlbot unit. Keep it root:umlbot 0640: the broker URL
-# may carry a password. /etc/umlbot/<motor|sonar|servo|gpio|orchestrator>.env may override
+# may carry a password. /etc/umlbot/<role>.env (a service kind, all, orchestrator) may override
 # UMLBOT_BROKER with that role's own MQTT user (see docs/security.md).
 UMLBOT_ROBOT=$ROBOT
 UMLBOT_BROKER=$BROKER

@@ -184,6 +184,25 @@ def test_refused_subscriptions_are_reported_with_their_filter(secured: SecuredBr
         assert refused == {}
 
 
+def test_a_monitor_whose_subscription_is_refused_says_so(secured: SecuredBroker) -> None:
+    """`umlbot monitor` as a user who may not read the robot's topics: on amqtt (which refuses the
+    subscription in its SUBACK) one error line and exit 1, not a silent empty watch."""
+    url = url_of(secured, "sonar")
+    result = subprocess.run(
+        [sys.executable, "-c", "from umlbot.cli import main; main()", "monitor", "--robot", ROBOT, "--json",
+         "--duration", "1"],
+        capture_output=True, text=True, timeout=60, check=False, env={**os.environ, "UMLBOT_BROKER": url},
+    )
+    if secured.kind == "amqtt":
+        assert result.returncode == 1, result.stderr
+        assert (f"error: the broker refused the subscription to umlbot/{ROBOT}/# (may this user read the "
+                "robot's topics? see docs/security.md): Unspecified error") in result.stderr.splitlines()
+    else:  # Mosquitto grants it and filters every message: the monitor watches what it may read
+        assert result.returncode == 0, result.stderr
+        assert "refused" not in result.stderr
+    assert secured.passwords["sonar"] not in result.stderr
+
+
 def test_the_all_services_user_serves_every_component_and_nothing_else(
     secured: SecuredBroker, connect: Any
 ) -> None:

@@ -10,6 +10,7 @@ from services.bus.connection import BusConnection, Message
 from services.bus.settings import BrokerSettings
 from services.bus.topics import check_name
 from services.monitor.state import MonitorEvent, MonitorState
+from umlbot.errors import BrokerRefused
 
 EventSink = Callable[[MonitorEvent], None]
 
@@ -33,7 +34,8 @@ class LiveMonitor:
         self.lock = threading.Lock()
         self._on_event = on_event
         self._connection = BusConnection(settings, "monitor", robot=robot or "any")
-        self._connection.subscribe(topic_filter(robot), self._handle)
+        self._filter = topic_filter(robot)
+        self._connection.subscribe(self._filter, self._handle)
 
     @property
     def connected(self) -> bool:
@@ -41,8 +43,17 @@ class LiveMonitor:
 
     def start(self, timeout: float | None = 5.0) -> None:
         """Connect; raises NotConnected when the broker is not reached within `timeout` (None:
-        connect in the background and keep trying)."""
+        connect in the background and keep trying), and BrokerRefused when the broker refuses the
+        subscription to the robot's topics (its ACL; amqtt says so in its SUBACK, Mosquitto grants
+        it and filters each message instead): a monitor that would show nothing says why."""
         self._connection.start(timeout)
+        if timeout is None:
+            return
+        self._connection.wait_subscribed(timeout)
+        refused = self._connection.refused_subscriptions.get(self._filter)
+        if refused is not None:
+            raise BrokerRefused(f"the subscription to {self._filter} (may this user read the robot's "
+                                "topics? see docs/security.md)", refused)
 
     def tick(self, now: float | None = None) -> None:
         """Report calls that stayed unanswered (call it about once a second)."""

@@ -55,8 +55,9 @@ def timeout_hint(component: str, robot: str, username: str | None, protocol: str
     hint = f"is the {component} service running for robot {robot!r}?"
     if username is not None and protocol != "5":
         hint += (f" On a broker with users the ACL may also have dropped the request of user "
-                 f"{username!r} without a word (MQTT 3.1.1 has no error for it; add ?protocol=5 "
-                 f"to the broker URL to hear the broker's reason)")
+                 f"{username!r} without a word (MQTT 3.1.1 has no error for it; on a broker that "
+                 f"speaks MQTT 5, such as Mosquitto, add ?protocol=5 to the broker URL to hear its "
+                 f"reason; the embedded broker speaks only 3.1.1)")
     return hint
 
 
