@@ -147,10 +147,13 @@ def test_the_world_server_answers_malformed_lines(world: World, served: WorldSer
             b'{"op": "set_servo", "args": {"degrees": ' + b"9" * 4000 + b"}}",
             b'{"op": "set_servo", "args": {}}',
             b'{"op": "fly"}',
+            b'{"op": "read_sonar_cm", "pad": "' + b"x" * 200_000 + b'"}',  # over 64 KiB: ONE reply
         ]
         for line in bad:
             reply = exchange(wire, line)
             assert reply["ok"] is False and reply["error"], line[:60]
+            if len(line) > 65536:
+                assert reply["error"] == "unknown operation 'invalid line (longer than 64 KiB)'"
         assert not world.motor("left").enabled  # nothing of the junk reached the world
         assert exchange(wire, b'{"op": "read_sonar_cm", "args": {}}') == {"ok": True, "value": AHEAD_CM}
 

@@ -121,6 +121,10 @@ def _dispatch(world: World, op: str, args: dict[str, Any]) -> Any:
     raise ValueError(f"unknown operation {op!r}"[:80])
 
 
+#: the longest request line the world server reads (bytes, without its newline).
+MAX_LINE = 65536
+
+
 class _Handler(socketserver.StreamRequestHandler):
     """One sim driver's connection: a keyed hello, then one JSON request and one reply per line.
 
@@ -152,9 +156,13 @@ class _Handler(socketserver.StreamRequestHandler):
                 self._write({"ok": False, "error": str(exc)})
 
     def _read(self) -> dict[str, Any] | None:
-        line = self.rfile.readline(65536)
+        line = self.rfile.readline(MAX_LINE + 1)
         if not line:
             return None
+        if len(line) > MAX_LINE and not line.endswith(b"\n"):
+            while (rest := self.rfile.readline(MAX_LINE)) and not rest.endswith(b"\n"):
+                pass  # the rest of the over-long line: one reply per line, however long it is
+            return {"op": f"invalid line (longer than {MAX_LINE // 1024} KiB)"}
         try:
             data = json.loads(line)
         except (ValueError, RecursionError):  # RecursionError: nested too deeply for the decoder
