@@ -242,9 +242,23 @@ def test_one_operator_more_than_the_chain_limit_is_refused() -> None:
     with pytest.raises(ModelError) as caught:
         parse_expression(text)
     assert caught.value.message.startswith(
-        f"expression too long a chain of operators: more than {expr_parser.MAX_TREE_HEIGHT} "
-        "operators in a row (a + b + c has 2)")
+        f"expression tree too high: more than {expr_parser.MAX_TREE_HEIGHT} operators one inside "
+        "another (a + b + c has 2, and so has (a + b) * c")
     parse_expression("1" + " + 1" * expr_parser.MAX_TREE_HEIGHT)
+
+
+def test_nested_chains_none_over_the_limit_are_refused_for_the_tree_height() -> None:
+    chain = " + 1" * (expr_parser.MAX_TREE_HEIGHT - 1)  # 199 operators: one such chain is fine
+    parse_expression("1" + chain)
+    text = "1"
+    for _ in range(10):
+        text = f"({text}{chain})"
+    with pytest.raises(ModelError) as caught:
+        parse_expression(text)
+    message = caught.value.message
+    assert message.startswith(f"expression tree too high: more than {expr_parser.MAX_TREE_HEIGHT} "
+                              "operators one inside another")
+    assert "in a row" not in message and "split it with a datastore" in message
 
 
 def test_real_nesting_beyond_the_limit_is_refused_at_the_first_level_too_many() -> None:
@@ -274,5 +288,5 @@ def test_the_limits_table_matches_the_code() -> None:
         "YAML nesting": yamlsrc.MAX_DEPTH,
         "an expression": expr_parser.MAX_LENGTH,
         "expression nesting": expr_parser.MAX_DEPTH,
-        "operators in a row": expr_parser.MAX_TREE_HEIGHT,
+        "operators one inside another": expr_parser.MAX_TREE_HEIGHT,
     }
