@@ -761,12 +761,12 @@ class _Checker:
                 self.d.warning("empty activity file", loc)
             return
         names = sorted(self.missing_lanes, key=lambda n: _position(self.missing_lanes[n]))
-        listed = ", ".join(f"{name} (called at {_where(self.missing_lanes[name])})"
+        listed = ", ".join(f"{name} (first at {_where(self.missing_lanes[name])})"
                            for name in names[:MAX_LISTED])
         if len(names) > MAX_LISTED:
             listed += f" and {len(names) - MAX_LISTED} more"
         count = "1 swimlane" if len(names) == 1 else f"{len(names)} swimlanes"
-        self.d.error(f"empty activity file, and the model calls {count} defined nowhere: {listed}",
+        self.d.error(f"empty activity file, and the model names {count} defined nowhere: {listed}",
                      empty[0])
         for loc in empty[1:]:
             self.d.error(f"empty activity file (the swimlanes defined nowhere are listed at "

@@ -166,11 +166,11 @@ def test_an_emptied_activity_file_is_one_error_naming_the_swimlanes_missing(tmp_
     text = main.read_text(encoding="utf-8")
     calls = {name: position(text, f"call: {name}") for name in
              ("Stop", "MoveForward", "MoveBackward", "TurnRight", "TurnLeft")}
-    listed = ", ".join(f"{name} (called at {main}:{line}:{column + 6})"
+    listed = ", ".join(f"{name} (first at {main}:{line}:{column + 6})"
                        for name, (line, column) in sorted(calls.items(), key=lambda kv: kv[1]))
     result = _check(model)
     assert result.stdout.splitlines() == [
-        f"{motion}:1:1: error: empty activity file, and the model calls 5 swimlanes defined nowhere: "
+        f"{motion}:1:1: error: empty activity file, and the model names 5 swimlanes defined nowhere: "
         f"{listed}"]
     assert (result.exit_code, result.stderr) == (1, f"{model}: 1 error(s), 0 warning(s)\n")
 
@@ -183,8 +183,8 @@ def test_two_emptied_files_share_the_list(tmp_path: Path) -> None:
     assert len(lines) == 2, lines
     first, second = sorted(lines, key=lambda x: "listed at" in x)
     assert first.startswith(f"{model / 'activities' / 'measure.yaml'}:1:1: error: empty activity file, "
-                            "and the model calls 7 swimlanes defined nowhere: ")
-    assert "Measure (called at" in first and "Stop (called at" in first
+                            "and the model names 7 swimlanes defined nowhere: ")
+    assert "Measure (first at" in first and "Stop (first at" in first
     assert second == (f"{model / 'activities' / 'motion.yaml'}:1:1: error: empty activity file (the "
                       f"swimlanes defined nowhere are listed at {model / 'activities' / 'measure.yaml'}"
                       ":1:1)")
@@ -197,3 +197,18 @@ def test_an_empty_activity_file_that_nothing_misses_is_a_warning(tmp_path: Path)
     result = _check(model)
     assert result.stdout.splitlines() == [f"{extra}:1:1: warning: empty activity file"]
     assert result.exit_code == 0
+
+
+def test_more_than_ten_swimlanes_missing_are_cut_short(tmp_path: Path) -> None:
+    model = _car(tmp_path)
+    blank = model / "activities" / "blank.yaml"
+    blank.write_bytes(b"")
+    calls = "".join(f"  - {{id: c{i}, kind: action, call: Ghost{i}}}\n" for i in range(12))
+    (model / "activities" / "ghosts.yaml").write_text(
+        f"lane: Ghosts\nnodes:\n  - {{id: start, kind: start}}\n{calls}  - {{id: end, kind: end}}\n",
+        encoding="utf-8")
+    ghosts = model / "activities" / "ghosts.yaml"
+    listed = ", ".join(f"Ghost{i} (first at {ghosts}:{i + 4}:34)" for i in range(10))
+    assert _check(model).stdout.splitlines() == [
+        f"{blank}:1:1: error: empty activity file, and the model names 12 swimlanes defined nowhere: "
+        f"{listed} and 2 more"]
