@@ -15,7 +15,7 @@ from typing import Any, Literal, cast
 from compiler.compiled import CompiledModel
 from compiler.diagnostics import Diagnostics, Location
 from compiler.expr_parser import RawExpr, RBinary, RCall, RConst, RName, RUnary, SourceText, parse_expression
-from compiler.source import SourceLane, SourceModel, SourceNode
+from compiler.source import Damage, SourceLane, SourceModel, SourceNode
 from compiler.yamlsrc import YMap, YScalar, YSeq
 from umlbot.errors import ModelError
 from umlbot.library import (
@@ -157,12 +157,35 @@ class _Scope:
     impls: dict[str, Implementation] = field(default_factory=dict)
     lanes: dict[str, _Lane] = field(default_factory=dict)
     datastore_types: dict[tuple[str, str], Type] = field(default_factory=dict)
+    #: what could not be read (`compiler.source.Damage`): names that may have been there.
+    damage: Damage = field(default_factory=Damage)
+    #: components whose kind is unknown (a damaged entry, an unknown kind): their own error says so.
+    unknown_components: set[str] = field(default_factory=set)
+
+    def may_be_component(self, name: str) -> bool:
+        """Whether `name` may be a component whose entry could not be read whole."""
+        return self.damage.all_components or name in self.unknown_components
 
     def feature_spec(self, component: str, feature: str) -> FeatureSpec | None:
         impl = self.impls.get(component)
         if impl is not None and feature in impl.features:
             return impl.features[feature]
         return kind_features(self.kinds[component]).get(feature)
+
+
+class _Unknown(ModelError):
+    """A name that may have been in a part of the model that could not be read: not an error of
+    its own (that part's error is reported). With `lane`: a swimlane called in vain while an
+    activity file is empty, collected for the empty file's one error."""
+
+    def __init__(self, lane: str | None = None, loc: Location | None = None) -> None:
+        super().__init__("unknown: a part of the model could not be read")
+        self.lane = lane
+        self.loc = loc
+
+
+#: how many swimlanes defined nowhere an empty activity file's error names.
+MAX_LISTED = 10
 
 
 @dataclass
@@ -185,6 +208,16 @@ class _ExprChecker:
 
     def fail(self, message: str, offset: int) -> ModelError:
         return self.src.error(message, offset)
+
+    def unknown_lane(self, name: str, offset: int, message: str) -> ModelError:
+        """The error for a swimlane that is not there, unless it may be in what could not be
+        read, or in an empty activity file."""
+        damage = self.scope.damage
+        if damage.all_lanes:
+            return _Unknown()
+        if damage.empty_files:
+            return _Unknown(name, self.src.location(offset))
+        return self.fail(message, offset)
 
     def resolve(self, raw: RawExpr, action: bool = False) -> tuple[Data, Type]:
         if isinstance(raw, RConst):
@@ -257,7 +290,9 @@ class _ExprChecker:
                 raise self.fail(f"'{name}' is a component; call one of its features: "
                                 f"{name}.<feature>(...)", raw.offset)
             if action:
-                raise self.fail(f"unknown swimlane or builtin '{name}'", raw.offset)
+                raise self.unknown_lane(name, raw.offset, f"unknown swimlane or builtin '{name}'")
+            if self.lane in scope.damage.lanes:
+                raise _Unknown()
             raise self.fail(f"unknown datastore '{name}' in swimlane '{self.lane}'", raw.offset)
         owner, name = raw.parts
         if owner == "Application":
@@ -270,11 +305,15 @@ class _ExprChecker:
             if t is not None:
                 self.read_datastore = True
                 return {"op": "ref", "lane": owner, "name": name}, t
+            if owner in scope.damage.lanes:
+                raise _Unknown()
             hint = ""
             if owner in scope.kinds and name in kind_features(scope.kinds[owner]):
                 hint = f"; to call the feature, write {owner}.{name}()"
             raise self.fail(f"unknown datastore '{name}' in swimlane '{owner}'{hint}", raw.offsets[1])
-        raise self.fail(f"unknown swimlane or component '{owner}'", raw.offset)
+        if scope.may_be_component(owner):
+            raise _Unknown()
+        raise self.unknown_lane(owner, raw.offset, f"unknown swimlane or component '{owner}'")
 
     def lane_call(self, name: str, offset: int, action: bool) -> tuple[Data, Type]:
         if not action:
@@ -311,7 +350,7 @@ class _ExprChecker:
             if name in scope.kinds:
                 raise self.fail(f"'{name}' is a component; call one of its features: "
                                 f"{name}.<feature>(...)", raw.offset)
-            raise self.fail(f"unknown swimlane or builtin '{name}'", raw.offset)
+            raise self.unknown_lane(name, raw.offset, f"unknown swimlane or builtin '{name}'")
         owner, feature = parts
         if owner == "Application":
             if feature == "exit" and not raw.args:
@@ -321,6 +360,8 @@ class _ExprChecker:
             raise self.fail(f"unknown builtin 'Application.{feature}' (known: Application.exit)",
                             raw.name.offsets[1])
         if owner not in scope.kinds:
+            if scope.may_be_component(owner):
+                raise _Unknown()
             if owner in scope.lanes:
                 raise self.fail(f"'{owner}' is a virtual swimlane, not a component; call it as "
                                 f"{owner}()", raw.offset)
@@ -363,8 +404,10 @@ class _Checker:
     def __init__(self, source: SourceModel, diagnostics: Diagnostics) -> None:
         self.source = source
         self.d = diagnostics
-        self.scope = _Scope()
+        self.scope = _Scope(damage=source.damage)
         self.lanes: list[_Lane] = []
+        #: swimlanes called but defined nowhere while an activity file is empty -> first call.
+        self.missing_lanes: dict[str, Location] = {}
         self.lane_calls: list[_LaneCall] = []
         self.signals: set[str] = set()
         self.parsed: dict[int, tuple[RawExpr, SourceText]] = {}
@@ -378,10 +421,12 @@ class _Checker:
                 self.d.error(f"'{name}' is a reserved name; choose another component name", comp.loc)
                 continue
             if comp.kind is None:
+                self.scope.unknown_components.add(name)
                 continue
             if comp.kind not in component_kinds():
                 self.d.error(f"unknown component kind '{comp.kind}' (known: "
                              f"{', '.join(component_kinds())})", comp.kind_loc)
+                self.scope.unknown_components.add(name)
                 continue
             kind: ComponentKind = comp.kind
             self.scope.kinds[name] = kind
@@ -395,8 +440,10 @@ class _Checker:
                     continue
                 comp_src = self.source.components.get(end.component)
                 if comp_src is None:
-                    self.d.error(f"link '{link.id}' names unknown component '{end.component}'", end.loc)
-                elif end.port not in comp_src.ports:
+                    if not self.scope.may_be_component(end.component):
+                        self.d.error(f"link '{link.id}' names unknown component '{end.component}'",
+                                     end.loc)
+                elif end.port not in comp_src.ports and end.component not in self.source.damage.ports:
                     self.d.error(f"link '{link.id}' names unknown port '{end.port}' of component "
                                  f"'{end.component}'", end.loc)
 
@@ -413,7 +460,8 @@ class _Checker:
             loc = where.loc if where else dep.loc
             impl_loc = where.impl_loc if where else dep.loc
             if name not in self.source.components:
-                self.d.error(f"deployment names unknown component '{name}'", loc)
+                if not self.scope.may_be_component(name):
+                    self.d.error(f"deployment names unknown component '{name}'", loc)
                 continue
             impl = resolve_implementation(entry.impl)
             if impl is None:
@@ -431,8 +479,11 @@ class _Checker:
                 if feature in kind_features(kind) and feature not in impl.features:
                     self.d.error(f"implementation '{impl.id}' of '{name}' does not offer feature "
                                  f"'{feature}' (port '{port}')", port_loc)
+        if not dep.whole:
+            return  # a line that could not be read may have deployed any of them
         for name, comp in self.source.components.items():
-            if name not in dep.deployment.components and comp.kind in component_kinds():
+            if (name not in dep.deployment.components and name not in dep.unread
+                    and comp.kind in component_kinds()):
                 self.d.error(f"component '{name}' has no implementation in the deployment", comp.loc)
 
     # --- swimlanes -----------------------------------------------------------------------------------
@@ -462,14 +513,16 @@ class _Checker:
                 following = unique[index + 1].id if index + 1 < len(unique) else None
                 self.read_node(lane, node, following)
             starts = [n for n in lane.nodes.values() if n.src.kind == "start"]
+            damaged = lane.name in self.source.damage.lanes  # its start or end may be unread
             if not starts:
-                self.d.error(f"swimlane '{lane.name}' has no start node", src.loc)
+                if not damaged:
+                    self.d.error(f"swimlane '{lane.name}' has no start node", src.loc)
             else:
                 lane.start = starts[0].id
                 for extra in starts[1:]:
                     self.d.error(f"duplicate start node '{extra.id}': swimlane '{lane.name}' already "
                                  f"starts at '{starts[0].id}'", extra.src.id_loc)
-            if not any(n.src.kind == "end" for n in lane.nodes.values()):
+            if not damaged and not any(n.src.kind == "end" for n in lane.nodes.values()):
                 self.d.error(f"swimlane '{lane.name}' has no end node", src.loc)
 
     def scalar(self, fields: YMap, key: str, what: str, required: bool = True) -> YScalar | None:
@@ -650,6 +703,10 @@ class _Checker:
             raw, text = self.parse(scalar)
             checker = _ExprChecker(self.scope, lane.name, text)
             result = checker.resolve(raw, action=action)
+        except _Unknown as exc:
+            if exc.lane is not None and exc.loc is not None:
+                self.missing_lanes.setdefault(exc.lane, exc.loc)
+            return None
         except ModelError as exc:
             self.d.add_model_error(exc)
             return None
@@ -693,6 +750,27 @@ class _Checker:
                         node.compiled_guards.append(result[0])
 
     # --- graphs --------------------------------------------------------------------------------------
+
+    def report_empty_files(self) -> None:
+        """An empty activity file is a warning; while swimlanes called in the model are defined
+        nowhere it is the one error that names them, in place of one "unknown swimlane" per call
+        (an emptied file is the likely home of what is missing)."""
+        empty = self.source.damage.empty_files
+        if not self.missing_lanes:
+            for loc in empty:
+                self.d.warning("empty activity file", loc)
+            return
+        names = sorted(self.missing_lanes, key=lambda n: _position(self.missing_lanes[n]))
+        listed = ", ".join(f"{name} (first at {_where(self.missing_lanes[name])})"
+                           for name in names[:MAX_LISTED])
+        if len(names) > MAX_LISTED:
+            listed += f" and {len(names) - MAX_LISTED} more"
+        count = "1 swimlane" if len(names) == 1 else f"{len(names)} swimlanes"
+        self.d.error(f"empty activity file, and the model names {count} defined nowhere: {listed}",
+                     empty[0])
+        for loc in empty[1:]:
+            self.d.error(f"empty activity file (the swimlanes defined nowhere are listed at "
+                         f"{_where(empty[0])})", loc)
 
     def check_graph(self, lane: _Lane) -> None:
         for node_id in lane.order:
@@ -852,6 +930,8 @@ class _Checker:
                     elif call.callee not in visited:
                         visited.add(call.callee)
                         stack.append((call.callee, [*path, call]))
+        if self.source.damage.calls_unknown or self.missing_lanes:
+            return  # a call may have been in what could not be read, or in the emptied file
         called = {call.callee for call in self.lane_calls}
         for each in self.lanes:
             if each.virtual and each.name not in called:
@@ -929,12 +1009,22 @@ class _Checker:
         return data
 
 
+def _position(loc: Location) -> tuple[str, int, int]:
+    return loc.file, loc.line, loc.column
+
+
+def _where(loc: Location) -> str:
+    return f"{loc.file}:{loc.line}:{loc.column}"
+
+
 def check_source(source: SourceModel, diagnostics: Diagnostics) -> CompiledModel | None:
     """Run every check; the compiled model when there is no error, else None."""
     if not source.complete:
         # A model file could not be read (its error is reported): every check against what it
         # holds would only report follow-on errors ("unknown component", "unknown swimlane",
         # "never called").
+        for loc in source.damage.empty_files:
+            diagnostics.warning("empty activity file", loc)
         return None
     checker = _Checker(source, diagnostics)
     checker.check_components()
@@ -942,8 +1032,10 @@ def check_source(source: SourceModel, diagnostics: Diagnostics) -> CompiledModel
     checker.read_lanes()
     checker.infer_datastore_types()
     checker.check_expressions()
+    checker.report_empty_files()
     for lane in checker.lanes:
-        checker.check_graph(lane)
+        if lane.name not in source.damage.lanes:  # an edge to an unread node is no error of its own
+            checker.check_graph(lane)
     checker.check_recursion()
     if diagnostics.has_errors:
         return None

@@ -352,13 +352,16 @@ def _children(expr: RawExpr) -> tuple[RawExpr, ...]:
 
 def _check_height(expr: RawExpr, src: SourceText) -> None:
     """Refuse trees higher than MAX_TREE_HEIGHT, without recursion. Nesting is bounded by the
-    parser already; what is left are long operator chains (`a + b + c + ...`)."""
+    parser already, but not long operator chains (`a + b + c + ...`), nor chains inside the
+    operands of chains: ten parenthesised chains of 199 operators, one inside the next, is a
+    tree 1 990 high with no chain over 199 — the error names the height, not a chain."""
     stack: list[tuple[RawExpr, int]] = [(expr, 0)]  # (node, operators above it)
     while stack:
         node, above = stack.pop()
         children = _children(node)
         if children and above >= MAX_TREE_HEIGHT:
-            raise src.error(f"expression too long a chain of operators: more than {MAX_TREE_HEIGHT} "
-                            "operators in a row (a + b + c has 2); split it with a "
-                            "datastore", node.offset)
+            raise src.error(f"expression tree too high: more than {MAX_TREE_HEIGHT} operators one "
+                            "inside another (a + b + c has 2, and so has (a + b) * c: chains and "
+                            "the parts nested in them add up); split it with a datastore",
+                            node.offset)
         stack.extend((child, above + 1) for child in children)

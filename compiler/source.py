@@ -21,6 +21,7 @@ from compiler.yamlsrc import YMap, YNode, YScalar, YSeq, parse_yaml, to_python
 from umlbot.deployment import Deployment, is_plain_format
 from umlbot.errors import ModelError
 from umlbot.files import decode_utf8, file_problem, too_large
+from umlbot.library import component_kinds
 
 MODEL_FILE = "model.yaml"
 ACTIVITIES_DIR = "activities"
@@ -104,6 +105,38 @@ class SourceDeployment:
     file: str
     loc: Location
     entries: dict[str, DeploymentEntry] = field(default_factory=dict)
+    #: False when a line of the plain format could not be read at all (its error is reported):
+    #: which component it deployed is unknown, so none is reported as having no implementation.
+    whole: bool = True
+    #: components named on a line whose implementation could not be read (`Motor=`).
+    unread: set[str] = field(default_factory=set)
+
+
+@dataclass
+class Damage:
+    """The parts of a model that were there but of the wrong shape (see `SourceModel.damage`)."""
+
+    #: the `components` section is not a mapping: any name may have been a component.
+    all_components: bool = False
+    #: components whose entry is damaged (a name that is not plain, no kind or an unreadable
+    #: one): a reference to one is not reported again, its entry's error says what is wrong.
+    components: set[str] = field(default_factory=set)
+    #: components whose `ports` could not be read: a link to any port of one is not reported.
+    ports: set[str] = field(default_factory=set)
+    #: a `lanes` section, an activity file's top or a swimlane's name has the wrong shape: any
+    #: name may have been a swimlane.
+    all_lanes: bool = False
+    #: swimlanes with a node or `nodes` of the wrong shape: their datastores and graph are not
+    #: known whole (no "unknown datastore", "no start node", "goes to unknown node" for them).
+    lanes: set[str] = field(default_factory=set)
+    #: where the empty activity files are: their swimlanes may be what the model calls in vain.
+    empty_files: list[Location] = field(default_factory=list)
+
+    @property
+    def calls_unknown(self) -> bool:
+        """Whether a call of a virtual swimlane may have been in what could not be read (or which
+        swimlanes are virtual is unknown): no "never called" warning then."""
+        return self.all_components or self.all_lanes or bool(self.lanes)
 
 
 @dataclass
@@ -121,6 +154,11 @@ class SourceModel:
     #: False when one of the model's files (model.yaml or an activity file) could not be read: its
     #: error is reported and the checks, which would only report what is missing, are skipped.
     complete: bool = True
+    #: What a section of the wrong shape leaves unknown (its shape error is reported, with its
+    #: position). Its names are unknown rather than absent: the checker does not report a
+    #: reference to one as missing, nor a virtual swimlane as never called when a call of it may
+    #: have been in what could not be read. See docs/model-format.md, "Read errors".
+    damage: Damage = field(default_factory=Damage)
 
 
 @dataclass(frozen=True)
@@ -143,6 +181,12 @@ def read_model_file(path: Path) -> bytes | Unreadable:
         return Unreadable(f"cannot read: {exc.strerror or exc}")
 
 
+def _is_there(path: Path) -> bool:
+    """Whether something has this model file's name: a file, or a folder, FIFO... under it, which
+    is then reported as unreadable ("cannot read: Is a directory"), not as missing."""
+    return path.exists() or path.is_symlink()
+
+
 def _activity_paths(root: Path) -> list[Path]:
     """The activity files on disk (`activities/*.yaml`, `*.yml`), sorted; whatever has such a
     name, a folder too (reading it is its error)."""
@@ -160,7 +204,7 @@ def read_model_folder(root: Path) -> dict[str, bytes | Unreadable]:
     if not root.is_dir():
         return {}
     candidates = [root / MODEL_FILE, *(root / name for name in DEPLOYMENT_FILES)]
-    paths = [path for path in candidates if path.is_file()] + _activity_paths(root)
+    paths = [path for path in candidates if _is_there(path)] + _activity_paths(root)
     return {path.relative_to(root).as_posix(): read_model_file(path) for path in paths}
 
 
@@ -180,8 +224,10 @@ class _Reader:
         self.contents: dict[str, bytes] = {}
 
     def is_file(self, path: Path) -> bool:
+        """Whether the model has a file at `path`: anything under that name (a folder named
+        model.yaml is an unreadable model file, not a missing one)."""
         if self.files is None:
-            return path.is_file()
+            return _is_there(path)
         return self.relative(path) in self.files
 
     def activity_files(self) -> list[Path]:
@@ -327,7 +373,9 @@ def _read_lane_file(reader: _Reader, path: Path, model: SourceModel) -> None:
         model.complete = False
         return
     if root is None:
-        reader.diagnostics.warning("empty activity file", Location(shown, 1, 1))
+        # a warning, unless the model calls swimlanes defined nowhere: then the checker makes it
+        # the one error that explains them (`check_source`)
+        model.damage.empty_files.append(Location(shown, 1, 1))
         return
     rel = reader.relative(path)
     if isinstance(root, YMap) and "lanes" in root.items:
@@ -340,12 +388,14 @@ def _read_lane_file(reader: _Reader, path: Path, model: SourceModel) -> None:
 def _read_components(node: YNode, model: SourceModel, d: Diagnostics) -> None:
     if not isinstance(node, YMap):
         d.error("'components' is a mapping: ComponentName: {kind: ..., ports: {...}}", node.loc)
+        model.damage.all_components = True
         return
     for name in node:
         value = node.items[name]
         key_loc = node.key_loc(name)
         if not _is_identifier(name):
             d.error(f"component name {name!r} is not a plain name (letters, digits and _)", key_loc)
+            model.damage.components.add(name)
             continue
         comp = SourceComponent(name=name, loc=key_loc, kind=None, kind_loc=key_loc)
         if isinstance(value, YScalar):
@@ -356,23 +406,29 @@ def _read_components(node: YNode, model: SourceModel, d: Diagnostics) -> None:
             if isinstance(kind, YScalar):
                 comp.kind, comp.kind_loc = kind.text, kind.loc
             elif kind is not None:
-                d.error("a component's kind is one of system, actuator, sensor", kind.loc)
+                d.error(f"a component's kind is one of {', '.join(component_kinds())}", kind.loc)
             else:
-                d.error(f"component {name!r} has no kind (system, actuator or sensor)", key_loc)
+                d.error(f"component {name!r} has no kind ({', '.join(component_kinds())})", key_loc)
             ports = value.get("ports")
             if isinstance(ports, YMap):
                 for port in ports:
                     feature = ports.items[port]
                     if not _is_identifier(port):
                         d.error(f"port name {port!r} is not a plain name", ports.key_loc(port))
+                        model.damage.ports.add(name)
                     elif isinstance(feature, YScalar):
                         comp.ports[port] = (feature.text, feature.loc)
                     else:
                         d.error("a port names one feature of its component", feature.loc)
+                        model.damage.ports.add(name)
             elif ports is not None:
                 d.error("'ports' is a mapping: port_name: feature", ports.loc)
+                model.damage.ports.add(name)
         else:
             d.error(f"component {name!r}: expected a kind or a mapping with 'kind'", value.loc)
+        if comp.kind is None:
+            model.damage.components.add(name)
+            model.damage.ports.add(name)
         model.components[name] = comp
 
 
@@ -408,6 +464,7 @@ def _read_links(node: YNode, model: SourceModel, d: Diagnostics) -> None:
 def _read_lanes(node: YNode, rel: str, model: SourceModel, d: Diagnostics) -> None:
     if not isinstance(node, YSeq):
         d.error("'lanes' is a list of swimlanes, each {lane: Name, nodes: [...]}", node.loc)
+        model.damage.all_lanes = True
         return
     for item in node.items:
         _read_lane(item, rel, model, d)
@@ -416,24 +473,30 @@ def _read_lanes(node: YNode, rel: str, model: SourceModel, d: Diagnostics) -> No
 def _read_lane(node: YNode, rel: str, model: SourceModel, d: Diagnostics) -> None:
     if not isinstance(node, YMap):
         d.error("a swimlane is a mapping {lane: Name, nodes: [...]}", node.loc)
+        model.damage.all_lanes = True
         return
     _unknown_keys(node, LANE_KEYS, "swimlane", d)
     name_node = node.get("lane")
     if not isinstance(name_node, YScalar) or not _is_identifier(name_node.text):
         where = name_node.loc if name_node is not None else node.loc
         d.error("a swimlane needs 'lane: Name' (a plain name)", where)
+        model.damage.all_lanes = True
         return
     lane = SourceLane(name=name_node.text, loc=name_node.loc, file=rel)
     nodes = node.get("nodes")
     if nodes is None:
         d.error(f"swimlane {lane.name!r} has no 'nodes'", node.loc)
+        model.damage.lanes.add(lane.name)
     elif not isinstance(nodes, YSeq):
         d.error("'nodes' is a list of activity nodes", nodes.loc)
+        model.damage.lanes.add(lane.name)
     else:
         for item in nodes.items:
             source_node = _read_node(item, d)
             if source_node is not None:
                 lane.nodes.append(source_node)
+            else:
+                model.damage.lanes.add(lane.name)
     model.lanes.append(lane)
 
 
@@ -496,6 +559,10 @@ def _deployment_from_plain(text: str, shown: str, d: Diagnostics) -> SourceDeplo
         loc = Location(shown, lineno, column)
         if not sep or not name.strip() or not impl.strip():
             d.error("expected '<component>=<implementation id>'", loc)
+            if sep and name.strip():
+                result.unread.add(name.strip())
+            else:
+                result.whole = False
             continue
         impl_column = len(name) + 2 + len(impl) - len(impl.lstrip())
         if name.strip() in components:

@@ -9,6 +9,7 @@ the error reply goes (Mosquitto only: amqtt speaks MQTT 3.1.1).
 from __future__ import annotations
 
 import json
+import sys
 import uuid
 from collections.abc import Callable, Iterator
 from typing import Any
@@ -76,6 +77,23 @@ def test_parse_request_answers_bad_json_for_deep_nesting() -> None:
     assert getattr(info.value, "reply_to", None) == "r/s"
 
 
+def test_an_integer_too_long_to_convert_is_bad_json_in_words_of_ours() -> None:
+    limit = sys.get_int_max_str_digits()
+    for digits in ("9" * (limit + 700), "-" + "9" * (limit + 1)):
+        with pytest.raises(ValueError) as caught:
+            parse_json(f'{{"a": [{digits}]}}'.encode())
+        assert str(caught.value) == f"integer too long: more than {limit} digits"
+    assert parse_json(("9" * limit).encode()) == int("9" * limit)  # at the limit: a number
+    with pytest.raises(Exception) as info:
+        parse_request(envelope(f"[{'9' * 5000}]", "long"))
+    assert getattr(info.value, "code", None) == "bad_json"
+    assert str(info.value) == (f"payload is not UTF-8 JSON: integer too long: more than "
+                               f"{limit} digits")
+    assert "set_int_max_str_digits" not in str(info.value)
+    assert getattr(info.value, "request_id", None) == "long"
+    assert getattr(info.value, "reply_to", None) == "raw/replies"
+
+
 def test_every_malformed_envelope_gets_an_error_reply(
     broker: BrokerProcess, server: ComponentServer, calls: list[tuple[Any, ...]],
     raw_client: Callable[..., RawClient],
@@ -92,6 +110,7 @@ def test_every_malformed_envelope_gets_an_error_reply(
         "deep-arg": ("dutycycle", envelope("[" + "[" * 900 + "]" * 900 + "]", "deep-arg"), "bad_args"),
         "huge-int-float": ("add", envelope(f"[{'9' * 4000}, 1]", "huge-int-float"), "bad_args"),
         "huge-int-int": ("dutycycle", envelope(f"[{'9' * 4000}]", "huge-int-int"), "out_of_range"),
+        "int-too-long": ("dutycycle", envelope(f"[{'9' * 5000}]", "int-too-long"), "bad_json"),
         "nan": ("add", envelope("[NaN, 1]", "nan"), "bad_args"),
         "infinity": ("add", envelope("[Infinity, -Infinity]", "infinity"), "bad_args"),
         "wrong-type": ("echo", envelope("[{\"a\": 1}]", "wrong-type"), "bad_args"),
@@ -113,6 +132,8 @@ def test_every_malformed_envelope_gets_an_error_reply(
         rid: code for rid, (_f, _p, code) in cases.items()
     }
     assert all(len(r["error"]["message"]) < 300 for r in replies.values())
+    assert replies["int-too-long"]["error"]["message"] == (
+        f"payload is not UTF-8 JSON: integer too long: more than {sys.get_int_max_str_digits()} digits")
     assert server.connection.counters.handler_errors == 0
     assert calls == []
     with BusClient(BrokerSettings.from_url(broker.url), ROBOT) as good:

@@ -21,6 +21,7 @@ from compiler.api import check_model
 from compiler.compiled import DatastoreNode, DecisionNode, dump_compiled, load_compiled
 from compiler.expr import Expr
 from compiler.expr_parser import parse_expression
+from compiler.source import Unreadable, read_model_folder
 from services.orchestrator.expressions import ExpressionCompiler
 from umlbot import files
 from umlbot.cli import cli
@@ -128,6 +129,23 @@ def test_an_activity_path_that_cannot_be_read_is_the_only_problem(tmp_path: Path
     activity.mkdir()  # read even by root: not a file
     result = CliRunner().invoke(cli, ["check", str(model)])
     assert result.stdout.splitlines() == [f"{activity}:1:1: error: cannot read: Is a directory"]
+
+
+@pytest.mark.parametrize("name", ["model.yaml", "deployment.yaml"])
+def test_a_folder_under_a_model_file_name_is_unreadable_not_missing(tmp_path: Path, name: str) -> None:
+    # before: a folder named model.yaml gave "not a model: no model.yaml in this folder" at the
+    # model's folder, and one named deployment.yaml was passed over for deployment.txt
+    model = tmp_path / "car"
+    shutil.copytree(ROBOT_CAR, model)
+    (model / name).unlink()
+    (model / name).mkdir()
+    expected = [f"{model / name}:1:1: error: cannot read: Is a directory"]
+    result = CliRunner().invoke(cli, ["check", str(model)])
+    assert (result.exit_code, result.stdout.splitlines()) == (1, expected)
+    # the studio's way: the folder's files read first, then checked from memory
+    read = read_model_folder(model)
+    assert read[name] == Unreadable("cannot read: Is a directory")
+    assert [str(d) for d in check_model(model, files=read).diagnostics] == expected
 
 
 def test_a_fifo_in_place_of_an_activity_file_is_refused_without_waiting(tmp_path: Path) -> None:
@@ -242,9 +260,23 @@ def test_one_operator_more_than_the_chain_limit_is_refused() -> None:
     with pytest.raises(ModelError) as caught:
         parse_expression(text)
     assert caught.value.message.startswith(
-        f"expression too long a chain of operators: more than {expr_parser.MAX_TREE_HEIGHT} "
-        "operators in a row (a + b + c has 2)")
+        f"expression tree too high: more than {expr_parser.MAX_TREE_HEIGHT} operators one inside "
+        "another (a + b + c has 2, and so has (a + b) * c")
     parse_expression("1" + " + 1" * expr_parser.MAX_TREE_HEIGHT)
+
+
+def test_nested_chains_none_over_the_limit_are_refused_for_the_tree_height() -> None:
+    chain = " + 1" * (expr_parser.MAX_TREE_HEIGHT - 1)  # 199 operators: one such chain is fine
+    parse_expression("1" + chain)
+    text = "1"
+    for _ in range(10):
+        text = f"({text}{chain})"
+    with pytest.raises(ModelError) as caught:
+        parse_expression(text)
+    message = caught.value.message
+    assert message.startswith(f"expression tree too high: more than {expr_parser.MAX_TREE_HEIGHT} "
+                              "operators one inside another")
+    assert "in a row" not in message and "split it with a datastore" in message
 
 
 def test_real_nesting_beyond_the_limit_is_refused_at_the_first_level_too_many() -> None:
@@ -274,5 +306,5 @@ def test_the_limits_table_matches_the_code() -> None:
         "YAML nesting": yamlsrc.MAX_DEPTH,
         "an expression": expr_parser.MAX_LENGTH,
         "expression nesting": expr_parser.MAX_DEPTH,
-        "operators in a row": expr_parser.MAX_TREE_HEIGHT,
+        "operators one inside another": expr_parser.MAX_TREE_HEIGHT,
     }

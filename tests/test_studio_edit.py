@@ -403,6 +403,8 @@ def test_layout_is_kept_in_its_own_file(car: tuple[Path, Editor]) -> None:
                                          "double quotes"),
     (b"[1, 2]", ":1:1: not a layout (a JSON object with 'positions')"),
     (b"[" * 100_000 + b"]" * 100_000, ": not valid JSON: nested too deeply"),
+    (b'{"positions": {"a": [' + b"9" * 5000 + b", 1]}}",
+     f": not valid JSON: integer too long: more than {sys.get_int_max_str_digits()} digits"),
 ])
 def test_a_layout_file_that_cannot_be_read_is_named_once(tmp_path: Path, content: bytes,
                                                           problem: str) -> None:

@@ -10,8 +10,10 @@ limits); `load_yaml` puts it behind the same one-line errors for the small files
 
 from __future__ import annotations
 
+import json
 import os
 import stat
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -74,6 +76,25 @@ def read_text(path: str | Path, what: str, error: type[UmlbotError] = ConfigErro
         return decode_utf8(data, str(file))
     except ModelError as exc:
         raise error(f"{exc.file}:{exc.line}:{exc.column}: cannot read {what}: {exc.message}") from None
+
+
+def loads_json(text: str) -> Any:
+    """The value of a JSON text. Besides the decoder's own `json.JSONDecodeError` (with its
+    position), what the decoder refuses beyond syntax is a `ValueError` with a message of ours:
+    nesting too deep for it (5 000 `[` in a row, never its `RecursionError`), and an integer longer
+    than Python converts ("integer too long: more than 4300 digits"; Python's own message tells
+    the sender to call `sys.set_int_max_str_digits()`, which is no advice for a peer on the wire).
+    """
+    try:
+        return json.loads(text)
+    except RecursionError:
+        raise ValueError("nested too deeply") from None
+    except json.JSONDecodeError:
+        raise
+    except ValueError as exc:
+        if "integer string conversion" not in str(exc):
+            raise
+        raise ValueError(f"integer too long: more than {sys.get_int_max_str_digits()} digits") from None
 
 
 def load_yaml(text: str, source: str, error: type[UmlbotError] = ConfigError) -> Any:

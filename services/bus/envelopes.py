@@ -12,6 +12,8 @@ from typing import Any, Final, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
+from umlbot.files import loads_json
+
 #: The stable error codes of an error reply (`Reply.error.code`).
 ErrorCode = Literal[
     "bad_json",  # the payload is not UTF-8 JSON
@@ -136,13 +138,12 @@ class ExitRequest(BaseModel):
 def parse_json(payload: bytes) -> Any:
     """The JSON value of a payload from the wire; `ValueError` for anything that is not UTF-8 JSON.
 
-    Nesting too deep for the decoder (5 000 `[` in a row) is a `ValueError` too, never the
-    decoder's `RecursionError`: whoever reads the wire answers one kind of error.
+    Nesting too deep for the decoder (5 000 `[` in a row) and an integer too long to convert are
+    `ValueError`s with messages of ours (`umlbot.files.loads_json`), never the decoder's
+    `RecursionError` or Python's advice to its own programmer: whoever reads the wire answers one
+    kind of error, in words for the sender.
     """
-    try:
-        return json.loads(payload.decode("utf-8"))
-    except RecursionError:
-        raise ValueError("JSON nested too deeply") from None
+    return loads_json(payload.decode("utf-8"))
 
 
 def _json_default(obj: Any) -> Any:

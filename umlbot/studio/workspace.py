@@ -27,7 +27,7 @@ from typing import Any
 from compiler.api import CheckResult, check_model
 from compiler.source import ACTIVITIES_DIR, MODEL_FILE, Unreadable, read_model_folder
 from umlbot.errors import ModelError
-from umlbot.files import decode_utf8, file_problem
+from umlbot.files import decode_utf8, file_problem, loads_json
 from umlbot.studio.edit import EditError, apply_ops, parse_ops
 from umlbot.studio.model_view import attribute, diagnostic_view, node_index, source_view
 
@@ -102,11 +102,11 @@ def read_layout(root: Path) -> tuple[dict[str, Any], str | None]:
     except ModelError as exc:
         return {}, f"{exc.file}:{exc.line}:{exc.column}: {exc.message}"
     try:
-        data = json.loads(text)
+        data = loads_json(text)
     except json.JSONDecodeError as exc:
         return {}, f"{path}:{exc.lineno}:{exc.colno}: not valid JSON: {exc.msg}"
-    except RecursionError:
-        return {}, f"{path}: not valid JSON: nested too deeply"
+    except ValueError as exc:  # nested too deeply, an integer too long
+        return {}, f"{path}: not valid JSON: {exc}"
     if not isinstance(data, dict):
         return {}, f"{path}:1:1: not a layout (a JSON object with 'positions')"
     return data, None
