@@ -115,8 +115,9 @@ def test_main_lane_tuning_stop_and_loop() -> None:
         node = main.nodes[node.next]
     assert set(tuning) == {"speed_percent", "forward_ms", "backward_ms", "turn_ms", "nudge_ms",
                            "clearance_cm", "near_cm", "side_cm", "wall_cm", "corner_cm", "back_cm",
-                           "glance_ms", "servo_settle_ms"}
+                           "open_cm", "glance_ms", "servo_settle_ms"}
     assert tuning["near_cm"] < tuning["clearance_cm"] < tuning["side_cm"] < tuning["back_cm"]
+    assert tuning["side_cm"] < tuning["open_cm"]  # much room on a side is more than room to turn
     assert tuning["corner_cm"] < tuning["wall_cm"]
     assert tuning["nudge_ms"] < tuning["turn_ms"]  # the small steer is smaller than a turn step
     # then every actuator is stopped
@@ -136,8 +137,11 @@ def test_main_lane_tuning_stop_and_loop() -> None:
         ("Glance.right < corner_cm and Glance.left >= wall_cm", "retreat_left"),
         ("Glance.left < wall_cm and Glance.right >= wall_cm", "nudge_right"),
         ("Glance.right < wall_cm and Glance.left >= wall_cm", "nudge_left"), ("else", "running")]
-    # no room ahead: the side with more room
+    # no room ahead: much room on both sides, the other way than last time; else the side with
+    # more room
     assert _branches(main, "pick_side") == [
+        ("Measure.left > open_cm and Measure.right > open_cm and last_turn == 'left'", "choose_right"),
+        ("Measure.left > open_cm and Measure.right > open_cm and last_turn == 'right'", "choose_left"),
         ("Measure.left >= Measure.right and Measure.left > side_cm", "choose_left"),
         ("Measure.right > side_cm", "choose_right"), ("else", "backing")]
     lanes = {node_id: main.nodes[node_id].call.target.lane  # type: ignore[union-attr]

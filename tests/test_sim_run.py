@@ -24,9 +24,10 @@ pytestmark = [pytest.mark.network, pytest.mark.slow]
 
 ROOT = Path(__file__).resolve().parents[1]
 MODEL = ROOT / "models" / "robot_car"
-#: a right turn with the left wall near, 45° walls, bends in a row, a dead end left sideways
+#: a right turn with the left wall near, 45° walls, bends in a row, a dead end left sideways, a
+#: room whose exit is close behind the car on its left (a car that keeps turning left circles it)
 HARD_TRACKS = [tracks_dir() / f"{name}.yaml"
-               for name in ("right_turn_narrow", "chicane", "bends", "side_exit")]
+               for name in ("right_turn_narrow", "chicane", "bends", "side_exit", "room_back_left")]
 SPEED = 10.0
 
 
