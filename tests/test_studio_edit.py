@@ -633,6 +633,13 @@ def test_run_drives_the_working_copy_in_the_simulator_and_the_page_follows(
     status, answer = editor.post("stop", {})
     assert status == 200 and answer["running"] is False
     assert answer["result"]["reason"] in ("interrupted", "goal", "collision"), answer
+    # a page opened after the run draws its track and gets the car where the run left it
+    late = read_frames(editor.url, lambda f: any(x.get("type") == "world" for x in f))
+    assert late[0]["edit"]["run"]["running"] is False and late[0]["edit"]["run"]["track"]["name"] == "s_bend"
+    (world,) = [f for f in late if f.get("type") == "world"]
+    last = [f for f in frames if f.get("type") == "world"][-1]
+    start = late[0]["edit"]["run"]["track"]["start"]
+    assert world["t"] >= last["t"] and (world["car"]["x"], world["car"]["y"]) != (start["x"], start["y"])
     assert editor.post("run", {"track": "../../etc/passwd"})[0] == 400
     assert editor.post("run", {"track": "s_bend", "speed": 1000})[0] == 400
 
