@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import asyncio
 import difflib
+import http.client
 import importlib.util
 import json
 import os
@@ -17,14 +18,16 @@ import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
+from urllib.parse import urlsplit
 
 import aiohttp
 import pytest
 from click.testing import CliRunner
+from conftest import BrokerProcess
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from robot_run import CAR_MODEL, umlbot_argv
-from studio_support import read_frames, studio
+from studio_support import events_of, read_frames, studio
 
 from compiler.api import check_model
 from umlbot import files as user_files
@@ -589,6 +592,65 @@ def test_studio_on_a_new_folder_offers_and_writes_the_starter(tmp_path: Path) ->
     check = subprocess.run(umlbot_argv("check", str(folder)), capture_output=True, text=True, timeout=60,
                            check=False)
     assert check.returncode == 0, check.stdout + check.stderr
+
+
+def test_the_robot_followed_is_the_models_name_once_it_is_created_or_renamed(
+        mosquitto_broker: BrokerProcess, raw_client: Any, tmp_path: Path) -> None:
+    # --robot's default is "$UMLBOT_ROBOT, else the model's name": a model created (or renamed)
+    # in the studio is followed under its own name from then on, and the page is told
+    raw = raw_client(mosquitto_broker)
+    folder = tmp_path / "newbot"
+    with studio(["studio", str(folder), "--port", "0"], tmp_path, mosquitto_broker.url) as proc:
+        hello = read_frames(proc.url, lambda f: len(f) >= 1)[0]
+        assert hello["robot"] == "car"  # nothing to name it after yet
+        token = hello["edit"]["token"]
+
+        def create(frames: list[dict[str, Any]]) -> bool:
+            if len(frames) == 2:  # the hello and the snapshot: this page is attached
+                status, answer = _post(proc.url, "new", {"token": token, "name": "mybot"})
+                assert status == 200 and answer["compiled"], answer
+            return any(f["type"] == "robot" for f in frames)
+
+        frames = read_frames(proc.url, create)
+        assert [f["robot"] for f in frames if f["type"] == "robot"] == ["mybot"]
+
+        def online(frames: list[dict[str, Any]]) -> bool:  # the new robot's topics are followed
+            if len(frames) >= 2:
+                raw.publish("umlbot/mybot/LeftActuator/status", '{"state":"online","impl":"l298n"}',
+                            retain=True)
+            return any(e.get("robot") == "mybot" for e in events_of(frames, "availability"))
+
+        frames = read_frames(proc.url, online)
+        raw.publish("umlbot/mybot/LeftActuator/status", b"", retain=True)
+        assert frames[0]["robot"] == "mybot"
+        # renamed on disk: followed under the new name
+        model_file = folder / "model.yaml"
+        model_file.write_text(model_file.read_text(encoding="utf-8").replace("mybot", "otherbot"),
+                              encoding="utf-8")
+        frames = read_frames(proc.url, lambda f: any(x["type"] == "robot" for x in f), timeout=10)
+        assert [f["robot"] for f in frames if f["type"] == "robot"] == ["otherbot"]
+        assert read_frames(proc.url, lambda f: len(f) >= 1)[0]["robot"] == "otherbot"
+    # a robot id given with --robot stays
+    other = tmp_path / "fixed"
+    with studio(["studio", str(other), "--port", "0", "--robot", "car7"], tmp_path,
+                mosquitto_broker.url) as proc:
+        hello = read_frames(proc.url, lambda f: len(f) >= 1)[0]
+        status, _ = _post(proc.url, "new", {"token": hello["edit"]["token"], "name": "mybot"})
+        assert status == 200
+        assert read_frames(proc.url, lambda f: len(f) >= 1)[0]["robot"] == "car7"
+
+
+def _post(url: str, name: str, body: dict[str, Any]) -> tuple[int, dict[str, Any]]:
+    """A blocking POST to the studio at `url` (also from inside a `read_frames` condition)."""
+    where = urlsplit(url)
+    connection = http.client.HTTPConnection(where.hostname or "127.0.0.1", where.port, timeout=30)
+    try:
+        connection.request("POST", f"/api/{name}", body=json.dumps(body),
+                           headers={"Content-Type": "application/json"})
+        resp = connection.getresponse()
+        return resp.status, json.loads(resp.read())
+    finally:
+        connection.close()
 
 
 def test_completion_offers_features_datastores_lanes_and_argument_ranges(car: tuple[Path, Editor]) -> None:

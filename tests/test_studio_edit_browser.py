@@ -227,6 +227,21 @@ def complete_car(folder: Path) -> None:
     shutil.copytree(CAR_MODEL, folder)
 
 
+def test_a_model_created_in_the_page_is_followed_under_its_own_name(browser: Browser, tmp_path: Path) -> None:
+    errors: list[str] = []
+    with studio(["studio", str(tmp_path / "newbot"), "--port", "0"], tmp_path) as proc:
+        page = open_page(browser, proc.url, errors)
+        expect(page.locator("#title")).to_have_text(re.compile(r"· robot car$"))  # nothing named yet
+        page.locator('#new-model-form [name="model-name"]').fill("mybot")
+        page.locator("#new-model").click()
+        expect(page.locator("#title")).to_have_text("mybot · robot mybot")
+        page.reload()
+        page.wait_for_function("window.__studio && window.__studio.ready === true")
+        expect(page.locator("#title")).to_have_text("mybot · robot mybot")
+        page.close()
+    assert errors == [], errors
+
+
 def test_a_bad_guard_shows_the_checkers_message_on_its_node_and_undo_removes_it(
     browser: Browser, tmp_path: Path
 ) -> None:

@@ -92,6 +92,8 @@ class Hub:
         self._incoming: list[dict[str, Any]] = []
         self._world: dict[str, Any] | None = None
         self._world_pings: list[dict[str, Any]] = []
+        #: the robot id the pages follow from the next flush on (`follow_robot`).
+        self._new_robot: str | None = None
         self.pages: set[Page] = set()
         # the snapshot
         self.availability: dict[str, dict[str, Any]] = {}
@@ -122,6 +124,18 @@ class Hub:
         with self._lock:
             self._world_pings.extend(frame.get("pings", []))
             self._world = frame
+            wake = not self._scheduled and self._loop is not None
+            self._scheduled = True
+        if wake:
+            self._wake()
+
+    def follow_robot(self, robot: str) -> None:
+        """The events come from robot `robot` from now on: the next flush forgets the snapshot of
+        the robot followed so far and tells the pages first (a `robot` frame). Thread-safe; call it
+        after the old robot's source stopped pushing."""
+        with self._lock:
+            self._incoming = []
+            self._new_robot = robot
             wake = not self._scheduled and self._loop is not None
             self._scheduled = True
         if wake:
@@ -177,10 +191,18 @@ class Hub:
         with self._lock:
             self._scheduled = False
             events, self._incoming = self._incoming, []
+            robot, self._new_robot = self._new_robot, None
             world, self._world = self._world, None
             pings, self._world_pings = self._world_pings, []
             if world is not None:
                 self._remember_world(world, pings)
+        if robot is not None:
+            self.availability.clear()
+            self.retained.clear()
+            self.orchestrator = None
+            self.trace.clear()
+            self.calls.clear()
+            self.broadcast({"type": "robot", "robot": robot})
         for event in events:
             self._remember(event)
         if events:

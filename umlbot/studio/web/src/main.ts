@@ -877,6 +877,12 @@ function onMessage(msg: ServerMsg): void {
       }
       editor?.onRun(msg);
       break;
+    case "robot":
+      // the robot id follows the model's name: what the page showed was the previous robot's
+      robotName = msg.robot;
+      titleEl.textContent = `${model?.name ?? "(no model)"} · robot ${robotName}`;
+      resetLive();
+      break;
     case "model":
       if (!msg.model && model) {
         // Broken by an edit: keep the last good diagrams, list the problems.
