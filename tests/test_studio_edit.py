@@ -575,6 +575,27 @@ def test_library_comes_from_the_component_library(car: tuple[Path, Editor]) -> N
     assert {b["name"] for b in lib["builtins"]} == {"usleep", "msleep", "Application.exit"}
 
 
+def test_a_plugins_part_gets_its_settings_from_its_hardware_driver(car: tuple[Path, Editor]) -> None:
+    # the example plugin's buzzer has lgpio, mock and sim drivers (no pigpio): its settings are
+    # those of lgpio, so the page asks for the pin and a deployment without it is refused
+    _, editor = car
+    buzzer = next(i for i in editor.get("library")["implementations"] if i["id"] == "passive_buzzer")
+    schema = buzzer["settings_schema"]
+    assert schema is not None and schema["required"] == ["gpio"]
+    assert schema["properties"]["gpio"]["maximum"] == 27
+    version = editor.post("edit", {"version": 0, "ops": []})[1]["version"]
+    add = {"op": "add_component", "name": "Buzzer", "kind": "sounder", "impl": "passive_buzzer"}
+    status, answer = editor.post("edit", {"version": version, "ops": [add]})
+    assert status == 400, answer
+    assert answer["error"].endswith("Buzzer: invalid settings: gpio: Field required"), answer
+    status, answer = editor.post("edit", {"version": version, "ops": [{**add, "settings": {"gpio": 40}}]})
+    assert status == 400 and "gpio: Input should be less than or equal to 27" in answer["error"], answer
+    status, answer = editor.post("edit", {"version": version, "ops": [{**add, "settings": {"gpio": 12}}]})
+    assert status == 200 and answer["compiled"], answer
+    deployment = editor.get("files")["files"]["deployment.yaml"]
+    assert "Buzzer: {impl: passive_buzzer, settings: {gpio: 12}}" in deployment
+
+
 def test_studio_on_a_new_folder_offers_and_writes_the_starter(tmp_path: Path) -> None:
     folder = tmp_path / "my_robot"
     with studio(["studio", str(folder), "--port", "0"], tmp_path) as proc:
