@@ -613,6 +613,10 @@ def test_studio_on_a_new_folder_offers_and_writes_the_starter(tmp_path: Path) ->
     check = subprocess.run(umlbot_argv("check", str(folder)), capture_output=True, text=True, timeout=60,
                            check=False)
     assert check.returncode == 0, check.stdout + check.stderr
+    # as the reference car: `auto` runs on a Pi 5 too (pigpio does not)
+    compiled = check_model(folder).model
+    assert compiled is not None
+    assert {c.driver for c in compiled.components.values()} == {"auto"}
 
 
 def test_the_robot_followed_is_the_models_name_once_it_is_created_or_renamed(
