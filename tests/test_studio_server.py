@@ -156,6 +156,18 @@ def test_the_port_in_use_is_one_clear_error(tmp_path: Path) -> None:
                                 capture_output=True, text=True, timeout=60, check=False)
     assert result.returncode == 1
     assert f"cannot listen on 127.0.0.1:{port}" in result.stderr and "Traceback" not in result.stderr
+    assert "(another studio? choose one with --port)" in result.stderr
+
+
+def test_a_host_name_that_does_not_resolve_is_one_line_without_the_port_hint(tmp_path: Path) -> None:
+    result = subprocess.run(umlbot_argv("studio", str(CAR_MODEL), "--host", "no.such.host.invalid",
+                                        "--allow-remote", "--port", "0"),
+                            capture_output=True, text=True, timeout=60, check=False, cwd=tmp_path)
+    assert result.returncode == 1
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1, result.stderr
+    assert "cannot listen on --host no.such.host.invalid: the name is not known" in lines[0]
+    assert "--port" not in lines[0]
 
 
 def test_a_missing_model_is_a_usage_error(tmp_path: Path) -> None:
