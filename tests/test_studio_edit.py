@@ -183,6 +183,45 @@ def test_edits_on_a_generated_model_touch_only_the_edited_lines(tmp_path: Path) 
     assert len(lane.nodes) == len(before.model.lanes["Helper3"].nodes) + 1
 
 
+def test_a_decisions_second_output_waits_for_its_guard_and_the_else_stays_last(tmp_path: Path) -> None:
+    # the reviewer's steps: decision1 -> action1, then decision1 -> end. No guard was typed, so none
+    # may be made up: the new output's guard is empty, drawn "?", and the checker reports it on the
+    # decision until the user types one
+    ws = Workspace(tmp_path / "bot")
+    ws.new_model("bot")
+    ws.edit(ws.version, [
+        {"op": "add_node", "lane": "RaspberryPI", "node": {"id": "decision1", "kind": "decision"}},
+        {"op": "add_node", "lane": "RaspberryPI", "node": {"id": "action1", "kind": "action",
+                                                          "call": "msleep(10)"}},
+        {"op": "set_node", "lane": "RaspberryPI", "id": "start", "fields": {"next": "decision1"}},
+        {"op": "set_node", "lane": "RaspberryPI", "id": "action1", "fields": {"next": "end"}},
+    ])
+    connect = {"op": "connect", "lane": "RaspberryPI", "source": "decision1"}
+    ws.edit(ws.version, [{**connect, "target": "action1"}])
+    answer = ws.edit(ws.version, [{**connect, "target": "end"}])
+    text = ws.texts()["activities/main.yaml"]
+    assert "branches: [{if: '', then: end}, {else: action1}]" in text, text
+    assert not answer["compiled"]
+    on_decision = [d for d in answer["diagnostics"] if d["node"] == "decision1"]
+    assert [d["message"] for d in on_decision] == [
+        "decision output without guard: write {if: <guard>, then: <node>} or {else: <node>}"]
+    lane = next(lane for d in answer["model"]["diagrams"] for lane in d["lanes"]
+                if lane["name"] == "RaspberryPI")
+    assert {(e["target"], e["label"]) for e in lane["edges"] if e["source"] == "decision1"} == {
+        ("action1", "else"), ("end", "?")}
+    answer = ws.edit(ws.version, [{"op": "set_guard", "lane": "RaspberryPI", "source": "decision1",
+                                   "target": "end", "guard": "Application.exit"}])
+    assert answer["compiled"], answer["diagnostics"]
+    text = ws.texts()["activities/main.yaml"]
+    assert "branches: [{if: Application.exit, then: end}, {else: action1}]" in text, text
+    # a guard given with the connection goes before the else too; a second else is refused
+    ws.edit(ws.version, [{**connect, "target": "action1", "guard": "1 > 2"}])
+    assert "[{if: Application.exit, then: end}, {if: 1 > 2, then: action1}, {else: action1}]" \
+        in ws.texts()["activities/main.yaml"]
+    with pytest.raises(EditError, match="has an else output already"):
+        ws.edit(ws.version, [{**connect, "target": "end", "guard": "else"}])
+
+
 def test_impossible_operations_name_the_problem() -> None:
     files = _texts(CAR_MODEL)
     cases = [
