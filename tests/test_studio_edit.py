@@ -735,6 +735,18 @@ def test_completion_offers_features_datastores_lanes_and_argument_ranges(car: tu
     assert hint["params"][0] == {"name": "degrees", "type": "int", "minimum": 0, "maximum": 180, "unit": "°"}
     assert complete("RaspberryPI.writePin(4, ")["signature"]["active"] == 1
     assert complete("Measure.ri")["replace"] == [8, 10]
+    # inside a bool argument its values come first; no sleeps or lane calls (they give no value),
+    # another lane's datastores (Measure.left) yes
+    labels_in_bool = [i["label"] for i in complete("LeftActuator.enabled(")["items"]]
+    assert labels_in_bool[:2] == ["true", "false"], labels_in_bool
+    assert "msleep" not in labels_in_bool and "Stop" not in labels_in_bool
+    assert {i["label"]: i["insert"] for i in complete("LeftActuator.dutycycle(M")["items"]} == {
+        "Measure": "Measure."}
+    in_int = [i["label"] for i in complete("LeftActuator.dutycycle(")["items"]]
+    assert in_int[-3:] == ["true", "false", "null"], in_int
+    # a virtual lane is not offered as a call inside itself (recursion), the others are
+    stop = {i["label"] for i in complete("", lane="Stop")["items"] if i["kind"] == "lane"}
+    assert "Stop" not in stop and {"Measure", "TurnLeft"} <= stop
 
 
 def test_run_drives_the_working_copy_in_the_simulator_and_the_page_follows(
