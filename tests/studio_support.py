@@ -84,6 +84,14 @@ class StudioProc:
         self.stop()
         raise AssertionError(f"studio printed no URL: {self.lines}\n{self.log_text()[-3000:]}")
 
+    def wait_line(self, text: str) -> None:
+        """Read stdout until a line holds `text` (AssertionError when it ends first)."""
+        assert self.popen.stdout is not None
+        while not any(text in line for line in self.lines):
+            line = self.popen.stdout.readline()
+            assert line, (f"no line with {text!r}", self.lines, self.log_text()[-3000:])
+            self.lines.append(line.rstrip("\n"))
+
     def log_text(self) -> str:
         return self.stderr_path.read_text(encoding="utf-8", errors="replace")
 

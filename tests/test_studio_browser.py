@@ -248,3 +248,23 @@ def test_sim_studio_draws_the_track_the_car_and_its_pings(browser: Browser, tmp_
         page.close()
     finally:
         proc.stop()
+
+
+def test_a_page_opened_after_a_sim_run_draws_where_the_run_ended(browser: Browser, tmp_path: Path) -> None:
+    proc = StudioProc(["sim", str(CAR_MODEL), "--port", "0", "--speed", "10", "--studio",
+                       "--studio-port", "0"], tmp_path)
+    try:
+        proc.wait_line("the run has ended")
+        page = open_page(browser, proc.url)
+        expect(page.locator("#sim .sim-info")).to_contain_text("goal reached")
+        expect(page.locator("#sim .sim-info")).to_contain_text("collisions 0")
+        start = page.locator("#sim .start")
+        x0, y0 = float(start.get_attribute("cx") or "nan"), float(start.get_attribute("cy") or "nan")
+        car = page.locator("#sim .car").get_attribute("transform") or ""
+        where = re.match(r"translate\(([-\d.e]+),([-\d.e]+)\)", car)
+        assert where is not None
+        assert math.hypot(float(where[1]) - x0, float(where[2]) - y0) > 0.5
+        assert page.locator("#sim .ping").count() > 0
+        page.close()
+    finally:
+        proc.stop()

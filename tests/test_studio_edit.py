@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import asyncio
 import difflib
+import http.client
 import importlib.util
 import json
 import os
@@ -17,14 +18,16 @@ import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
+from urllib.parse import urlsplit
 
 import aiohttp
 import pytest
 from click.testing import CliRunner
+from conftest import BrokerProcess
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from robot_run import CAR_MODEL, umlbot_argv
-from studio_support import read_frames, studio
+from studio_support import events_of, read_frames, studio
 
 from compiler.api import check_model
 from umlbot import files as user_files
@@ -178,6 +181,45 @@ def test_edits_on_a_generated_model_touch_only_the_edited_lines(tmp_path: Path) 
     lane = after.model.lanes["Helper3"]
     assert lane.nodes["b0_wait"].next == "extra" and lane.nodes["extra"].next == "b1_x"
     assert len(lane.nodes) == len(before.model.lanes["Helper3"].nodes) + 1
+
+
+def test_a_decisions_second_output_waits_for_its_guard_and_the_else_stays_last(tmp_path: Path) -> None:
+    # the reviewer's steps: decision1 -> action1, then decision1 -> end. No guard was typed, so none
+    # may be made up: the new output's guard is empty, drawn "?", and the checker reports it on the
+    # decision until the user types one
+    ws = Workspace(tmp_path / "bot")
+    ws.new_model("bot")
+    ws.edit(ws.version, [
+        {"op": "add_node", "lane": "RaspberryPI", "node": {"id": "decision1", "kind": "decision"}},
+        {"op": "add_node", "lane": "RaspberryPI", "node": {"id": "action1", "kind": "action",
+                                                          "call": "msleep(10)"}},
+        {"op": "set_node", "lane": "RaspberryPI", "id": "start", "fields": {"next": "decision1"}},
+        {"op": "set_node", "lane": "RaspberryPI", "id": "action1", "fields": {"next": "end"}},
+    ])
+    connect = {"op": "connect", "lane": "RaspberryPI", "source": "decision1"}
+    ws.edit(ws.version, [{**connect, "target": "action1"}])
+    answer = ws.edit(ws.version, [{**connect, "target": "end"}])
+    text = ws.texts()["activities/main.yaml"]
+    assert "branches: [{if: '', then: end}, {else: action1}]" in text, text
+    assert not answer["compiled"]
+    on_decision = [d for d in answer["diagnostics"] if d["node"] == "decision1"]
+    assert [d["message"] for d in on_decision] == [
+        "decision output without guard: write {if: <guard>, then: <node>} or {else: <node>}"]
+    lane = next(lane for d in answer["model"]["diagrams"] for lane in d["lanes"]
+                if lane["name"] == "RaspberryPI")
+    assert {(e["target"], e["label"]) for e in lane["edges"] if e["source"] == "decision1"} == {
+        ("action1", "else"), ("end", "?")}
+    answer = ws.edit(ws.version, [{"op": "set_guard", "lane": "RaspberryPI", "source": "decision1",
+                                   "target": "end", "guard": "Application.exit"}])
+    assert answer["compiled"], answer["diagnostics"]
+    text = ws.texts()["activities/main.yaml"]
+    assert "branches: [{if: Application.exit, then: end}, {else: action1}]" in text, text
+    # a guard given with the connection goes before the else too; a second else is refused
+    ws.edit(ws.version, [{**connect, "target": "action1", "guard": "1 > 2"}])
+    assert "[{if: Application.exit, then: end}, {if: 1 > 2, then: action1}, {else: action1}]" \
+        in ws.texts()["activities/main.yaml"]
+    with pytest.raises(EditError, match="has an else output already"):
+        ws.edit(ws.version, [{**connect, "target": "end", "guard": "else"}])
 
 
 def test_impossible_operations_name_the_problem() -> None:
@@ -574,6 +616,27 @@ def test_library_comes_from_the_component_library(car: tuple[Path, Editor]) -> N
     assert {b["name"] for b in lib["builtins"]} == {"usleep", "msleep", "Application.exit"}
 
 
+def test_a_plugins_part_gets_its_settings_from_its_hardware_driver(car: tuple[Path, Editor]) -> None:
+    # the example plugin's buzzer has lgpio, mock and sim drivers (no pigpio): its settings are
+    # those of lgpio, so the page asks for the pin and a deployment without it is refused
+    _, editor = car
+    buzzer = next(i for i in editor.get("library")["implementations"] if i["id"] == "passive_buzzer")
+    schema = buzzer["settings_schema"]
+    assert schema is not None and schema["required"] == ["gpio"]
+    assert schema["properties"]["gpio"]["maximum"] == 27
+    version = editor.post("edit", {"version": 0, "ops": []})[1]["version"]
+    add = {"op": "add_component", "name": "Buzzer", "kind": "sounder", "impl": "passive_buzzer"}
+    status, answer = editor.post("edit", {"version": version, "ops": [add]})
+    assert status == 400, answer
+    assert answer["error"].endswith("Buzzer: invalid settings: gpio: Field required"), answer
+    status, answer = editor.post("edit", {"version": version, "ops": [{**add, "settings": {"gpio": 40}}]})
+    assert status == 400 and "gpio: Input should be less than or equal to 27" in answer["error"], answer
+    status, answer = editor.post("edit", {"version": version, "ops": [{**add, "settings": {"gpio": 12}}]})
+    assert status == 200 and answer["compiled"], answer
+    deployment = editor.get("files")["files"]["deployment.yaml"]
+    assert "Buzzer: {impl: passive_buzzer, settings: {gpio: 12}}" in deployment
+
+
 def test_studio_on_a_new_folder_offers_and_writes_the_starter(tmp_path: Path) -> None:
     folder = tmp_path / "my_robot"
     with studio(["studio", str(folder), "--port", "0"], tmp_path) as proc:
@@ -591,6 +654,69 @@ def test_studio_on_a_new_folder_offers_and_writes_the_starter(tmp_path: Path) ->
     check = subprocess.run(umlbot_argv("check", str(folder)), capture_output=True, text=True, timeout=60,
                            check=False)
     assert check.returncode == 0, check.stdout + check.stderr
+    # as the reference car: `auto` runs on a Pi 5 too (pigpio does not)
+    compiled = check_model(folder).model
+    assert compiled is not None
+    assert {c.driver for c in compiled.components.values()} == {"auto"}
+
+
+def test_the_robot_followed_is_the_models_name_once_it_is_created_or_renamed(
+        mosquitto_broker: BrokerProcess, raw_client: Any, tmp_path: Path) -> None:
+    # --robot's default is "$UMLBOT_ROBOT, else the model's name": a model created (or renamed)
+    # in the studio is followed under its own name from then on, and the page is told
+    raw = raw_client(mosquitto_broker)
+    folder = tmp_path / "newbot"
+    with studio(["studio", str(folder), "--port", "0"], tmp_path, mosquitto_broker.url) as proc:
+        hello = read_frames(proc.url, lambda f: len(f) >= 1)[0]
+        assert hello["robot"] == "car"  # nothing to name it after yet
+        token = hello["edit"]["token"]
+
+        def create(frames: list[dict[str, Any]]) -> bool:
+            if len(frames) == 2:  # the hello and the snapshot: this page is attached
+                status, answer = _post(proc.url, "new", {"token": token, "name": "mybot"})
+                assert status == 200 and answer["compiled"], answer
+            return any(f["type"] == "robot" for f in frames)
+
+        frames = read_frames(proc.url, create)
+        assert [f["robot"] for f in frames if f["type"] == "robot"] == ["mybot"]
+
+        def online(frames: list[dict[str, Any]]) -> bool:  # the new robot's topics are followed
+            if len(frames) >= 2:
+                raw.publish("umlbot/mybot/LeftActuator/status", '{"state":"online","impl":"l298n"}',
+                            retain=True)
+            return any(e.get("robot") == "mybot" for e in events_of(frames, "availability"))
+
+        frames = read_frames(proc.url, online)
+        raw.publish("umlbot/mybot/LeftActuator/status", b"", retain=True)
+        assert frames[0]["robot"] == "mybot"
+        # renamed on disk: followed under the new name
+        model_file = folder / "model.yaml"
+        model_file.write_text(model_file.read_text(encoding="utf-8").replace("mybot", "otherbot"),
+                              encoding="utf-8")
+        frames = read_frames(proc.url, lambda f: any(x["type"] == "robot" for x in f), timeout=10)
+        assert [f["robot"] for f in frames if f["type"] == "robot"] == ["otherbot"]
+        assert read_frames(proc.url, lambda f: len(f) >= 1)[0]["robot"] == "otherbot"
+    # a robot id given with --robot stays
+    other = tmp_path / "fixed"
+    with studio(["studio", str(other), "--port", "0", "--robot", "car7"], tmp_path,
+                mosquitto_broker.url) as proc:
+        hello = read_frames(proc.url, lambda f: len(f) >= 1)[0]
+        status, _ = _post(proc.url, "new", {"token": hello["edit"]["token"], "name": "mybot"})
+        assert status == 200
+        assert read_frames(proc.url, lambda f: len(f) >= 1)[0]["robot"] == "car7"
+
+
+def _post(url: str, name: str, body: dict[str, Any]) -> tuple[int, dict[str, Any]]:
+    """A blocking POST to the studio at `url` (also from inside a `read_frames` condition)."""
+    where = urlsplit(url)
+    connection = http.client.HTTPConnection(where.hostname or "127.0.0.1", where.port, timeout=30)
+    try:
+        connection.request("POST", f"/api/{name}", body=json.dumps(body),
+                           headers={"Content-Type": "application/json"})
+        resp = connection.getresponse()
+        return resp.status, json.loads(resp.read())
+    finally:
+        connection.close()
 
 
 def test_completion_offers_features_datastores_lanes_and_argument_ranges(car: tuple[Path, Editor]) -> None:
@@ -611,6 +737,18 @@ def test_completion_offers_features_datastores_lanes_and_argument_ranges(car: tu
     assert hint["params"][0] == {"name": "degrees", "type": "int", "minimum": 0, "maximum": 180, "unit": "°"}
     assert complete("RaspberryPI.writePin(4, ")["signature"]["active"] == 1
     assert complete("Measure.ri")["replace"] == [8, 10]
+    # inside a bool argument its values come first; no sleeps or lane calls (they give no value),
+    # another lane's datastores (Measure.left) yes
+    labels_in_bool = [i["label"] for i in complete("LeftActuator.enabled(")["items"]]
+    assert labels_in_bool[:2] == ["true", "false"], labels_in_bool
+    assert "msleep" not in labels_in_bool and "Stop" not in labels_in_bool
+    assert {i["label"]: i["insert"] for i in complete("LeftActuator.dutycycle(M")["items"]} == {
+        "Measure": "Measure."}
+    in_int = [i["label"] for i in complete("LeftActuator.dutycycle(")["items"]]
+    assert in_int[-3:] == ["true", "false", "null"], in_int
+    # a virtual lane is not offered as a call inside itself (recursion), the others are
+    stop = {i["label"] for i in complete("", lane="Stop")["items"] if i["kind"] == "lane"}
+    assert "Stop" not in stop and {"Measure", "TurnLeft"} <= stop
 
 
 def test_run_drives_the_working_copy_in_the_simulator_and_the_page_follows(
@@ -635,6 +773,13 @@ def test_run_drives_the_working_copy_in_the_simulator_and_the_page_follows(
     status, answer = editor.post("stop", {})
     assert status == 200 and answer["running"] is False
     assert answer["result"]["reason"] in ("interrupted", "goal", "collision"), answer
+    # a page opened after the run draws its track and gets the car where the run left it
+    late = read_frames(editor.url, lambda f: any(x.get("type") == "world" for x in f))
+    assert late[0]["edit"]["run"]["running"] is False and late[0]["edit"]["run"]["track"]["name"] == "s_bend"
+    (world,) = [f for f in late if f.get("type") == "world"]
+    last = [f for f in frames if f.get("type") == "world"][-1]
+    start = late[0]["edit"]["run"]["track"]["start"]
+    assert world["t"] >= last["t"] and (world["car"]["x"], world["car"]["y"]) != (start["x"], start["y"])
     assert editor.post("run", {"track": "../../etc/passwd"})[0] == 400
     assert editor.post("run", {"track": "s_bend", "speed": 1000})[0] == 400
 

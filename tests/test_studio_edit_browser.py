@@ -227,6 +227,61 @@ def complete_car(folder: Path) -> None:
     shutil.copytree(CAR_MODEL, folder)
 
 
+def test_a_model_created_in_the_page_is_followed_under_its_own_name(browser: Browser, tmp_path: Path) -> None:
+    errors: list[str] = []
+    with studio(["studio", str(tmp_path / "newbot"), "--port", "0"], tmp_path) as proc:
+        page = open_page(browser, proc.url, errors)
+        expect(page.locator("#title")).to_have_text(re.compile(r"· robot car$"))  # nothing named yet
+        page.locator('#new-model-form [name="model-name"]').fill("mybot")
+        page.locator("#new-model").click()
+        expect(page.locator("#title")).to_have_text("mybot · robot mybot")
+        page.reload()
+        page.wait_for_function("window.__studio && window.__studio.ready === true")
+        expect(page.locator("#title")).to_have_text("mybot · robot mybot")
+        page.close()
+    assert errors == [], errors
+
+
+def test_a_decisions_second_output_asks_for_its_guard_instead_of_making_one_up(
+        browser: Browser, tmp_path: Path) -> None:
+    folder = tmp_path / "bot"
+    errors: list[str] = []
+    with studio(["studio", str(folder), "--port", "0"], tmp_path) as proc:
+        page = open_page(browser, proc.url, errors)
+        page.locator('#new-model-form [name="model-name"]').fill("bot")
+        page.locator("#new-model").click()
+        settled(page)
+        show(page, "activity-main")
+        click_node(page, "RaspberryPI", "start")
+        click_kind(page, "decision")
+        decision = selected_node(page)
+        click_kind(page, "action")
+        action = selected_node(page)
+        connect(page, "RaspberryPI", "start", decision)
+        connect(page, "RaspberryPI", decision, action)  # the first output: the else
+        connect(page, "RaspberryPI", decision, "end")
+        guard = page.locator('#props input[name="guard"][data-target="end"]')
+        expect(guard).to_have_value("")
+        expect(guard).to_be_focused()
+        assert guard.get_attribute("placeholder")
+        edge = f'svg.diagram g.edge[data-source="{decision}"][data-target="end"] text.elabel'
+        expect(page.locator(edge)).to_have_text("?")
+        on_node = page.locator(node(page, "RaspberryPI", decision))
+        expect(on_node).to_have_class(re.compile(r"(^|\s)error(\s|$)"))
+        assert "decision output without guard" in (on_node.get_attribute("data-message") or "")
+        guard.fill("Application.exit")
+        guard.press("Enter")
+        settled(page)
+        expect(page.locator(node(page, "RaspberryPI", decision))).not_to_have_class(
+            re.compile(r"(^|\s)error(\s|$)"))
+        page.keyboard.press("Control+s")
+        page.wait_for_function("window.__studio.edit.dirty === false")
+        page.close()
+    text = (folder / "activities" / "main.yaml").read_text(encoding="utf-8")
+    assert f"branches: [{{if: Application.exit, then: end}}, {{else: {action}}}]" in text, text
+    assert errors == [], errors
+
+
 def test_a_bad_guard_shows_the_checkers_message_on_its_node_and_undo_removes_it(
     browser: Browser, tmp_path: Path
 ) -> None:

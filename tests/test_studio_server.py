@@ -156,6 +156,18 @@ def test_the_port_in_use_is_one_clear_error(tmp_path: Path) -> None:
                                 capture_output=True, text=True, timeout=60, check=False)
     assert result.returncode == 1
     assert f"cannot listen on 127.0.0.1:{port}" in result.stderr and "Traceback" not in result.stderr
+    assert "(another studio? choose one with --port)" in result.stderr
+
+
+def test_a_host_name_that_does_not_resolve_is_one_line_without_the_port_hint(tmp_path: Path) -> None:
+    result = subprocess.run(umlbot_argv("studio", str(CAR_MODEL), "--host", "no.such.host.invalid",
+                                        "--allow-remote", "--port", "0"),
+                            capture_output=True, text=True, timeout=60, check=False, cwd=tmp_path)
+    assert result.returncode == 1
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1, result.stderr
+    assert "cannot listen on --host no.such.host.invalid: the name is not known" in lines[0]
+    assert "--port" not in lines[0]
 
 
 def test_a_missing_model_is_a_usage_error(tmp_path: Path) -> None:
@@ -163,3 +175,23 @@ def test_a_missing_model_is_a_usage_error(tmp_path: Path) -> None:
     result = subprocess.run(umlbot_argv("studio", str(tmp_path / "no" / "nothing")), capture_output=True,
                             text=True, timeout=60, check=False)
     assert result.returncode == 2 and "does not exist" in result.stderr
+
+
+def test_a_page_opened_after_a_sim_run_gets_its_last_world(tmp_path: Path) -> None:
+    # `umlbot sim --studio` keeps the page served after the run "so that you can look at it": a page
+    # that opens then must get the car where the run left it, its last pings and the summary
+    with studio(["sim", str(CAR_MODEL), "--port", "0", "--speed", "10", "--studio", "--studio-port", "0"],
+                tmp_path) as proc:
+        proc.wait_line("the run has ended")
+        frames = read_frames(proc.url, lambda f: any(x["type"] == "world" for x in f))
+    hello = frames[0]
+    kinds = [f["type"] for f in frames]
+    assert kinds[0] == "hello" and kinds.index("events") < kinds.index("world"), kinds
+    assert events_of(frames, "trace"), "the run's trace is in the snapshot"
+    (world,) = [f for f in frames if f["type"] == "world"]
+    start = hello["track"]["start"]
+    assert world["goal"] is True and world["t"] > 1.0 and world["collisions"] == 0
+    moved = abs(world["car"]["x"] - start["x"]) + abs(world["car"]["y"] - start["y"])
+    assert moved > 0.5, (world["car"], start)
+    assert world["pings"], "the last second's pings"
+    assert all(world["t"] - ping["t"] <= 1.0 for ping in world["pings"]), world["pings"]

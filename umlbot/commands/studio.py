@@ -42,7 +42,7 @@ def command(model: Path, broker_url: str | None, ca_file: Path | None, robot: st
     from services.bus import BrokerSettings, resolve_broker_url
     from services.bus.settings import redact_url
     from umlbot.studio.server import StudioServer, StudioThread, check_bind
-    from umlbot.studio.sources import BrokerSource, replay_events, studio_data
+    from umlbot.studio.sources import RobotFollower, replay_events, studio_data
 
     editable = replay_file is None and (model.is_dir() or (not model.exists() and model.parent.is_dir()))
     if not model.exists() and not editable:
@@ -61,7 +61,7 @@ def command(model: Path, broker_url: str | None, ca_file: Path | None, robot: st
     else:
         data = studio_data(model, robot, mode="replay" if replay_file else "live")
         server = StudioServer(data, host=host, port=port, allow_remote=allow_remote)
-    source: BrokerSource | None = None
+    source: RobotFollower | None = None
     what = f"replay of {replay_file}"
     if replay_file is not None:
         data.replay = {"file": replay_file.name, "events": replay_events(replay_file, data.robot)}
@@ -69,8 +69,20 @@ def command(model: Path, broker_url: str | None, ca_file: Path | None, robot: st
         url = resolve_broker_url(broker_url)
         settings = BrokerSettings.from_url(url, ca_file=ca_file)
         what = f"robot {data.robot} on {redact_url(url)}"
-        source = BrokerSource(settings, data.robot, server.hub)
+        source = RobotFollower(settings, data.robot, server.hub)
         server.tick = source.tick
+        if server.api is not None and robot is None:
+            follower = source
+
+            def follow_name(name: str) -> None:  # the robot id is the model's name: follow it
+                before, data.robot = data.robot, name  # (a page opening meanwhile says the new one)
+                try:
+                    follower.follow(name)
+                except Exception:
+                    data.robot = before
+                    raise
+
+            server.api.on_name = follow_name
     errors = sum(1 for d in data.diagnostics if d["severity"] == "error")
     studio = StudioThread(server)
     with StopSignals() as signals:

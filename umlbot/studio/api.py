@@ -45,6 +45,9 @@ class EditApi:
         self._lock = asyncio.Lock()
         self._loop: asyncio.AbstractEventLoop | None = None
         self.run: StudioRun | None = None
+        #: called with the model's name when the model on disk gets another one (the robot id
+        #: follows it when neither --robot nor $UMLBOT_ROBOT chose one); on a worker thread.
+        self.on_name: Callable[[str], None] | None = None
 
     def routes(self, app: web.Application, server: StudioServer) -> None:
         self.server = server
@@ -133,6 +136,12 @@ class EditApi:
             data = self.server.data
             data.model = model_view(ws.result.model) if ws.result.model is not None else None
             data.diagnostics = [diagnostic_view(d) for d in ws.result.diagnostics]
+            name = ws.result.model.name if ws.result.model is not None else None
+            if self.on_name is not None and name and name != data.robot:
+                try:
+                    self.on_name(name)
+                except Exception as exc:  # e.g. a name that is no robot id: keep the robot followed
+                    log.warning("studio: cannot follow the model's new name", name=name, error=str(exc))
         return answer
 
     def broadcast(self, frame: dict[str, Any]) -> None:

@@ -112,6 +112,8 @@ def complete(model: dict[str, Any] | None, lane: str | None, text: str, cursor: 
     partial = typed
     if "." in typed:
         head, _, partial = typed.rpartition(".")
+    call = _open_call(before)
+    in_argument = call is not None  # a value: no sleeps, no lane calls (they give none)
     items: list[dict[str, Any]] = []
     if head is not None:
         if head in components:
@@ -134,23 +136,44 @@ def complete(model: dict[str, Any] | None, lane: str | None, text: str, cursor: 
         items += [{"label": name, "kind": "component", "detail": f"{c.get('kind')} ({c.get('impl')})",
                    "insert": f"{name}."} for name, c in sorted(components.items())]
         for name, other in sorted(lanes.items()):
-            if other["virtual"] and field in (None, "call"):
+            # (a lane calling itself is recursion, which the checker refuses)
+            if other["virtual"] and field in (None, "call") and not in_argument and name != lane:
                 items.append({"label": name, "kind": "lane", "detail": "call the virtual swimlane",
                               "insert": name})
             elif other["datastores"] and name != lane:
                 items.append({"label": name, "kind": "lane", "detail": "its datastores: Lane.name",
                               "insert": f"{name}."})
-        items += [{"label": name, "kind": "builtin", "detail": f"{name}({unit})", "insert": f"{name}("}
-                  for name, unit in SLEEP_BUILTINS.items()]
+        if not in_argument:
+            items += [{"label": name, "kind": "builtin", "detail": f"{name}({unit})", "insert": f"{name}("}
+                      for name, unit in SLEEP_BUILTINS.items()]
         items.append({"label": "Application", "kind": "builtin", "detail": "Application.exit",
                       "insert": "Application."})
         items += [{"label": k, "kind": "keyword", "detail": "", "insert": k} for k in KEYWORDS]
     low = partial.lower()
     items = [item for item in items if item["label"].lower().startswith(low)]
     signature = None
-    call = _open_call(before)
     if call is not None:
         sig = _signature_of(call[0], components)
         if sig is not None:
             signature = {**sig, "active": min(call[1], max(len(sig["params"]) - 1, 0))}
+            if head is None and sig["params"]:
+                items = _fitting_first(items, sig["params"][signature["active"]]["type"])
     return {"items": items, "replace": [cursor - len(partial), cursor], "signature": signature}
+
+
+#: the literals a value of a parameter's type can be written as.
+_LITERALS = {"bool": ("true", "false")}
+
+
+def _fitting_first(items: list[dict[str, Any]], param_type: str) -> list[dict[str, Any]]:
+    """Inside an argument: the literals of its type first (`true`, `false` for a bool), then the
+    rest in their order; literals of another type (`true` for an int, `null`) last."""
+    literals = _LITERALS.get(param_type, ())
+    other = {k for t, values in _LITERALS.items() if t != param_type for k in values} | {"null"}
+
+    def rank(item: dict[str, Any]) -> int:
+        if item["kind"] == "keyword" and item["label"] in literals:
+            return 0
+        return 2 if item["kind"] == "keyword" and item["label"] in other else 1
+
+    return sorted(items, key=rank)  # stable: the order within a rank stays

@@ -35,6 +35,7 @@ from umlbot.studio.textedit import (
     delete_key,
     flow,
     get,
+    insert_item,
     replace_node,
     set_key,
 )
@@ -335,22 +336,23 @@ def connect(e: Edits, op: Op) -> None:
         set_key(t, item, "next", target)
     elif kind == "decision":
         branches = get(item, "branches")
-        has_else = isinstance(branches, yaml.SequenceNode) and any(
-            get(b, "else") is not None for b in branches.value)
-        if op.guard is None or op.guard.strip() == "":
-            if has_else:
-                raise EditError(f"decision {source!r} has an else output already: give this one a guard")
-            branch: dict[str, Any] = {"else": target}
-        elif op.guard.strip() == "else":
-            if has_else:
+        outputs = branches.value if isinstance(branches, yaml.SequenceNode) else []
+        else_at = next((i for i, b in enumerate(outputs) if get(b, "else") is not None), None)
+        guard = (op.guard or "").strip()
+        if guard == "else" or (guard == "" and else_at is None):
+            if else_at is not None:
                 raise EditError(f"decision {source!r} has an else output already")
-            branch = {"else": target}
+            branch: dict[str, Any] = {"else": target}
         else:
-            branch = {"if": op.guard, "then": target}
-        if isinstance(branches, yaml.SequenceNode):
-            append_item(t, branches, branch)
-        else:
+            # no guard given: an empty one, which the checker reports on the decision until the
+            # user writes it (a guard nobody typed must not compile)
+            branch = {"if": guard, "then": target}
+        if not isinstance(branches, yaml.SequenceNode):
             set_key(t, item, "branches", [branch], block=not item.flow_style)
+        elif else_at is not None and "then" in branch:
+            insert_item(t, branches, else_at, branch)  # the else output stays the last one
+        else:
+            append_item(t, branches, branch)
     elif kind == "fork":
         targets = get(item, "targets")
         if isinstance(targets, yaml.SequenceNode):

@@ -6,9 +6,10 @@ nothing is scheduled yet). The event loop flushes at once when the last flush is
 `FLUSH_S` ago, else when it is due (so a lone event reaches the page within a millisecond or two,
 and a busy robot makes at most one frame per `FLUSH_S`). A flush keeps what a page opened later
 needs (the snapshot: the latest availability, retained state and orchestrator status, the trace
-history, the last calls) and sends one `events` frame to each connected page. Nothing is dropped
-on the way; the history is bounded (`keep_trace`): a page that opens after more than that many
-trace events sees the newest ones.
+history, the last calls, and with a simulated world its latest state and the pings of its last
+second) and sends one `events` frame to each connected page. Nothing is dropped on the way; the
+history is bounded (`keep_trace`): a page that opens after more than that many trace events sees
+the newest ones.
 """
 
 from __future__ import annotations
@@ -34,6 +35,10 @@ DEFAULT_KEEP_TRACE = 100_000
 KEEP_CALLS = 200
 #: events in one frame at most (a large snapshot is split into several frames).
 MAX_FRAME_EVENTS = 20_000
+#: sim seconds of sonar pings a page opening later gets (the page draws the last second's).
+KEEP_PINGS_S = 1.0
+#: sonar pings kept for pages that open later, at most (the page draws at most 400).
+KEEP_PINGS = 400
 
 Send = Callable[[str], Any]
 
@@ -87,6 +92,8 @@ class Hub:
         self._incoming: list[dict[str, Any]] = []
         self._world: dict[str, Any] | None = None
         self._world_pings: list[dict[str, Any]] = []
+        #: the robot id the pages follow from the next flush on (`follow_robot`).
+        self._new_robot: str | None = None
         self.pages: set[Page] = set()
         # the snapshot
         self.availability: dict[str, dict[str, Any]] = {}
@@ -94,6 +101,9 @@ class Hub:
         self.orchestrator: dict[str, Any] | None = None
         self.trace: collections.deque[dict[str, Any]] = collections.deque(maxlen=keep_trace)
         self.calls: collections.deque[dict[str, Any]] = collections.deque(maxlen=KEEP_CALLS)
+        #: the simulated world's latest state and its recent pings (under `_lock`).
+        self.world: dict[str, Any] | None = None
+        self.world_pings: collections.deque[dict[str, Any]] = collections.deque(maxlen=KEEP_PINGS)
         self._loop: asyncio.AbstractEventLoop | None = None
         self._scheduled = False
         self._last_flush = 0.0
@@ -119,6 +129,25 @@ class Hub:
         if wake:
             self._wake()
 
+    def follow_robot(self, robot: str) -> None:
+        """The events come from robot `robot` from now on: the next flush forgets the snapshot of
+        the robot followed so far and tells the pages first (a `robot` frame). Thread-safe; call it
+        after the old robot's source stopped pushing."""
+        with self._lock:
+            self._incoming = []
+            self._new_robot = robot
+            wake = not self._scheduled and self._loop is not None
+            self._scheduled = True
+        if wake:
+            self._wake()
+
+    def reset_world(self) -> None:
+        """A new simulated run starts: forget the previous run's world (thread-safe)."""
+        with self._lock:
+            self._world, self._world_pings = None, []
+            self.world = None
+            self.world_pings.clear()
+
     def _wake(self) -> None:
         loop = self._loop
         if loop is not None:
@@ -137,9 +166,19 @@ class Hub:
         events += self.calls
         return events
 
+    def world_snapshot(self) -> dict[str, Any] | None:
+        """The `world` frame a page opening now needs: the latest state, the recent pings."""
+        with self._lock:
+            if self.world is None:
+                return None
+            return {**self.world, "type": "world", "pings": list(self.world_pings)}
+
     def attach(self, page: Page) -> None:
         """Register a page; it gets the snapshot now and every flush after."""
         page.frame(self.snapshot())
+        world = self.world_snapshot()
+        if world is not None:
+            page.queue.put_nowait(dumps(world))
         self.pages.add(page)
 
     def detach(self, page: Page) -> None:
@@ -152,8 +191,18 @@ class Hub:
         with self._lock:
             self._scheduled = False
             events, self._incoming = self._incoming, []
+            robot, self._new_robot = self._new_robot, None
             world, self._world = self._world, None
             pings, self._world_pings = self._world_pings, []
+            if world is not None:
+                self._remember_world(world, pings)
+        if robot is not None:
+            self.availability.clear()
+            self.retained.clear()
+            self.orchestrator = None
+            self.trace.clear()
+            self.calls.clear()
+            self.broadcast({"type": "robot", "robot": robot})
         for event in events:
             self._remember(event)
         if events:
@@ -169,6 +218,15 @@ class Hub:
         text = dumps(frame)
         for page in self.pages:
             page.queue.put_nowait(text)
+
+    def _remember_world(self, world: dict[str, Any], pings: list[dict[str, Any]]) -> None:
+        """Keep the latest world state and the pings of its last `KEEP_PINGS_S` (under `_lock`)."""
+        self.world = {key: value for key, value in world.items() if key != "pings"}
+        self.world_pings.extend(pings)
+        now = world.get("t")
+        if isinstance(now, int | float):
+            while self.world_pings and abs(now - float(self.world_pings[0].get("t", now))) > KEEP_PINGS_S:
+                self.world_pings.popleft()
 
     def _remember(self, event: dict[str, Any]) -> None:
         kind = event.get("type")

@@ -1,7 +1,8 @@
 """The component library and the editable parts of the model format, as JSON for the page.
 
 Generated from the compiler's and the library's own definitions (`umlbot.library`, the node kinds
-of `compiler.source`, the driver settings models of `services.registry`), so the page never holds
+of `compiler.source`, the hardware drivers' settings models of `services.registry`, built-in and
+plugins' alike), so the page never holds
 a second definition of the model format. `library()` is the one conversion of the library.
 """
 
@@ -16,9 +17,9 @@ from pydantic import ValidationError
 from compiler.checker import RESERVED, SLEEP_BUILTINS
 from compiler.source import NODE_FIELDS, NODE_KINDS
 from umlbot import library as lib
+from umlbot.logs import get_logger
 
-#: the driver whose settings model describes a part's settings (the real hardware).
-SETTINGS_DRIVER = "pigpio"
+log = get_logger(__name__)
 
 _FIELD_DOCS: dict[str, tuple[str, str]] = {
     "next": ("node", "the node that follows (default: the node written below)"),
@@ -44,15 +45,32 @@ def _feature(spec: lib.FeatureSpec) -> dict[str, Any]:
     return {"params": [_param(p) for p in spec.params], "returns": spec.returns, "doc": spec.doc}
 
 
-def settings_model(impl: lib.Implementation) -> Any:
-    """The pydantic model of an implementation's driver settings, or None when it has none."""
-    from services.registry import get_factory
-    from umlbot.errors import UnknownDriver
+def settings_models(impl: lib.Implementation) -> list[tuple[str, Any]]:
+    """The pydantic models of an implementation's settings on the real hardware: one per hardware
+    driver of its service kind (every driver but `auto` and the mock and sim ones, built-in or a
+    plugin's), the same model once. `driver: auto` may pick any of them, so a deployment's
+    settings must satisfy each. Empty when the service kind has no hardware driver."""
+    from services.registry import AUTO, PREFIXED_DRIVERS, get_factory, known_drivers
+    from umlbot.errors import DriverError, UnknownDriver
 
-    try:
-        return get_factory(impl.service, SETTINGS_DRIVER).settings_model
-    except UnknownDriver:
-        return None
+    models: list[tuple[str, Any]] = []
+    for driver in known_drivers(impl.service):
+        if driver == AUTO or driver in PREFIXED_DRIVERS:
+            continue
+        try:
+            model = get_factory(impl.service, driver).settings_model
+        except (UnknownDriver, DriverError) as exc:  # a plugin's driver that does not load
+            log.warning("studio: no settings model from a driver", driver=driver, error=str(exc))
+            continue
+        if all(model is not seen for _, seen in models):
+            models.append((driver, model))
+    return models
+
+
+def settings_model(impl: lib.Implementation) -> Any:
+    """The settings model the page's form is built from (the first hardware driver's), or None."""
+    models = settings_models(impl)
+    return models[0][1] if models else None
 
 
 @lru_cache(maxsize=1)
@@ -103,12 +121,13 @@ def check_settings(impl_name: str, settings: Mapping[str, Any]) -> str | None:
     if impl is None:
         known = ", ".join(lib.implementations())
         return f"unknown implementation {impl_name!r} (known: {known})"
-    model = settings_model(impl)
-    if model is None:
-        return None
-    try:
-        model.model_validate(driver_settings(SETTINGS_DRIVER, settings))
-    except ValidationError as exc:
-        return "invalid settings: " + "; ".join(
-            f"{'.'.join(str(p) for p in err['loc']) or 'settings'}: {err['msg']}" for err in exc.errors())
-    return None
+    problems: list[str] = []
+    for driver, model in settings_models(impl):
+        try:
+            model.model_validate(driver_settings(driver, settings))
+        except ValidationError as exc:
+            for err in exc.errors():
+                problem = f"{'.'.join(str(p) for p in err['loc']) or 'settings'}: {err['msg']}"
+                if problem not in problems:
+                    problems.append(problem)
+    return "invalid settings: " + "; ".join(problems) if problems else None

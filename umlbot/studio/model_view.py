@@ -156,7 +156,8 @@ def _source_edges(kind: str, fields: dict[str, Any], following: str | None) -> l
         target = fields.get("next") if "next" in fields else following
         return [(str(target), "")] if target else []
     if kind == "decision":
-        out = [(str(b["then"]), str(b.get("if") or "")) for b in fields.get("branches") or []
+        # an output whose guard is not written yet is labelled "?" (the checker reports it)
+        out = [(str(b["then"]), str(b.get("if") or "").strip() or "?") for b in fields.get("branches") or []
                if isinstance(b, dict) and b.get("then") and "else" not in b]
         out += [(str(b["else"]), "else") for b in fields.get("branches") or []
                 if isinstance(b, dict) and b.get("else")]

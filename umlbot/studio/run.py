@@ -95,6 +95,7 @@ class StudioRun:
     def _observe(self, world: World, broker_url: str, robot: str) -> Callable[[], None]:
         from services.bus import BrokerSettings
 
+        self.hub.reset_world()  # a page opening later gets this run's world, not the last one's
         self.current = {"running": True, "robot": robot, "track": track_view(world)}
         self.broadcast({"type": "run", "state": "running", **self.current})
         self._sources = [BrokerSource(BrokerSettings.from_url(broker_url), robot, self.hub),
@@ -124,5 +125,7 @@ class StudioRun:
         finally:
             self._finish()
             shutil.rmtree(folder, ignore_errors=True)
-        self.current = {"running": False, "result": self.last}
+        # the track stays, so a page opening after the run draws it with the run's last world
+        self.current = {"running": False, "result": self.last,
+                        **({"track": self.current["track"]} if "track" in self.current else {})}
         self.broadcast({"type": "run", "state": "ended", **self.current})

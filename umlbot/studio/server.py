@@ -12,7 +12,9 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import errno
 import ipaddress
+import socket
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -61,6 +63,18 @@ def check_bind(host: str, allow_remote: bool) -> None:
             f"--host {host} would let anyone who can reach this machine watch the robot and its "
             "model; add --allow-remote to bind to it anyway (see docs/studio.md, Security)"
         )
+
+
+def bind_error(host: str, port: int, exc: OSError) -> str:
+    """The one line for a listener that could not start; the hint fits the cause."""
+    if isinstance(exc, socket.gaierror):
+        return f"studio cannot listen on --host {host}: the name is not known ({exc.strerror or exc})"
+    text = f"studio cannot listen on {host}:{port}: {exc.strerror or exc}"
+    if exc.errno == errno.EADDRINUSE:
+        return f"{text} (another studio? choose one with --port)"
+    if exc.errno == errno.EADDRNOTAVAIL:
+        return f"{text} (--host must be an address of this machine)"
+    return text
 
 
 @dataclass
@@ -121,10 +135,7 @@ class StudioServer:
             await site.start()
         except OSError as exc:
             await self._runner.cleanup()
-            raise ConfigError(
-                f"studio cannot listen on {self.host}:{self.port}: {exc.strerror or exc} "
-                "(another studio? choose one with --port)"
-            ) from exc
+            raise ConfigError(bind_error(self.host, self.port, exc)) from exc
         server = getattr(site, "_server", None)
         sockets = getattr(server, "sockets", None) or []
         if sockets:

@@ -86,6 +86,48 @@ class BrokerSource:
         self.monitor.close()
 
 
+class RobotFollower:
+    """A `BrokerSource` whose robot can change: `follow` switches to another robot id (the model
+    was created or renamed and the robot id is the model's name)."""
+
+    def __init__(self, settings: BrokerSettings, robot: str, hub: Hub) -> None:
+        self.settings = settings
+        self.robot = robot
+        self.hub = hub
+        self.source = BrokerSource(settings, robot, hub)
+        self._lock = threading.Lock()
+        self._started = False
+
+    def start(self) -> None:
+        with self._lock:
+            self._started = True
+            self.source.start()
+
+    def tick(self) -> None:
+        self.source.tick()
+
+    def follow(self, robot: str) -> None:
+        """Stop following the robot so far and follow `robot` (ConfigError: not a robot id)."""
+        from services.monitor.live import topic_filter
+
+        topic_filter(robot)  # a bad id is refused before the old robot is dropped
+        with self._lock:
+            if robot == self.robot:
+                return
+            self.source.close()
+            self.robot = robot
+            self.hub.follow_robot(robot)
+            self.source = BrokerSource(self.settings, robot, self.hub)
+            if self._started:
+                self.source.start()
+        log.info("studio follows another robot", robot=robot)
+
+    def close(self) -> None:
+        with self._lock:
+            self._started = False
+            self.source.close()
+
+
 def track_view(world: World) -> dict[str, Any]:
     """The track and the car's size for the page's sim panel."""
     track = world.track

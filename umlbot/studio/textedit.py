@@ -298,6 +298,23 @@ def append_item(t: Text, seq: yaml.SequenceNode, item: Value) -> None:
     t.insert_line_after(t.end(seq), f"{indent}- {flow(item)}")
 
 
+def insert_item(t: Text, seq: yaml.SequenceNode, index: int, item: Value) -> None:
+    """Add `item` before item `index` of a sequence (a block list: a new `- item` line above it)."""
+    entry = flow(item)
+    before = seq.value[index]
+    if seq.flow_style:
+        at = t.start(before)
+        t.replace(at, at, f"{entry}, ")
+        return
+    dash = t.text.rfind("-", 0, t.start(before))
+    if not t.owns_line(dash):  # `key: - item` cannot be; a nested `- - item` is not ours to split
+        raise EditError(f"{t.name}: cannot add to this list here")
+    at = t.line_start(dash)
+    while at > 0 and t.text[t.line_start(at - 1):at].strip().startswith("#"):
+        at = t.line_start(at - 1)  # the comments above the item stay with it
+    t.replace(at, at, f"{t.indent_of(dash)}- {entry}{t.newline}")
+
+
 def delete_item(t: Text, seq: yaml.SequenceNode, index: int) -> None:
     """Remove item `index` of a sequence (a block item: its lines, comments above it stay)."""
     if seq.flow_style:

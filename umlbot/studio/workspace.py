@@ -56,7 +56,7 @@ components:
 """,
     "deployment.yaml": """\
 # Which part realises each component, and its wiring (BCM pins).
-driver: pigpio
+driver: auto                   # lgpio on a Raspberry Pi 5, pigpio where pigpiod runs
 components:
   RaspberryPI: {impl: raspberrypi, settings: {pins: []}}
   LeftActuator: {impl: l298n, settings: {in1: 22, in2: 23}}

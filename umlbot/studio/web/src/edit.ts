@@ -51,6 +51,8 @@ const NODE_DOC: Record<string, string> = {
 /** Fields edited elsewhere (structure: connect/disconnect), never as text. */
 const STRUCTURAL = new Set(["id", "kind", "next", "targets", "branches"]);
 /** Fields written as an expression or a call: edited with completion. */
+/** An empty guard's input: the output is unfinished (the checker reports it) until one is typed. */
+const GUARD_PLACEHOLDER = "type this output's guard";
 const CODE_FIELDS = new Set(["call", "value", "guard", "when", "payload", "expr"]);
 
 const $ = <T extends HTMLElement>(sel: string): T => document.querySelector(sel) as T;
@@ -745,19 +747,17 @@ export class Editor {
     } else if (s.type === "component" && !m.components.some((c) => c.name === s.name)) this.sel = null;
   }
 
-  private async connect(lane: string, source: string, target: string, guard?: string): Promise<void> {
+  private async connect(lane: string, source: string, target: string): Promise<void> {
+    // a decision's first output is its else; the server writes any other with an empty guard,
+    // which the checker reports on the decision until it is typed here
     const op: Op = { op: "connect", lane, source, target };
     const src = this.lane(lane)?.nodes.find((n) => n.id === source);
-    if (src?.kind === "decision") {
-      const hasElse = this.lane(lane)?.edges.some((e) => e.source === source && guardOf(src, e) === "else");
-      op.guard = guard ?? (hasElse ? "true" : "else");
-    }
     if (await this.edit([op])) {
       this.sel = src?.kind === "decision" ? { type: "edge", lane, source, target } : { type: "node", lane, id: source };
       this.renderProps();
       this.highlightSelection();
-      // a decision's new branch: type its guard now (the first one is the else branch)
-      if (op.guard === "true") this.props.querySelector<HTMLInputElement>('[name="guard"]')?.select();
+      const guard = this.props.querySelector<HTMLInputElement>('[name="guard"]');
+      if (src?.kind === "decision" && guard && guard.value === "") guard.focus();
     }
   }
 
@@ -893,7 +893,7 @@ export class Editor {
       if (node.kind === "decision") {
         this.codeInput(r, "guard", guardOf(node, e), laneName, (text) => {
           void this.edit([{ op: "set_guard", lane: laneName, source: id, target: e.target, guard: text.trim() }]);
-        }, { "data-target": e.target });
+        }, { "data-target": e.target, placeholder: GUARD_PLACEHOLDER });
       }
       const x = this.button(r, "disconnect", "×", () => void this.edit([{ op: "disconnect", lane: laneName, source: id, target: e.target }]), "small");
       x.dataset.target = e.target;
@@ -921,7 +921,7 @@ export class Editor {
       const r = this.row(body, "guard");
       this.codeInput(r, "guard", src ? guardOf(src, e) : e.label, laneName, (text) => {
         void this.edit([{ op: "set_guard", lane: laneName, source, target, guard: text.trim() }]);
-      }, { "data-target": target });
+      }, { "data-target": target, placeholder: GUARD_PLACEHOLDER });
       el("div", { class: "hint" }, body, "a condition, or else");
     }
     const actions = el("div", { class: "actions" }, body);
@@ -1266,7 +1266,7 @@ function guardOf(node: ModelNode, e: ModelEdge): string {
   const branches = node.fields?.branches;
   if (Array.isArray(branches)) {
     for (const b of branches as Record<string, unknown>[]) {
-      if (b && b.then === e.target && typeof b.if === "string") return b.if;
+      if (b && b.then === e.target && !("else" in b)) return typeof b.if === "string" ? b.if : "";
       if (b && b.else === e.target) return "else";
     }
   }

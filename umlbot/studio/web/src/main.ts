@@ -822,7 +822,8 @@ function resetSession(hello: HelloMsg): void {
   modeEl.textContent = mode === "replay" ? `replay${hello.replay ? ` · ${hello.replay.file}` : ""}` : "live";
   modeEl.dataset.mode = mode;
   document.title = `umlbot studio — ${name} (${mode})`;
-  sim.setTrack(hello.track);
+  // (a *Run* going on or ended draws its track: the world frame after the snapshot puts the car)
+  sim.setTrack(hello.track ?? hello.edit?.run?.track ?? null);
   if (hello.edit) {
     if (editor) editor.setInfo(hello.edit);
     else {
@@ -875,6 +876,12 @@ function onMessage(msg: ServerMsg): void {
         resetLive();
       }
       editor?.onRun(msg);
+      break;
+    case "robot":
+      // the robot id follows the model's name: what the page showed was the previous robot's
+      robotName = msg.robot;
+      titleEl.textContent = `${model?.name ?? "(no model)"} · robot ${robotName}`;
+      resetLive();
       break;
     case "model":
       if (!msg.model && model) {

@@ -245,4 +245,10 @@ export interface ModelMsg {
   diagnostics: Diagnostic[];
 }
 
-export type ServerMsg = HelloMsg | EventsMsg | WorldMsg | ModelMsg | FilesMsg | ConflictMsg | RunMsg;
+/** The studio follows another robot id from now on (the model was created or renamed). */
+export interface RobotMsg {
+  type: "robot";
+  robot: string;
+}
+
+export type ServerMsg = HelloMsg | EventsMsg | WorldMsg | ModelMsg | FilesMsg | ConflictMsg | RunMsg | RobotMsg;
