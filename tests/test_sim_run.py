@@ -95,13 +95,19 @@ def test_a_collision_ends_the_run_with_exit_1_and_the_summary(tmp_path: Path) ->
     assert "collisions      1" in done.stdout
 
 
-@pytest.mark.timeout(120)
-def test_timeout_stops_a_run_that_cannot_reach_its_goal(tmp_path: Path) -> None:
+def _room(tmp_path: Path) -> Path:
+    """A 2 m x 3 m room with the car in the middle and the goal outside it: never reached."""
     track = tmp_path / "room.yaml"
     track.write_text(BOXED_IN.replace("boxed_in", "room").replace(
         "[[-0.18, 1.68], [-0.18, 2.0], [0.18, 2.0], [0.18, 1.68], [-0.18, 1.68]]",
         "[[-1.0, 0.0], [-1.0, 3.0], [1.0, 3.0], [1.0, 0.0], [-1.0, 0.0]]",
     ).replace("y: 1.84", "y: 1.0"), encoding="utf-8")
+    return track
+
+
+@pytest.mark.timeout(120)
+def test_timeout_stops_a_run_that_cannot_reach_its_goal(tmp_path: Path) -> None:
+    track = _room(tmp_path)
     result = run_sim(SimOptions(model=MODEL, track=track, speed=20.0, port=0, timeout_s=8.0))
     assert result.reason == "timeout"
     assert not result.ok
@@ -225,11 +231,7 @@ def test_the_timeout_holds_on_a_track_of_60000_walls(tmp_path: Path) -> None:
 def test_the_wall_time_bound_ends_a_run_whose_sim_time_cannot_keep_pace(tmp_path: Path) -> None:
     # at speed 2000, 3000 sim s would be 1.5 wall s, but sim time stands still during each of the
     # model's calls: the run is ended by its wall-time bound (2 x 1.5 + 10 s), and says so
-    track = tmp_path / "room.yaml"
-    track.write_text(BOXED_IN.replace("boxed_in", "room").replace(
-        "[[-0.18, 1.68], [-0.18, 2.0], [0.18, 2.0], [0.18, 1.68], [-0.18, 1.68]]",
-        "[[-1.0, 0.0], [-1.0, 3.0], [1.0, 3.0], [1.0, 0.0], [-1.0, 0.0]]",
-    ).replace("y: 1.84", "y: 1.0"), encoding="utf-8")
+    track = _room(tmp_path)
     speed, timeout_s = 2000.0, 3000.0
     # collisions do not end it: only the bound may
     result = run_sim(SimOptions(model=MODEL, track=track, speed=speed, port=0, timeout_s=timeout_s,
