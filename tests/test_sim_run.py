@@ -11,13 +11,14 @@ import signal
 import socket
 import subprocess
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
 from conftest import BrokerProcess
 
 from umlbot.errors import SimError
-from umlbot.sim.runner import Progress, SimOptions, SimResult, run_sim
+from umlbot.sim.runner import Progress, SimOptions, SimResult, run_sim, wall_limit_s
 from umlbot.sim.track import tracks_dir
 
 pytestmark = [pytest.mark.network, pytest.mark.slow]
@@ -95,13 +96,19 @@ def test_a_collision_ends_the_run_with_exit_1_and_the_summary(tmp_path: Path) ->
     assert "collisions      1" in done.stdout
 
 
-@pytest.mark.timeout(120)
-def test_timeout_stops_a_run_that_cannot_reach_its_goal(tmp_path: Path) -> None:
+def _room(tmp_path: Path) -> Path:
+    """A 2 m x 3 m room with the car in the middle and the goal outside it: never reached."""
     track = tmp_path / "room.yaml"
     track.write_text(BOXED_IN.replace("boxed_in", "room").replace(
         "[[-0.18, 1.68], [-0.18, 2.0], [0.18, 2.0], [0.18, 1.68], [-0.18, 1.68]]",
         "[[-1.0, 0.0], [-1.0, 3.0], [1.0, 3.0], [1.0, 0.0], [-1.0, 0.0]]",
     ).replace("y: 1.84", "y: 1.0"), encoding="utf-8")
+    return track
+
+
+@pytest.mark.timeout(120)
+def test_timeout_stops_a_run_that_cannot_reach_its_goal(tmp_path: Path) -> None:
+    track = _room(tmp_path)
     result = run_sim(SimOptions(model=MODEL, track=track, speed=20.0, port=0, timeout_s=8.0))
     assert result.reason == "timeout"
     assert not result.ok
@@ -153,3 +160,85 @@ def test_default_port_taken_falls_back_to_a_free_one() -> None:
     assert result.ok, result
     assert result.broker_url.startswith("mqtt://127.0.0.1:")
     assert not result.broker_url.endswith(":1883")
+
+
+@pytest.mark.timeout(120)
+def test_a_hung_service_fails_the_orchestrator_and_the_run_ends_at_once() -> None:
+    # the sonar service process is frozen (SIGSTOP) while the car drives: DistanceRead.value gets
+    # no reply within the model's 2 s call time-out, the orchestrator fails safe, and the run must
+    # end right then with that failure, the world's motors off (not the car driving on)
+    import threading
+
+    from umlbot.sim.world import World
+
+    frozen: list[tuple[int, float]] = []
+    worlds: list[World] = []
+
+    def observe(world: World, url: str, robot: str) -> Callable[[], None]:
+        worlds.append(world)
+        return lambda: None
+
+    def freeze_sonar(progress: Progress) -> None:
+        if not frozen and progress.snapshot.distance_m > 0.2:
+            pid = progress.service_pids["sonar"]
+            os.kill(pid, signal.SIGSTOP)
+            frozen.append((pid, progress.snapshot.distance_m))
+            # let it go on after the fault, so that it can be stopped in order
+            threading.Timer(4.0, os.kill, (pid, signal.SIGCONT)).start()
+
+    options = SimOptions(model=MODEL, track=tracks_dir() / "long_narrow.yaml", speed=SPEED, port=0,
+                         processes=True, timeout_s=300.0, progress_interval_s=0.05)
+    result = run_sim(options, freeze_sonar, observe=observe)
+    assert frozen, "the car never moved"
+    assert result.reason == "orchestrator failed", result
+    assert result.failure is not None and "no reply from DistanceRead.value" in result.failure
+    assert not result.ok and not result.goal_reached
+    assert result.as_dict()["failure"] == result.failure
+    world = worlds[0]
+    assert world.halted
+    assert not world.motor("left").enabled and not world.motor("right").enabled
+    # sim time stood still while the call hung and the world halted at the fault: the car went
+    # no farther than the moves under way when the sonar froze (one progress interval's worth)
+    assert result.distance_m - frozen[0][1] < 0.3, (result.distance_m, frozen)
+
+
+BIG_TRACK_WALLS = 60_000
+
+
+def _big_track(path: Path) -> Path:
+    """The reviewer's track: a 0.8 m x 2.5 m box around the car and 60 000 walls far away."""
+    lines = ["name: big", "start: {x: 0, y: 0.3, heading_deg: 90}",
+             "goal: {x_min: -0.4, x_max: 0.4, y_min: 2.1, y_max: 2.5}", "walls:",
+             "  - [[-0.4, 0], [-0.4, 2.5], [0.4, 2.5], [0.4, 0], [-0.4, 0]]"]
+    lines += [f"  - [[{x}, 10], [{x}, 11]]" for x in range(10, 10 + BIG_TRACK_WALLS)]
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    return path
+
+
+@pytest.mark.timeout(120)
+def test_the_timeout_holds_on_a_track_of_60000_walls(tmp_path: Path) -> None:
+    # it used to end at 339-524 sim s with --timeout 5: a world far behind the clock held its
+    # lock through a catch-up of minutes while the car drove on
+    track = _big_track(tmp_path / "big.yaml")
+    result = run_sim(SimOptions(model=MODEL, track=track, speed=SPEED, port=0, timeout_s=5.0))
+    assert result.reason == "timeout", result
+    assert 5.0 <= result.sim_s < 5.0 + 0.5, result  # the runner looks every 20 ms wall = 0.2 s sim
+    assert result.wall_s < wall_limit_s(5.0, SPEED), result
+    assert result.actions > 10  # the car really drove: the world kept up with the clock
+    assert result.failure is None and not result.ok
+
+
+@pytest.mark.timeout(120)
+def test_the_wall_time_bound_ends_a_run_whose_sim_time_cannot_keep_pace(tmp_path: Path) -> None:
+    # at speed 2000, 3000 sim s would be 1.5 wall s, but sim time stands still during each of the
+    # model's calls: the run is ended by its wall-time bound (2 x 1.5 + 10 s), and says so
+    track = _room(tmp_path)
+    speed, timeout_s = 2000.0, 3000.0
+    # collisions do not end it: only the bound may
+    result = run_sim(SimOptions(model=MODEL, track=track, speed=speed, port=0, timeout_s=timeout_s,
+                                max_collisions=1_000_000))
+    assert result.reason == "timeout", result
+    assert result.sim_s < timeout_s, result
+    assert result.wall_s < wall_limit_s(timeout_s, speed) + 1.0, result
+    assert result.failure is not None and "wall-time limit of 13 s" in result.failure, result
+    assert not result.ok

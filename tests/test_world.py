@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 from pathlib import Path
 
@@ -9,7 +10,7 @@ import pytest
 from services_support import ROOM  # 2 m x 3 m room, car in the middle facing +y
 
 from umlbot.errors import SimError
-from umlbot.sim.geometry import Point, Segment, cast, rectangle_corners, rectangle_hits
+from umlbot.sim.geometry import Point, Pose, Segment, cast, rectangle_corners, rectangle_hits
 from umlbot.sim.track import load_track, parse_track, tracks_dir
 from umlbot.sim.world import CarSpec, World
 
@@ -253,3 +254,64 @@ def test_every_bundled_track_loads_and_its_start_is_free() -> None:
         assert track.name == f.stem
         w = World(track)
         assert not w.snapshot().goal_reached
+
+
+def _random_walls(seed: int, count: int) -> list[Segment]:
+    """Polylines on a 0.1 m raster (shared corners, axis-parallel pieces: the ties of real tracks)."""
+    import random
+
+    rng = random.Random(seed)
+    walls: list[Segment] = []
+    while len(walls) < count:
+        points = [Point(round(rng.uniform(-5, 5), 1), round(rng.uniform(-5, 5), 1))]
+        for _ in range(3):
+            last = points[-1]
+            points.append(Point(round(last.x + rng.uniform(-1, 1), 1), round(last.y + rng.uniform(-1, 1), 1)))
+        walls.extend(Segment(a, b) for a, b in itertools.pairwise(points))
+    return walls
+
+
+@pytest.mark.parametrize("long_wall", [False, True], ids=["compact", "with-a-200-m-wall"])
+def test_the_wall_grid_answers_exactly_what_the_plain_scans_answer(long_wall: bool) -> None:
+    import random
+
+    from umlbot.sim.geometry import WallIndex, cast_hit
+
+    walls = _random_walls(7, 900)
+    if long_wall:  # spans too many cells: tested by every query
+        walls.append(Segment(Point(-100, -100), Point(100, 100)))
+    index = WallIndex(walls)
+    assert index.gridded
+    rng = random.Random(11)
+    hits = 0
+    for _ in range(4000):
+        # origins inside and outside the grid, some rays along the axes
+        origin = Point(rng.uniform(-9, 9), rng.uniform(-9, 9))
+        angle = rng.choice([0.0, math.pi / 2, math.pi, -math.pi / 2, rng.uniform(-math.pi, math.pi)])
+        expected = cast_hit(origin, angle, walls)
+        assert index.cast_hit(origin, angle) == expected, (origin, angle)
+        hits += expected is not None
+        corners = rectangle_corners(Pose(origin.x, origin.y, angle), 0.26, 0.15)
+        assert index.rectangle_hits(corners) == rectangle_hits(corners, walls), (origin, angle)
+    assert hits > 1000  # the rays really met walls
+
+
+def test_small_tracks_are_scanned_as_before() -> None:
+    from umlbot.sim.geometry import WallIndex
+
+    for path in sorted(tracks_dir().glob("*.yaml")):
+        assert not WallIndex(load_track(path).segments).gridded, path.name
+
+
+def test_halt_stops_the_motors_and_the_time_at_once() -> None:
+    w = world()
+    drive(w, 60, 60, 0.5)
+    moving = w.snapshot()
+    assert moving.distance_m > 0.1
+    w.halt()
+    assert w.halted
+    assert not w.motor("left").enabled and not w.motor("right").enabled
+    w.advance_to(moving.time_s + 10.0)  # a world that fell behind does not catch up any more
+    w.set_motor("left", enabled=True, duty_percent=80)  # a late driver command moves nothing
+    after = w.snapshot()
+    assert after.time_s == moving.time_s and after.pose == moving.pose

@@ -139,3 +139,124 @@ def rectangle_hits(corners: list[Point], walls: list[Segment]) -> bool:
         if point_in_polygon(wall.a, corners) or any(segments_intersect(wall, e) for e in edges):
             return True
     return False
+
+
+class WallIndex:
+    """The walls in a uniform grid, so a ray or a footprint tests only the walls near it.
+
+    A ray walks the grid's cells in order (Amanatides-Woo) and stops at the first cell that ends
+    beyond its nearest hit; a footprint tests the walls of the cells under its bounding box. Both
+    give exactly what the plain scans (`cast_hit`, `rectangle_hits`) give over the whole list:
+    the nearest hit, ties going to the wall earlier in the list. Tracks with at most
+    `LINEAR_MAX` walls are simply scanned. Cells are square, sized to about one wall per cell,
+    at most `MAX_CELLS_PER_AXIS` along each axis; a wall that would span more than
+    `MAX_CELLS_PER_WALL` cells is tested by every query instead.
+    """
+
+    LINEAR_MAX = 64
+    MIN_CELL_M = 0.25
+    MAX_CELLS_PER_AXIS = 4096
+    MAX_CELLS_PER_WALL = 256
+    _PAD = 1e-6  # walls are filed into every cell they come this close to (rounding)
+
+    def __init__(self, walls: list[Segment]) -> None:
+        self.walls = walls
+        self._cells: dict[tuple[int, int], list[int]] = {}
+        self._everywhere: list[int] = []
+        self.gridded = len(walls) > self.LINEAR_MAX
+        if not self.gridded:
+            return
+        xs = [p.x for wall in walls for p in wall]
+        ys = [p.y for wall in walls for p in wall]
+        self._x0, self._y0 = min(xs) - 2 * self._PAD, min(ys) - 2 * self._PAD
+        width, height = max(xs) - self._x0 + 2 * self._PAD, max(ys) - self._y0 + 2 * self._PAD
+        cell = max(self.MIN_CELL_M, math.sqrt(width * height / len(walls)))
+        self._cw = max(cell, width / self.MAX_CELLS_PER_AXIS)
+        self._ch = max(cell, height / self.MAX_CELLS_PER_AXIS)
+        self._nx = max(1, math.ceil(width / self._cw))
+        self._ny = max(1, math.ceil(height / self._ch))
+        for index, wall in enumerate(walls):
+            pad = self._PAD + 1e-9 * math.hypot(wall.b.x - wall.a.x, wall.b.y - wall.a.y)
+            i0, j0 = self._cell_of(min(wall.a.x, wall.b.x) - pad, min(wall.a.y, wall.b.y) - pad)
+            i1, j1 = self._cell_of(max(wall.a.x, wall.b.x) + pad, max(wall.a.y, wall.b.y) + pad)
+            if (i1 - i0 + 1) * (j1 - j0 + 1) > self.MAX_CELLS_PER_WALL:
+                self._everywhere.append(index)
+                continue
+            for i in range(i0, i1 + 1):
+                for j in range(j0, j1 + 1):
+                    self._cells.setdefault((i, j), []).append(index)
+
+    def _cell_of(self, x: float, y: float) -> tuple[int, int]:
+        i = min(self._nx - 1, max(0, math.floor((x - self._x0) / self._cw)))
+        j = min(self._ny - 1, max(0, math.floor((y - self._y0) / self._ch)))
+        return i, j
+
+    def cast_hit(self, origin: Point, angle: float) -> tuple[float, Segment] | None:
+        """`cast_hit(origin, angle, walls)` over this index's walls."""
+        if not self.gridded:
+            return cast_hit(origin, angle, self.walls)
+        best: tuple[float, int] | None = None
+
+        def test(index: int) -> None:
+            nonlocal best
+            d = ray_distance(origin, angle, self.walls[index])
+            if d is not None and (best is None or (d, index) < best):
+                best = (d, index)
+
+        for index in self._everywhere:
+            test(index)
+        dx, dy = math.cos(angle), math.sin(angle)
+        x1, y1 = self._x0 + self._nx * self._cw, self._y0 + self._ny * self._ch
+        # where the ray enters the grid's box (slabs), and leaves it
+        t_in, t_out = 0.0, math.inf
+        for o, d, lo, hi in ((origin.x, dx, self._x0, x1), (origin.y, dy, self._y0, y1)):
+            if abs(d) < _EPS:
+                if not lo <= o <= hi:
+                    t_in, t_out = 1.0, 0.0
+                continue
+            ta, tb = (lo - o) / d, (hi - o) / d
+            t_in, t_out = max(t_in, min(ta, tb)), min(t_out, max(ta, tb))
+        if t_in <= t_out:
+            seen: set[int] = set()
+            i, j = self._cell_of(origin.x + dx * t_in, origin.y + dy * t_in)
+            step_i, step_j = (1 if dx > 0 else -1), (1 if dy > 0 else -1)
+            # ray parameter at the next vertical / horizontal cell boundary, and per cell
+            if abs(dx) < _EPS:
+                t_x, delta_x = math.inf, math.inf
+            else:
+                edge_x = self._x0 + (i + (1 if dx > 0 else 0)) * self._cw
+                t_x, delta_x = (edge_x - origin.x) / dx, self._cw / abs(dx)
+            if abs(dy) < _EPS:
+                t_y, delta_y = math.inf, math.inf
+            else:
+                edge_y = self._y0 + (j + (1 if dy > 0 else 0)) * self._ch
+                t_y, delta_y = (edge_y - origin.y) / dy, self._ch / abs(dy)
+            while 0 <= i < self._nx and 0 <= j < self._ny:
+                for index in self._cells.get((i, j), ()):
+                    if index not in seen:
+                        seen.add(index)
+                        test(index)
+                t_exit = min(t_x, t_y)
+                if best is not None and best[0] < t_exit - 1e-9:
+                    break  # every later cell lies farther along the ray
+                if t_exit > t_out + 1e-9:
+                    break
+                if t_x < t_y:
+                    i += step_i
+                    t_x += delta_x
+                else:
+                    j += step_j
+                    t_y += delta_y
+        return None if best is None else (best[0], self.walls[best[1]])
+
+    def rectangle_hits(self, corners: list[Point]) -> bool:
+        """`rectangle_hits(corners, walls)` over this index's walls."""
+        if not self.gridded:
+            return rectangle_hits(corners, self.walls)
+        i0, j0 = self._cell_of(min(p.x for p in corners), min(p.y for p in corners))
+        i1, j1 = self._cell_of(max(p.x for p in corners), max(p.y for p in corners))
+        near = set(self._everywhere)
+        for i in range(i0, i1 + 1):
+            for j in range(j0, j1 + 1):
+                near.update(self._cells.get((i, j), ()))
+        return rectangle_hits(corners, [self.walls[index] for index in sorted(near)])

@@ -5,8 +5,9 @@ given), the world and its loop, the services with the `sim` drivers (in this pro
 `umlbot service KIND` child processes with `processes=True`, which reach the world through
 `umlbot.sim.sharing.WorldServer`) and the orchestrator in this process with the same clock. It
 stops when the goal is reached, when the collision limit or the time-out is hit, when the
-orchestrator ends, or on Ctrl-C; on every path the motors are stopped and everything started is
-torn down. The result carries the summary; `plot` draws the picture.
+orchestrator ends or fails, or on Ctrl-C; on every path the world is halted at once (motors off,
+time stopped: `World.halt`, no MQTT round trip that could time out), then the rest is torn down.
+The result carries the summary; `plot` draws the picture.
 """
 
 from __future__ import annotations
@@ -42,6 +43,20 @@ log = get_logger(__name__)
 DEFAULT_PORT = 1883
 #: Sim seconds before a run is given up.
 DEFAULT_TIMEOUT_S = 600.0
+#: The wall-time bound of a run is `WALL_LIMIT_FACTOR` x timeout / speed + `WALL_LIMIT_EXTRA_S`:
+#: sim time stands still while calls are in flight, and a world that cannot keep up with the
+#: clock lags behind it; neither may stretch a run without bound.
+WALL_LIMIT_FACTOR = 2.0
+WALL_LIMIT_EXTRA_S = 10.0
+#: Wall seconds the runner waits for the world's lock before it looks again (a long catch-up).
+SNAPSHOT_WAIT_S = 0.05
+#: A run that timed out with its world this many sim seconds behind the clock reports it.
+WORLD_LAG_REPORT_S = 1.0
+
+
+def wall_limit_s(timeout_s: float, speed: float) -> float:
+    """The wall seconds a run with this sim-time `timeout_s` and `speed` may take at most."""
+    return WALL_LIMIT_FACTOR * timeout_s / speed + WALL_LIMIT_EXTRA_S
 
 
 @dataclass(frozen=True)
@@ -81,7 +96,8 @@ class SimResult:
     """How a run ended, with the numbers of the summary."""
 
     track: str
-    reason: str  # goal, collision, timeout, interrupted, orchestrator ended, orchestrator failed
+    #: goal, collision, timeout, interrupted, orchestrator ended/failed, service failed
+    reason: str
     goal_reached: bool
     collisions: int
     sim_s: float
@@ -97,8 +113,8 @@ class SimResult:
 
     @property
     def ok(self) -> bool:
-        """The run counts as a success: goal reached without a collision."""
-        return self.goal_reached and self.collisions == 0
+        """The run counts as a success: goal reached without a collision and nothing failed."""
+        return self.goal_reached and self.collisions == 0 and self.failure is None
 
     def as_dict(self) -> dict[str, Any]:
         return {
@@ -113,6 +129,7 @@ class SimResult:
             "action_p50_ms": _round(self.action_p50_ms),
             "action_p99_ms": _round(self.action_p99_ms),
             "plot": str(self.plot) if self.plot else None,
+            "failure": self.failure,
         }
 
 
@@ -362,8 +379,7 @@ def run_sim(
     orch_outcome: dict[str, Any] = {}
     watch = _Watch(frozenset(compiled.components))
     wall_start = time.monotonic()
-    # sim time stands still while calls are in flight: a hung call must not hang the run forever
-    wall_limit_s = options.timeout_s / options.speed * 10 + 60
+    wall_limit = wall_limit_s(options.timeout_s, options.speed)
     reason = "interrupted"
     failure: str | None = None
     try:
@@ -378,6 +394,9 @@ def run_sim(
             compiled, BrokerSettings.from_url(url), robot=deployment.robot, clock=clock,
             trace_listener=watch.on_event, handle_signals=False,
         )
+        # a fail-safe stop halts the world at once, in the orchestrator's thread: its own stop
+        # calls go through the broker and may time out while the car drives on
+        orchestrator.on_fault = lambda _reason: world.halt()
 
         def run_orchestrator() -> None:
             try:
@@ -394,15 +413,25 @@ def run_sim(
             if stop.wait(0.02):
                 reason = "interrupted"
                 break
-            snap = world.snapshot()
-            if snap.goal_reached:
+            if orchestrator.failure is not None:  # at once, not when its shut-down has ended
+                reason, failure = "orchestrator failed", orchestrator.failure
+                break
+            # the clock, not the world: a world that fell behind holds its lock while it catches up
+            sim_now = clock.now()
+            snap = world.try_snapshot(SNAPSHOT_WAIT_S)
+            if snap is not None and snap.goal_reached:
                 reason = "goal"
                 break
-            if snap.collisions >= options.max_collisions:
+            if snap is not None and snap.collisions >= options.max_collisions:
                 reason = "collision"
                 break
-            if snap.time_s >= options.timeout_s or time.monotonic() - wall_start > wall_limit_s:
+            if sim_now >= options.timeout_s:
                 reason = "timeout"
+                break
+            if time.monotonic() - wall_start > wall_limit:
+                reason = "timeout"
+                failure = (f"wall-time limit of {wall_limit:g} s reached at {sim_now:.1f} s sim time "
+                           f"(--timeout {options.timeout_s:g} at --speed {options.speed:g})")
                 break
             if not orch_thread.is_alive():
                 failure = orch_outcome.get("error") or orchestrator.failure
@@ -413,7 +442,7 @@ def run_sim(
                 reason, failure = "service failed", dead
                 break
             now = time.monotonic()
-            if on_progress is not None and now >= next_report:
+            if on_progress is not None and snap is not None and now >= next_report:
                 next_report = now + options.progress_interval_s
                 with watch.lock:
                     action = watch.action
@@ -422,9 +451,15 @@ def run_sim(
     except KeyboardInterrupt:
         reason = "interrupted"
     finally:
-        world.stop_motors()  # at once, whatever the services still do
+        _catch_up(world)
+        world.halt()  # motors off and time stopped at once, whatever the services still do
         final = world.snapshot()
         wall_s = time.monotonic() - wall_start
+        if world.clock is not None and reason == "timeout" and failure is None:
+            behind = world.clock.now() - final.time_s
+            if behind > WORLD_LAG_REPORT_S:
+                failure = (f"the world fell {behind:.1f} s of sim time behind the clock "
+                           f"(it cannot keep up at --speed {options.speed:g})")
         if orchestrator is not None:
             orchestrator.request_exit(f"simulation ended: {reason}")
             if orch_thread is not None:
@@ -435,7 +470,6 @@ def run_sim(
         services.stop()
         if loop is not None:
             loop.stop()
-        world.stop_motors()
         if finish_observing is not None:
             finish_observing()
         if broker is not None:
@@ -464,11 +498,35 @@ def run_sim(
     return result
 
 
+def _catch_up(world: World) -> None:
+    """Bring a world that is not halted up to its clock, when it is at most a little behind.
+
+    The world loop follows the clock 10 ms of wall time late: without this a run would end up
+    to 0.1 s of sim time (at speed 10) before the time-out it reports. A world far behind (it
+    cannot keep up) is not caught up: that would drive the car on for as long as it takes.
+    """
+    if world.clock is None or world.halted:
+        return
+    snap = world.try_snapshot(SNAPSHOT_WAIT_S)
+    now = world.clock.now()
+    if snap is not None and now - snap.time_s <= WORLD_LAG_REPORT_S:
+        world.advance_to(now)
+
+
 def _sim_orchestrator_class() -> Any:
     """The orchestrator, telling its `SimClock` when a feature call is in flight."""
     from services.orchestrator.orchestrator import Orchestrator
 
     class SimOrchestrator(Orchestrator):
+        #: called (in the orchestrator's thread) with the reason of the first fail-safe stop
+        on_fault: Callable[[str], None] | None = None
+
+        def _fault(self, reason: str) -> None:
+            first = self.failure is None
+            super()._fault(reason)
+            if first and self.on_fault is not None:
+                self.on_fault(reason)
+
         async def call(self, component: str, feature: str, args: list[Any]) -> Any:
             clock = self.clock
             if not isinstance(clock, SimClock):

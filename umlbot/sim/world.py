@@ -20,7 +20,7 @@ from typing import Literal
 
 from umlbot.clock import Clock
 from umlbot.logs import get_logger
-from umlbot.sim.geometry import Point, Pose, Segment, cast_hit, incidence, rectangle_corners, rectangle_hits
+from umlbot.sim.geometry import Point, Pose, Segment, WallIndex, incidence, rectangle_corners
 from umlbot.sim.track import Track
 
 log = get_logger(__name__)
@@ -140,7 +140,9 @@ class World:
         self.sonar_drop = sonar_drop
         self._rng = random.Random(seed)
         self._walls: list[Segment] = track.segments
+        self._index = WallIndex(self._walls)  # a grid on big tracks: pings and steps test near walls
         self._lock = threading.RLock()
+        self._halted = threading.Event()  # set by halt(): time stands still, the motors are off
         self._time = 0.0
         self._pose = track.start.pose
         self._motors: dict[Side, MotorChannelState] = {"left": MotorChannelState(),
@@ -184,6 +186,25 @@ class World:
         """Disable both sides (the safe state)."""
         for side in self._motors:
             self.set_motor(side, enabled=False, duty_percent=0.0)
+
+    def halt(self) -> None:
+        """End the world at once: both sides disabled where the car is now, and time stops.
+
+        Unlike `stop_motors` it does not first catch up with the clock (a world that fell behind
+        would otherwise go on driving the car for as long as the catch-up takes): an integration
+        running in another thread stops after its current step, and from now on `advance_to` does
+        nothing. Thread-safe and idempotent; the simulator calls it whenever a run ends.
+        """
+        self._halted.set()
+        with self._lock:
+            for channel in self._motors.values():
+                channel.enabled = False
+                channel.duty_percent = 0.0
+
+    @property
+    def halted(self) -> bool:
+        """`halt()` was called: the world's time no longer moves."""
+        return self._halted.is_set()
 
     def set_servo(self, degrees: float) -> None:
         """Command the sonar servo; it turns there at `servo_deg_per_s`."""
@@ -238,7 +259,7 @@ class World:
         steepest = math.radians(self.car.sonar_max_incidence_deg)
         echoes = []
         for offset in offsets:
-            hit = cast_hit(origin, bearing + offset, self._walls)
+            hit = self._index.cast_hit(origin, bearing + offset)
             if hit is not None and incidence(bearing + offset, hit[1]) <= steepest:
                 echoes.append(hit[0])
         return min(echoes, default=None)
@@ -251,11 +272,14 @@ class World:
         The partial step puts the world exactly at the time a command arrives, so a motor runs
         for exactly as long as it was told to, not rounded to the step.
         """
+        halted = self._halted
         with self._lock:
             while self._time + self.step_s <= time_s + 1e-12:
+                if halted.is_set():
+                    return
                 self.step(self.step_s)
             rest = time_s - self._time
-            if rest > 1e-9:
+            if rest > 1e-9 and not halted.is_set():
                 self.step(rest)
 
     def step(self, dt: float) -> None:
@@ -318,13 +342,22 @@ class World:
 
     def hits_wall(self, pose: Pose) -> bool:
         """True when the car's footprint at `pose` touches a wall."""
-        return rectangle_hits(rectangle_corners(pose, self.car.length_m, self.car.width_m), self._walls)
+        return self._index.rectangle_hits(rectangle_corners(pose, self.car.length_m, self.car.width_m))
 
     def _sonar_origin(self) -> tuple[Point, float]:
         x, y, heading = self._pose
         origin = Point(x + self.car.sonar_forward_m * math.cos(heading),
                        y + self.car.sonar_forward_m * math.sin(heading))
         return origin, heading + math.radians(self._servo.angle_deg - 90.0)
+
+    def try_snapshot(self, wait_s: float) -> WorldSnapshot | None:
+        """`snapshot()`, or None when the world stays busy (a long catch-up) for `wait_s` seconds."""
+        if not self._lock.acquire(timeout=wait_s):
+            return None
+        try:
+            return self.snapshot()
+        finally:
+            self._lock.release()
 
     def snapshot(self) -> WorldSnapshot:
         with self._lock:
