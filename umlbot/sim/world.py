@@ -182,15 +182,10 @@ class World:
                     raise ValueError(f"duty must be 0..100 %, got {duty_percent}")
                 channel.duty_percent = duty_percent
 
-    def stop_motors(self) -> None:
-        """Disable both sides (the safe state)."""
-        for side in self._motors:
-            self.set_motor(side, enabled=False, duty_percent=0.0)
-
     def halt(self) -> None:
         """End the world at once: both sides disabled where the car is now, and time stops.
 
-        Unlike `stop_motors` it does not first catch up with the clock (a world that fell behind
+        It does not first catch up with the clock, as `set_motor` does (a world that fell behind
         would otherwise go on driving the car for as long as the catch-up takes): an integration
         running in another thread stops after its current step, and from now on `advance_to` does
         nothing. Thread-safe and idempotent; the simulator calls it whenever a run ends.
