@@ -91,7 +91,6 @@ def parse_ops(raw: Any) -> list[Op]:
     return ops
 
 
-
 class Edits:
     """The files being changed by one batch of operations (texts keyed by relative path).
 
