@@ -15,9 +15,9 @@ from typing import Any, Literal, cast
 from compiler.compiled import CompiledModel
 from compiler.diagnostics import Diagnostics, Location
 from compiler.expr_parser import RawExpr, RBinary, RCall, RConst, RName, RUnary, SourceText, parse_expression
-from compiler.source import Damage, SourceLane, SourceModel, SourceNode
+from compiler.source import Damage, SourceDeployment, SourceLane, SourceModel, SourceNode, locate
 from compiler.yamlsrc import YMap, YScalar, YSeq
-from umlbot.errors import ModelError
+from umlbot.errors import ConfigError, ModelError
 from umlbot.library import (
     ComponentKind,
     FeatureSpec,
@@ -34,6 +34,11 @@ Type = Literal["int", "float", "bool", "str", "none", "any", "unknown"]
 RESERVED = {"Application", "usleep", "msleep", "and", "or", "not", "true", "false", "True", "False",
             "null"}
 SLEEP_BUILTINS = {"usleep": "us", "msleep": "ms"}
+def _a(noun: str) -> str:
+    """`noun` with its indefinite article: "a sensor", "an actuator"."""
+    return f"{'an' if noun[:1].lower() in 'aeiou' else 'a'} {noun}"
+
+
 NEXT_KINDS = ("start", "action", "datastore", "join", "send", "accept")
 ARITHMETIC = ("+", "-", "*", "/", "%")
 ORDERING = ("<", "<=", ">", ">=")
@@ -52,6 +57,43 @@ def _const(value: object) -> Data:
 def _is_number_const(expr: Data) -> bool:
     value = expr.get("value")
     return expr["op"] == "const" and isinstance(value, int | float) and not isinstance(value, bool)
+
+
+def _constant_number(expr: Data) -> int | float | None:
+    """The value of an arithmetic expression of number constants (`90 * 3`, `-(10 + 5)`), computed
+    as the orchestrator will; None when it reads anything else or cannot be computed (`1 / 0`)."""
+    from services.orchestrator.expressions import BINARY_OPERATIONS
+
+    if _is_number_const(expr):
+        return cast(int | float, expr["value"])
+    if expr["op"] == "unary" and expr["operator"] == "-":
+        operand = _constant_number(expr["operand"])
+        return None if operand is None else -operand
+    if expr["op"] == "binary" and expr["operator"] in ARITHMETIC:
+        left, right = _constant_number(expr["left"]), _constant_number(expr["right"])
+        if left is None or right is None:
+            return None
+        try:
+            value = BINARY_OPERATIONS[expr["operator"]](left, right)
+        except (ArithmeticError, ValueError):
+            return None
+        return value if isinstance(value, int | float) else None
+    return None
+
+
+def _skipped_plugins() -> str:
+    """A hint for an unknown kind or implementation: the installed plugins that were skipped."""
+    from umlbot.plugins import COMPONENTS_GROUP, catalog
+
+    skipped = sorted({p.package.split(" ")[0] for p in catalog().problems if p.group == COMPONENTS_GROUP})
+    return f"; skipped plugin packages: {', '.join(skipped)} (see 'umlbot plugins')" if skipped else ""
+
+
+def _start(raw: RawExpr) -> int:
+    """Where an expression's text begins (a binary's own offset is its operator's)."""
+    while isinstance(raw, RBinary):
+        raw = raw.left
+    return raw.offset
 
 
 def _call(target: Data, args: list[Data] | None = None) -> Data:
@@ -113,6 +155,9 @@ class _Node:
     next_loc: Location | None = None
     branches: list[_Branch] = field(default_factory=list)
     targets: list[tuple[str, Location]] = field(default_factory=list)
+    #: decision outputs whose guard is missing or unreadable (reported): still flows, so that the
+    #: node they lead to is not reported as having no path from the start as well.
+    unguarded: list[tuple[str, Location]] = field(default_factory=list)
     expr: YScalar | None = None  # action call, datastore value or send payload
     name: str | None = None  # datastore name
     signal: str | None = None
@@ -126,7 +171,7 @@ class _Node:
 
     def successors(self) -> list[str]:
         if self.src.kind == "decision":
-            return [b.target for b in self.branches if b.target is not None]
+            return [b.target for b in self.branches if b.target is not None] + [t for t, _ in self.unguarded]
         if self.src.kind == "fork":
             return [t for t, _ in self.targets]
         return [self.next] if self.next is not None else []
@@ -335,9 +380,10 @@ class _ExprChecker:
                 if not _numeric(t):
                     raise self.fail(f"{name} needs a number of {SLEEP_BUILTINS[name]}, got {t}",
                                     raw.args[0].offset)
-                if _is_number_const(arg) and arg["value"] < 0:
-                    raise self.fail(f"{name} needs a duration of 0 or more, got {arg['value']}",
-                                    raw.args[0].offset)
+                duration = _constant_number(arg)
+                if duration is not None and duration < 0:
+                    raise self.fail(f"{name} needs a duration of 0 or more, got {duration:g}",
+                                    _start(raw.args[0]))
                 return _builtin(name, [arg]), "none"
             if name in scope.lanes:
                 if not scope.lanes[name].virtual:
@@ -367,11 +413,12 @@ class _ExprChecker:
                                 f"{owner}()", raw.offset)
             raise self.fail(f"unknown component '{owner}'", raw.offset)
         kind = scope.kinds[owner]
+        impl = scope.impls.get(owner)
         if feature not in kind_features(kind):
-            known = ", ".join(kind_features(kind))
+            # the features this component offers: its implementation's, else its kind's
+            known = ", ".join(impl.features if impl is not None else kind_features(kind))
             raise self.fail(f"unknown feature '{feature}' of {kind} component '{owner}' "
                             f"(known: {known})", raw.name.offsets[1])
-        impl = scope.impls.get(owner)
         if impl is not None and feature not in impl.features:
             raise self.fail(f"implementation '{impl.id}' of '{owner}' does not offer feature "
                             f"'{feature}' (it offers: {', '.join(impl.features)})", raw.name.offsets[1])
@@ -388,13 +435,13 @@ class _ExprChecker:
             if not ok:
                 raise self.fail(f"argument {index} ({param.name}) of {owner}.{feature} must be "
                                 f"{param.type}, got {t}", raw_arg.offset)
-            if _is_number_const(arg):
-                value = arg["value"]
+            value = _constant_number(arg)
+            if value is not None:
                 low, high = param.minimum, param.maximum
                 if (low is not None and value < low) or (high is not None and value > high):
                     by = f" by implementation '{impl.id}'" if impl is not None else ""
                     raise self.fail(f"argument {index} ({param.name}) of {owner}.{feature} must be "
-                                    f"{low:g}..{high:g}{by}, got {value}", raw_arg.offset)
+                                    f"{low:g}..{high:g}{by}, got {value:g}", _start(raw_arg))
             args.append(arg)
         target = {"kind": "feature", "component": owner, "feature": feature}
         return _call(target, args), cast(Type, spec.returns)
@@ -425,7 +472,7 @@ class _Checker:
                 continue
             if comp.kind not in component_kinds():
                 self.d.error(f"unknown component kind '{comp.kind}' (known: "
-                             f"{', '.join(component_kinds())})", comp.kind_loc)
+                             f"{', '.join(component_kinds())}){_skipped_plugins()}", comp.kind_loc)
                 self.scope.unknown_components.add(name)
                 continue
             kind: ComponentKind = comp.kind
@@ -455,6 +502,7 @@ class _Checker:
             return
         if dep.deployment is None:
             return  # its problems were reported while reading it
+        self.check_robot_id(dep)
         for name, entry in dep.deployment.components.items():
             where = dep.entries.get(name)
             loc = where.loc if where else dep.loc
@@ -465,26 +513,131 @@ class _Checker:
                 continue
             impl = resolve_implementation(entry.impl)
             if impl is None:
-                self.d.error(f"unknown implementation id '{entry.impl}' for component '{name}'", impl_loc)
+                self.d.error(f"unknown implementation id '{entry.impl}' for component '{name}'"
+                             f"{_skipped_plugins()}", impl_loc)
                 continue
             kind = self.scope.kinds.get(name)
             if kind is None:
                 continue
             if impl.kind != kind:
-                self.d.error(f"component '{name}' is a {kind} but implementation '{impl.id}' is a "
-                             f"{impl.kind}", impl_loc)
+                self.d.error(f"component '{name}' is {_a(kind)} but implementation '{impl.id}' is "
+                             f"{_a(impl.kind)}", impl_loc)
                 continue
             self.scope.impls[name] = impl
             for port, (feature, port_loc) in self.source.components[name].ports.items():
                 if feature in kind_features(kind) and feature not in impl.features:
                     self.d.error(f"implementation '{impl.id}' of '{name}' does not offer feature "
                                  f"'{feature}' (port '{port}')", port_loc)
+            if self.check_driver(name, impl, dep):
+                self.check_settings(name, impl, dep)
+        self.check_default_driver(dep)
+        self.check_shared_pins(dep)
         if not dep.whole:
             return  # a line that could not be read may have deployed any of them
         for name, comp in self.source.components.items():
             if (name not in dep.deployment.components and name not in dep.unread
                     and comp.kind in component_kinds()):
                 self.d.error(f"component '{name}' has no implementation in the deployment", comp.loc)
+
+    def _deployment_loc(self, dep: SourceDeployment, *path: int | str) -> Location:
+        """The position of `path` in the rich deployment (as deep as it is written)."""
+        return locate(dep.root, path) if dep.root is not None else dep.loc
+
+    def check_robot_id(self, dep: SourceDeployment) -> None:
+        """The robot id (the deployment's `robot`, else the model's name) is one MQTT topic level:
+        every topic of the robot is `umlbot/<robot>/…`."""
+        from services.bus.topics import check_name
+
+        assert dep.deployment is not None
+        robot = dep.deployment.robot
+        try:
+            check_name("robot id" if robot is not None else "the model's name", robot or self.source.name)
+        except ConfigError as exc:
+            if robot is not None:
+                self.d.error(str(exc), self._deployment_loc(dep, "robot"))
+            else:  # a folder's name: the model has no `name` of its own
+                self.d.error(f"{exc}; it is the robot id: give the model a `name` (or the deployment "
+                             "a `robot`)", self.source.loc)
+
+    def check_driver(self, name: str, impl: Implementation, dep: SourceDeployment) -> bool:
+        """The driver a component's service would start with exists (built-in or a plugin's). An
+        unknown default driver is reported once (`check_default_driver`), not per component."""
+        from services.registry import known_drivers
+
+        assert dep.deployment is not None
+        own = dep.deployment.components[name].driver
+        driver = dep.deployment.driver_for(name)
+        known = known_drivers(impl.service)
+        if driver in known:
+            return True
+        if own is not None:
+            self.d.error(f"unknown driver '{driver}' for '{name}' ({impl.service} service; known: "
+                         f"{', '.join(known)})", self._deployment_loc(dep, "components", name, "driver"))
+        return False
+
+    def check_default_driver(self, dep: SourceDeployment) -> None:
+        """The deployment's `driver`, for every service it is the driver of: one error when no
+        service has it (a misspelling), else one per service that lacks it."""
+        from services.registry import known_drivers
+
+        assert dep.deployment is not None
+        default = dep.deployment.driver
+        by_service: dict[str, list[str]] = {}
+        for name, entry in dep.deployment.components.items():
+            impl = self.scope.impls.get(name)
+            if impl is not None and entry.driver is None:
+                by_service.setdefault(impl.service, []).append(name)
+        known = {service: known_drivers(service) for service in by_service}
+        missing = sorted(service for service in by_service if default not in known[service])
+        loc = self._deployment_loc(dep, "driver")
+        if missing and len(missing) == len(by_service):
+            every = sorted({driver for drivers in known.values() for driver in drivers})
+            self.d.error(f"unknown driver '{default}' (known: {', '.join(every)})", loc)
+            return
+        for service in missing:
+            names = ", ".join(f"'{n}'" for n in by_service[service])
+            advice = "them drivers of their own" if len(by_service[service]) > 1 else "it a driver of its own"
+            self.d.error(f"the {service} service of {names} has no driver '{default}' (known: "
+                         f"{', '.join(known[service])}); give {advice}", loc)
+
+    def check_settings(self, name: str, impl: Implementation, dep: SourceDeployment) -> None:
+        """A component's settings, when given (`settings: {}` too), as its service's driver will
+        validate them at start-up (`driver: auto`: as every hardware driver will). Without settings
+        a component runs with the mock and sim drivers only: a warning in a rich deployment for a
+        hardware driver, nothing in the seed's plain format."""
+        from services.registry import AUTO, PREFIXED_DRIVERS, settings_problems
+
+        assert dep.deployment is not None
+        entry = dep.deployment.components[name]
+        driver = dep.deployment.driver_for(name)
+        driver_name = "the hardware drivers" if driver == AUTO else f"driver '{driver}'"
+        if "settings" not in entry.model_fields_set:
+            # the seed's plain format has no settings; a rich deployment that leaves them out for a
+            # hardware driver is told what the robot will ask for
+            if dep.root is None or driver in PREFIXED_DRIVERS:
+                return
+            needed = [".".join(str(part) for part in path) for path, _ in
+                      settings_problems(impl.service, driver, {})]
+            if needed:
+                self.d.warning(f"'{name}' has no settings: {driver_name} need {', '.join(needed)} "
+                               "(it runs with the mock and sim drivers only)",
+                               self._deployment_loc(dep, "components", name))
+            return
+        for path, msg in settings_problems(impl.service, driver, entry.settings):
+            field = ".".join(str(part) for part in path)
+            self.d.error(f"settings of '{name}' ({impl.id}) refused by {driver_name}: "
+                         f"{field + ': ' if field else ''}{msg}",
+                         self._deployment_loc(dep, "components", name, "settings", *path))
+
+    def check_shared_pins(self, dep: SourceDeployment) -> None:
+        """Two components wired to one GPIO: the second service to start would take the pin over."""
+        from umlbot.deployment import shared_pin_message, shared_pins
+
+        assert dep.deployment is not None
+        for pin, name, key, first, first_key in shared_pins(dep.deployment):
+            if name in self.scope.impls and first in self.scope.impls:  # else its entry's own error
+                self.d.error(shared_pin_message(pin, name, key, first, first_key),
+                             self._deployment_loc(dep, "components", name, "settings", key))
 
     # --- swimlanes -----------------------------------------------------------------------------------
 
@@ -619,14 +772,16 @@ class _Checker:
                                              target.loc if target else item.loc, item.loc, True))
                 continue
             guard_node = item.get("if")
-            if guard_node is None or (isinstance(guard_node, YScalar) and not guard_node.text.strip()):
-                self.d.error("decision output without guard: write {if: <guard>, then: <node>} or "
-                             "{else: <node>}", item.loc)
-                continue
-            if not isinstance(guard_node, YScalar):
-                self.d.error("a guard is an expression", guard_node.loc)
-                continue
             target = self.scalar(item, "then", "a decision output")
+            if not isinstance(guard_node, YScalar) or not guard_node.text.strip():
+                if guard_node is None or isinstance(guard_node, YScalar):
+                    self.d.error("decision output without guard: write {if: <guard>, then: <node>} or "
+                                 "{else: <node>}", item.loc)
+                else:
+                    self.d.error("a guard is an expression", guard_node.loc)
+                if target is not None:
+                    node.unguarded.append((target.text.strip(), target.loc))
+                continue
             node.branches.append(_Branch(guard_node, target.text.strip() if target else None,
                                          target.loc if target else item.loc, item.loc, False))
         # the else output is taken only when no guard holds, whatever its place in the list
@@ -779,6 +934,7 @@ class _Checker:
             if node.next is not None and node.next_loc is not None:
                 edges.append((node.next, node.next_loc))
             edges += [(b.target, b.target_loc) for b in node.branches if b.target is not None]
+            edges += node.unguarded
             edges += node.targets
             for target, loc in edges:
                 if target not in lane.nodes:

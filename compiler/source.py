@@ -110,6 +110,9 @@ class SourceDeployment:
     whole: bool = True
     #: components named on a line whose implementation could not be read (`Motor=`).
     unread: set[str] = field(default_factory=set)
+    #: the rich format's mapping as written, to place a problem of a driver or its settings
+    #: (None in the plain format, which has neither).
+    root: YNode | None = None
 
 
 @dataclass
@@ -283,6 +286,9 @@ def load_source(path: str | Path, diagnostics: Diagnostics,
     Raises `ModelError` only when nothing sensible can be read (missing folder, no model.yaml).
     """
     p = Path(path)
+    if files is None and p.name == MODEL_FILE and p.is_file():
+        # `model.yaml` of a folder model is the folder: its swimlanes and deployment are beside it
+        p = p.parent
     if files is not None or p.is_dir():
         reader = _Reader(p, diagnostics, files)
         model_file = p / MODEL_FILE
@@ -580,7 +586,7 @@ def _deployment_from_yaml(root: YNode, shown: str, d: Diagnostics) -> SourceDepl
         inner = root.get("deployment")
         assert inner is not None
         root = inner
-    result = SourceDeployment(None, shown, root.loc)
+    result = SourceDeployment(None, shown, root.loc, root=root)
     if not isinstance(root, YMap):
         d.error("a deployment is a mapping with 'components' (or the plain Component=impl lines)",
                 root.loc)
@@ -596,13 +602,13 @@ def _deployment_from_yaml(root: YNode, shown: str, d: Diagnostics) -> SourceDepl
         result.deployment = Deployment.model_validate(to_python(root))
     except ValidationError as exc:
         for err in exc.errors():
-            loc = _locate(root, err["loc"])
+            loc = locate(root, err["loc"])
             where = ".".join(str(p) for p in err["loc"])
             d.error(f"invalid deployment: {where}: {err['msg']}", loc)
     return result
 
 
-def _locate(root: YNode, path: tuple[int | str, ...]) -> Location:
+def locate(root: YNode, path: tuple[int | str, ...]) -> Location:
     """The position of the value at a pydantic error path (as deep as the path exists)."""
     node: YNode = root
     loc = root.loc

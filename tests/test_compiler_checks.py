@@ -7,6 +7,8 @@ from pathlib import Path
 import pytest
 from compiler_support import HEADER, MAIN, at, check_text, errors_of, position
 
+from compiler.api import check_model
+from compiler.compiled import dump_compiled
 from umlbot.library import component_kinds
 
 
@@ -26,8 +28,8 @@ CASES: list[tuple[str, str, str, str, int]] = [
      "unknown component 'Motr'", "Motr.", 0),
     ("unknown feature",
      HEADER + main_with("{id: a, kind: action, call: Motor.speed(3)}"),
-     "unknown feature 'speed' of actuator component 'Motor' (known: enabled, direction, dutycycle, "
-     "angle)", "speed", 0),
+     "unknown feature 'speed' of actuator component 'Motor' (known: enabled, direction, dutycycle)",
+     "speed", 0),
     ("wrong argument count",
      HEADER + main_with("{id: a, kind: action, call: Motor.enabled()}"),
      "Motor.enabled takes 1 argument(s) (on: bool), got 0", "Motor.enabled()", 0),
@@ -44,6 +46,12 @@ CASES: list[tuple[str, str, str, str, int]] = [
     ("negative constant out of range",
      HEADER + main_with("{id: a, kind: action, call: Servo.angle(-5)}"),
      "argument 1 (degrees) of Servo.angle must be 0..180 by implementation 'servo', got -5", "-5", 0),
+    ("constant expression out of range",
+     HEADER + main_with("{id: a, kind: action, call: Servo.angle(90 * 3)}"),
+     "argument 1 (degrees) of Servo.angle must be 0..180 by implementation 'servo', got 270", "90 * 3", 0),
+    ("negative constant sleep",
+     HEADER + main_with("{id: a, kind: action, call: msleep(100 - 250)}"),
+     "msleep needs a duration of 0 or more, got -150", "100 - 250", 0),
     ("implementation does not offer the feature",
      HEADER + main_with("{id: a, kind: action, call: Motor.angle(90)}"),
      "implementation 'l298n' of 'Motor' does not offer feature 'angle' (it offers: enabled, direction, "
@@ -69,6 +77,15 @@ CASES: list[tuple[str, str, str, str, int]] = [
      HEADER + main_with("{id: d, kind: decision, branches: [{then: end}, {else: end}]}"),
      "decision output without guard: write {if: <guard>, then: <node>} or {else: <node>}",
      "{then: end}", 0),
+    ("empty guard: its one error (the node it leads to is still reached)",
+     HEADER + main_with("{id: d, kind: decision, branches: [{if: '', then: on}, {else: end}]}",
+                        "{id: on, kind: action, call: Motor.enabled(true), next: end}"),
+     "decision output without guard: write {if: <guard>, then: <node>} or {else: <node>}",
+     "{if: ''", 0),
+    ("a guard that is not an expression: its one error",
+     HEADER + main_with("{id: d, kind: decision, branches: [{if: [1], then: on}, {else: end}]}",
+                        "{id: on, kind: action, call: Motor.enabled(true), next: end}"),
+     "a guard is an expression", "[1]", 0),
     ("fork without matching join",
      HEADER + main_with("{id: f, kind: fork, targets: [a, b]}",
                         "{id: a, kind: action, call: Motor.enabled(true), next: end}",
@@ -177,7 +194,44 @@ CASES: list[tuple[str, str, str, str, int]] = [
      "component 'Sonar' has no implementation in the deployment", "Sonar", 0),
     ("implementation of another kind",
      HEADER.replace("Sonar: {impl: hcsr04}", "Sonar: {impl: l298n}") + MAIN,
-     "component 'Sonar' is a sensor but implementation 'l298n' is a actuator", "l298n}", 1),
+     "component 'Sonar' is a sensor but implementation 'l298n' is an actuator", "l298n}", 1),
+    ("settings the hardware drivers refuse",
+     HEADER.replace("driver: mock", "driver: auto")
+     .replace("Servo: {impl: servo}", "Servo: {impl: servo, settings: {gpio: 40}}") + MAIN,
+     "settings of 'Servo' (servo) refused by the hardware drivers: gpio: Input should be less than or "
+     "equal to 27", "gpio: 40", 0),
+    ("a robot id that is not one topic level",
+     HEADER.replace("  driver: mock", "  robot: my/car\n  driver: mock") + MAIN,
+     "robot id 'my/car' cannot be used in an MQTT topic (letters, digits, '_', '-', '.'; no '/', '+', "
+     "'#' or spaces)", "robot: my/car", 0),
+    ("empty settings for the hardware",
+     HEADER.replace("driver: mock", "driver: auto")
+     .replace("Servo: {impl: servo}", "Servo: {impl: servo, settings: {}}")
+     .replace("Motor: {impl: l298n}", "Motor: {impl: l298n, settings: {in1: 5, in2: 6}}")
+     .replace("Sonar: {impl: hcsr04}", "Sonar: {impl: hcsr04, settings: {trigger: 8, echo: 7}}") + MAIN,
+     "settings of 'Servo' (servo) refused by the hardware drivers: gpio: Field required", "settings: {}", 0),
+    ("settings a named driver refuses",
+     HEADER.replace("Sonar: {impl: hcsr04}", "Sonar: {impl: hcsr04, driver: pigpio, "
+                    "settings: {trigger: 8, echo: 8}}") + MAIN,
+     "settings of 'Sonar' (hcsr04) refused by driver 'pigpio': Value error, trigger and echo must be "
+     "different pins, got 8", "settings: {trigger", 0),
+    ("an unknown driver",
+     HEADER.replace("Motor: {impl: l298n}", "Motor: {impl: l298n, driver: pigpoi}") + MAIN,
+     "unknown driver 'pigpoi' for 'Motor' (motor service; known: auto, lgpio, mock, pigpio, sim)",
+     "driver: pigpoi", 0),
+    ("an unknown default driver",
+     HEADER.replace("driver: mock", "driver: simm") + MAIN,
+     "unknown driver 'simm' (known: auto, lgpio, mock, pigpio, sim)", "driver: simm", 0),
+    ("a default driver one service lacks",
+     HEADER.replace("driver: mock", "driver: sim") + MAIN,
+     "the gpio service of 'Pi' has no driver 'sim' (known: auto, lgpio, mock, pigpio); give it a driver "
+     "of its own", "driver: sim", 0),
+    ("two components on one pin",
+     HEADER.replace("driver: mock", "driver: auto")
+     .replace("Motor: {impl: l298n}", "Motor: {impl: l298n, settings: {in1: 5, in2: 6}}")
+     .replace("Sonar: {impl: hcsr04}", "Sonar: {impl: hcsr04, settings: {trigger: 8, echo: 6}}") + MAIN,
+     "GPIO 6 ('echo' of 'Sonar') is already wired to 'Motor' ('in2'): each pin belongs to one component",
+     "echo", 0),
     ("reserved name",
      HEADER + MAIN + lane("{id: start, kind: start}", "{id: end, kind: end}", name="Application"),
      "'Application' is a reserved name; choose another swimlane name", "Application", 0),
@@ -287,6 +341,39 @@ def test_missing_deployment(tmp_path: Path) -> None:
     assert at(errors[0]) == (1, 1)
 
 
+def test_a_component_without_settings_for_the_hardware_is_a_warning(tmp_path: Path) -> None:
+    text = HEADER.replace("driver: mock", "driver: auto") + MAIN
+    result = check_text(tmp_path, text)
+    assert result.ok
+    warnings = [(w.message, at(w)) for w in result.warnings]
+    assert ("'Servo' has no settings: the hardware drivers need gpio (it runs with the mock and sim "
+            "drivers only)", position(text, "Servo: {impl")) in warnings, warnings
+    motor = "'Motor' has no settings: the hardware drivers need in1, in2"
+    assert any(m.startswith(motor) for m, _ in warnings), warnings
+    # the seed's plain format has no settings at all: nothing to say
+    root = _folder_model(tmp_path, "Pi=raspberrypi\nMotor=l298n\nServo=servo\nSonar=hcsr04\n")
+    assert not [w for w in check_model(root).warnings if "settings" in w.message]
+
+
+def test_a_folder_name_that_cannot_be_the_robot_id_asks_for_a_name(tmp_path: Path) -> None:
+    root = tmp_path / "my robot"
+    root.mkdir()
+    (root / "model.yaml").write_text(HEADER.replace("name: t\n", "") + MAIN, encoding="utf-8")
+    assert [e.message for e in errors_of(check_model(root))] == [
+        "the model's name 'my robot' cannot be used in an MQTT topic (letters, digits, '_', '-', '.'; "
+        "no '/', '+', '#' or spaces); it is the robot id: give the model a `name` (or the deployment a "
+        "`robot`)"]
+    (root / "model.yaml").write_text(HEADER + MAIN, encoding="utf-8")
+    assert check_model(root).ok
+
+
+def test_a_folders_model_yaml_is_the_folder() -> None:
+    car = Path(__file__).resolve().parents[1] / "models" / "robot_car"
+    by_file, by_folder = check_model(car / "model.yaml").model, check_model(car).model
+    assert by_file is not None and by_folder is not None
+    assert dump_compiled(by_file) == dump_compiled(by_folder)  # the same lanes, deployment, name
+
+
 def _folder_model(tmp_path: Path, deployment: str, name: str = "deployment.txt") -> Path:
     root = tmp_path / "m"
     (root / "activities").mkdir(parents=True)
@@ -332,8 +419,7 @@ def test_folder_model_errors_name_their_files(tmp_path: Path) -> None:
     errors = errors_of(check_model(root))
     assert [(e.location.file, at(e), e.message) for e in errors] == [
         (str(root / "activities" / "extra.yaml"), (4, 39),
-         "unknown feature 'fly' of actuator component 'Motor' (known: enabled, direction, dutycycle, "
-         "angle)")]
+         "unknown feature 'fly' of actuator component 'Motor' (known: enabled, direction, dutycycle)")]
 
 
 def test_missing_model_file(tmp_path: Path) -> None:

@@ -101,7 +101,7 @@ def test_one_bad_component_entry_leaves_the_others_known(tmp_path: Path) -> None
     result = _check(model)
     assert result.stdout.splitlines() == [
         f"{motion}:{typo_line}:{typo_column + 14}: error: unknown feature 'direktion' of actuator "
-        "component 'RightActuator' (known: enabled, direction, dutycycle, angle)",
+        "component 'RightActuator' (known: enabled, direction, dutycycle)",
         f"{model / 'model.yaml'}:{line + 1}:11: error: a component's kind is one of "
         f"{', '.join(component_kinds())}",
     ]
