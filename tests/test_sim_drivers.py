@@ -179,3 +179,26 @@ def test_a_driver_in_another_process_moves_the_shared_world(world: World, served
                          capture_output=True, text=True, timeout=60, check=True)
     assert float(out.stdout.strip()) == AHEAD_CM
     assert world.motor("right").enabled and world.motor("right").duty_percent == 80
+
+
+def test_the_motor_watchdog_counts_sim_seconds(world: World) -> None:
+    # at --speed 10 a model's 3 s sleep with the motors on is 0.3 s of wall time: the watchdog
+    # (watchdog_s: 2.0) must stop the motor all the same, and must not at --speed 0.1 after 0.2 s
+    from services.motor.service import MotorService
+    from umlbot.library import resolve_implementation
+    from umlbot.sim.clock import SimClock
+
+    clock = SimClock(1.0)
+    world.clock = clock
+    impl = resolve_implementation("l298n")
+    assert impl is not None
+    channel = create_driver("motor", "sim", "LeftActuator", PINS["LeftActuator"])
+    service = MotorService("LeftActuator", impl, channel, PINS["LeftActuator"])
+    service.dutycycle(60)
+    service.enabled(True)
+    clock.charge(1.9)  # sim time moves on without the wall clock (no orchestrator ticks here)
+    service.tick(1e9)  # the host's wall-clock reading is not what counts
+    assert world.motor("left").enabled and service.stop_reason is None
+    clock.charge(0.2)
+    service.tick(0.0)
+    assert not world.motor("left").enabled and service.stop_reason == "watchdog"

@@ -109,6 +109,42 @@ walls:
     assert w2.read_sonar_cm() is None
 
 
+def test_a_ping_records_where_its_echo_came_from_on_the_wall() -> None:
+    # the post off the axis: the echo is on the post, not on the beam's centre line beyond it
+    w = world("""
+name: post
+start: {x: 0.0, y: 0.0, heading_deg: 90}
+goal: {x_min: 3, x_max: 4, y_min: 3, y_max: 4}
+walls:
+  - [[0.10, 1.0], [0.16, 1.0]]
+""")
+    cm = w.read_sonar_cm()
+    ping = w.pings[-1]
+    assert cm is not None and ping.distance_cm == cm and ping.hit is not None
+    assert ping.hit.y == pytest.approx(1.0) and 0.10 <= ping.hit.x <= 0.16
+    range_cm = math.hypot(ping.hit.x - ping.origin.x, ping.hit.y - ping.origin.y) * 100
+    assert range_cm == pytest.approx(cm, abs=0.5)
+    # along the centre line, the reading would put the echo at x = 0, where there is no wall
+    assert ping.origin.x + cm / 100 * math.cos(ping.angle) == pytest.approx(0.0, abs=1e-9)
+    # no echo, no point
+    far = world(ROOM.replace("2.0], [-1.0, 2.0]", "9.0], [-1.0, 9.0]"))
+    assert far.read_sonar_cm() is None and far.pings[-1].hit is None
+
+
+def test_the_plot_draws_echoes_with_and_without_their_point(tmp_path: Path) -> None:
+    from umlbot.sim.plot import plot_run
+    from umlbot.sim.world import Ping
+
+    w = world()
+    w.read_sonar_cm()
+    placed = w.pings[-1]
+    assert placed.hit is not None
+    # a ping recorded without its point (as in an older trace) is drawn too, along the beam
+    w._trace.pings.append(Ping(placed.time_s, placed.origin, placed.angle, placed.distance_cm))
+    out = plot_run(w, tmp_path / "run.png")
+    assert out.read_bytes().startswith(b"\x89PNG")
+
+
 def test_sonar_without_echo_beyond_range_is_none_and_near_clamps_to_minimum() -> None:
     far = """
 name: far

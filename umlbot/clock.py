@@ -19,10 +19,17 @@ class Clock:
             raise ValueError(f"clock speed must be > 0, got {speed!r}")
         self.speed = speed
         self._wall_start = time.monotonic()
+        self._epoch_start = time.time()
 
     def now(self) -> float:
         """Sim seconds since the clock was made."""
         return (time.monotonic() - self._wall_start) * self.speed
+
+    def epoch(self) -> float:
+        """Unix time as the robot lives it: the wall time when the clock was made plus the sim
+        seconds since. At speed 1 it runs with the wall clock; at speed 10 a `msleep(1500)` lasts
+        1.5 s of it, as a trace's timestamps and durations show it."""
+        return self._epoch_start + self.now()
 
     def wall_seconds(self, sim_seconds: float) -> float:
         """How long `sim_seconds` of sim time take on the wall clock."""

@@ -69,6 +69,13 @@ class SimMotorChannel:
             raise ValueError(f"duty cycle must be 0..100 %, got {percent}")
         self._set(duty_percent=float(percent))
 
+    def now_s(self) -> float:
+        """Sim time: the motor service times its watchdog with it (`watchdog_s` is sim seconds)."""
+        try:
+            return self._world.time_s()
+        except SimError as exc:
+            raise DriverError(f"{self.component}: {exc}") from exc
+
     def stop(self) -> None:
         if not self._closed:
             self._set(enabled=False, duty_percent=0.0)

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import click
 
+from umlbot.commands.options import Number, seconds
 from umlbot.stopsignals import StopSignals
 
 DEFAULT_TRACK = "models/tracks/s_bend.yaml"
@@ -18,41 +19,44 @@ DEFAULT_TRACK = "models/tracks/s_bend.yaml"
 @click.command(name="sim")
 @click.argument("model", type=click.Path(exists=True, path_type=Path))
 @click.option("--track", "track", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help=f"Track file (default: {DEFAULT_TRACK}).")
-@click.option("--speed", type=click.FloatRange(min=0.1, max=100), default=10.0, show_default=True,
+              help=f"Track file, or a bundled track's name such as corridor (default: {DEFAULT_TRACK}).")
+@click.option("--speed", type=Number(min=0.1, max=100), default=10.0, show_default=True,
               help="Sim seconds per wall second (model sleeps and the world).")
 @click.option("--broker", "broker_url", default=None, metavar="URL",
               help="Use this broker instead of starting the embedded one.")
 @click.option("--port", type=click.IntRange(0, 65535), default=None,
               help="Port of the embedded broker (default 1883, or a free one when 1883 is taken; "
               "0 = any free port).")
-@click.option("--timeout", "timeout_s", type=click.FloatRange(min=1), default=600.0, show_default=True,
+@click.option("--timeout", "timeout_s", type=seconds(1), default=600.0, show_default=True,
               help="Give up after this many sim seconds.")
 @click.option("--plot", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Write the track, path and sonar pings to this PNG or SVG file.")
 @click.option("--processes", is_flag=True,
               help="Run each service as its own 'umlbot service' process (as on the robot).")
 @click.option("--seed", type=int, default=None, help="Seed of the sonar noise and dropped echoes.")
-@click.option("--noise", "noise_cm", type=click.FloatRange(min=0), default=0.0, show_default=True,
+@click.option("--noise", "noise_cm", type=Number(min=0, max=1000), default=0.0, show_default=True,
               help="Sonar noise, standard deviation in cm.")
-@click.option("--drop", "drop_percent", type=click.FloatRange(0, 100), default=0.0, show_default=True,
+@click.option("--drop", "drop_percent", type=Number(0, 100), default=0.0, show_default=True,
               help="Percentage of sonar pings whose echo is lost.")
 @click.option("--max-collisions", type=click.IntRange(min=1), default=1, show_default=True,
               help="Stop after this many collisions.")
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as one JSON object.")
+@click.option("--trace", "trace_file", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              metavar="FILE", help="Also write every trace event to FILE (JSON lines, sim time): "
+              "replay it with 'umlbot studio --replay FILE'.")
 @click.option("--studio", is_flag=True,
               help="Follow the run in umlbot studio (the page stays open after the run until Ctrl-C).")
 @click.option("--studio-port", type=click.IntRange(0, 65535), default=8080, show_default=True,
               help="Port of the studio page (0 = any free port).")
 def command(model: Path, track: Path | None, speed: float, broker_url: str | None, port: int | None,
             timeout_s: float, plot: Path | None, processes: bool, seed: int | None, noise_cm: float,
-            drop_percent: float, max_collisions: int, as_json: bool, studio: bool,
-            studio_port: int) -> None:
+            drop_percent: float, max_collisions: int, as_json: bool, trace_file: Path | None,
+            studio: bool, studio_port: int) -> None:
     """Run MODEL on a track: embedded broker, world, services, orchestrator; exit 0 only when the
     goal was reached without a collision."""
     from umlbot.logs import configure_logging
     from umlbot.sim.runner import Progress, SimOptions, run_sim
-    from umlbot.sim.track import default_track
+    from umlbot.sim.track import find_track
 
     # the progress line and the summary are the output; logs only for warnings unless asked for
     if click.get_current_context().find_root().params.get("log_level") is None and not os.environ.get(
@@ -60,9 +64,9 @@ def command(model: Path, track: Path | None, speed: float, broker_url: str | Non
     ):
         configure_logging("WARNING")
     options = SimOptions(
-        model=model, track=track or default_track(DEFAULT_TRACK), speed=speed, broker_url=broker_url,
+        model=model, track=find_track(track or DEFAULT_TRACK), speed=speed, broker_url=broker_url,
         port=port, timeout_s=timeout_s, plot=plot, processes=processes, seed=seed, sonar_noise_cm=noise_cm,
-        sonar_drop=drop_percent / 100.0, max_collisions=max_collisions,
+        sonar_drop=drop_percent / 100.0, max_collisions=max_collisions, trace_file=trace_file,
     )
     live = sys.stdout.isatty() and not as_json
     announced: list[str] = []

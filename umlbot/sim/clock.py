@@ -1,37 +1,46 @@
-"""The simulator's clock: sim time at `speed` x wall time, with exact sleeps and a timeless bus.
+"""The simulator's clock: discrete sim time that moves from event to event, paced by `speed`.
 
-A plain `Clock` at speed 10 turns every millisecond the bus takes into ten sim milliseconds: the
-two `enabled(true)` calls that start the car's sides one round trip apart would let one side run
-alone for ~40 sim ms, and an `msleep(350)` that the event loop wakes 2 ms late would turn the car
-20 sim ms too long. How far the simulated car goes would then depend on how busy the machine is.
-`SimClock` keeps the `Clock` interface and adds four rules:
+A clock that runs at `speed` x wall time makes a run depend on the machine: at speed 20 every
+millisecond the event loop spends between two feature calls is 20 sim ms of the car driving on,
+and two branches of a fork that sleep and ping in parallel interleave differently on every run.
+`SimClock` therefore does not flow with the wall clock at all. Sim time is a number that moves only
+to the next *event*: the earliest deadline of a pending sleep (`asleep`, `sleep`) or of robot time
+being spent (`charge`, an HC-SR04 ping). It moves there only when nothing else can happen first:
 
-* while a feature call is in flight (`call_started()` .. `call_finished()`), sim time stands still:
-  the bus is taken as instantaneous (on the robot a call takes 1-5 ms, small next to its moves);
-* what takes time on the robot is charged explicitly by the world (`charge()`): an HC-SR04 ping
-  costs its echo time and the 60 ms the sensor needs between pings;
-* sim time never passes the earliest pending sleep's deadline until that sleeper has woken up,
-  so `msleep(t)` lasts exactly `t` sim seconds however late the event loop wakes it;
-* when a sleep ends, sim time holds at its deadline until the sleeper's next feature call goes
-  out (at most `HOLD_WALL_S` of wall time), so the motors stop exactly `t` after they started
-  even when the event loop is slow to run the sleeper again.
+* no feature call is in flight (`call_started()` .. `call_finished()`), unless the call is itself
+  waiting for sim time (a ping being charged): the bus takes no sim time;
+* the orchestrator's event loop has nothing ready to run (every lane is blocked on a sleep, a
+  call, a join or an accept): computing takes no sim time;
+* the wall clock has reached `deadline / speed` since the clock started: `speed` only paces the
+  run (a machine too slow for it runs later, not differently).
 
-Between those, sim time runs at `speed` x wall time. The world follows `now()`, so the car moves for
-exactly as long as the model sleeps, whatever the load of the machine.
+So a run is a function of the model, the track and the seed: the same at every `--speed`, on an
+idle or a loaded machine. The events are advanced by a ticker task on the orchestrator's event
+loop (the loop of the first `asleep` or `call_started`); a clock without one (a world used alone,
+a thread that sleeps) moves itself on when the wall clock reaches the deadline.
+
+`halt()` stops time where it is (the run ended: goal, collision, fault); waits that are pending
+then stay pending until `release()` lets them all return at once (the run shuts down).
+`limit_s` ends time at that sim time: the clock halts there (the run's time-out).
 """
 
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import heapq
 import itertools
+import math
 import threading
 import time
+from collections.abc import Iterable
 
 from umlbot.clock import Clock
 
-#: Wall seconds sim time may hold at a finished sleep's deadline, waiting for the next call.
-HOLD_WALL_S = 0.005
+#: Wall seconds the ticker sleeps at most before it looks again (a missed wake-up costs no more).
+POLL_WALL_S = 0.05
+#: Event-loop turns the ticker waits at most for the loop to have nothing ready.
+SETTLE_TURNS = 200
 
 Entry = tuple[float, int]  # (sim deadline, id)
 
@@ -41,113 +50,266 @@ class SimClock(Clock):
 
     def __init__(self, speed: float = 1.0) -> None:
         super().__init__(speed)
-        self._lock = threading.Lock()
-        self._wall_mark = time.monotonic()
-        self._sim_mark = 0.0
+        self._cond = threading.Condition()
+        self._now = 0.0
+        self._wall_origin = time.monotonic()
         self._in_flight = 0
-        self._deadlines: list[Entry] = []  # heap of pending sleeps
-        self._holds: dict[int, tuple[float, float]] = {}  # id -> (sim deadline, wall expiry)
+        self._time_waits = 0  # charges waiting for sim time inside a call in flight
+        self._deadlines: list[Entry] = []  # heap of pending waits
+        self._futures: dict[int, asyncio.Future[None]] = {}
+        self._charges: set[int] = set()  # ids of the pending charges
         self._ids = itertools.count()
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._ticker: asyncio.Task[None] | None = None
+        self._kick: asyncio.Event | None = None
+        self._halted = False
+        self._released = False
+        self._quiet = threading.Event()
+        #: time ends here: the clock halts at this sim time
+        self.limit_s = math.inf
 
-    # --- the time line (callers hold the lock) ---------------------------------------------------
-
-    def _limit(self) -> float:
-        limits = [d for d, _ in self._holds.values()]
-        if self._deadlines:
-            limits.append(self._deadlines[0][0])
-        return min(limits) if limits else float("inf")
-
-    def _step_to(self, wall: float) -> None:
-        rate = 0.0 if self._in_flight else self.speed
-        sim = min(self._sim_mark + (wall - self._wall_mark) * rate, self._limit())
-        self._sim_mark = max(self._sim_mark, sim)
-        self._wall_mark = wall
-
-    def _advance(self) -> float:
-        """Bring the marks up to the wall clock and return sim time."""
-        wall = time.monotonic()
-        while self._holds:
-            ident, (_, expiry) = min(self._holds.items(), key=lambda item: item[1][1])
-            if expiry > wall:
-                break
-            self._step_to(expiry)
-            del self._holds[ident]
-        self._step_to(wall)
-        return self._sim_mark
-
-    # --- the Clock interface and the simulator's hooks -------------------------------------------
+    # --- the Clock interface ---------------------------------------------------------------------
 
     def now(self) -> float:
-        with self._lock:
-            return self._advance()
+        with self._cond:
+            return self._now
+
+    @property
+    def halted(self) -> bool:
+        return self._halted
+
+    def halt(self) -> None:
+        """Stop sim time where it is; pending waits stay pending (see `release`)."""
+        with self._cond:
+            self._halted = True
+            self._cond.notify_all()
+        self._poke()
+
+    def release(self) -> None:
+        """Let every pending and future wait return at once (time stays halted): shut-down."""
+        with self._cond:
+            self._halted = True
+            self._released = True
+            futures = list(self._futures.values())
+            self._futures.clear()
+            self._deadlines.clear()
+            self._cond.notify_all()
+        loop = self._loop
+        if loop is not None and futures:
+            with contextlib.suppress(RuntimeError):  # the loop is closed
+                loop.call_soon_threadsafe(_resolve, futures)
+
+    def wait_quiet(self, timeout: float) -> bool:
+        """After `halt()`: wait until the orchestrator has nothing left to do but wait."""
+        self._poke()
+        return self._quiet.wait(timeout)
+
+    # --- the simulator's hooks -------------------------------------------------------------------
 
     def call_started(self) -> None:
-        """A feature call went out: sim time stands still until it is answered."""
-        with self._lock:
-            self._advance()
-            self._holds.clear()
+        """A feature call went out (on the orchestrator's loop): sim time stands still."""
+        self._attach()
+        with self._cond:
             self._in_flight += 1
+            self._quiet.clear()
 
     def call_finished(self) -> None:
         """A feature call was answered (or failed)."""
-        with self._lock:
-            self._advance()
+        with self._cond:
             self._in_flight = max(0, self._in_flight - 1)
+        self._poke()
 
     def charge(self, sim_seconds: float) -> None:
-        """Something took `sim_seconds` of robot time (a sonar ping): move sim time on by that."""
-        with self._lock:
-            self._advance()
-            self._sim_mark += max(0.0, sim_seconds)
+        """Something took `sim_seconds` of robot time (a sonar ping): wait until it has passed.
 
-    def _register(self, sim_seconds: float) -> Entry:
-        with self._lock:
-            entry = (self._advance() + max(0.0, sim_seconds), next(self._ids))
+        Called by the world in a service's thread while a feature call is in flight; other lanes
+        run on meanwhile (a sleep that ends during the ping ends at its own deadline).
+        """
+        with self._cond:
+            if self._halted or sim_seconds <= 0:
+                return
+            if self._loop is None or self._loop.is_closed():  # no ticker: move on at once
+                self._now += sim_seconds
+                return
+            entry = (self._now + sim_seconds, next(self._ids))
             heapq.heappush(self._deadlines, entry)
-            return entry
-
-    def _remaining_wall(self, entry: Entry) -> float:
-        """Wall seconds still to wait for `entry` (0 when its deadline has come)."""
-        with self._lock:
-            left = entry[0] - self._advance()
-            if left <= 0:
-                return 0.0
-            # while calls are in flight time stands still: look again soon
-            return 0.001 if self._in_flight else left / self.speed
-
-    def _release(self, entry: Entry, completed: bool) -> None:
-        with self._lock:
-            self._advance()
-            if entry in self._deadlines:
-                self._deadlines.remove(entry)
-                heapq.heapify(self._deadlines)
-            if completed:
-                self._holds[entry[1]] = (entry[0], time.monotonic() + HOLD_WALL_S)
-
-    async def asleep(self, sim_seconds: float) -> None:
-        entry = self._register(sim_seconds)
-        completed = False
+            self._charges.add(entry[1])
+            self._time_waits += 1
         try:
-            while True:
-                wait = self._remaining_wall(entry)
-                if wait <= 0:
-                    completed = True
-                    return
-                await asyncio.sleep(wait)
+            self._poke()
+            self._wait_thread(entry, None, halt_ends=True)
         finally:
-            self._release(entry, completed)
+            with self._cond:
+                if entry[1] in self._charges:  # not fired (halted, released)
+                    self._charges.discard(entry[1])
+                    self._time_waits -= 1
+                self._remove(entry)
 
     def sleep(self, sim_seconds: float, stop: threading.Event | None = None) -> bool:
-        entry = self._register(sim_seconds)
-        completed = False
+        """Sleep in a thread for sim time; returns True early when `stop` is set."""
+        with self._cond:
+            entry = (self._now + max(0.0, sim_seconds), next(self._ids))
+            heapq.heappush(self._deadlines, entry)
         try:
-            while (wait := self._remaining_wall(entry)) > 0:
-                if stop is not None:
-                    if stop.wait(wait):
-                        return True
-                else:
-                    time.sleep(wait)
-            completed = True
-            return False
+            self._poke()
+            return self._wait_thread(entry, stop)
         finally:
-            self._release(entry, completed)
+            with self._cond:
+                self._remove(entry)
+
+    async def asleep(self, sim_seconds: float) -> None:
+        self._attach()
+        loop = asyncio.get_running_loop()
+        future: asyncio.Future[None] = loop.create_future()
+        with self._cond:
+            if self._released:
+                return
+            entry = (self._now + max(0.0, sim_seconds), next(self._ids))
+            heapq.heappush(self._deadlines, entry)
+            self._futures[entry[1]] = future
+            self._quiet.clear()
+        self._poke()
+        try:
+            await future
+        finally:
+            with self._cond:
+                self._futures.pop(entry[1], None)
+                self._remove(entry)
+
+    # --- internals -------------------------------------------------------------------------------
+
+    def _remove(self, entry: Entry) -> None:
+        if entry in self._deadlines:
+            self._deadlines.remove(entry)
+            heapq.heapify(self._deadlines)
+
+    def _wait_thread(self, entry: Entry, stop: threading.Event | None, *, halt_ends: bool = False) -> bool:
+        """Block this (non-loop) thread until sim time reaches `entry`'s deadline.
+
+        True when `stop` was set first. `halt_ends`: a halted clock ends the wait (a ping on a
+        halted world takes no time, so the call is answered and the orchestrator goes quiet).
+        """
+        with self._cond:
+            while self._now < entry[0] and not self._released:
+                if stop is not None and stop.is_set():
+                    return True
+                if self._halted and halt_ends:
+                    return False
+                ticking = self._loop is not None and not self._loop.is_closed()
+                if ticking or self._halted:
+                    self._cond.wait(POLL_WALL_S)
+                    continue
+                # nobody ticks: move on when the wall clock reaches the deadline
+                wait = self._wall_origin + entry[0] / self.speed - time.monotonic()
+                if wait <= 0 and self._deadlines and self._deadlines[0] == entry:
+                    self._fire(entry[0])
+                    break
+                self._cond.wait(min(max(wait, 0.001), POLL_WALL_S))
+            return stop is not None and stop.is_set()
+
+    def _attach(self) -> None:
+        """Remember the orchestrator's loop and start the ticker on it (called on the loop)."""
+        try:
+            loop = asyncio.get_running_loop()
+        except RuntimeError:
+            return
+        if self._loop is not loop or self._ticker is None or self._ticker.done():
+            self._loop = loop
+            self._kick = asyncio.Event()
+            self._ticker = loop.create_task(self._tick(loop), name="sim-clock")
+
+    def _poke(self) -> None:
+        """Make the ticker look again (from any thread)."""
+        loop, kick = self._loop, self._kick
+        if loop is None or kick is None or loop.is_closed():
+            with self._cond:
+                self._cond.notify_all()
+            return
+        try:
+            if _running_loop() is loop:
+                kick.set()
+            else:
+                loop.call_soon_threadsafe(kick.set)
+        except RuntimeError:  # the loop is closed
+            pass
+
+    def _fire(self, deadline: float) -> list[asyncio.Future[None]]:
+        """Move sim time to `deadline`; wake the waits that are due. Caller holds the lock."""
+        self._now = max(self._now, deadline)
+        due: list[asyncio.Future[None]] = []
+        while self._deadlines and self._deadlines[0][0] <= self._now:
+            _, ident = heapq.heappop(self._deadlines)
+            if ident in self._charges:
+                # the call is busy again from this moment, not from when its thread wakes up
+                self._charges.discard(ident)
+                self._time_waits -= 1
+            future = self._futures.pop(ident, None)
+            if future is not None:
+                due.append(future)
+        self._cond.notify_all()
+        return due
+
+    async def _settled(self, loop: asyncio.AbstractEventLoop) -> bool:
+        """Give the loop's ready callbacks their turn; True once nothing but this task is ready."""
+        for turn in range(SETTLE_TURNS):
+            await asyncio.sleep(0)
+            ready = getattr(loop, "_ready", None)
+            if ready is None:  # not the standard loop: a few turns are the best we can do
+                if turn >= 10:
+                    return True
+            elif not ready:
+                return True
+        return False
+
+    async def _tick(self, loop: asyncio.AbstractEventLoop) -> None:
+        kick = self._kick
+        assert kick is not None
+        while not loop.is_closed():
+            timeout = POLL_WALL_S
+            with self._cond:
+                busy = self._in_flight > self._time_waits
+                head = self._deadlines[0][0] if self._deadlines else None
+                halted = self._halted
+            if halted:
+                if not busy and await self._settled(loop):
+                    with self._cond:
+                        if self._in_flight <= self._time_waits:
+                            self._quiet.set()
+            elif head is not None and not busy:
+                wait = self._wall_origin + min(head, self.limit_s) / self.speed - time.monotonic()
+                if wait <= 0:
+                    if await self._settled(loop):
+                        self._advance(head)
+                    continue
+                timeout = min(wait, POLL_WALL_S)
+            kick.clear()
+            with contextlib.suppress(TimeoutError):
+                await asyncio.wait_for(kick.wait(), timeout)
+
+    def _advance(self, head: float) -> None:
+        """Move to the earliest deadline when it is still `head` and nothing got busy meanwhile."""
+        with self._cond:
+            if self._halted or self._in_flight > self._time_waits:
+                return
+            if not self._deadlines or self._deadlines[0][0] != head:
+                return
+            if head > self.limit_s:
+                self._now = max(self._now, self.limit_s)
+                self._halted = True
+                self._cond.notify_all()
+                return
+            due = self._fire(head)
+        _resolve(due)
+
+
+def _resolve(futures: Iterable[asyncio.Future[None]]) -> None:
+    for future in futures:
+        if not future.done():
+            future.set_result(None)
+
+
+def _running_loop() -> asyncio.AbstractEventLoop | None:
+    try:
+        return asyncio.get_running_loop()
+    except RuntimeError:
+        return None

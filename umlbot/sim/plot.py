@@ -40,13 +40,28 @@ def plot_run(world: World, path: str | Path, title: str = "") -> Path:
                                color="tab:green", alpha=0.25, label="goal"))
         for seg in track.segments:
             ax.plot([seg.a.x, seg.b.x], [seg.a.y, seg.b.y], color="black", linewidth=2.5)
+        # each echo where it came from: the point of the wall its ray met (on the wall, never
+        # beyond it; the ray may lie off the beam's centre); a ping recorded without that point
+        # (an older trace) is drawn hollow at the measured range along the beam's centre
+        echoes: list[tuple[float, float]] = []
+        unplaced: list[tuple[float, float]] = []
         for ping in world.pings[-MAX_PINGS:]:
             if ping.distance_cm is None:
                 continue
-            d = ping.distance_cm / 100.0
-            hx, hy = ping.origin.x + d * math.cos(ping.angle), ping.origin.y + d * math.sin(ping.angle)
+            if ping.hit is not None:
+                hx, hy = ping.hit
+                echoes.append((hx, hy))
+            else:
+                d = ping.distance_cm / 100.0
+                hx, hy = ping.origin.x + d * math.cos(ping.angle), ping.origin.y + d * math.sin(ping.angle)
+                unplaced.append((hx, hy))
             ax.plot([ping.origin.x, hx], [ping.origin.y, hy], color="tab:orange", alpha=0.06, linewidth=0.8)
-            ax.plot([hx], [hy], ".", color="tab:orange", markersize=2, alpha=0.5)
+        if echoes:
+            ax.plot([p[0] for p in echoes], [p[1] for p in echoes], ".", color="tab:orange",
+                    markersize=3, alpha=0.6, label="echo (where it came from)")
+        if unplaced:
+            ax.plot([p[0] for p in unplaced], [p[1] for p in unplaced], "o", markerfacecolor="none",
+                    color="tab:purple", markersize=3, alpha=0.5, label="echo (range along the beam)")
         xs = [p[1] for p in world.path]
         ys = [p[2] for p in world.path]
         ax.plot(xs, ys, color="tab:blue", linewidth=1.5, label="path")

@@ -30,6 +30,7 @@ from typing import Any
 from umlbot.errors import ConfigError, SimError
 from umlbot.logs import get_logger
 from umlbot.sim.clock import SimClock
+from umlbot.sim.reach import goal_problem
 from umlbot.sim.sharing import WorldServer, attach_local_world
 from umlbot.sim.track import load_track
 from umlbot.sim.world import World, WorldLoop, WorldSnapshot
@@ -50,6 +51,8 @@ WALL_LIMIT_FACTOR = 2.0
 WALL_LIMIT_EXTRA_S = 10.0
 #: Wall seconds the runner waits for the world's lock before it looks again (a long catch-up).
 SNAPSHOT_WAIT_S = 0.05
+#: Wall seconds the runner waits, at the end of a run, for the orchestrator to settle.
+QUIET_WAIT_S = 2.0
 #: A run that timed out with its world this many sim seconds behind the clock reports it.
 WORLD_LAG_REPORT_S = 1.0
 
@@ -77,6 +80,11 @@ class SimOptions:
     sonar_drop: float = 0.0  # share of pings whose echo is lost (0..1)
     max_collisions: int = 1
     progress_interval_s: float = 0.5  # wall seconds between progress reports
+    #: also write the orchestrator's trace to this file (JSON lines, as `umlbot run --trace`)
+    trace_file: Path | None = None
+    #: refuse a track whose goal a car of this width cannot reach (`umlbot.sim.reach`); off only
+    #: for runs that must not end at the goal (tests of the time-out and collision paths)
+    check_goal: bool = True
 
 
 @dataclass(frozen=True)
@@ -362,12 +370,16 @@ def run_sim(
 
         check_plot_path(options.plot)
     track = load_track(options.track)
-    compiled = compile_model(options.model)
     try:
         world = World(track, sonar_noise_cm=options.sonar_noise_cm, sonar_drop=options.sonar_drop,
                       seed=options.seed)
     except ValueError as exc:
-        raise SimError(str(exc)) from exc
+        raise SimError(f"{options.track}: {exc}") from exc
+    # a goal the car cannot get to would only show as a time-out, minutes later
+    problem = goal_problem(track, world.car.width_m) if options.check_goal else None
+    if problem is not None:
+        raise SimError(f"{options.track}: {problem}")
+    compiled = compile_model(options.model)
     deployment = sim_deployment(compiled)
     stop = stop or threading.Event()
     broker, url = _start_broker(options)
@@ -382,6 +394,7 @@ def run_sim(
     wall_limit = wall_limit_s(options.timeout_s, options.speed)
     reason = "interrupted"
     failure: str | None = None
+    actions_at_end = 0
     try:
         if observe is not None:
             finish_observing = observe(world, url, deployment.robot)
@@ -389,10 +402,14 @@ def run_sim(
         services.wait_online()
         # the world moves with the clock from now on: start-up time is not sim time
         clock = SimClock(options.speed)
+        clock.limit_s = options.timeout_s  # time ends there: the run ends at the time-out exactly
         world.clock = clock
+        # the world ends the run itself, at the sim time it happens, not when the runner looks
+        world.halt_at_goal = True
+        world.max_collisions = options.max_collisions
         orchestrator = _sim_orchestrator_class()(
             compiled, BrokerSettings.from_url(url), robot=deployment.robot, clock=clock,
-            trace_listener=watch.on_event, handle_signals=False,
+            trace_listener=watch.on_event, handle_signals=False, trace_file=options.trace_file,
         )
         # a fail-safe stop halts the world at once, in the orchestrator's thread: its own stop
         # calls go through the broker and may time out while the car drives on
@@ -455,6 +472,15 @@ def run_sim(
         world.halt()  # motors off and time stopped at once, whatever the services still do
         final = world.snapshot()
         wall_s = time.monotonic() - wall_start
+        sim_clock = world.clock if isinstance(world.clock, SimClock) else None
+        if sim_clock is not None and orchestrator is not None:
+            # the orchestrator finishes what it does at the halted time (calls, decisions) and
+            # then waits: its action count is that of the model, not of when the runner looked
+            sim_clock.wait_quiet(QUIET_WAIT_S)
+            actions_at_end = orchestrator.stats.actions
+            sim_clock.release()  # pending sleeps return: the lanes see the exit and end
+        elif orchestrator is not None:
+            actions_at_end = orchestrator.stats.actions
         if world.clock is not None and reason == "timeout" and failure is None:
             behind = world.clock.now() - final.time_s
             if behind > WORLD_LAG_REPORT_S:
@@ -483,7 +509,7 @@ def run_sim(
         sim_s=final.time_s,
         wall_s=wall_s,
         distance_m=final.distance_m,
-        actions=orchestrator.stats.actions if orchestrator is not None else 0,
+        actions=actions_at_end,
         action_p50_ms=_ms(statistics.median(latencies)) if latencies else None,
         action_p99_ms=_ms(percentile(latencies, 99)),
         failure=failure,

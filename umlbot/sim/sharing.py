@@ -49,6 +49,8 @@ class WorldHandle(Protocol):
 
     def read_sonar_cm(self) -> int | None: ...
 
+    def time_s(self) -> float: ...
+
 
 _local: World | None = None
 _local_lock = threading.Lock()
@@ -118,6 +120,8 @@ def _dispatch(world: World, op: str, args: dict[str, Any]) -> Any:
         return world.servo_angle_deg()
     if op == "read_sonar_cm":
         return world.read_sonar_cm()
+    if op == "time_s":
+        return world.time_s()
     raise ValueError(f"unknown operation {op!r}"[:80])
 
 
@@ -289,6 +293,9 @@ class RemoteWorld:
     def read_sonar_cm(self) -> int | None:
         value = self._call("read_sonar_cm")
         return None if value is None else int(value)
+
+    def time_s(self) -> float:
+        return float(self._call("time_s"))
 
     def close(self) -> None:
         """Drop the connection; idempotent (the next call reconnects)."""

@@ -21,7 +21,7 @@ from pathlib import Path
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from umlbot.errors import SimError
-from umlbot.files import load_yaml, read_text
+from umlbot.files import load_yaml_node, read_text, validation_problem, where
 from umlbot.sim.geometry import Point, Pose, Segment
 
 
@@ -95,14 +95,16 @@ class Track(BaseModel):
 
 def parse_track(text: str, source: str = "<track>") -> Track:
     """Read a track from YAML text; errors name the source and the field."""
-    data = load_yaml(text, source, SimError)
+    from compiler.yamlsrc import to_python
+
+    root = load_yaml_node(text, source, SimError)
+    data = to_python(root)
     if not isinstance(data, dict):
-        raise SimError(f"{source}: a track is a mapping with name, start, goal and walls")
+        raise SimError(f"{where(source, root)}: a track is a mapping with name, start, goal and walls")
     try:
         return Track.model_validate(data)
     except ValidationError as exc:
-        problems = "; ".join(f"{'.'.join(str(p) for p in e['loc'])}: {e['msg']}" for e in exc.errors())
-        raise SimError(f"{source}: invalid track: {problems}") from exc
+        raise SimError(validation_problem(exc.errors(), source, root, "invalid track", every=True)) from exc
 
 
 def load_track(path: str | Path) -> Track:
@@ -115,8 +117,22 @@ def tracks_dir() -> Path:
     return Path(__file__).resolve().parents[2] / "models" / "tracks"
 
 
-def default_track(relative: str = "models/tracks/s_bend.yaml") -> Path:
-    """`relative` when it exists from here, else the bundled one (so `umlbot sim` works anywhere)."""
-    here = Path(relative)
-    bundled = tracks_dir() / here.name
-    return here if here.is_file() or not bundled.is_file() else bundled
+def bundled_tracks() -> dict[str, Path]:
+    """The tracks that come with umlbot, by name (`s_bend`, …)."""
+    folder = tracks_dir()
+    return {p.stem: p for p in sorted(folder.glob("*.yaml"))} if folder.is_dir() else {}
+
+
+def find_track(given: str | Path) -> Path:
+    """The track `given` names: a file, else a bundled track's name (`corridor`, the names the
+    studio offers) or file name (`models/tracks/s_bend.yaml` run from elsewhere). Something that
+    is there but no file is returned as it is (reading it says what it is); `SimError` when there
+    is nothing of that name."""
+    path = Path(given)
+    if path.exists():
+        return path
+    bundled = bundled_tracks()
+    if path.suffix in ("", ".yaml", ".yml") and path.stem in bundled:
+        return bundled[path.stem]
+    raise SimError(f"no track {str(given)!r}: no such file, and no bundled track of that name "
+                   f"(bundled: {', '.join(bundled)})")

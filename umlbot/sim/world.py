@@ -76,12 +76,18 @@ class MotorChannelState:
 
 @dataclass(frozen=True)
 class Ping:
-    """One sonar measurement: when, from where, in which direction, and the reported range."""
+    """One sonar measurement: when, from where, in which direction, and the reported range.
+
+    `hit` is where the echo came from: the point of the wall that the nearest echoing ray of the
+    beam met (it may lie off the beam's centre line, up to half the beam's width to the side).
+    None when no echo was reported, or for a ping recorded without it.
+    """
 
     time_s: float
     origin: Point
     angle: float
     distance_cm: int | None
+    hit: Point | None = None
 
 
 @dataclass(frozen=True)
@@ -136,6 +142,10 @@ class World:
         self.car = car or CarSpec()
         self.clock = clock
         self.step_s = step_s
+        #: the world halts itself (and its clock) the moment the goal is reached ...
+        self.halt_at_goal = False
+        #: ... or the collision count reaches this
+        self.max_collisions: int | None = None
         self.sonar_noise_cm = sonar_noise_cm
         self.sonar_drop = sonar_drop
         self._rng = random.Random(seed)
@@ -191,6 +201,9 @@ class World:
         nothing. Thread-safe and idempotent; the simulator calls it whenever a run ends.
         """
         self._halted.set()
+        halt_clock = getattr(self.clock, "halt", None)
+        if halt_clock is not None:
+            halt_clock()  # the clock stops too: the run's figures are those of this moment
         with self._lock:
             for channel in self._motors.values():
                 channel.enabled = False
@@ -208,6 +221,13 @@ class World:
         with self._lock:
             self._sync()
             self._servo.target_deg = float(degrees)
+
+    def time_s(self) -> float:
+        """Sim time: the clock's (the world may integrate a little behind it), else the world's."""
+        if self.clock is not None:
+            return self.clock.now()
+        with self._lock:
+            return self._time
 
     def servo_angle_deg(self) -> float:
         """The servo's current (not commanded) angle."""
@@ -227,27 +247,32 @@ class World:
         """
         with self._lock:
             self._sync()
-            since = self._time - self._last_ping_s
-            if since < self.car.sonar_interval_s:
-                self._charge(self.car.sonar_interval_s - since)
+            wait = self.car.sonar_interval_s - (self._time - self._last_ping_s)
+        if wait > 0:  # outside the lock: the other lanes' commands go on meanwhile
+            self._charge(wait)
+        with self._lock:
+            self._sync()
             origin, bearing = self._sonar_origin()
-            echo_m = self._echo_m(origin, bearing)
+            echo = self._echo(origin, bearing)
             result: int | None = None
-            if echo_m is not None:
-                cm = echo_m * 100.0
+            if echo is not None:
+                cm = echo[0] * 100.0
                 if self.sonar_noise_cm > 0:
                     cm += self._rng.gauss(0.0, self.sonar_noise_cm)
                 dropped = self.sonar_drop > 0 and self._rng.random() < self.sonar_drop
                 if not dropped and cm <= self.car.sonar_max_cm:
                     result = max(self.car.sonar_min_cm, round(cm))
-            self._trace.pings.append(Ping(self._time, origin, bearing, result))
+            hit = None
+            if result is not None and echo is not None:
+                hit = Point(origin.x + echo[0] * math.cos(echo[1]), origin.y + echo[0] * math.sin(echo[1]))
+            self._trace.pings.append(Ping(self._time, origin, bearing, result, hit))
             self._last_ping_s = self._time
-            echo_s = self.car.sonar_timeout_s if result is None else 2 * result / 100.0 / SPEED_OF_SOUND_MPS
-            self._charge(echo_s)
-            return result
+        echo_s = self.car.sonar_timeout_s if result is None else 2 * result / 100.0 / SPEED_OF_SOUND_MPS
+        self._charge(echo_s)
+        return result
 
-    def _echo_m(self, origin: Point, bearing: float) -> float | None:
-        """The nearest echo across the beam in metres, or None when no ray comes back."""
+    def _echo(self, origin: Point, bearing: float) -> tuple[float, float] | None:
+        """The nearest echo across the beam: (metres, the direction of its ray), or None."""
         half = math.radians(self.car.sonar_beam_deg) / 2
         n = max(1, self.car.sonar_rays)
         offsets = [0.0] if n == 1 else [-half + 2 * half * i / (n - 1) for i in range(n)]
@@ -256,7 +281,7 @@ class World:
         for offset in offsets:
             hit = self._index.cast_hit(origin, bearing + offset)
             if hit is not None and incidence(bearing + offset, hit[1]) <= steepest:
-                echoes.append(hit[0])
+                echoes.append((hit[0], bearing + offset))
         return min(echoes, default=None)
 
     # --- integration ---------------------------------------------------------------------------
@@ -268,11 +293,15 @@ class World:
         for exactly as long as it was told to, not rounded to the step.
         """
         halted = self._halted
+        step_s = self.step_s
         with self._lock:
-            while self._time + self.step_s <= time_s + 1e-12:
+            while True:  # the steps end on a fixed grid of sim time, whoever asks for them
+                boundary = (math.floor(self._time / step_s + 1e-6) + 1) * step_s
+                if boundary > time_s + 1e-12:
+                    break
                 if halted.is_set():
                     return
-                self.step(self.step_s)
+                self.step(boundary - self._time)
             rest = time_s - self._time
             if rest > 1e-9 and not halted.is_set():
                 self.step(rest)
@@ -281,7 +310,8 @@ class World:
         """Advance the world by `dt` sim seconds: motors, servo, pose, collision, goal."""
         with self._lock:
             car = self.car
-            alpha = 1.0 if car.motor_time_constant_s <= 0 else min(1.0, dt / car.motor_time_constant_s)
+            # exact for a constant target: a step split in two ends where the whole step does
+            alpha = 1.0 if car.motor_time_constant_s <= 0 else -math.expm1(-dt / car.motor_time_constant_s)
             for channel in self._motors.values():
                 target = 0.0
                 if channel.enabled and channel.duty_percent >= car.dead_band_percent:
@@ -306,6 +336,8 @@ class World:
                     self._collisions += 1
                     self._trace.collision_points.append((x, y))
                     log.info("collision", time_s=round(self._time, 3), x=round(x, 3), y=round(y, 3))
+                    if self.max_collisions is not None and self._collisions >= self.max_collisions:
+                        self.halt()
                 self._in_contact = True
                 self._last_contact_s = self._time
                 for channel in self._motors.values():
@@ -321,6 +353,8 @@ class World:
                     self._trace.path.append((self._time, candidate.x, candidate.y))
                 if self.track.goal.contains(candidate.x, candidate.y):
                     self._goal_reached = True
+                    if self.halt_at_goal:
+                        self.halt()
 
     def _sync(self) -> None:
         if self.clock is not None:
@@ -407,8 +441,12 @@ class WorldLoop:
         self._thread.start()
 
     def _run(self) -> None:
+        step_s = self.world.step_s
         while not self._stop.wait(self.period_wall_s):
-            self.world.advance_to(self.clock.now())
+            # to the last grid point: the world loop adds no step boundary of its own, so the
+            # world integrates the same steps however often (and whenever) the loop runs
+            now = self.clock.now()
+            self.world.advance_to(math.floor(now / step_s + 1e-6) * step_s)
 
     def stop(self) -> None:
         """Stop the loop; idempotent."""
