@@ -24,13 +24,13 @@ from typing import Any
 
 from services.bus.connection import Message
 from services.bus.envelopes import parse_json
-from services.bus.server import ComponentServer
+from services.bus.server import STATUS_WAIT_S, ComponentServer
 from services.bus.settings import BrokerSettings
 from services.bus.topics import Topics
 from services.component_service import ComponentService
-from services.registry import create_driver
-from umlbot.deployment import Deployment
-from umlbot.errors import ConfigError
+from services.registry import SettingsError, create_driver
+from umlbot.deployment import Deployment, shared_pin_message, shared_pins
+from umlbot.errors import ConfigError, UnknownDriver
 from umlbot.library import ServiceKind, service_kinds, service_spec
 from umlbot.logs import get_logger
 
@@ -38,6 +38,10 @@ log = get_logger("umlbot.host")
 
 #: Orchestrator states after which no motor may keep running.
 ORCHESTRATOR_STOP_STATES = frozenset({"offline", "stopped", "failed"})
+#: Every state an orchestrator status may say (`OrchestratorStatus.state`).
+ORCHESTRATOR_STATES = frozenset({"starting", "running", "stopping", "stopped", "failed", "offline"})
+#: an unreadable orchestrator status is logged at most once in this many seconds.
+BAD_STATUS_WARN_EVERY_S = 10.0
 
 TICK_S = 0.05
 
@@ -58,7 +62,17 @@ def _service_class(kind: ServiceKind) -> type[ComponentService]:
     if spec is None:
         raise ConfigError(f"unknown service kind {kind!r}; known: {', '.join(service_kinds())}")
     module_name, _, attribute = spec.service.partition(":")
-    cls: type[ComponentService] = getattr(importlib.import_module(module_name), attribute)
+    try:
+        cls: Any = getattr(importlib.import_module(module_name), attribute)
+    except Exception as exc:  # a plugin's service class that does not load: name it, no traceback
+        from umlbot.plugins import catalog
+
+        package = catalog().origin.get(f"service:{kind}", "?")
+        raise ConfigError(f"the {kind} service of package {package} cannot be loaded from "
+                          f"{spec.service}: {type(exc).__name__}: {exc}") from exc
+    if not (isinstance(cls, type) and issubclass(cls, ComponentService)):
+        raise ConfigError(f"the {kind} service: {spec.service} is not a services.component_service."
+                          "ComponentService subclass")
     return cls
 
 
@@ -93,6 +107,10 @@ class ServiceHost:
             served = {name: comp for name, comp in served.items() if name in components}
         if not served:
             raise ConfigError(f"the deployment has no component served by the {kind} service")
+        for pin, name, key, first, first_key in shared_pins(deployment):
+            if name in served or first in served:  # one would take the pin over: `umlbot check` refuses too
+                raise ConfigError(f"{deployment.where('components', name, 'settings', key)}: "
+                                  f"{shared_pin_message(pin, name, key, first, first_key)}")
         self.component_deployments = served
         self.drivers: dict[str, Any] = {}
         self.services: dict[str, ComponentService] = {}
@@ -103,6 +121,7 @@ class ServiceHost:
         self._started = False
         self._serving = False  # start() succeeded
         self._stopped = False
+        self._bad_status_warned = -BAD_STATUS_WARN_EVERY_S
 
     # -- lifecycle ----------------------------------------------------------------------------------
 
@@ -138,8 +157,12 @@ class ServiceHost:
         try:
             self._build()
             self._watch_orchestrator()
+            for server in self.servers.values():
+                server.connect(self.connect_timeout_s)  # returns once the broker confirmed the subscriptions
+            # the retained statuses arrive together: one short wait for all of them
+            deadline = time.monotonic() + STATUS_WAIT_S
             for name, server in self.servers.items():
-                server.start(self.connect_timeout_s)  # returns once the broker confirmed the subscriptions
+                server.claim(max(0.0, deadline - time.monotonic()), self.connect_timeout_s)
                 self.services[name].changed()
             self._ticker = threading.Thread(
                 target=self._tick_loop, name=f"{self.kind}-safety", daemon=True
@@ -155,7 +178,7 @@ class ServiceHost:
     def _build(self) -> None:
         service_cls = _service_class(self.kind)
         for name, comp in self.component_deployments.items():
-            driver = create_driver(self.kind, self.driver_name(name), name, self._driver_settings(name))
+            driver = self._create_driver(name)
             self.drivers[name] = driver
             service = service_cls(name, comp.implementation, driver, comp.settings)
             self.services[name] = service
@@ -166,6 +189,23 @@ class ServiceHost:
             server.connection.add_on_connect(service.changed)
             server.connection.add_on_disconnect(self._on_disconnect_of(service))
             self.servers[name] = server
+
+    def _create_driver(self, name: str) -> Any:
+        """The component's driver; a deployment mistake names its `file:line:col`."""
+        dep = self.deployment
+        try:
+            return create_driver(self.kind, self.driver_name(name), name, self._driver_settings(name))
+        except SettingsError as exc:
+            path, message = exc.problems[0]
+            more = len(exc.problems) - 1
+            also = f" (and {more} more problem{'s' if more > 1 else ''})" if more else ""
+            dotted = ".".join(str(p) for p in ("settings", *path))
+            raise SettingsError(name, exc.problems,
+                                f"{dep.where('components', name, 'settings', *path)}: component {name}: "
+                                f"{dotted}: {message}{also}") from None
+        except UnknownDriver as exc:
+            at = ("components", name, "driver") if dep.components[name].driver else ("driver",)
+            raise UnknownDriver(f"{dep.where(*at)}: {exc}") from None
 
     def _on_disconnect_of(self, service: ComponentService) -> Any:
         def lost() -> None:
@@ -182,12 +222,24 @@ class ServiceHost:
 
     def _on_orchestrator_status(self, message: Message) -> None:
         state: Any
+        if not message.payload.strip():  # a retained status cleared (`mosquitto_pub -r -n`)
+            return
         try:
-            data = parse_json(message.payload) if message.payload.strip() else None
+            data = parse_json(message.payload)
         except ValueError:
-            data = message.payload.decode("utf-8", "replace").strip()
+            data = message.payload.decode("utf-8", "replace").strip()  # `-m offline` works too
         state = data.get("state") if isinstance(data, dict) else data
-        if isinstance(state, str) and state in ORCHESTRATOR_STOP_STATES:
+        if not isinstance(state, str) or state not in ORCHESTRATOR_STATES:
+            # whether the orchestrator still runs is unknown: stop, as for a stopped one
+            now = time.monotonic()
+            if now - self._bad_status_warned >= BAD_STATUS_WARN_EVERY_S:
+                self._bad_status_warned = now
+                log.warning("orchestrator_status_unreadable", topic=message.topic,
+                            payload=message.payload[:80].decode("utf-8", "replace"),
+                            size=len(message.payload), action="motors stopped")
+            self.safe_stop_all("orchestrator status unreadable")
+            return
+        if state in ORCHESTRATOR_STOP_STATES:
             self.safe_stop_all(f"orchestrator {state}")
 
     def safe_stop_all(self, reason: str) -> None:

@@ -41,6 +41,16 @@ AUTO = "auto"
 PREFIXED_DRIVERS: tuple[str, ...] = ("mock", "sim")
 
 
+class SettingsError(ConfigError):
+    """A driver refused a component's settings; `problems` are (path in the settings, message)."""
+
+    def __init__(self, component: str, problems: list[tuple[tuple[int | str, ...], str]],
+                 message: str) -> None:
+        super().__init__(message)
+        self.component = component
+        self.problems = problems
+
+
 @dataclass(frozen=True)
 class DriverFactory(Generic[S]):
     """How to build one driver: the pydantic model of its settings and a constructor.
@@ -61,7 +71,8 @@ class DriverFactory(Generic[S]):
                 f"{'.'.join(str(p) for p in err['loc']) or 'settings'}: {err['msg']}"
                 for err in exc.errors()
             )
-            raise ConfigError(f"{component}: invalid settings: {problems}") from exc
+            raise SettingsError(component, [(tuple(err["loc"]), str(err["msg"])) for err in exc.errors()],
+                                f"{component}: invalid settings: {problems}") from exc
         return self.create(component, settings)
 
 
@@ -131,3 +142,48 @@ def create_driver(kind: ServiceKind, driver: str, component: str, settings: Mapp
     `DriverError` when the hardware cannot be reached (e.g. pigpiod not running).
     """
     return get_factory(kind, driver).build(component, driver_settings(driver, settings))
+
+
+def hardware_settings_models(kind: ServiceKind) -> list[tuple[str, type[BaseModel]]]:
+    """The settings models of a service kind's hardware drivers (every driver but `auto` and the
+    mock and sim ones, built-in or a plugin's), each model once. `driver: auto` may pick any of
+    them, so settings meant for the hardware must satisfy each. A plugin's driver that does not
+    load is left out (`umlbot plugins` reports it)."""
+    models: list[tuple[str, type[BaseModel]]] = []
+    for driver in known_drivers(kind):
+        if driver == AUTO or driver in PREFIXED_DRIVERS:
+            continue
+        try:
+            model = get_factory(kind, driver).settings_model
+        except (UnknownDriver, DriverError):
+            continue
+        if all(model is not seen for _, seen in models):
+            models.append((driver, model))
+    return models
+
+
+def settings_problems(kind: ServiceKind, driver: str,
+                      settings: Mapping[str, Any]) -> list[tuple[tuple[int | str, ...], str]]:
+    """Why a component's deployment `settings` would be refused when its service starts with
+    `driver` (`auto`: by every hardware driver): (path in the settings, message) pairs, empty when
+    they are valid. The check `umlbot check` and the studio make before any service runs."""
+    if driver == AUTO:
+        models = hardware_settings_models(kind)
+    else:
+        try:
+            models = [(driver, get_factory(kind, driver).settings_model)]
+        except UnknownDriver as exc:
+            return [((), str(exc))]
+        except DriverError:
+            return []  # a plugin's driver that does not load: `umlbot plugins` says why
+    problems: list[tuple[tuple[int | str, ...], str]] = []
+    for name, model in models:
+        try:
+            model.model_validate(driver_settings(name, settings))
+        except ValidationError as exc:
+            for err in exc.errors():
+                problem = (tuple(err["loc"]), str(err["msg"]))
+                if problem not in problems:
+                    problems.append(problem)
+    return problems
+

@@ -238,3 +238,23 @@ def test_hash_password_prints_a_password_file_line() -> None:
     assert result.returncode == 0, result.stderr
     user, _, digest = result.stdout.strip().partition(":")
     assert user == "robot" and digest.startswith("$argon2")
+
+
+def test_port_0_reports_the_port_the_system_gave() -> None:
+    with EmbeddedBroker(port=0) as broker:
+        assert broker.port != 0
+        assert broker.url == f"mqtt://127.0.0.1:{broker.port}"
+        assert port_accepts(broker.port)
+    proc = subprocess.Popen([str(Path(sys.executable).with_name("umlbot")), "broker", "--port", "0"],
+                            stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True)
+    try:
+        assert proc.stderr is not None
+        line = ""
+        while "listening on" not in line:
+            line = proc.stderr.readline()
+            assert line, "the broker ended without saying where it listens"
+        port = int(line.rsplit(":", 1)[1])
+        assert port != 0 and port_accepts(port)
+    finally:
+        proc.send_signal(signal.SIGINT)
+        proc.wait(10)

@@ -167,3 +167,46 @@ def test_non_json_bytes_with_an_mqtt5_response_topic_get_bad_json(
         assert [e["event"] for e in logs] == ["call_rejected"] * len(payloads)
     finally:
         srv.stop()
+
+
+def test_a_wildcard_mqtt5_response_topic_is_refused_and_the_request_not_run(
+    mosquitto_broker: BrokerProcess, calls: list[tuple[Any, ...]],
+    raw_client: Callable[..., RawClient],
+) -> None:
+    """A Response Topic is checked as the envelope's reply_to is: one warning, nothing run, and the
+    error reply goes to the envelope's reply_to when it has a good one."""
+    settings = BrokerSettings.from_url(mosquitto_broker.url + "?protocol=5")
+    srv = ComponentServer(settings, ROBOT, "Motor", "l298n", features(calls))
+    srv.start(5.0)
+    try:
+        raw = raw_client(mosquitto_broker, MQTTProtocolVersion.MQTTv5)
+        raw.subscribe("raw/v5")
+        with structlog.testing.capture_logs() as logs:
+            for topic, payload in (("r5/#", b"50"), ("r5/+/x", envelope("[40]", "w1", "raw/v5"))):
+                props = Properties(PacketTypes.PUBLISH)  # type: ignore[no-untyped-call]
+                props.ResponseTopic = topic
+                raw.publish(TOPICS.call("Motor", "dutycycle"), payload, properties=props)
+            reply = json.loads(raw.get(10.0, "raw/v5").payload)
+            # the service is still there, and later calls run
+            with BusClient(settings, ROBOT) as good:
+                assert good.call("Motor", "add", 1, 2) == 3
+        assert reply["id"] == "w1" and reply["error"]["code"] == "bad_request"
+        assert "Response Topic" in reply["error"]["message"]
+        assert calls == []
+        assert srv.connection.counters.handler_errors == 0
+        assert [e["event"] for e in logs if e["log_level"] != "debug"] == ["call_rejected"] * 2
+        assert not [e for e in logs if "exc_info" in e]
+    finally:
+        srv.stop()
+
+
+def test_args_that_are_not_a_list_are_refused(broker: BrokerProcess, server: ComponentServer,
+                                                calls: list[tuple[Any, ...]],
+                                                raw_client: Callable[..., RawClient]) -> None:
+    raw = raw_client(broker)
+    raw.subscribe("raw/replies")
+    raw.publish(TOPICS.call("Motor", "dutycycle"), b'{"id": "a5", "reply_to": "raw/replies", "args": 5}')
+    reply = json.loads(raw.get(10.0, "raw/replies").payload)
+    assert reply["id"] == "a5" and reply["error"]["code"] == "bad_args"
+    assert "JSON array" in reply["error"]["message"]
+    assert calls == []

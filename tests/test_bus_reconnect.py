@@ -146,3 +146,35 @@ def test_sigkill_of_a_server_process_leaves_offline_status(
     late = raw_client(broker)
     late.subscribe(TOPICS.status("Doomed"))
     assert json.loads(late.get(5.0, TOPICS.status("Doomed")).payload) == {"state": "offline"}
+
+
+def test_an_unreachable_broker_is_retried_and_the_outage_logged_again_now_and_then(
+    caplog: pytest.LogCaptureFixture, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import logging
+
+    from conftest import free_port
+
+    from services.bus import connection as connection_module
+
+    caplog.set_level(logging.DEBUG)
+    monkeypatch.setattr(connection_module, "CONNECT_WARN_EVERY_S", 0.6)
+    connection = BusConnection(BrokerSettings.from_url(f"mqtt://127.0.0.1:{free_port()}"), "test",
+                               reconnect_min_s=0.05, reconnect_max_s=0.1)
+    connection.start(timeout=None)  # in the background, as the studio does
+    try:
+        assert wait_until(lambda: connection.connect_failures >= 12, timeout=10.0)
+        assert connection.connect_problem == "Connection refused"
+        assert connection.next_attempt_at is not None and connection.next_attempt_at <= time.time() + 0.2
+        time.sleep(0.7)
+    finally:
+        connection.close()
+    # the log goes through stdlib logging once configured (caplog), else structlog prints it
+    printed = capsys.readouterr()
+    lines = [line for line in (printed.out + printed.err).splitlines() if "mqtt_connect_failed" in line]
+    failed = lines + [f"[{r.levelname.lower()}] {r.msg}" for r in caplog.records
+                      if "mqtt_connect_failed" in str(r.msg)]
+    warnings = [line for line in failed if "[warning" in line]
+    # every attempt is logged; the first as a warning, then one per CONNECT_WARN_EVERY_S
+    assert len(failed) >= 12
+    assert 2 <= len(warnings) < len(failed) // 2, (len(warnings), len(failed))

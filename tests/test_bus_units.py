@@ -136,7 +136,6 @@ def test_other_payloads() -> None:
         (b'"hello"', (None, None, ["hello"])),
         (b'{"x": 1}', (None, None, [{"x": 1}])),
         (b'{"id": "a", "reply_to": "r/t", "args": [1]}', ("a", "r/t", [1])),
-        (b'{"args": 5}', (None, None, [5])),
         (b'{"id": 3}', (3, None, [])),
     ],
 )
@@ -153,6 +152,8 @@ def test_parse_request(payload: bytes, expected: tuple[object, object, list[obje
         (b'{"id": "a", "reply_to": "r", "args": [], "extra": 1}', "bad_request"),
         (b'{"id": "a", "reply_to": "r/+"}', "bad_request"),
         (b'{"id": "a", "reply_to": 5}', "bad_request"),
+        (b'{"args": 5}', "bad_args"),
+        (b'{"id": "a", "reply_to": "r/t", "args": "60"}', "bad_args"),
     ],
 )
 def test_parse_request_rejects(payload: bytes, code: str) -> None:

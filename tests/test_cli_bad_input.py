@@ -107,10 +107,15 @@ def make_files(folder: Path) -> None:
         "components:\n  LeftActuator: {impl: l298n, driver: steam, settings: {in1: 22, in2: 23}}\n")
     (folder / "only_motor.yaml").write_text(
         "components:\n  LeftActuator: {impl: l298n, settings: {in1: 22, in2: 23}}\n")
+    reference = Path(DEPLOYMENT).read_text()
+    (folder / "shared_pin.yaml").write_text(reference.replace("in1: 24", "in1: 22"))
     (folder / "track_wrong.yaml").write_text("name: t\nstart: {x: 0, y: 0}\n")
     (folder / "trace_no_node.jsonl").write_text('{"lane": "LeftActuator"}\n')
     (folder / "passwd").write_text("robot-without-a-hash\n")
     (folder / "acl_wrong.yaml").write_text("[1, 2]\n")
+    (folder / "acl_not_list.yaml").write_text("acl:\n  robot: umlbot/#\n")
+    (folder / "acl_extra.yaml").write_text("acl: {robot: ['umlbot/#']}\nsubscribe: {}\n")
+    (folder / "track_bad_wall.yaml").write_text("walls: [[0, 0, 1]]\n")
     compiled = subprocess.run([UMLBOT, "compile", MODEL, "-o", "-"], capture_output=True, check=True,
                               env=user_env()).stdout
     (folder / "good.json").write_bytes(compiled)
@@ -168,6 +173,22 @@ CASES: list[tuple[str, list[str], int, list[str]]] = [
     ("call-url-http", ["call", "A.b", "--broker", f"http://u:{PASSWORD}@x"], 1, ["scheme"]),
     ("call-url-port", ["call", "A.b", "--broker", "mqtt://h:99999"], 1, ["mqtt://h:99999"]),
     ("call-bad-robot", ["call", "A.b", "--robot", "a+b"], 1, ["robot id 'a+b'"]),
+    ("call-wildcard-component", ["call", "Left+.dutycycle", "60", "--broker", DEAD], 2,
+     ["component 'Left+' cannot be used in an MQTT topic"]),
+    ("call-hash-component", ["call", "Left#.dutycycle", "60", "--broker", DEAD], 2, ["component 'Left#'"]),
+    ("call-slash-component", ["call", "a/b.dutycycle", "60", "--broker", DEAD], 2, ["component 'a/b'"]),
+    ("call-slash-feature", ["call", "LeftActuator.x/y", "--broker", DEAD], 2, ["feature 'x/y'"]),
+    ("call-space-feature", ["call", "LeftActuator.du ty", "--broker", DEAD], 2, ["feature 'du ty'"]),
+    ("call-nan-arg", ["call", "A.b", "NaN", "--broker", DEAD], 2, ["'NaN'", "not JSON"]),
+    ("call-infinity-arg", ["call", "A.b", "[1, -Infinity]", "--broker", DEAD], 2, ["-Infinity is not JSON"]),
+    ("call-huge-number-arg", ["call", "A.b", "1e400", "--broker", DEAD], 2, ["number out of range: 1e400"]),
+    ("call-deep-arg", ["call", "A.b", "[" * 3000, "--broker", DEAD], 2, ["nested too deeply"]),
+    ("call-timeout-inf", ["call", "A.b", "--timeout", "inf", "--broker", DEAD], 2,
+     ["--timeout", "'inf' is not a finite number"]),
+    ("call-timeout-huge", ["call", "A.b", "--timeout", "1e10", "--broker", DEAD], 2, ["--timeout", "range"]),
+    ("call-timeout-nan", ["call", "A.b", "--timeout", "nan", "--broker", DEAD], 2, ["--timeout", "'nan'"]),
+    ("call-connect-timeout-1e400", ["call", "A.b", "--connect-timeout", "1e400", "--broker", DEAD], 2,
+     ["--connect-timeout", "not a finite number"]),
     ("call-unreachable", ["call", "A.b", "--broker", SECRET_DEAD, "--connect-timeout", "0.5"], 4,
      ["not_connected", "cannot connect"]),
     # service
@@ -185,15 +206,23 @@ CASES: list[tuple[str, list[str], int, list[str]]] = [
     ("service-deploy-wrong-shape", ["service", "motor", "--deploy", "{f}/wrong.json"], 1,
      ["wrong.json", "invalid deployment"]),
     ("service-unknown-impl", ["service", "motor", "--deploy", "{f}/unknown_impl.yaml"], 1,
-     ["unknown_impl.yaml", "'LeftActuator'", "unknown implementation id 'warpdrive'"]),
+     ["unknown_impl.yaml:2:18: ", "'LeftActuator'", "unknown implementation id 'warpdrive'"]),
     ("service-unknown-impl-plain", ["service", "motor", "--deploy", "{f}/unknown_impl.txt"], 1,
      ["unknown_impl.txt", "'CModelWarpDrive'"]),
+    ("service-shared-pin", ["service", "motor", "--deploy", "{f}/shared_pin.yaml", "--driver", "pigpio",
+                            "--broker", DEAD], 1,
+     ["shared_pin.yaml:15:16: GPIO 22 ('in1' of 'RightActuator') is already wired to 'LeftActuator' ('in1'): "
+      "each pin belongs to one component"]),
+    ("service-model-as-deployment", ["service", "motor", "--deploy", MODEL + "/model.yaml"], 1,
+     ["model.yaml:7:3: invalid deployment: components.RaspberryPI.impl: Field required (and 16 more",
+      "is this a deployment?"]),
     ("service-no-such-kind-deployed", ["service", "sonar", "--deploy", "{f}/only_motor.yaml"], 1,
      ["no component served by the sonar service"]),
     ("service-unknown-driver", ["service", "motor", "--deploy", DEPLOYMENT, "--driver", "steam"], 1,
      ["unknown motor driver 'steam'", "mock"]),
     ("service-unknown-driver-deployed", ["service", "motor", "--deploy", "{f}/unknown_driver.yaml",
-                                         "--broker", DEAD], 1, ["unknown motor driver 'steam'"]),
+                                         "--broker", DEAD], 1,
+     ["unknown_driver.yaml:2:31: unknown motor driver 'steam'"]),
     ("service-unknown-component", ["service", "motor", "--deploy", DEPLOYMENT, "--component", "Sensor"],
      1, ["no motor component(s) ['Sensor']"]),
     ("service-unreachable", ["service", "motor", "--deploy", DEPLOYMENT, "--driver", "mock",
@@ -204,12 +233,17 @@ CASES: list[tuple[str, list[str], int, list[str]]] = [
     ("sim-compiled-file", ["sim", "{f}/good.json", "--track", TRACK, "--port", "0"], 1,
      ["good.json:1:1", "compiled model file", "umlbot run"]),
     ("sim-missing-track", ["sim", MODEL, "--track", "{f}/nope.yaml", "--port", "0"], 1,
-     ["cannot read track", "nope.yaml"]),
+     ["no track", "nope.yaml", "no such file, and no bundled track of that name (bundled: bends,"]),
+    ("sim-unknown-track-name", ["sim", MODEL, "--track", "corridoor", "--port", "0"], 1,
+     ["no track 'corridoor': no such file, and no bundled track of that name", "corridor"]),
     ("sim-track-folder", ["sim", MODEL, "--track", "{f}/adir"], 2, ["is a directory"]),
     ("sim-track-bad-yaml", ["sim", MODEL, "--track", "{f}/bad.yaml", "--port", "0"], 1,
      ["bad.yaml:2:1: not valid YAML"]),
     ("sim-track-wrong-shape", ["sim", MODEL, "--track", "{f}/track_wrong.yaml", "--port", "0"], 1,
-     ["track_wrong.yaml", "invalid track", "walls"]),
+     ["track_wrong.yaml:1:1: invalid track: goal: Field required; walls: Field required (1:1)"]),
+    ("sim-track-bad-wall", ["sim", MODEL, "--track", "{f}/track_bad_wall.yaml", "--port", "0"], 1,
+     ["track_bad_wall.yaml:1:1: invalid track: name: Field required;", "walls.0.2: Input should be a valid "
+      "tuple (1:16)"]),
     ("sim-track-binary", ["sim", MODEL, "--track", "{f}/binary.bin", "--port", "0"], 1,
      ["binary.bin:1:1: cannot read track: not UTF-8 text: byte 0xff"]),
     ("sim-track-bad-byte", ["sim", MODEL, "--track", "{f}/bad_byte.yaml", "--port", "0"], 1,
@@ -231,7 +265,12 @@ CASES: list[tuple[str, list[str], int, list[str]]] = [
     ("broker-passwd-bad-byte", ["broker", "--passwd", "{f}/bad_byte.yaml", "--port", "0"], 1,
      ["bad_byte.yaml:2:15: cannot read password file: not UTF-8 text: byte 0xff"]),
     ("broker-acl-wrong-shape", ["broker", "--acl", "{f}/acl_wrong.yaml", "--port", "0"], 1,
-     ["acl_wrong.yaml", "publish_acl"]),
+     ["acl_wrong.yaml:1:1: invalid ACL file", "publish_acl"]),
+    ("broker-acl-not-a-list", ["broker", "--acl", "{f}/acl_not_list.yaml", "--port", "0"], 1,
+     ["acl_not_list.yaml:2:3: invalid ACL file: acl.robot: Input should be a valid list",
+      "topic filters are a list"]),
+    ("broker-acl-unknown-key", ["broker", "--acl", "{f}/acl_extra.yaml", "--port", "0"], 1,
+     ["acl_extra.yaml:2:1: invalid ACL file: subscribe: Extra inputs are not permitted (allowed keys: acl,"]),
     # monitor
     ("monitor-replay-missing", ["monitor", "--replay", "{f}/nope", "--json"], 1, ["cannot read trace file"]),
     ("monitor-replay-folder", ["monitor", "--replay", "{f}/adir"], 2, ["is a directory"]),
@@ -244,6 +283,21 @@ CASES: list[tuple[str, list[str], int, list[str]]] = [
     ("monitor-replay-bad-byte", ["monitor", "--replay", "{f}/bad_byte.jsonl", "--json"], 1,
      ["bad_byte.jsonl:3:12: cannot read trace file: not UTF-8 text: byte 0xff: invalid start byte"]),
     ("monitor-url-http", ["monitor", "--broker", "http://x"], 1, ["scheme"]),
+    ("monitor-duration-nan", ["monitor", "--duration", "nan", "--broker", DEAD, "--json"], 2,
+     ["--duration", "'nan' is not a finite number"]),
+    ("monitor-speed-inf", ["monitor", "--replay", "{f}/garbage.txt", "--speed", "inf"], 2, ["--speed"]),
+    ("run-call-timeout-inf", ["run", "{f}/good.json", "--call-timeout", "inf", "--broker", DEAD], 2,
+     ["--call-timeout", "not a finite number"]),
+    ("run-grace-nan", ["run", "{f}/good.json", "--grace", "nan", "--broker", DEAD], 2, ["--grace"]),
+    ("run-startup-timeout-inf", ["run", "{f}/good.json", "--startup-timeout", "inf"], 2,
+     ["--startup-timeout"]),
+    ("service-connect-timeout-nan", ["service", "motor", "--deploy", DEPLOYMENT, "--connect-timeout", "nan"],
+     2, ["--connect-timeout"]),
+    ("sim-timeout-inf", ["sim", MODEL, "--timeout", "inf", "--broker", DEAD], 2,
+     ["--timeout", "'inf' is not a finite number"]),
+    ("sim-noise-nan", ["sim", MODEL, "--noise", "nan", "--broker", DEAD], 2, ["--noise", "'nan'"]),
+    ("sim-drop-nan", ["sim", MODEL, "--drop", "nan", "--broker", DEAD], 2, ["--drop"]),
+    ("sim-speed-inf", ["sim", MODEL, "--speed", "inf", "--broker", DEAD], 2, ["--speed"]),
     ("monitor-bad-robot", ["monitor", "--robot", "car/#", "--broker", DEAD, "--json"], 1,
      ["robot id 'car/#'"]),
     ("monitor-unreachable", ["monitor", "--broker", SECRET_DEAD, "--json", "--connect-timeout", "0.5"], 1,
@@ -270,6 +324,23 @@ def outcomes(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Outcome]:
                          ids=[c[0] for c in CASES])
 def test_bad_input(outcomes: dict[str, Outcome], name: str, code: int, expected: list[str]) -> None:
     assert_one_clear_line(outcomes[name], code, *expected)
+
+
+def test_a_setting_the_driver_refuses_is_named_at_its_position(tmp_path: Path) -> None:
+    deploy = tmp_path / "pin99.yaml"
+    deploy.write_text(Path(DEPLOYMENT).read_text().replace("in1: 24", "in1: 99"))
+    outcome = run_umlbot(["service", "all", "--deploy", str(deploy), "--driver", "pigpio", "--broker",
+                          f"mqtt://127.0.0.1:{free_port()}"], tmp_path, user_env(UMLBOT_FAKE_PIGPIO="1"))
+    assert_one_clear_line(
+        outcome, 1, "pin99.yaml:15:16: component RightActuator: settings.in1: Input should be less than or "
+        "equal to 27")
+
+
+def test_compile_makes_a_missing_output_folder(tmp_path: Path) -> None:
+    target = tmp_path / "new" / "dir" / "x.json"
+    outcome = run_umlbot(["compile", MODEL, "-o", str(target)], tmp_path)
+    assert outcome.code == 0, outcome.stderr
+    assert json.loads(target.read_text())["format_version"] >= 1
 
 
 def test_a_failed_compile_keeps_the_previous_output(tmp_path: Path) -> None:
@@ -334,8 +405,16 @@ def test_call_nobody_answers(shared_broker: BrokerProcess) -> None:
 def test_tls_url_to_a_plain_broker_gives_up_in_time(shared_broker: BrokerProcess) -> None:
     outcome = run_umlbot(["call", "--broker", f"mqtts://127.0.0.1:{shared_broker.port}", "--connect-timeout",
                           "1", "A.b"], REPO)
-    assert_one_clear_line(outcome, 4, "not_connected", "mqtts://127.0.0.1")
+    assert_one_clear_line(outcome, 4, "not_connected", "mqtts://127.0.0.1",
+                          "is that port TLS? (mqtts:// needs a TLS listener")
     assert outcome.seconds < 4.0  # the TLS handshake that never ends is not waited for
+
+
+def test_tls_url_to_a_closed_port_gets_no_tls_hint() -> None:
+    outcome = run_umlbot(["call", "--broker", f"mqtts://127.0.0.1:{free_port()}", "--connect-timeout",
+                          "1", "A.b"], REPO)
+    line = assert_one_clear_line(outcome, 4, "not_connected", "is it running?")
+    assert "TLS" not in line
 
 
 @pytest.mark.parametrize("command", ["broker", "sim"])
@@ -351,6 +430,17 @@ def test_run_with_no_service_online(shared_broker: BrokerProcess, tmp_path: Path
     outcome = run_umlbot(["run", str(compiled), "--broker", shared_broker.url, "--robot", "lonely",
                           "--startup-timeout", "1"], tmp_path)
     assert_one_clear_line(outcome, 1, "not online", "LeftActuator", "umlbot service")
+
+
+def test_log_level_error_prints_a_fatal_error_once(shared_broker: BrokerProcess, tmp_path: Path) -> None:
+    compiled = tmp_path / "car.json"
+    subprocess.run([UMLBOT, "compile", MODEL, "-o", str(compiled)], check=True, capture_output=True)
+    outcome = run_umlbot(["--log-level", "ERROR", "run", str(compiled), "--broker", shared_broker.url,
+                          "--robot", "quiet", "--startup-timeout", "1"], tmp_path)
+    assert outcome.code == 1
+    lines = outcome.stderr.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: "), outcome.stderr
+    assert "not online" in lines[0]
 
 
 # --- Ctrl-C at start-up ------------------------------------------------------------------------------

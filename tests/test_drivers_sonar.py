@@ -70,6 +70,9 @@ class MovingWall:
     def read_sonar_cm(self) -> int | None:
         return self.world.read_sonar_cm()
 
+    def time_s(self) -> float:
+        return self.world.time_s()
+
 
 def _make_rig(name: str) -> Iterator[Rig]:
     if name == "sim":

@@ -157,6 +157,34 @@ def test_bad_replay_file_is_one_line_error(tmp_path: Path) -> None:
     assert "Traceback" not in result.stderr
 
 
+@pytest.mark.parametrize("as_json", [False, True])
+def test_a_bad_line_anywhere_or_an_empty_trace_is_an_error_before_any_view(tmp_path: Path,
+                                                                          as_json: bool) -> None:
+    good = _trace_file(tmp_path / "good.jsonl", 2).read_text()
+    (tmp_path / "late.jsonl").write_text(good + "garbage\n")
+    (tmp_path / "empty.jsonl").write_text("\n")
+    expected = {"late.jsonl": "late.jsonl:3: not a trace event", "empty.jsonl": "no trace events",
+                "nope.jsonl": "cannot read trace file"}
+    for name, message in expected.items():
+        result = subprocess.run(umlbot_argv("monitor", "--replay", str(tmp_path / name), "--speed", "0",
+                                            *(["--json"] if as_json else [])),
+                                capture_output=True, text=True, timeout=60, check=False)
+        assert result.returncode == 1, (name, result.stdout, result.stderr)
+        assert message in result.stderr and "Traceback" not in result.stderr
+        assert result.stdout == "", (name, result.stdout)  # no view drawn, no event printed
+
+
+def test_replayed_events_name_the_robot_only_when_given(tmp_path: Path) -> None:
+    path = _trace_file(tmp_path / "t.jsonl", 2)
+    for robot_arg, robot in (([], None), (["--robot", "car"], "car")):
+        result = subprocess.run(umlbot_argv("monitor", "--replay", str(path), "--json", *robot_arg),
+                                capture_output=True, text=True, timeout=60, check=False)
+        assert result.returncode == 0, result.stderr
+        events = [json.loads(line) for line in result.stdout.splitlines()]
+        assert len(events) == 2 and all(e["type"] == "trace" for e in events)
+        assert [e.get("robot") for e in events] == [robot, robot]
+
+
 def test_monitor_without_broker_fails_cleanly(tmp_path: Path) -> None:
     nowhere = f"mqtt://127.0.0.1:{free_port()}"
     result = subprocess.run(

@@ -230,3 +230,52 @@ def test_malformed_wire_input_is_counted_never_raised(caplog: pytest.LogCaptureF
     logged = printed.out + printed.err + "\n".join(str(r.msg) for r in caplog.records)
     assert logged.count("malformed message skipped") == 1
     assert "Traceback" not in logged and not any(r.exc_info for r in caplog.records)
+
+
+def test_an_unanswered_call_uses_the_orchestrators_time_out_and_keeps_its_request_time() -> None:
+    # the orchestrator fails a call after its call_timeout_s (2 s): the monitor must say the same
+    # time-out, not its own 5 s, and list the call where it was made, not when it gave up on it
+    state = MonitorState()
+    state.observe("umlbot/car/orchestrator/status", j({"state": "running", "call_timeout_s": 2.0}), 99.0)
+    state.observe("umlbot/other/orchestrator/status", j({"state": "running"}), 99.0)
+    state.observe("umlbot/car/DistanceRead/call/value", j({"id": 1, "reply_to": "r/o", "args": []}), 100.0)
+    state.observe("umlbot/other/DistanceRead/call/value", j({"id": 2, "reply_to": "r/o", "args": []}), 100.0)
+    state.observe("umlbot/car/Sensor/call/angle", j({"id": 3, "reply_to": "r/o", "args": [45]}), 101.0)
+    [answered] = state.observe("r/o", j({"id": 3, "ok": True, "value": None}), 101.01)
+    assert answered.time == 101.01
+    assert state.expire(101.9) == []
+    [late] = state.expire(102.5)  # the car's call after 2 s; the other robot's waits for 5 s
+    assert (late.robot, late.feature, late.ok, late.error) == ("car", "value", False, "no reply within 2 s")
+    assert late.time == 100.0 and late.latency_ms is None
+    assert [e.feature for e in state.recent_calls] == ["value", "angle"]  # in the order they were made
+    assert state.expire(104.9) == []
+    [other] = state.expire(105.5)
+    assert other.robot == "other" and other.error == "no reply within 5 s"
+    given = MonitorState(call_timeout_s=0.5, fallback_call_timeout_s=9.0)  # --call-timeout wins
+    given.observe("umlbot/car/orchestrator/status", j({"state": "running", "call_timeout_s": 2.0}), 99.0)
+    given.observe("umlbot/car/DistanceRead/call/value", j({"id": 1, "reply_to": "r/o"}), 100.0)
+    [quick] = given.expire(100.6)
+    assert quick.error == "no reply within 0.5 s"
+    assert MonitorState(fallback_call_timeout_s=3.0).call_timeout("car") == 3.0
+
+
+def test_a_cut_off_last_line_ends_the_trace_with_a_note(tmp_path: Path) -> None:
+    path = tmp_path / "trace.jsonl"
+    whole = "".join(trace("L", f"n{i}", "action", 1.0 + i, 1.0).model_dump_json() + "\n" for i in range(2))
+    cut = trace("L", "n2", "action", 3.0, 1.0).model_dump_json()[:25]
+    path.write_text(whole + cut, encoding="utf-8")
+    notes: list[str] = []
+    assert [e.node for e in read_trace(path, notes)] == ["n0", "n1"]
+    assert notes == ["trace.jsonl:3: the last line is cut off (the run was killed or is still writing the "
+                     "trace): replayed the lines before it"]
+    # a cut in the middle of a UTF-8 character is cut off too
+    path.write_bytes((whole + '{"lane": "\u00e9').encode()[:-1])
+    assert [e.node for e in read_trace(path, notes)] == ["n0", "n1"] and len(notes) == 2
+    # the same text with its newline is a bad line, not a cut-off one: still an error
+    path.write_text(whole + cut + "\n", encoding="utf-8")
+    with pytest.raises(ConfigError, match=r"trace.jsonl:3: not a trace event"):
+        list(read_trace(path))
+    # a bad line in the middle stays an error even when the last line is cut off
+    path.write_text(whole + '{"lane": 1}\n' + cut, encoding="utf-8")
+    with pytest.raises(ConfigError, match=r"trace.jsonl:3: not a trace event"):
+        list(read_trace(path))

@@ -143,10 +143,14 @@ def test_broker_restart_mid_run_fails_safe_and_stops_when_it_is_back(broker: Bro
         assert running.wait(timeout=20.0) == 1
         assert time.monotonic() - began < 15.0
         orch = running.orchestrator
-        # the first sign wins: the lost connection, a failed call, or (amqtt publishes the wills of
-        # its clients when it shuts down) a component going offline
+        # the first sign wins, unless the connection loss is seen within 5 s while the run shuts
+        # down: then a component going offline (amqtt publishes the wills of its clients as it
+        # shuts down) or a call that found no connection is reported as the broker's loss
         assert orch.failure is not None
-        assert any(word in orch.failure for word in ("broker", "NotConnected", "offline")), orch.failure
+        if broker.kind == "mosquitto":
+            assert orch.failure == "connection to the MQTT broker lost", orch.failure
+        else:
+            assert any(word in orch.failure for word in ("broker", "offline")), orch.failure
         assert not motors_running(r)
         if broker.kind == "mosquitto":  # the connection loss came first: stops sent once it was back
             for name in MOTORS:
@@ -187,3 +191,37 @@ def test_connection_dropped_during_start_up_is_only_a_delay(broker: BrokerProces
         sonar.start()
         assert running.wait(15.0) == 0, orch.failure
         assert r.driver("DistanceRead").reads == 3
+
+
+def test_a_component_offline_just_before_the_broker_connection_went_is_reported_as_broker_lost(
+    mosquitto_broker: BrokerProcess,
+) -> None:
+    """What the orchestrator concludes from the order of events (the broker going down sends the
+    components' last wills before it closes the connections), without timing a real broker."""
+    from services.orchestrator.orchestrator import BROKER_GONE_WINDOW_S, BROKER_LOST
+
+    with rig(mosquitto_broker.url, "fault_loop.yaml", services=["motor"]) as r:
+        for lost_after_s, expected in ((0.0, BROKER_LOST),
+                                       (BROKER_GONE_WINDOW_S + 1, "component LeftActuator went offline"),
+                                       (None, "component LeftActuator went offline")):
+            orch = r.orchestrator()
+            orch.state = "running"
+            orch._fault("component LeftActuator went offline")
+            if lost_after_s is not None:
+                assert orch._broker_symptom_at is not None
+                orch._broker_symptom_at -= lost_after_s
+                orch._connection_lost(True)
+            assert orch.failure == expected, lost_after_s
+        # a call that found no connection, then the loss: the same
+        orch = r.orchestrator()
+        orch.state = "stopping"
+        orch._fault("lane Main, node n1 (LeftActuator.enabled(true)): the connection to the MQTT broker "
+                    "was lost")
+        orch._connection_lost(False)
+        assert orch.failure == BROKER_LOST
+        # a call that failed otherwise is kept
+        orch = r.orchestrator()
+        orch.state = "running"
+        orch._fault("lane Main, node n1: out_of_range: percent=150")
+        orch._connection_lost(True)
+        assert orch.failure == "lane Main, node n1: out_of_range: percent=150"

@@ -195,6 +195,40 @@ def test_only_a_json_object_on_the_exit_topic_requests_the_exit(
         assert orch.exit_reason == "exit requested over MQTT: the real one"
 
 
+def test_an_exit_reason_is_cut_and_a_reason_that_is_no_string_is_named(
+    broker: BrokerProcess, raw_client: Callable[..., RawClient]
+) -> None:
+    import structlog
+
+    from services.orchestrator.orchestrator import MAX_REASON_CHARS
+
+    raw = raw_client(broker)
+    raw.subscribe("umlbot/test/orchestrator/status")
+    with rig(broker.url, "exit_loop.yaml") as r, structlog.testing.capture_logs() as logs:
+        running = r.start()
+        orch = running.orchestrator
+        assert wait_for(lambda: "nap" in r.nodes(), 5.0)
+        raw.publish("umlbot/test/orchestrator/exit", b'{"reason": 5}')
+        raw.publish("umlbot/test/orchestrator/exit", json.dumps({"reason": "a" * 3_000_000}))
+        assert running.wait() == 0, orch.failure
+    assert orch.exit_reason is not None
+    assert orch.exit_reason.startswith("exit requested over MQTT: aaa")
+    assert orch.exit_reason.endswith("… (3000000 characters)")
+    assert len(orch.exit_reason) < MAX_REASON_CHARS + 100
+    reasons = []
+    while True:
+        try:
+            message = raw.get(timeout=1.0, topic="umlbot/test/orchestrator/status")
+        except TimeoutError:
+            break
+        reasons.append(OrchestratorStatus.model_validate_json(message.payload).reason or "")
+    assert reasons and max(len(reason) for reason in reasons) < MAX_REASON_CHARS + 100
+    events = [e["event"] for e in logs]
+    assert "ignoring an exit request whose reason is not a string" in events
+    assert "ignoring an exit request that is not a JSON object" not in events
+    assert max(len(str(e)) for e in logs) < 2000  # the 3 MB reason is in no log line
+
+
 def test_grace_period_then_lanes_cancelled_and_motor_stopped(broker: BrokerProcess) -> None:
     with rig(broker.url, "stubborn.yaml") as r:
         running = r.start(grace_s=0.3)

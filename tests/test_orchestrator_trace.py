@@ -195,3 +195,15 @@ def test_the_trace_section_of_mqtt_md_matches_the_wire_format() -> None:
     rows = [line for line in section.splitlines() if line.startswith("| `")]
     documented = [name for row in rows for name in re.findall(r"`(\w+)`", row.split("|")[1])]
     assert documented == list(TraceEvent.model_fields)
+
+
+def test_a_trace_file_in_a_missing_folder_is_written_there(tmp_path: Path) -> None:
+    trace_file = tmp_path / "runs" / "today" / "t.jsonl"
+
+    async def run() -> None:
+        recorder = TraceRecorder(Sink(), trace_file)
+        recorder.record(rec(1, 5))
+        recorder.close()
+
+    asyncio.run(run())
+    assert [strict(line.encode())["value"] for line in trace_file.read_text().splitlines()] == [5]

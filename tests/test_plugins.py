@@ -106,6 +106,23 @@ def test_an_installed_broken_package_is_reported_and_does_not_take_down_the_rest
     check = _umlbot("check", str(BUZZER_MODEL), env=env)
     assert check.returncode == 0, check.stdout + check.stderr
     assert "plugin_skipped" in check.stderr and "no_such_plugin_module" in check.stderr
+    # a kind the model needs that is missing: the error names the packages whose plugins were skipped
+    model = tmp_path / "needs.yaml"
+    model.write_text("components:\n  Eye: {kind: warpdrive}\ndeployment:\n  components:\n"
+                     "    Eye: {impl: warp9}\nlanes: []\n", encoding="utf-8")
+    check = _umlbot("check", str(model), env=env)
+    assert check.returncode == 1
+    assert ("error: unknown component kind 'warpdrive' (known: system, actuator, sensor, sounder); "
+            "skipped plugin packages: broken-plugins (see 'umlbot plugins')") in check.stdout, check.stdout
+
+    line_deploy = tmp_path / "line.yaml"
+    line_deploy.write_text("robot: bot\ncomponents:\n  Line: {impl: tcrt5000}\n", encoding="utf-8")
+    service = _umlbot("service", "linesensor", "--deploy", str(line_deploy), "--driver", "mock",
+                      "--broker", "mqtt://127.0.0.1:1", env=env)
+    assert service.returncode == 1
+    assert ("error: the linesensor service of package broken-plugins cannot be loaded from "
+            "plugin_samples:NoSuchService: AttributeError") in service.stderr, service.stderr
+    assert "Traceback" not in service.stderr
 
     service = _umlbot("service", "buzzer", "--deploy", str(BUZZER_MODEL / "deployment.yaml"), "--driver",
                       "broken", "--broker", "mqtt://127.0.0.1:1", env=env)

@@ -240,3 +240,59 @@ def test_service_group_stops_motors_first_and_checks_components(mosquitto_broker
     with pytest.raises(ConfigError, match=r"no component\(s\) \['Wheel'\] in the deployment"):
         ServiceGroup(service_kinds(), deployment(), broker_settings(mosquitto_broker.url), ROBOT,
                      components=["Wheel"])
+
+
+def _statuses(url: str, *components: str) -> dict[str, dict[str, Any]]:
+    """The retained status of each component, read by a fresh raw subscription."""
+    import json
+
+    import paho.mqtt.subscribe as subscribe
+
+    from services.bus import Topics
+
+    port = int(url.rsplit(":", 1)[1])
+    topics = [Topics(ROBOT).status(c) for c in components]
+    msgs = subscribe.simple(  # type: ignore[no-untyped-call]
+        topics, hostname="127.0.0.1", port=port, msg_count=len(topics), retained=True)
+    found = msgs if isinstance(msgs, list) else [msgs]
+    return {m.topic.split("/")[-2]: json.loads(m.payload) for m in found}
+
+
+@pytest.mark.parametrize("kind", ["amqtt", "mosquitto"])
+def test_a_second_service_for_a_served_component_refuses_and_leaves_the_first_online(
+    kind: str, request: pytest.FixtureRequest
+) -> None:
+    from services.bus.server import ComponentTaken
+
+    broker: BrokerProcess = request.getfixturevalue(f"{kind}_broker")
+    with running("motor", deployment(), broker.url) as first:
+        mine = {name: server.connection.client_id for name, server in first.servers.items()}
+        second = ServiceHost("motor", deployment(), broker_settings(broker.url), ROBOT, "mock")
+        with pytest.raises(ComponentTaken, match=r"already served by the running client umlbot-service-"):
+            second.start()
+        # the refused one stopped itself without saying offline for the components it never served
+        status = _statuses(broker.url, "LeftActuator", "RightActuator")
+        assert {name: s["client_id"] for name, s in status.items()} == mine
+        assert all(s["state"] == "online" for s in status.values())
+        with client(broker.url) as bus:
+            bus.call("LeftActuator", "dutycycle", 40)
+        assert first.drivers["LeftActuator"].duty_cycle_percent == 40
+    # the first one's own stop still says offline
+    after = _statuses(broker.url, "LeftActuator", "RightActuator")
+    assert {s["state"] for s in after.values()} == {"offline"}
+
+
+def test_a_stale_online_status_is_replaced(mosquitto_broker: BrokerProcess) -> None:
+    """A retained `online` whose client does not answer (a broker that kept it over a restart)
+    does not block the start."""
+    import paho.mqtt.publish as publish
+
+    from services.bus import Topics
+
+    publish.single(Topics(ROBOT).status("LeftActuator"), '{"state": "online", "client_id": "ghost"}',
+                   retain=True, hostname="127.0.0.1", port=mosquitto_broker.port)
+    started = time.monotonic()
+    with running("motor", deployment(), mosquitto_broker.url) as host:
+        assert time.monotonic() - started < 4.0
+        status = _statuses(mosquitto_broker.url, "LeftActuator")["LeftActuator"]
+        assert status["client_id"] == host.servers["LeftActuator"].connection.client_id

@@ -230,6 +230,28 @@ def test_orchestrator_stopped_or_failed_stops_the_motors(
         assert mock(host).wait_until(lambda: not mock(host).running, 5.0)
 
 
+def test_an_unreadable_orchestrator_status_stops_the_motors_with_one_warning(
+    mosquitto_broker: BrokerProcess, raw_client: Callable[..., RawClient]
+) -> None:
+    import structlog
+
+    raw = raw_client(mosquitto_broker)
+    with running("motor", deployment(), mosquitto_broker.url) as host, client(mosquitto_broker.url) as bus:
+        with structlog.testing.capture_logs() as logs:
+            for payload in (b"garbage", b'{"state": 5}', b'{"state": "dancing"}'):
+                bus.call("LeftActuator", "dutycycle", 80)
+                bus.call("LeftActuator", "enabled", True)
+                assert mock(host).running
+                raw.publish(TOPICS.orchestrator_status, payload)
+                assert mock(host).wait_until(lambda: not mock(host).running, 5.0), payload
+            raw.publish(TOPICS.orchestrator_status, b"", retain=True)  # clearing it is no status
+            bus.call("LeftActuator", "enabled", True)
+            assert mock(host).wait_until(lambda: not mock(host).running, 0.3) is False
+        warnings = [e for e in logs if e["event"] == "orchestrator_status_unreadable"]
+        assert len(warnings) == 1, warnings  # rate-limited: one line, not one per message
+        assert warnings[0]["payload"] == "garbage" and warnings[0]["log_level"] == "warning"
+
+
 def test_broker_loss_stops_the_motors(broker: BrokerProcess) -> None:
     with running("motor", deployment(), broker.url) as host:
         with client(broker.url) as bus:

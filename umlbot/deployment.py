@@ -23,10 +23,10 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationError
 
 from umlbot.errors import ConfigError
-from umlbot.files import load_yaml, read_text
+from umlbot.files import load_yaml_node, read_text, validation_problem, where
 from umlbot.library import Implementation, ServiceKind, implementations, resolve_implementation
 
 
@@ -55,6 +55,15 @@ class Deployment(BaseModel):
     robot: str | None = None
     driver: str = "auto"
     components: dict[str, ComponentDeployment] = Field(default_factory=dict)
+    # where it was read from, for errors at `file:line:col` (`where`)
+    _source: str = PrivateAttr(default="deployment")
+    _root: Any = PrivateAttr(default=None)  # the positioned YAML tree, or None (plain format)
+    _prefix: tuple[str, ...] = PrivateAttr(default=())  # under a top-level `deployment:` key
+
+    def where(self, *path: int | str) -> str:
+        """`file:line:col` of a value of the deployment (`"components", name, "settings", key`),
+        as deep as it is written; just the file for the plain format."""
+        return where(self._source, self._root, (*self._prefix, *path))
 
     def driver_for(self, component: str) -> str:
         """The driver name for a component: its own override or the deployment's default."""
@@ -67,6 +76,30 @@ class Deployment(BaseModel):
             for name, comp in sorted(self.components.items())
             if (impl := resolve_implementation(comp.impl)) is not None and impl.service == service
         }
+
+
+def shared_pin_message(pin: int, component: str, key: str, first: str, first_key: str) -> str:
+    """The one wording of a GPIO wired to two components (`umlbot check` and the service host)."""
+    return (f"GPIO {pin} ('{key}' of '{component}') is already wired to '{first}' ('{first_key}'): "
+            "each pin belongs to one component")
+
+
+def shared_pins(deployment: Deployment) -> list[tuple[int, str, str, str, str]]:
+    """Every GPIO setting that names a pin another component already owns, in file order:
+    (pin, component, key, first owner, its key), as `shared_pin_message` takes them."""
+    owners: dict[int, tuple[str, str]] = {}
+    shared: list[tuple[int, str, str, str, str]] = []
+    for name, comp in deployment.components.items():
+        impl = resolve_implementation(comp.impl)
+        for key in impl.pin_keys if impl is not None else ():
+            pin = comp.settings.get(key)
+            if not isinstance(pin, int) or isinstance(pin, bool):
+                continue
+            if pin in owners and owners[pin][0] != name:
+                shared.append((pin, name, key, *owners[pin]))
+            else:
+                owners.setdefault(pin, (name, key))
+    return shared
 
 
 def parse_plain(text: str, source: str = "<deployment>") -> Deployment:
@@ -82,7 +115,9 @@ def parse_plain(text: str, source: str = "<deployment>") -> Deployment:
         if name in components:
             raise ConfigError(f"{source}:{lineno}: component {name!r} deployed twice")
         components[name] = ComponentDeployment(impl=impl)
-    return Deployment(components=components)
+    deployment = Deployment(components=components)
+    deployment._source = source
+    return deployment
 
 
 def is_plain_format(text: str) -> bool:
@@ -97,7 +132,8 @@ def parse_deployment(text: str, source: str = "<deployment>") -> Deployment:
     deployment = _parse_either(text, source)
     for name, comp in deployment.components.items():
         if resolve_implementation(comp.impl) is None:
-            raise ConfigError(f"{source}: component {name!r}: unknown implementation id {comp.impl!r} "
+            raise ConfigError(f"{deployment.where('components', name, 'impl')}: component {name!r}: "
+                              f"unknown implementation id {comp.impl!r} "
                               f"(known: {', '.join(sorted(implementations()))})")
     return deployment
 
@@ -105,18 +141,26 @@ def parse_deployment(text: str, source: str = "<deployment>") -> Deployment:
 def _parse_either(text: str, source: str) -> Deployment:
     if is_plain_format(text):
         return parse_plain(text, source)
-    data = load_yaml(text, source)
+    from compiler.yamlsrc import to_python
+
+    root = load_yaml_node(text, source)
+    data = to_python(root)
     if not isinstance(data, dict):
-        raise ConfigError(f"{source}: a deployment is a mapping with 'components'")
+        raise ConfigError(f"{where(source, root)}: a deployment is a mapping with 'components'")
+    prefix: tuple[str, ...] = ()
     if "deployment" in data and isinstance(data["deployment"], dict):
-        data = data["deployment"]
+        data, prefix = data["deployment"], ("deployment",)
     try:
-        return Deployment.model_validate(data)
+        deployment = Deployment.model_validate(data)
     except ValidationError as exc:
-        problems = "; ".join(
-            f"{'.'.join(str(p) for p in err['loc'])}: {err['msg']}" for err in exc.errors()
-        )
-        raise ConfigError(f"{source}: invalid deployment: {problems}") from exc
+        problem = validation_problem(exc.errors(), source, root, "invalid deployment", prefix)
+        if "components" in data and not any(isinstance(c, dict) and "impl" in c
+                                             for c in (data["components"] or {}).values()
+                                             if isinstance(data["components"], dict)):
+            problem += " — is this a deployment? (each component names its 'impl')"
+        raise ConfigError(problem) from exc
+    deployment._source, deployment._root, deployment._prefix = source, root, prefix
+    return deployment
 
 
 def load_deployment(path: str | Path) -> Deployment:

@@ -11,9 +11,11 @@ limits); `load_yaml` puts it behind the same one-line errors for the small files
 from __future__ import annotations
 
 import json
+import math
 import os
 import stat
 import sys
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -78,14 +80,31 @@ def read_text(path: str | Path, what: str, error: type[UmlbotError] = ConfigErro
         raise error(f"{exc.file}:{exc.line}:{exc.column}: cannot read {what}: {exc.message}") from None
 
 
-def loads_json(text: str) -> Any:
+def _not_json(constant: str) -> Any:
+    raise ValueError(f"{constant} is not JSON (JSON numbers are finite)")
+
+
+def _finite_float(text: str) -> float:
+    number = float(text)
+    if math.isinf(number):
+        raise ValueError(f"number out of range: {text[:40]}")
+    return number
+
+
+def loads_json(text: str, finite: bool = False) -> Any:
     """The value of a JSON text. Besides the decoder's own `json.JSONDecodeError` (with its
     position), what the decoder refuses beyond syntax is a `ValueError` with a message of ours:
     nesting too deep for it (5 000 `[` in a row, never its `RecursionError`), and an integer longer
     than Python converts ("integer too long: more than 4300 digits"; Python's own message tells
     the sender to call `sys.set_int_max_str_digits()`, which is no advice for a peer on the wire).
+
+    With `finite`, the decoder's extensions `NaN`, `Infinity` and `-Infinity`, and a number too
+    large for a float (`1e400`), are such `ValueError`s too: the value is then JSON as RFC 8259
+    and a browser know it. Without it they parse (the services answer them with `bad_args`).
     """
     try:
+        if finite:
+            return json.loads(text, parse_constant=_not_json, parse_float=_finite_float)
         return json.loads(text)
     except RecursionError:
         raise ValueError("nested too deeply") from None
@@ -103,8 +122,16 @@ def load_yaml(text: str, source: str, error: type[UmlbotError] = ConfigError) ->
     A syntax error, a duplicate key or an over-large document raises `error` with one line,
     `source:line:col: not valid YAML: problem`.
     """
+    from compiler.yamlsrc import to_python
+
+    return to_python(load_yaml_node(text, source, error))
+
+
+def load_yaml_node(text: str, source: str, error: type[UmlbotError] = ConfigError) -> Any:
+    """The positioned tree of a YAML document (`compiler.yamlsrc`; None when empty), for readers
+    that name the `file:line:col` of a value in their errors (`where`); errors as `load_yaml`."""
     from compiler.diagnostics import Diagnostics
-    from compiler.yamlsrc import parse_yaml, to_python
+    from compiler.yamlsrc import parse_yaml
 
     diagnostics = Diagnostics()
     try:
@@ -113,6 +140,42 @@ def load_yaml(text: str, source: str, error: type[UmlbotError] = ConfigError) ->
         problem = " ".join(exc.message.removeprefix("invalid YAML: ").split())
         raise error(f"{exc.file}:{exc.line}:{exc.column}: not valid YAML: {problem}") from None
     for item in diagnostics.errors:
-        where = item.location
-        raise error(f"{where.file}:{where.line}:{where.column}: not valid YAML: {item.message}")
-    return to_python(node)
+        where_ = item.location
+        raise error(f"{where_.file}:{where_.line}:{where_.column}: not valid YAML: {item.message}")
+    return node
+
+
+def where(source: str, root: Any, path: Sequence[int | str] = ()) -> str:
+    """`source:line:col` of the value at `path` in a positioned YAML tree (as deep as the path is
+    written); just `source` without a tree (a plain-text or JSON file)."""
+    if root is None:
+        return source
+    from compiler.source import locate
+
+    loc = locate(root, tuple(path))
+    return f"{loc.file}:{loc.line}:{loc.column}"
+
+
+def validation_problem(errors: Sequence[Mapping[str, Any]], source: str, root: Any, what: str,
+                       prefix: Sequence[int | str] = (), every: bool = False) -> str:
+    """One line for pydantic's errors: `file:line:col: <what>: path: message` of the first, and how
+    many more there are (a whole list of them is no help when the file is of the wrong kind), or
+    with `every` the others too, each with its `(line:col)`. `prefix` is where the validated value
+    sits in the file."""
+
+    def problem(error: Mapping[str, Any]) -> str:
+        dotted = ".".join(str(p) for p in error["loc"])
+        return f"{dotted}: {error['msg']}" if dotted else str(error["msg"])
+
+    def at(error: Mapping[str, Any]) -> str:
+        return where(source, root, (*prefix, *error["loc"]))
+
+    first, rest = errors[0], errors[1:]
+    text = f"{at(first)}: {what}: {problem(first)}"
+    if every:
+        for error in rest:
+            position = at(error).removeprefix(source + ":")
+            text += f"; {problem(error)}" + (f" ({position})" if root is not None else "")
+    elif rest:
+        text += f" (and {len(rest)} more problem{'s' if len(rest) > 1 else ''})"
+    return text

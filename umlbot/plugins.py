@@ -289,8 +289,11 @@ def build_catalog(components: Iterable[EntryPoint], drivers: Iterable[EntryPoint
             continue
         kind, name = match.groups()
         if kind not in lib.services:
-            lib.problems.append(PluginProblem(ep.name, ep.group, label, f"unknown service kind {kind!r} "
-                                              f"(known: {', '.join(lib.services)})"))
+            skipped = [p.plugin for p in lib.problems_for(package.package) if p.group == COMPONENTS_GROUP]
+            why = f"unknown service kind {kind!r} (known: {', '.join(lib.services)})"
+            if skipped:  # most likely the kind that plugin would have added
+                why += f"; this package's component plugin {skipped[0]!r} was skipped"
+            lib.problems.append(PluginProblem(ep.name, ep.group, label, why))
             continue
         existing = lib.drivers.get((kind, name))
         if existing is not None:

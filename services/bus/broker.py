@@ -21,7 +21,7 @@ from typing import Any
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from umlbot.errors import ConfigError
-from umlbot.files import load_yaml, read_text
+from umlbot.files import load_yaml_node, read_text, validation_problem, where
 from umlbot.logs import get_logger
 
 log = get_logger(__name__)
@@ -42,16 +42,24 @@ class BrokerAcl(BaseModel):
 
 def load_acl(path: str | Path) -> BrokerAcl:
     """Read an ACL file (YAML or JSON with the keys `acl` and `publish_acl`)."""
+    from compiler.yamlsrc import to_python
+
     file = Path(path)
-    data = load_yaml(read_text(file, "ACL file"), f"ACL file {file}")
+    root = load_yaml_node(read_text(file, "ACL file"), str(file))
+    data = to_python(root)
+    if data is not None and not isinstance(data, dict):
+        raise ConfigError(f"{where(str(file), root)}: invalid ACL file: a mapping with the keys acl and "
+                          "publish_acl, each user's topic filters a list")
     try:
         acl = BrokerAcl.model_validate(data or {})
     except ValidationError as exc:
-        first = exc.errors()[0]
-        where = ".".join(str(p) for p in first["loc"]) + ": " if first["loc"] else ""
-        raise ConfigError(
-            f"ACL file {file}: {where}{first['msg']} (allowed keys: acl, publish_acl)"
-        ) from exc
+        errors = exc.errors()
+        message = validation_problem(errors, str(file), root, "invalid ACL file")
+        if errors[0]["type"] == "extra_forbidden":
+            message += " (allowed keys: acl, publish_acl)"
+        elif errors[0]["type"] == "list_type":
+            message += " (each user's topic filters are a list, e.g. robot: ['umlbot/#'])"
+        raise ConfigError(message) from exc
     if not acl.acl:
         # amqtt treats a missing or empty `acl` as "nobody may subscribe to anything"
         raise ConfigError(
@@ -255,6 +263,16 @@ class EmbeddedBroker:
             self._broker._subscriptions = _SnapshotSubscriptions(self._broker._subscriptions)
             _retained_only_for_own_subscriptions(self._broker)
             await self._broker.start()
+        if self.port == 0:  # "any free port": the one the system gave, for url and the logs
+            self.port = self._bound_port() or 0
+
+    def _bound_port(self) -> int | None:
+        server = getattr(self._broker, "_servers", {}).get("default")
+        for sock in getattr(getattr(server, "instance", None), "sockets", None) or ():
+            port = sock.getsockname()[1]
+            if isinstance(port, int) and port:
+                return port
+        return None
 
     async def _shutdown(self) -> None:
         if self._broker is not None:

@@ -9,6 +9,7 @@ handlers run on a dispatcher thread, in arrival order, never on paho's network t
 from __future__ import annotations
 
 import contextlib
+import math
 import queue
 import random
 import socket
@@ -40,6 +41,9 @@ log = get_logger(__name__)
 #: back-off after a lost or failed connection: doubles from MIN to MAX, each wait jittered.
 RECONNECT_MIN_S = 0.1
 RECONNECT_MAX_S = 5.0
+#: while the broker stays unreachable, `mqtt_connect_failed` is logged as a warning on the first
+#: failed attempt and then at most once per this many seconds (the attempts between at debug).
+CONNECT_WARN_EVERY_S = 30.0
 
 
 @dataclass(frozen=True)
@@ -177,6 +181,12 @@ class BusConnection:
         self._dispatcher: threading.Thread | None = None
         self._closed = False
         self._last_error: str | None = None
+        #: failed connection attempts since the last success (0 while connected).
+        self.connect_failures = 0
+        #: why the last attempt failed, in a few words ("Connection refused"); None once connected.
+        self.connect_problem: str | None = None
+        #: when (time.time()) the next attempt starts, while the broker is unreachable.
+        self.next_attempt_at: float | None = None
         self._start_waiting = False  # start() waits for the first connection
         self._accepted = False
 
@@ -263,9 +273,14 @@ class BusConnection:
             reason = self._last_error or "no answer"
             # the connect thread may sit in a TCP or TLS handshake: do not wait for it long
             self.close(timeout=0.5)
+            hint = "is it running? (umlbot broker, or --broker / UMLBOT_BROKER)"
+            if self.settings.tls and "refused" not in reason.lower():
+                # something answered, but no TLS handshake came of it: a plain listener, most likely
+                hint = (f"is that port TLS? (mqtts:// needs a TLS listener; a plain one is "
+                        f"mqtt://); {hint}")
             raise NotConnected(
                 f"cannot connect to the MQTT broker at {self.settings.url} within {timeout:g} s "
-                f"({reason}); is it running? (umlbot broker, or --broker / UMLBOT_BROKER)"
+                f"({reason}); {hint}"
             )
         if not self.wait_subscribed(max(0.0, deadline - time.monotonic())):
             self.close()
@@ -416,6 +431,7 @@ class BusConnection:
     ) -> None:
         if reason.is_failure:
             self._last_error = f"broker refused the connection: {reason}"
+            self.connect_problem = f"the broker refused the connection: {reason}"
             log.warning("mqtt_connect_refused", broker=self.settings.url, client_id=self.client_id,
                         reason=str(reason))
             return
@@ -431,6 +447,9 @@ class BusConnection:
                     self._pending_subacks[mid] = list(filters)
         self.counters.connects += 1
         self._last_error = None
+        self.connect_problem = None
+        self.connect_failures = 0
+        self.next_attempt_at = None
         self._accepted = True
         self._connected.set()
         for callback in callbacks:
@@ -478,6 +497,7 @@ class BusConnection:
         self._lost.set()
         if was_connected:
             self.counters.disconnects += 1
+            self.connect_problem = f"connection lost ({reason})" if reason is not None else "connection lost"
             with self._lock:
                 callbacks = list(self._on_disconnect)
                 inline = list(self._on_disconnect_inline)
@@ -562,6 +582,7 @@ class BusConnection:
         delay = self.reconnect_min_s
         first = True
         failures = 0
+        warned_at = -math.inf
         while not self._closing.is_set():
             self._lost.clear()
             self._accepted = False
@@ -575,11 +596,18 @@ class BusConnection:
                 if self._closing.is_set():  # start() gave up meanwhile and said why
                     break
                 failures += 1
-                # one warning per outage; the retries of the same outage only at debug level, and
-                # while start() waits only at debug level (its NotConnected says the same)
-                (log.warning if failures == 1 and not self._start_waiting else log.debug)(
+                self.connect_failures = failures
+                self.connect_problem = exc.strerror or str(exc) or type(exc).__name__
+                # a warning on the first failure of an outage and then once per
+                # CONNECT_WARN_EVERY_S while it lasts, the other attempts at debug level; while
+                # start() waits only at debug level (its NotConnected says the same)
+                now = time.monotonic()
+                warn = not self._start_waiting and (failures == 1 or now - warned_at >= CONNECT_WARN_EVERY_S)
+                if warn:
+                    warned_at = now
+                (log.warning if warn else log.debug)(
                     "mqtt_connect_failed", broker=self.settings.url, client_id=self.client_id,
-                    error=self._last_error, attempt=failures)
+                    error=self._last_error, attempt=failures, retrying=True)
             else:
                 first = False
                 failures = 0
@@ -589,6 +617,8 @@ class BusConnection:
             if self._closing.is_set():
                 break
             # full jitter in [delay/2, delay]: reconnecting services do not all hit the broker at once
-            self._closing.wait(random.uniform(delay / 2, delay))
+            pause = random.uniform(delay / 2, delay)
+            self.next_attempt_at = time.time() + pause
+            self._closing.wait(pause)
             delay = min(delay * 2, self.reconnect_max_s)
         self._connected.clear()

@@ -127,6 +127,8 @@ class OrchestratorStatus(BaseModel):
     state: Literal["starting", "running", "stopping", "stopped", "failed", "offline"]
     reason: str | None = None
     model: str | None = None
+    #: the run's call time-out in seconds (monitors report an unanswered call after it too).
+    call_timeout_s: float | None = None
 
 
 class ExitRequest(BaseModel):

@@ -37,6 +37,20 @@ MAX_REQUEST_BYTES = 256 * 1024
 SALVAGE_HEAD_BYTES = 4096
 #: the status payload of a component that is gone (last will, and on a clean stop).
 OFFLINE: Final[dict[str, str]] = {"state": "offline"}
+#: how long a starting server waits for the retained status of its component (another server's?).
+STATUS_WAIT_S = 1.0
+#: how long it waits for the answer of the server that status names, before calling it stale.
+ALIVE_WAIT_S = 1.0
+#: the feature name of the liveness probe: every server answers it (ok, its client id), unlogged.
+ALIVE_PROBE: Final = "_alive"
+
+
+#: what a starting server sends itself to learn that the broker has sent any retained status.
+_SYNC: Final = b"sync"
+
+
+class ComponentTaken(UmlbotError, RuntimeError):
+    """Another live server already serves this component on this robot."""
 
 
 class FeatureError(UmlbotError):
@@ -176,8 +190,9 @@ def parse_request(payload: bytes, response_topic: str | None = None) -> _Parsed:
         reply_to = reply_to if isinstance(reply_to, str) and is_valid_publish_topic(reply_to) else None
         raw_id = data.get("id")
         request_id = raw_id if isinstance(raw_id, str | int) and not isinstance(raw_id, bool) else None
-        if not isinstance(data.get("args", []), list):
-            data = {**data, "args": [data["args"]]}
+        if data.keys() <= ENVELOPE_KEYS and not isinstance(data.get("args", []), list):
+            raise _BadInput("bad_args", "args must be a JSON array (the argument list, e.g. [60])",
+                            request_id, reply_to)
         try:
             request = CallRequest.model_validate(data)
         except ValidationError as exc:
@@ -223,6 +238,11 @@ class ComponentServer:
         self._stopping = False
         self._status_topic = self.topics.status(component)
         self._call_prefix = self.topics.calls(component)[:-1]  # ".../call/"
+        self._claimed = False  # the component is ours: no other live server (see claim())
+        self._retained: dict[str, Any] | None = None  # the last status seen on our status topic
+        self._status_seen = threading.Event()
+        self._synced = threading.Event()  # our own message came back: the retained status is in
+        self._alive_answer = threading.Event()
         self.connection = BusConnection(
             settings,
             role=f"service-{component}",
@@ -237,17 +257,84 @@ class ComponentServer:
         return self.connection.connected
 
     def start(self, timeout: float | None = 5.0) -> None:
-        """Connect, subscribe to the calls and publish the status; raises NotConnected on time-out."""
+        """Connect, claim the component, subscribe to the calls and publish the status.
+
+        Raises NotConnected on time-out, ComponentTaken when another server serves it.
+        """
+        self.connect(timeout)
+        self.claim(STATUS_WAIT_S, 5.0 if timeout is None else timeout)
+
+    def connect(self, timeout: float | None = 5.0) -> None:
+        """Connect and read the component's retained status; no calls are served yet."""
         self._since = time.time()
-        self.connection.subscribe(self.topics.calls(self.component), self._on_request, qos=1)
+        self.connection.subscribe(self._status_topic, self._on_status, qos=1)
+        self.connection.subscribe(self._alive_reply_topic, self._on_alive_answer, qos=0)
         self.connection.add_on_connect(self._publish_online)
         self.connection.start(timeout)
 
+    def claim(self, status_wait_s: float = STATUS_WAIT_S, timeout: float = 5.0) -> None:
+        """Serve the component unless another server does: its retained status names another
+        client online that answers the liveness probe (ComponentTaken). A status whose client
+        does not answer is stale (a broker that kept it over a restart) and is replaced."""
+        # the broker sends a retained status right after the subscription, before it handles a
+        # later publish of ours: our own message back on our topic means none is coming
+        with contextlib.suppress(BusError):
+            self.connection.publish(self._alive_reply_topic, _SYNC, qos=0)
+        deadline = time.monotonic() + status_wait_s
+        while not (self._status_seen.is_set() or self._synced.is_set()):
+            if time.monotonic() >= deadline:
+                break
+            self._status_seen.wait(0.005)
+        other = self._other_client()
+        if other is not None:
+            self.connection.publish(self.topics.call(self.component, ALIVE_PROBE),
+                                    {"id": "alive", "reply_to": self._alive_reply_topic}, qos=0)
+            if self._alive_answer.wait(ALIVE_WAIT_S):
+                raise ComponentTaken(
+                    f"component {self.component} of robot {self.topics.robot!r} is already served by "
+                    f"the running client {other} (its retained status is online and it answers); "
+                    "stop that service first, or serve this one under another --robot")
+            self._log.warning("stale_status_replaced", other_client_id=other)
+        self.connection.subscribe(self.topics.calls(self.component), self._on_request, qos=1,
+                                  wait_s=timeout)
+        with self._status_lock:
+            self._claimed = True
+        self._publish_online()
+
+    @property
+    def _alive_reply_topic(self) -> str:
+        return f"{self.topics.base}/{self.component}/_alive/{self.connection.client_id}"
+
+    def _other_client(self) -> str | None:
+        """The client id of another server that the retained status says is online, else None."""
+        status = self._retained
+        if status is None or status.get("state") != "online":
+            return None
+        other = status.get("client_id")
+        if not isinstance(other, str) or other == self.connection.client_id:
+            return None
+        return other
+
+    def _on_status(self, message: Message) -> None:
+        try:
+            data = parse_json(message.payload) if message.payload else None
+        except ValueError:
+            data = None
+        self._retained = data if isinstance(data, dict) else None
+        self._status_seen.set()
+
+    def _on_alive_answer(self, message: Message) -> None:
+        if message.payload == _SYNC:
+            self._synced.set()
+        else:
+            self._alive_answer.set()
+
     def stop(self) -> None:
-        """Publish `offline` (retained), then disconnect; safe to call twice."""
+        """Publish `offline` (retained) if the status is ours, then disconnect; safe to call twice."""
         with self._status_lock:
             stopping, self._stopping = self._stopping, True
-            if not stopping and self.connection.connected:
+            # offline only over our own online: not before claim(), not over another server's
+            if not stopping and self._claimed and self.connection.connected and self._other_client() is None:
                 with contextlib.suppress(BusError):  # not connected, or refused by the broker
                     self.connection.publish(self._status_topic, OFFLINE, qos=1, retain=True, wait_s=2.0)
         self.connection.close()
@@ -270,15 +357,18 @@ class ComponentServer:
         )
 
     def publish_state(self, state: dict[str, Any]) -> None:
-        """Publish the component's current state (retained) on `…/<component>/state`."""
+        """Publish the component's current state (retained) on `…/<component>/state`; nothing
+        before claim(): a server that may not serve the component leaves its state alone."""
+        if not self._claimed:
+            return
         try:
             self.connection.publish(self.topics.state(self.component), state, qos=1, retain=True)
         except NotConnected:
             self._log.debug("state_not_published", reason="not connected")
 
     def _publish_online(self) -> None:
-        with self._status_lock:  # never after stop() said offline
-            if self._stopping:
+        with self._status_lock:  # never after stop() said offline, never before claim()
+            if self._stopping or not self._claimed:
                 return
             self.connection.publish(self._status_topic, self.status(), qos=1, retain=True)
         self._log.info("component_online", impl=self.impl_id, features=sorted(self.features))
@@ -291,6 +381,12 @@ class ComponentServer:
         correlation = message.correlation_data
         request_id: str | int | None = _correlation_id(correlation)
         reply_to: str | None = None
+        if feature_name == ALIVE_PROBE:  # another server checks whether we are alive: yes
+            self._answer_alive(message)
+            return
+        bad_response_topic = response_topic is not None and not is_valid_publish_topic(response_topic)
+        if bad_response_topic:
+            response_topic = None  # never published to: a wildcard is no topic
         try:
             if len(message.payload) > self.max_request_bytes:
                 # only the head: a client puts id and reply_to first, and a copy of a megabyte
@@ -307,6 +403,8 @@ class ComponentServer:
             parsed = parse_request(message.payload)
             request_id = parsed.request_id if parsed.request_id is not None else request_id
             reply_to = parsed.reply_to
+            if bad_response_topic:
+                raise _BadInput("bad_request", "the MQTT 5 Response Topic must be a topic without wildcards")
             feature = self.features.get(feature_name)
             if feature is None:
                 known = ", ".join(sorted(self.features)) or "none"
@@ -343,6 +441,13 @@ class ComponentServer:
                        logged=True)
             return
         self.calls_served += 1
+
+    def _answer_alive(self, message: Message) -> None:
+        with contextlib.suppress(_BadInput, RecursionError):
+            reply_to = parse_request(message.payload).reply_to
+            if reply_to is not None:
+                reply = Reply.success("alive", {"client_id": self.connection.client_id})
+                self._send(reply.wire(), reply_to, None, None)
 
     def _fail(self, feature: str, request_id: str | int | None, reply_to: str | None,
               response_topic: str | None, correlation: bytes | None, code: str, message: str,

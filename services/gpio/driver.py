@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import threading
 from typing import Literal, Protocol, runtime_checkable
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator
@@ -76,3 +77,71 @@ class PinNotAllowed(DriverError, ValueError):
     def __init__(self, pin: int, reason: str) -> None:
         super().__init__(reason)
         self.pin = pin
+
+
+class ClosablePins(Protocol):
+    """A backend's pin connection as `HardwareGpio` needs it."""
+
+    def close(self) -> None: ...
+
+
+class HardwareGpio:
+    """What the GPIO drivers of real backends share: the pin rules, one lock, the modes the
+    backend gave each pin, closing once. A backend implements `_input`, `_level` and `_output`.
+
+    A pin is made an input (with the configured pull resistor) the first time it is read and an
+    output the first time it is written; reading an output returns the level last written. Pins
+    the deployment does not allow, and pins owned by other components, are refused with
+    `PinNotAllowed` before the backend is asked.
+    """
+
+    def __init__(self, component: str, settings: GpioSettings, pins: ClosablePins) -> None:
+        self.component = component
+        self.settings = settings
+        self.allowed_pins = settings.allowed()
+        self._outputs: dict[int, bool] = {}  # pin -> made an output (False: an input)
+        self._lock = threading.Lock()
+        self._closed = False
+        self._pins = pins
+
+    def _input(self, pin: int) -> None:
+        """Make `pin` an input with the settings' pull resistor."""
+        raise NotImplementedError
+
+    def _level(self, pin: int) -> int:
+        """The level the backend reads on `pin` (truthy: high)."""
+        raise NotImplementedError
+
+    def _output(self, pin: int, value: int, first: bool) -> None:
+        """Drive `pin` to `value`; `first`: the pin is not an output yet."""
+        raise NotImplementedError
+
+    def _check(self, pin: int) -> None:
+        reason = self.settings.refusal(pin)
+        if reason is not None:
+            raise PinNotAllowed(pin, reason)
+        if self._closed:
+            raise DriverError(f"{self.component}: gpio is closed")
+
+    def read(self, pin: int) -> int:
+        with self._lock:
+            self._check(pin)
+            if pin not in self._outputs:
+                self._input(pin)
+                self._outputs[pin] = False
+            return 1 if self._level(pin) else 0
+
+    def write(self, pin: int, value: int) -> None:
+        if value not in (0, 1):
+            raise ValueError(f"a pin value is 0 or 1, got {value}")
+        with self._lock:
+            self._check(pin)
+            self._output(pin, value, first=not self._outputs.get(pin))
+            self._outputs[pin] = True
+
+    def close(self) -> None:
+        with self._lock:
+            if self._closed:
+                return
+            self._closed = True
+            self._pins.close()

@@ -41,6 +41,19 @@ class LiveMonitor:
     def connected(self) -> bool:
         return self._connection.connected
 
+    def broker_status(self, now: float | None = None) -> dict[str, object]:
+        """The connection as the studio shows it: `connected`, else `problem` (why the last
+        attempt failed), `attempts` (failed ones since the last connection) and `retry_in_s`."""
+        connection = self._connection
+        if connection.connected:
+            return {"connected": True}
+        status: dict[str, object] = {"connected": False, "problem": connection.connect_problem,
+                                     "attempts": connection.connect_failures}
+        at = connection.next_attempt_at
+        if at is not None:
+            status["retry_in_s"] = round(max(0.0, at - (time.time() if now is None else now)), 1)
+        return status
+
     def start(self, timeout: float | None = 5.0) -> None:
         """Connect; raises NotConnected when the broker is not reached within `timeout` (None:
         connect in the background and keep trying), and BrokerRefused when the broker refuses the

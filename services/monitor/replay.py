@@ -15,10 +15,18 @@ from services.bus.envelopes import TraceEvent
 from services.monitor.state import MonitorEvent, MonitorState, first_problem, trace_items
 from umlbot.errors import ConfigError, ModelError
 from umlbot.files import decode_utf8
+from umlbot.logs import get_logger
+
+log = get_logger(__name__)
 
 
-def read_trace(path: str | Path) -> Iterator[TraceEvent]:
-    """The events of a trace file in order; a bad line raises ConfigError naming file and line."""
+def read_trace(path: str | Path, notes: list[str] | None = None) -> Iterator[TraceEvent]:
+    """The events of a trace file in order; a bad line raises ConfigError naming file and line.
+
+    A last line after the first that is cut off (no newline at its end and not a whole event: the
+    run was killed, or it is still writing) ends the trace instead: the events before it are read, and a note
+    saying so is appended to `notes` (logged as a warning when `notes` is None).
+    """
     file = Path(path)
     try:
         handle = file.open("rb")  # bytes: a line that is not UTF-8 is named with its bad byte
@@ -28,16 +36,34 @@ def read_trace(path: str | Path) -> Iterator[TraceEvent]:
         for lineno, line in enumerate(handle, start=1):
             if not line.strip():
                 continue
+            # only a file's last line can lack its newline; a file that is one such line (a binary
+            # file, say) is no trace cut off but no trace: its own error
+            cut = not line.endswith(b"\n") and lineno > 1
             try:
                 text = decode_utf8(line, str(file))
             except ModelError as exc:  # its line and column in the file, not in the line
+                if cut:
+                    _cut_off(file, lineno, notes)
+                    return
                 raise ConfigError(f"{file}:{lineno}:{exc.column}: cannot read trace file: "
                                   f"{exc.message}") from None
             try:
                 events = [TraceEvent.model_validate(item) for item in trace_items(from_json(text))]
             except (ValueError, ValidationError) as exc:
+                if cut:
+                    _cut_off(file, lineno, notes)
+                    return
                 raise ConfigError(f"{file}:{lineno}: not a trace event: {first_problem(exc)}") from exc
             yield from events
+
+
+def _cut_off(file: Path, lineno: int, notes: list[str] | None) -> None:
+    note = (f"{file.name}:{lineno}: the last line is cut off (the run was killed or is still "
+            f"writing the trace): replayed the lines before it")
+    if notes is None:
+        log.warning("trace file ends in a partial line", file=str(file), line=lineno)
+    else:
+        notes.append(note)
 
 
 def replay(

@@ -31,7 +31,8 @@ EventType = Literal["availability", "call", "state", "signal", "trace", "orchest
 #: trace node kinds that do work (their durations are worth a percentile); a datastore counts
 #: when it is set from a call (its label has parentheses), not from a constant.
 TIMED_KINDS = frozenset({"action", "send", "accept"})
-#: a request without a reply for this long is reported as unanswered.
+#: a request without a reply for this long is reported as unanswered, unless the orchestrator's
+#: retained status says its own time-out (`call_timeout_s`) or the monitor was given one.
 DEFAULT_CALL_TIMEOUT_S = 5.0
 #: samples kept per action or feature for the percentiles.
 SAMPLE_WINDOW = 2000
@@ -147,8 +148,15 @@ def split_topic(topic: str) -> tuple[str, list[str]] | None:
 class MonitorState:
     """The robot as the monitor sees it; feed it messages, read its tables, print its events."""
 
-    def __init__(self, call_timeout_s: float = DEFAULT_CALL_TIMEOUT_S, recent: int = 20) -> None:
+    def __init__(self, call_timeout_s: float | None = None, recent: int = 20,
+                 fallback_call_timeout_s: float = DEFAULT_CALL_TIMEOUT_S) -> None:
+        #: the time-out given (`umlbot monitor --call-timeout`); None: the one the robot's
+        #: orchestrator announces in its status, else `fallback_call_timeout_s` (the studio passes
+        #: the model's `call_timeout_s`).
         self.call_timeout_s = call_timeout_s
+        self.fallback_call_timeout_s = fallback_call_timeout_s
+        #: the time-out each robot's orchestrator says it uses (its retained status).
+        self.robot_call_timeouts: dict[str, float] = {}
         self.availability: dict[tuple[str, str], Availability] = {}
         self.orchestrator: dict[str, str] = {}
         self.lanes: dict[tuple[str, str], LaneNow] = {}
@@ -227,15 +235,27 @@ class MonitorState:
             level=trace.level, detail=trace.detail, seq=trace.seq,
         )
 
+    def call_timeout(self, robot: str) -> float:
+        """Seconds after which a call of `robot` without a reply is reported as unanswered: the
+        time-out given, else the one its orchestrator announced, else the fallback."""
+        if self.call_timeout_s is not None:
+            return self.call_timeout_s
+        return self.robot_call_timeouts.get(robot, self.fallback_call_timeout_s)
+
     def expire(self, now: float) -> list[MonitorEvent]:
-        """Report the calls that got no reply within the time-out as failed (`error` says so)."""
-        late = [key for key, p in self._pending.items() if now - p.at > self.call_timeout_s]
+        """Report the calls that got no reply within the time-out as failed (`error` says so).
+
+        The event keeps the request's time (it is listed where the call was made, not when the
+        monitor gave up on it) and has no latency.
+        """
+        late = [(key, timeout) for key, p in self._pending.items()
+                if now - p.at > (timeout := self.call_timeout(p.robot))]
         events = []
-        for key in late:
+        for key, timeout in late:
             pending = self._take(key)
             assert pending is not None
-            events.append(self._finish(pending, key[1], at=now, ok=False, value=None,
-                                       error=f"no reply within {self.call_timeout_s:g} s", latency_ms=None))
+            events.append(self._finish(pending, key[1], at=pending.at, ok=False, value=None,
+                                       error=f"no reply within {timeout:g} s", latency_ms=None))
         return events
 
     @property
@@ -313,7 +333,19 @@ class MonitorState:
         if stats is None:
             stats = self.features[key] = Stats(f"{event.component}.{event.feature}")
         stats.add(event.latency_ms, failed=event.ok is False)
-        self.recent_calls.append(event)
+        recent = self.recent_calls
+        if recent and recent[-1].time > event.time:  # an expired call: listed at its request's time
+            place = len(recent)
+            while place > 0 and recent[place - 1].time > event.time:
+                place -= 1
+            if len(recent) == recent.maxlen:
+                if place == 0:
+                    return event  # older than every call listed
+                recent.popleft()
+                place -= 1
+            recent.insert(place, event)
+        else:
+            recent.append(event)
         return event
 
     def _on_status(self, robot: str, component: str, topic: str, payload: bytes,
@@ -350,6 +382,9 @@ class MonitorState:
                 return []
             state = (_text(data.get("state")) if isinstance(data, dict) else _text(data)) or "unknown"
             self.orchestrator[robot] = state
+            timeout = data.get("call_timeout_s") if isinstance(data, dict) else None
+            if isinstance(timeout, int | float) and not isinstance(timeout, bool) and 0 < timeout < math.inf:
+                self.robot_call_timeouts[robot] = float(timeout)
             reason = _text(data.get("reason")) if isinstance(data, dict) else None
             return [MonitorEvent(type="orchestrator", time=at, robot=robot, topic=topic, state=state,
                                  detail=reason)]

@@ -247,7 +247,9 @@ class Engine:
         lane = program.name
         trace = self.trace
         stats = self.stats
-        clock = time.time
+        # trace timestamps in the robot's time: the wall clock on a robot, sim time in the simulator
+        # (it moves from event to event, paced by `speed`: see umlbot.sim.clock)
+        clock = time.time if type(self.clock) is Clock and self.clock.speed == 1.0 else self.clock.epoch
         budget = YIELD_EVERY
         value: Value = None
         while True:

@@ -70,12 +70,25 @@ ACTUATORS_BACK_TIMEOUT_S = 2.0
 #: seconds cancelled lanes get to unwind.
 LANE_CANCEL_TIMEOUT_S = 2.0
 
+#: a lost broker connection this soon after a component went offline (or a call found no
+#: connection) is reported as the cause: the broker went down and sent the last wills first.
+BROKER_GONE_WINDOW_S = 5.0
+BROKER_LOST = "connection to the MQTT broker lost"
+#: an exit request's reason is cut to this many characters (it is logged and kept in the status).
+MAX_REASON_CHARS = 200
 EXIT_OK = 0
 EXIT_FAULT = 1
 
 
 class _ExitWhileConnecting(Exception):
     """Termination was requested before the broker answered."""
+
+
+def shorten(reason: str, limit: int = MAX_REASON_CHARS) -> str:
+    """A reason cut to `limit` characters (an ellipsis and the full length say it was longer)."""
+    if len(reason) <= limit:
+        return reason
+    return f"{reason[:limit]}… ({len(reason)} characters)"
 
 
 class Orchestrator:
@@ -119,6 +132,7 @@ class Orchestrator:
         self.failure: str | None = None
         #: why termination was requested, None until it was.
         self.exit_reason: str | None = None
+        self._broker_symptom_at: float | None = None  # when a fault came that a broker's end explains
         #: the last status published: starting, running, stopping, stopped or failed.
         self.state = "starting"
         self.signals = SignalBoard.for_model(compiled)
@@ -355,8 +369,13 @@ class Orchestrator:
         if self.failure is not None:
             return
         self.failure = reason
+        if reason.endswith(" went offline") or "connection to the MQTT broker" in reason or (
+                "not connected" in reason):
+            self._broker_symptom_at = time.monotonic()  # maybe the broker going down: see _connection_lost
         self.engine.exit_requested = True
-        log.error("fail_safe_stop", reason=reason)
+        # a warning: whoever ends the run reports the fault as its error (`umlbot run`: one
+        # `error: fail-safe stop: …` line), so that --log-level ERROR prints it once
+        log.warning("fail_safe_stop", reason=reason)
         if self._changed is not None:
             self._changed.set()
 
@@ -404,6 +423,8 @@ class Orchestrator:
         self._closing = True
         if self.recorder is not None:
             self.recorder.close()
+        if control is not None and client is not None and not (control.connected and client.connected):
+            self._broker_lost()  # the connection went while the run shut down
         await asyncio.to_thread(self._close_connections)
         return EXIT_FAULT if self.failure is not None else EXIT_OK
 
@@ -527,15 +548,39 @@ class Orchestrator:
             log.debug("ignoring an empty message on the exit topic", topic=message.topic)
             return
         try:
-            request = ExitRequest.model_validate_json(message.payload)
-        except ValidationError as exc:  # a request is a JSON object: `{}` or `{"reason": "..."}`
+            data = parse_json(message.payload)
+        except ValueError as exc:
+            log.warning("ignoring an exit request that is not JSON", topic=message.topic,
+                        error=str(exc)[:MAX_REASON_CHARS], size=len(message.payload))
+            return
+        if not isinstance(data, dict):  # a request is a JSON object: `{}` or `{"reason": "..."}`
             log.warning("ignoring an exit request that is not a JSON object", topic=message.topic,
-                        error=exc.errors()[0]["msg"], size=len(message.payload))
+                        json_type=type(data).__name__, size=len(message.payload))
+            return
+        try:
+            request = ExitRequest.model_validate(data)
+        except ValidationError as exc:
+            first = exc.errors()[0]
+            field = ".".join(str(p) for p in first["loc"]) or "request"
+            event = ("ignoring an exit request whose reason is not a string" if field == "reason"
+                     else "ignoring an invalid exit request")
+            log.warning(event, topic=message.topic, error=f"{field}: {first['msg']}",
+                        size=len(message.payload))
             return
         reason = "exit requested over MQTT"
         if request.reason:
-            reason = f"exit requested over MQTT: {request.reason}"
+            reason = f"exit requested over MQTT: {shorten(request.reason)}"
         self.request_exit(reason)
+
+    def _broker_lost(self) -> None:
+        """The broker connection is gone: a fault that its end explains is reported as its end."""
+        symptom_at = self._broker_symptom_at
+        if symptom_at is not None and time.monotonic() - symptom_at < BROKER_GONE_WINDOW_S:
+            # a broker that shuts down sends its clients' last wills first (amqtt does), and calls
+            # fail as it goes: the component that "went offline" just before was the broker's end
+            log.info("fail_safe_stop_reason", was=self.failure, now=BROKER_LOST)
+            self.failure = BROKER_LOST
+            self._broker_symptom_at = None
 
     def _connection_lost(self, control: bool) -> None:
         # before the lanes run, a lost connection is only a delay (the bus reconnects on its own
@@ -544,8 +589,9 @@ class Orchestrator:
             # what the components said is stale now: the control connection (which carries the
             # status subscription) gets their retained status again after its reconnect
             self.availability.clear()
+        self._broker_lost()  # also while it shuts down: the fault it explains is named after it
         if self.state in ("running", "stopping"):
-            self._fault("connection to the MQTT broker lost")
+            self._fault(BROKER_LOST)
         else:
             log.warning("connection to the broker lost during start-up; waiting for it", state=self.state)
         if self._changed is not None:
@@ -571,7 +617,8 @@ class Orchestrator:
             return
         status = OrchestratorStatus.model_validate(
             {"state": state, "reason": reason, "model": self.model.name, "robot": self.robot,
-             "source_hash": self.model.source_hash, "since": time.time()}
+             "source_hash": self.model.source_hash, "call_timeout_s": self.call_timeout_s,
+             "since": time.time()}
         )
         try:
             control.publish(self.topics.orchestrator_status, status, qos=1, retain=True)

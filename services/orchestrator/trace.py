@@ -125,7 +125,9 @@ class TraceRecorder:
         self._listener = listener
         self._file: IO[str] | None = None
         if trace_file is not None:
+            # a missing folder is made, as for every file umlbot writes (compile -o, sim --plot);
             # line-buffered so that a crash loses at most the line being written
+            Path(trace_file).parent.mkdir(parents=True, exist_ok=True)
             self._file = Path(trace_file).open("w", encoding="utf-8", buffering=1)  # noqa: SIM115
         # each pending event as its JSON text (made when recorded: a few microseconds each, never
         # a batch's worth at once while a reply waits) and its record (for the listener); the

@@ -19,6 +19,8 @@ from typing import Any
 
 import click
 
+from umlbot.commands.options import seconds
+
 EXIT_OK = 0
 EXIT_ERROR_REPLY = 1
 EXIT_USAGE = 2
@@ -62,18 +64,39 @@ def timeout_hint(component: str, robot: str, username: str | None, protocol: str
 
 
 def parse_arg(text: str) -> Any:
-    """A command-line argument as JSON when it parses (`60`, `true`, `[1,2]`), else the string."""
+    """A command-line argument as JSON when it parses (`60`, `true`, `[1,2]`), else the string.
+
+    Parsed by the loader that reads the wire (`umlbot.files.loads_json`), strictly: what parses but
+    cannot be sent as JSON (NaN, Infinity, 1e400) or what the decoder refuses (nesting too deep, an
+    integer too long) is a bad command line (exit 2), not a string and not a traceback.
+    """
+    from umlbot.files import loads_json
+
     try:
-        return json.loads(text)
-    except ValueError:
+        return loads_json(text, finite=True)
+    except json.JSONDecodeError:
         return text
+    except ValueError as exc:
+        raise click.BadParameter(f"{_shorten(text)}: {exc}", param_hint="ARGS") from None
+
+
+def _shorten(text: str, limit: int = 40) -> str:
+    return repr(text if len(text) <= limit else text[:limit] + "…")
 
 
 def parse_target(target: str) -> tuple[str, str]:
-    """`Component.feature` -> (component, feature)."""
+    """`Component.feature` -> (component, feature), each one MQTT topic level (as robot ids)."""
+    from services.bus.topics import check_name
+    from umlbot.errors import ConfigError
+
     component, dot, feature = target.partition(".")
     if not dot or not component or not feature or "." in feature:
         raise click.BadParameter(f"expected Component.feature, got {target!r}", param_hint="TARGET")
+    try:
+        check_name("component", component)
+        check_name("feature", feature)
+    except ConfigError as exc:
+        raise click.BadParameter(str(exc), param_hint="TARGET") from None
     return component, feature
 
 
@@ -83,14 +106,14 @@ def parse_target(target: str) -> tuple[str, str]:
 @click.option("--robot", default=lambda: os.environ.get("UMLBOT_ROBOT") or "car",
               show_default="$UMLBOT_ROBOT or car",
               help="Robot id (the topic base is umlbot/<robot>/).")
-@click.option("--timeout", default=2.0, show_default=True, type=click.FloatRange(min=0.01),
+@click.option("--timeout", default=2.0, show_default=True, type=seconds(0.01),
               help="Seconds to wait for the reply.")
 @click.option("--broker", "broker_url", default=None, metavar="URL",
               help="Broker URL, e.g. mqtt://user:pass@host:1883 "
               "(default: $UMLBOT_BROKER or mqtt://127.0.0.1:1883).")
 @click.option("--ca-file", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="CA certificate file for mqtts:// brokers.")
-@click.option("--connect-timeout", default=3.0, show_default=True, type=click.FloatRange(min=0.1),
+@click.option("--connect-timeout", default=3.0, show_default=True, type=seconds(0.1),
               help="Seconds to wait for the broker connection.")
 def command(
     target: str,
@@ -103,7 +126,8 @@ def command(
 ) -> None:
     """Call TARGET (Component.feature) with ARGS and print the reply as JSON.
 
-    Each ARG is JSON when it parses (60, true, "text", [1,2]) and a string otherwise.
+    Each ARG is JSON when it parses (60, true, "text", [1,2]) and a string otherwise; NaN and
+    Infinity are refused (they are not JSON).
     Exit status: 0 ok, 1 error reply, 3 time-out, 4 broker not reachable, 5 refused by the
     broker (MQTT 5 only: over 3.1.1 a refused request ends as a time-out).
 

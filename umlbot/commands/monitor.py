@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING
 
 import click
 
+from umlbot.commands.options import Number, seconds
 from umlbot.stopsignals import StopSignals
 
 if TYPE_CHECKING:
@@ -35,14 +36,15 @@ REFRESH_S = 0.25
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON line per event instead of the view.")
 @click.option("--replay", "replay_file", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Play a recorded trace (umlbot run --trace FILE) instead of watching the broker.")
-@click.option("--speed", type=click.FloatRange(min=0), default=None,
+@click.option("--speed", type=Number(min=0, max=1000), default=None,
               help="Replay speed: 1 = recorded pace, 0 = no waiting "
               "(default: 1 for the view, 0 with --json).")
-@click.option("--duration", type=click.FloatRange(min=0), default=None,
+@click.option("--duration", type=seconds(), default=None,
               help="Stop after this many seconds (default: until Ctrl-C or SIGTERM).")
-@click.option("--call-timeout", type=click.FloatRange(min=0.1), default=5.0, show_default=True,
+@click.option("--call-timeout", type=seconds(0.1), default=None,
+              show_default="the time-out the orchestrator's status says, else 5",
               help="Report a call without a reply after this many seconds.")
-@click.option("--connect-timeout", default=5.0, show_default=True, type=click.FloatRange(min=0.1),
+@click.option("--connect-timeout", default=5.0, show_default=True, type=seconds(0.1),
               help="Seconds to wait for the broker connection.")
 def command(
     robot: str | None,
@@ -52,7 +54,7 @@ def command(
     replay_file: Path | None,
     speed: float | None,
     duration: float | None,
-    call_timeout: float,
+    call_timeout: float | None,
     connect_timeout: float,
 ) -> None:
     """Watch the robot: availability, calls with their latency, the node each lane runs.
@@ -72,11 +74,39 @@ def command(
     state = MonitorState(call_timeout_s=call_timeout)
     with StopSignals() as signals:
         if replay_file is not None:
+            _check_trace(replay_file)  # before the view is drawn: a bad file is only its error line
             signals.running()
-            _run_replay(replay_file, state, robot or "robot", as_json, print_line, speed, signals.stop)
+            # a trace file does not say whose it is: without --robot its events name no robot
+            sink: Sink = print_line if robot else _without_robot(out_lock)
+            _run_replay(replay_file, state, robot or "", as_json, sink, speed, signals.stop)
         else:
             _run_live(state, robot, broker_url, ca_file, as_json, print_line, duration, connect_timeout,
                       signals)
+
+
+def _check_trace(path: Path) -> None:
+    """Read the whole trace once: an unreadable file, a bad line anywhere or no event at all
+    raises ConfigError (exit 1) before anything is shown."""
+    from services.monitor.replay import read_trace
+    from umlbot.errors import ConfigError
+
+    if sum(1 for _ in read_trace(path)) == 0:  # every line read: a bad one is found now
+        raise ConfigError(f"{path}: no trace events (an empty trace file; record one with "
+                          "umlbot run --trace FILE)")
+
+
+def _without_robot(out_lock: threading.Lock) -> Sink:
+    """A sink that prints events without their `robot` (unknown in a replay without --robot)."""
+    import json
+
+    def print_event(event: MonitorEvent) -> None:
+        data = event.model_dump(mode="json", exclude_none=True)
+        data.pop("robot", None)
+        with out_lock:
+            sys.stdout.write(json.dumps(data, separators=(",", ":"), ensure_ascii=False) + "\n")
+            sys.stdout.flush()
+
+    return print_event
 
 
 class _Stopped(Exception):

@@ -13,6 +13,8 @@ from pathlib import Path
 
 import click
 
+from umlbot.commands.options import Number, seconds
+
 
 class RunFailed(click.ClickException):
     """The run ended with a fail-safe stop: one line on stderr, exit status 1."""
@@ -33,16 +35,16 @@ class RunFailed(click.ClickException):
 @click.option("--robot", metavar="ID", default=lambda: os.environ.get("UMLBOT_ROBOT") or None,
               show_default="$UMLBOT_ROBOT or the model's name",
               help="Robot id (the topic base is umlbot/<robot>/).")
-@click.option("--call-timeout", "call_timeout_s", type=click.FloatRange(min=0.001, min_open=False),
+@click.option("--call-timeout", "call_timeout_s", type=seconds(0.001),
               default=None, help="Seconds a feature call may take (default: the model's call_timeout_s).")
 @click.option("--trace", "trace_file", type=click.Path(dir_okay=False, path_type=Path), default=None,
               metavar="FILE", help="Also write every trace event to FILE (JSON lines).")
 @click.option("--no-trace", is_flag=True, help="Do not publish trace events on MQTT.")
-@click.option("--grace", "grace_s", type=click.FloatRange(min=0), default=None,
+@click.option("--grace", "grace_s", type=seconds(), default=None,
               help="Seconds the lanes get to finish after an exit request [default: 2].")
-@click.option("--startup-timeout", "startup_timeout_s", type=click.FloatRange(min=0), default=None,
+@click.option("--startup-timeout", "startup_timeout_s", type=seconds(), default=None,
               help="Seconds to wait for the used components to be online [default: 10].")
-@click.option("--speed", type=click.FloatRange(min=0, min_open=True), default=1.0, hidden=True,
+@click.option("--speed", type=Number(min=0, max=1000, min_open=True), default=1.0, hidden=True,
               help="Clock speed factor (for the simulator).")
 def command(
     compiled: Path,

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import click
 
+from umlbot.commands.options import seconds
 from umlbot.stopsignals import StopSignals
 
 
@@ -49,7 +50,7 @@ def _known_kind(ctx: click.Context, param: click.Parameter, kind: str) -> str:
               help="CA certificate file for mqtts:// brokers.")
 @click.option("--robot", default=None, metavar="ID",
               help="Robot id (default: $UMLBOT_ROBOT, the deployment's robot, or car).")
-@click.option("--connect-timeout", default=10.0, show_default=True, type=click.FloatRange(min=0.1),
+@click.option("--connect-timeout", default=10.0, show_default=True, type=seconds(0.1),
               help="Seconds to wait for the broker at start-up.")
 def command(
     kind: str,
