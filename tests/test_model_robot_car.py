@@ -115,8 +115,11 @@ def test_main_lane_tuning_stop_and_loop() -> None:
         node = main.nodes[node.next]
     assert set(tuning) == {"speed_percent", "forward_ms", "backward_ms", "turn_ms", "nudge_ms",
                            "clearance_cm", "near_cm", "side_cm", "wall_cm", "corner_cm", "back_cm",
-                           "open_cm", "glance_ms", "servo_settle_ms"}
+                           "open_cm", "glance_ms", "servo_settle_ms", "creep_cm", "creep_ms"}
     assert tuning["near_cm"] < tuning["clearance_cm"] < tuning["side_cm"] < tuning["back_cm"]
+    # a creep ends nearer than a step would go, but not too near to turn in place
+    assert tuning["near_cm"] < tuning["creep_cm"] < tuning["clearance_cm"]
+    assert tuning["creep_ms"] < tuning["forward_ms"]
     assert tuning["side_cm"] < tuning["open_cm"]  # much room on a side is more than room to turn
     assert tuning["corner_cm"] < tuning["wall_cm"]
     assert tuning["nudge_ms"] < tuning["turn_ms"]  # the small steer is smaller than a turn step
@@ -143,11 +146,12 @@ def test_main_lane_tuning_stop_and_loop() -> None:
         ("Measure.left > open_cm and Measure.right > open_cm and last_turn == 'left'", "choose_right"),
         ("Measure.left > open_cm and Measure.right > open_cm and last_turn == 'right'", "choose_left"),
         ("Measure.left >= Measure.right and Measure.left > side_cm", "choose_left"),
-        ("Measure.right > side_cm", "choose_right"), ("else", "backing")]
+        ("Measure.right > side_cm", "choose_right"),
+        ("turning == 'none' and ahead > creep_cm", "creep"), ("else", "backing")]
     lanes = {node_id: main.nodes[node_id].call.target.lane  # type: ignore[union-attr]
              for node_id in ("forward", "glance", "retreat_left", "retreat_right", "nudge_left",
-                             "nudge_right", "turn_left", "turn_right", "back_off", "look")}
+                             "nudge_right", "turn_left", "turn_right", "back_off", "look", "creep")}
     assert lanes == {"forward": "MoveForward", "glance": "Glance", "retreat_left": "MoveBackward",
                      "retreat_right": "MoveBackward", "nudge_left": "TurnLeft",
                      "nudge_right": "TurnRight", "turn_left": "TurnLeft", "turn_right": "TurnRight",
-                     "back_off": "MoveBackward", "look": "Measure"}
+                     "back_off": "MoveBackward", "look": "Measure", "creep": "MoveForward"}

@@ -10,6 +10,7 @@ import json
 import math
 import random
 import re
+import socket
 import subprocess
 from collections.abc import Iterator
 from pathlib import Path
@@ -85,6 +86,8 @@ def test_a_live_run_is_highlighted_with_counts_timings_calls_and_availability(
         expect(enabled.first).to_be_visible()
         args_seen = set(enabled.locator("td.args").all_text_contents())
         assert args_seen and args_seen <= {"[true]", "[false]"}, args_seen
+        page.evaluate("window.__studio.reveal('RaspberryPI', 'ping_ahead')")  # the loop, not the set-up
+        page.wait_for_timeout(1500)  # a few loops more, then the picture of docs/studio.md
         shot(page, "studio-live.png")
 
         # a component going offline turns red; the orchestrator fails safe and says why
@@ -151,6 +154,101 @@ def test_a_replay_scrubbed_to_a_moment_shows_that_moments_node_and_values(
         expect(active).to_have_attribute("data-node", "set_speed")
         expect(speed.locator("text.value")).to_have_text("70")
         expect(failed).not_to_have_class(_has("error"))
+        page.close()
+
+
+def test_a_replay_fills_the_calls_panel_says_how_the_run_ended_and_shows_its_notes(
+    browser: Browser, tmp_path: Path
+) -> None:
+    trace = tmp_path / "run.jsonl"
+    t0 = 1_800_000_000.0
+
+    def line(lane: str, node: str, kind: str, end: float, **extra: Any) -> str:
+        event = {"lane": lane, "node": node, "kind": kind, "start": end - 0.005, "end": end,
+                 "duration_ms": 5.0, "level": "error" if "error" in extra else "info", **extra}
+        return json.dumps(event) + "\n"
+
+    text = (line("Glance", "look_left", "action", t0 + 1.0, detail="Sensor.angle(135)")
+            + line("Glance", "left", "datastore", t0 + 2.0, value=42, detail="left = DistanceRead.value()")
+            + line("Ghost", "look_up", "action", t0 + 2.5, detail="Neck.tilt(10)")
+            + line("Glance", "right", "datastore", t0 + 4.0, detail="right = DistanceRead.value()",
+                   error="CallTimeout: no reply from DistanceRead.value within 2 s"))
+    trace.write_text(text + text[:30], encoding="utf-8")  # the last line is cut off
+    with studio(["studio", str(CAR_MODEL), "--replay", str(trace), "--port", "0"], tmp_path) as proc:
+        page = open_page(browser, proc.url)
+        notes = page.locator("#replay-notes")
+        expect(notes).to_be_visible()
+        expect(notes).to_contain_text("the last line is cut off")
+        expect(notes).to_contain_text("1 event names a node not in the model (e.g. Ghost/look_up)")
+        slider = page.locator("#replay-time")
+
+        def scrub(seconds: float) -> None:
+            slider.evaluate("(el, v) => { el.value = String(v); el.dispatchEvent(new Event('input')); }",
+                            seconds)
+
+        rows = page.locator("#calls tbody tr")
+        orchestrator = page.locator("#orchestrator-status")
+        scrub(1.5)  # (the trace starts at the first node's end, t0 + 1)
+        expect(rows).to_have_count(2)
+        newest = rows.nth(0)
+        expect(newest).to_have_attribute("data-feature", "value")
+        expect(newest.locator("td.args")).to_have_text("[]")
+        expect(newest.locator("td.result")).to_have_text("42")
+        expect(newest.locator("td.latency")).to_contain_text("5")
+        expect(rows.nth(1).locator("td.args")).to_have_text("[135]")
+        expect(orchestrator).to_have_attribute("data-state", "running")
+        expect(orchestrator).to_contain_text("from the trace")
+        scrub(3.0)  # the end: the failed call on top, the toolbar says how the run ended
+        expect(rows).to_have_count(3)
+        expect(rows.nth(0).locator("td.result")).to_have_text(
+            "error: CallTimeout: no reply from DistanceRead.value within 2 s")
+        expect(orchestrator).to_have_attribute("data-state", "failed")
+        expect(orchestrator).to_contain_text("Glance/right: CallTimeout")
+        shot(page, "studio-replay-end.png")
+        scrub(0.5)  # back in time: the later calls are gone
+        expect(rows).to_have_count(1)
+        page.close()
+
+
+def test_the_page_says_when_the_broker_is_not_reached(browser: Browser, tmp_path: Path) -> None:
+    with socket.socket() as probe:  # a port nobody listens on
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    with studio(["studio", str(CAR_MODEL), "--port", "0", "--broker", f"mqtt://127.0.0.1:{port}"],
+                tmp_path) as proc:
+        page = open_page(browser, proc.url)
+        broker = page.locator("#broker-status")
+        expect(broker).to_be_visible()
+        expect(broker).to_have_attribute("data-state", "failed")
+        expect(broker).to_contain_text(f"broker mqtt://127.0.0.1:{port}: Connection refused, retrying")
+        expect(broker).to_contain_text("(attempt ")  # it keeps trying
+        shot(page, "studio-no-broker.png")
+        page.close()
+
+
+def test_a_timed_out_call_is_listed_where_it_was_made(
+    browser: Browser, mosquitto_broker: BrokerProcess, raw_client: Any, tmp_path: Path
+) -> None:
+    raw = raw_client(mosquitto_broker)
+    base = f"umlbot/{ROBOT}"
+    with studio(["studio", str(CAR_MODEL), "--port", "0", "--robot", ROBOT], tmp_path,
+                mosquitto_broker.url) as proc:
+        page = open_page(browser, proc.url)
+        expect(page.locator("#broker-status")).to_have_text("broker connected")
+        raw.publish(f"{base}/DistanceRead/call/value",
+                    json.dumps({"id": "q1", "reply_to": f"{base}/_reply/t"}))
+        page.wait_for_timeout(300)
+        raw.publish(f"{base}/Sensor/call/angle", json.dumps({"id": "q2", "reply_to": f"{base}/_reply/t",
+                                                            "args": [45]}))
+        raw.publish(f"{base}/_reply/t", '{"id":"q2","ok":true,"value":null}')
+        rows = page.locator("#calls tbody tr")
+        expect(rows).to_have_count(1)
+        # the model's call_timeout_s is 2 s; the unanswered call is listed below the later one
+        expect(rows).to_have_count(2, timeout=6_000)
+        expect(rows.nth(0)).to_have_attribute("data-feature", "angle")
+        expect(rows.nth(1)).to_have_attribute("data-feature", "value")
+        expect(rows.nth(1).locator("td.result")).to_have_text("error: no reply within 2 s")
+        expect(rows.nth(1).locator("td.latency")).to_have_text("")
         page.close()
 
 
@@ -244,6 +342,8 @@ def test_sim_studio_draws_the_track_the_car_and_its_pings(browser: Browser, tmp_
             "t => document.querySelector('#sim .car').getAttribute('transform') !== t", arg=start)
         show(page, "activity-main")
         expect(page.locator('g.node.active[data-lane="RaspberryPI"]')).to_have_count(1)
+        page.evaluate("window.__studio.reveal('RaspberryPI', 'ping_ahead')")  # the loop, not the set-up
+        page.wait_for_timeout(3000)  # the car drives on a little: the picture of docs/studio.md
         shot(page, "studio-sim.png")
         page.close()
     finally:

@@ -30,6 +30,7 @@ from robot_run import CAR_MODEL, umlbot_argv
 from studio_support import events_of, read_frames, studio
 
 from compiler.api import check_model
+from compiler.compiled import dump_compiled
 from umlbot import files as user_files
 from umlbot.cli import cli
 from umlbot.studio.api import EditApi
@@ -222,6 +223,24 @@ def test_a_decisions_second_output_waits_for_its_guard_and_the_else_stays_last(t
         ws.edit(ws.version, [{**connect, "target": "end", "guard": "else"}])
 
 
+def test_fields_set_in_any_order_are_written_in_the_order_people_write_them(tmp_path: Path) -> None:
+    # connect first, type the call after: the file reads `call: …, next: …` as models/robot_car does
+    ws = Workspace(tmp_path / "bot")
+    ws.new_model("bot")
+    ws.edit(ws.version, [
+        {"op": "add_node", "lane": "RaspberryPI", "node": {"id": "action1", "kind": "action"}},
+        {"op": "connect", "lane": "RaspberryPI", "source": "action1", "target": "end"},
+        {"op": "set_node", "lane": "RaspberryPI", "id": "action1", "fields": {"call": "msleep(10)"}},
+        {"op": "add_node", "lane": "RaspberryPI", "node": {"id": "keep", "kind": "datastore"}},
+        {"op": "set_node", "lane": "RaspberryPI", "id": "keep", "fields": {"next": "end"}},
+        {"op": "set_node", "lane": "RaspberryPI", "id": "keep", "fields": {"value": "3"}},
+        {"op": "set_node", "lane": "RaspberryPI", "id": "keep", "fields": {"name": "count"}},
+    ])
+    text = ws.texts()["activities/main.yaml"]
+    assert "{id: action1, kind: action, call: msleep(10), next: end}" in text, text
+    assert "{id: keep, kind: datastore, name: count, value: 3, next: end}" in text, text
+
+
 def test_impossible_operations_name_the_problem() -> None:
     files = _texts(CAR_MODEL)
     cases = [
@@ -355,6 +374,26 @@ def test_an_edit_answers_with_umlbot_checks_messages_on_the_node(car: tuple[Path
     assert status == 200 and undone["compiled"] and undone["dirty"]
     status, redone = editor.post("redo", {})
     assert status == 200 and not redone["compiled"] and not redone["dirty"]
+
+
+def test_a_refused_edit_names_the_field_in_words_for_the_page(car: tuple[Path, Editor]) -> None:
+    """A bad setting or name is answered with the field it is about and a message without the
+    operation's number (what the page shows next to that field)."""
+    _, editor = car
+    version = editor.workspace.version
+    status, answer = editor.post("edit", {"version": version, "ops": [
+        {"op": "add_component", "name": "Buzzer", "kind": "actuator", "impl": "passive_buzzer",
+         "settings": {"gpio": 40}}]})
+    assert status == 400, answer
+    assert answer["fields"] == {"settings.gpio": "must be at most 27"}, answer
+    assert "operation 1" not in answer["message"] and "gpio" in answer["message"], answer
+    assert answer["error"].startswith("operation 1 (add_component): ")  # the full text stays for logs
+    status, answer = editor.post("edit", {"version": version, "ops": [
+        {"op": "add_component", "name": "Robbie the car", "kind": "actuator"}]})
+    assert status == 400 and set(answer["fields"]) == {"name"}, answer
+    status, answer = editor.post("edit", {"version": version, "ops": [
+        {"op": "add_port", "component": "Sensor", "port": "my port", "feature": "angle"}]})
+    assert status == 400 and set(answer["fields"]) == {"port"}, answer
 
 
 def test_writes_need_the_token_the_origin_and_the_current_version(car: tuple[Path, Editor]) -> None:
@@ -742,6 +781,21 @@ def test_completion_offers_features_datastores_lanes_and_argument_ranges(car: tu
     labels_in_bool = [i["label"] for i in complete("LeftActuator.enabled(")["items"]]
     assert labels_in_bool[:2] == ["true", "false"], labels_in_bool
     assert "msleep" not in labels_in_bool and "Stop" not in labels_in_bool
+    # ... nor a component whose features all give none (the motors, the servo): only those that
+    # can be read (RaspberryPI.readPin, DistanceRead.value), and Application (exit is a bool)
+    components_in_bool = {i["label"] for i in complete("LeftActuator.enabled(")["items"]
+                          if i["kind"] == "component"}
+    assert components_in_bool == {"RaspberryPI", "DistanceRead"}, components_in_bool
+    assert "Application" in labels_in_bool
+    features_in_bool = {i["label"] for i in complete("LeftActuator.enabled(RaspberryPI.")["items"]
+                        if i["kind"] == "feature"}
+    assert features_in_bool == {"readPin"}, features_in_bool  # not writePin (it gives none)
+    assert complete("LeftActuator.enabled(LeftActuator.")["items"] == []
+    # a guard is a value too; a call at the top of an action may use any feature
+    status, guard = editor.post("complete", {"lane": "RaspberryPI", "text": "", "cursor": 0, "field": "if"})
+    assert status == 200
+    assert not {"LeftActuator", "msleep"} & {i["label"] for i in guard["items"]}
+    assert "LeftActuator" in {i["label"] for i in complete("")["items"]}
     assert {i["label"]: i["insert"] for i in complete("LeftActuator.dutycycle(M")["items"]} == {
         "Measure": "Measure."}
     in_int = [i["label"] for i in complete("LeftActuator.dutycycle(")["items"]]
@@ -971,3 +1025,220 @@ def test_a_page_opened_after_a_save_gets_the_saved_model_as_the_hellos_model(tmp
         assert hello["diagnostics"] == []
     finally:
         editor.thread.stop()
+
+
+@pytest.mark.parametrize("how", ["SIGTERM", "SIGINT"])
+def test_unsaved_edits_are_kept_when_the_studio_quits_and_offered_at_the_next_start(
+        tmp_path: Path, how: str) -> None:
+    import signal
+
+    folder = tmp_path / "car"
+    shutil.copytree(CAR_MODEL, folder)
+    before = _snapshot(folder)
+    with studio(["studio", str(folder), "--port", "0"], tmp_path) as proc:
+        hello = read_frames(proc.url, lambda f: len(f) >= 1)[0]
+        edit = hello["edit"]
+        assert edit["recovery"] is None
+        op = {"op": "set_node", "lane": "Stop", "id": "left_off",
+              "fields": {"call": "LeftActuator.enabled(true)"}}
+        status, answer = _post(proc.url, "edit", {"token": edit["token"], "version": edit["version"],
+                                                  "ops": [op]})
+        assert status == 200 and answer["dirty"], answer
+        proc.popen.send_signal(signal.SIGTERM if how == "SIGTERM" else signal.SIGINT)
+        assert proc.popen.wait(20) == 0
+        log = proc.log_text()
+    # the model's files are as they were; the edit is in the recovery file, and stderr says so
+    assert {k: v for k, v in _snapshot(folder).items() if k != ".umlbot-studio-recovery.json"} == before
+    kept = [line for line in log.splitlines() if "unsaved edits" in line]
+    assert len(kept) == 1, log
+    assert "activities/motion.yaml" in kept[0] and ".umlbot-studio-recovery.json" in kept[0], log
+    recovery = json.loads((folder / ".umlbot-studio-recovery.json").read_text(encoding="utf-8"))
+    assert "LeftActuator.enabled(true)" in recovery["files"]["activities/motion.yaml"]
+
+    with studio(["studio", str(folder), "--port", "0"], tmp_path) as proc:
+        edit = read_frames(proc.url, lambda f: len(f) >= 1)[0]["edit"]
+        assert edit["recovery"]["files"] == ["activities/motion.yaml"] and edit["recovery"]["time"]
+        assert not edit["dirty"]
+        status, answer = _post(proc.url, "recover", {"token": edit["token"], "action": "restore"})
+        assert status == 200 and answer["dirty"] and answer["changed"] == ["activities/motion.yaml"], answer
+        assert not (folder / ".umlbot-studio-recovery.json").exists()
+        assert _snapshot(folder) == before  # restored into the page, not yet saved
+        status, answer = _post(proc.url, "save", {"token": edit["token"], "version": answer["version"]})
+        assert status == 200 and answer["saved"] == ["activities/motion.yaml"], answer
+        motion = (folder / "activities" / "motion.yaml").read_text(encoding="utf-8")
+        assert "LeftActuator.enabled(true)" in motion
+        proc.stop()
+        assert "unsaved" not in proc.log_text()  # nothing unsaved: nothing kept, nothing said
+    assert not (folder / ".umlbot-studio-recovery.json").exists()
+
+
+def test_kept_edits_can_be_discarded(tmp_path: Path) -> None:
+    folder = tmp_path / "car"
+    shutil.copytree(CAR_MODEL, folder)
+    before = _snapshot(folder)
+    (folder / ".umlbot-studio-recovery.json").write_text(json.dumps(
+        {"time": "2026-01-02 03:04:05", "files": {"activities/motion.yaml": "lanes: []\n"}, "layout": None}))
+    workspace = Workspace(folder)
+    assert workspace.hello()["recovery"] == {"time": "2026-01-02 03:04:05",
+                                             "files": ["activities/motion.yaml"], "layout": False}
+    answer = workspace.recover("discard")
+    assert not answer["dirty"] and answer["changed"] == []
+    assert workspace.hello()["recovery"] is None
+    assert _snapshot(folder) == {k: v for k, v in before.items() if k != ".umlbot-studio-recovery.json"}
+    assert not (folder / ".umlbot-studio-recovery.json").exists()
+
+
+# --- renames -----------------------------------------------------------------------------------------
+
+CAR_RENAMES = [
+    {"op": "rename_component", "component": "DistanceRead", "new_name": "Sonar"},
+    {"op": "rename_node", "lane": "RaspberryPI", "id": "moving_forward", "new_id": "drive_step"},
+    {"op": "rename_lane", "lane": "Measure", "new_name": "Sweep"},
+]
+CAR_NAMES = {"DistanceRead": "Sonar", "moving_forward": "drive_step", "Measure": "Sweep"}
+
+
+def _only_tokens_renamed(before: str, after: str, names: dict[str, str]) -> int:
+    """How many words were renamed between the texts; fails when anything else differs, or a
+    word inside a comment changed."""
+    words_before, words_after = re.split(r"(\W+)", before), re.split(r"(\W+)", after)
+    assert len(words_before) == len(words_after)
+    renamed = 0
+    for old, new in zip(words_before, words_after, strict=True):
+        if old != new:
+            assert names.get(old) == new, (old, new)
+            renamed += 1
+    comments = [line.partition("#")[2] for line in before.splitlines()]
+    assert comments == [line.partition("#")[2] for line in after.splitlines()]
+    return renamed
+
+
+def test_renames_in_the_car_change_only_the_renamed_words_and_compile_to_the_same_model(
+        tmp_path: Path) -> None:
+    root = tmp_path / "car"
+    shutil.copytree(CAR_MODEL, root)
+    before = _snapshot(root)
+    files = _texts(root)
+    out = _apply(files, CAR_RENAMES)
+    renamed = {rel: _only_tokens_renamed(files[rel], out[rel], CAR_NAMES) for rel in files}
+    # the component's entry, its link, both deployment files; the node; the lane and its readers
+    assert renamed == {"model.yaml": 2, "deployment.yaml": 1, "deployment.txt": 1,
+                       "activities/main.yaml": 1 + 1 + 1 + 8, "activities/measure.yaml": 1 + 4,
+                       "activities/motion.yaml": 0}
+    assert "# the HC-SR04 range finder" in out["model.yaml"]  # comments and alignment stay
+    for rel, text in out.items():
+        (root / rel).write_text(text, encoding="utf-8")
+    check = subprocess.run(umlbot_argv("check", str(root)), capture_output=True, text=True, timeout=60,
+                           check=False)
+    assert check.returncode == 0, check.stdout + check.stderr
+    original = check_model(CAR_MODEL).model
+    renamed_model = check_model(root).model
+    assert original is not None and renamed_model is not None
+    mapped = re.sub(r"\b(DistanceRead|moving_forward|Measure)\b", lambda m: CAR_NAMES[m.group()],
+                    dump_compiled(original).decode())
+    expected, got = json.loads(mapped), json.loads(dump_compiled(renamed_model))
+    assert expected.pop("source_hash") != got.pop("source_hash")  # the texts differ
+    assert expected == got
+    # the studio does the same; one undo gives the files back byte for byte, redo the renames
+    for rel in out:
+        (root / rel).write_bytes(before[rel])
+    ws = Workspace(root)
+    answer = ws.edit(0, CAR_RENAMES)
+    assert answer["compiled"] and answer["changed"] == sorted(rel for rel in out if out[rel] != files[rel])
+    assert ws.texts() == out
+    ws.undo()
+    assert {rel: data for rel, data in ws.files.items()} == {
+        rel: data for rel, data in before.items() if rel in ws.files}
+    assert not ws.dirty
+    ws.redo()
+    assert ws.texts() == out
+
+
+def test_a_renamed_nodes_flows_and_position_follow_it_and_undo_moves_the_position_back(
+        car: tuple[Path, Editor]) -> None:
+    root, editor = car
+    status, answer = editor.post("edit", {"version": 0, "ops": [
+        {"op": "set_layout", "diagram": "activity-motion", "positions": {"Stop/left_off": [5, 6],
+                                                                         "Stop/end": [7, 8]}},
+        {"op": "set_layout", "diagram": "components", "positions": {"Sensor": [1, 2]}}]})
+    assert status == 200
+    status, answer = editor.post("edit", {"version": answer["version"], "ops": [
+        {"op": "rename_node", "lane": "Stop", "id": "left_off", "new_id": "left-off"},
+        {"op": "rename_component", "component": "Sensor", "new_name": "Servo"}]})
+    assert status == 200 and answer["compiled"], answer
+    assert answer["layout"]["positions"] == {"activity-motion": {"Stop/left-off": [5, 6], "Stop/end": [7, 8]},
+                                             "components": {"Servo": [1, 2]}}
+    stop = next(lane for d in answer["model"]["diagrams"] for lane in d["lanes"] if lane["name"] == "Stop")
+    assert [n["id"] for n in stop["nodes"]][2] == "left-off"
+    assert stop["nodes"][1]["fields"]["targets"] == ["left-off", "right_off"]
+    motion = editor.get("files")["files"]["activities/motion.yaml"]
+    assert ("      - {id: left-off, kind: action, call: LeftActuator.enabled(false), next: stopped}\n"
+            in motion)
+    status, answer = editor.post("undo", {})
+    assert status == 200 and answer["changed"] == sorted(model_files(root))  # Sensor is everywhere
+    assert answer["layout"]["positions"] == {"activity-motion": {"Stop/left_off": [5, 6], "Stop/end": [7, 8]},
+                                             "components": {"Sensor": [1, 2]}}
+    assert editor.workspace.files == model_files(root)
+    status, answer = editor.post("redo", {})
+    assert answer["layout"]["positions"]["components"] == {"Servo": [1, 2]}
+
+
+def test_references_are_the_parsers_names_not_matching_text() -> None:
+    files = {
+        "model.yaml": "name: m\ncomponents:\n  Left: {kind: actuator}\n  LeftX: {kind: actuator}\n"
+                      "  'Pi': {kind: system}\n",
+        "deployment.txt": "Left = l298n  # Left side\nLeftX=l298n\nPi=raspberrypi\n",
+        "activities/main.yaml": (
+            "lane: Pi\nnodes:\n"
+            "  - {id: start, kind: start}\n"
+            "  - {id: a, kind: action, call: Left.enabled(true)}\n"
+            "  - {id: b, kind: action, call: LeftX.enabled(Left.ok)}   # Left stays in comments\n"
+            "  - {id: c, kind: datastore, name: s, value: \"'Left' + Sub.Left\"}\n"
+            "  - {id: d, kind: datastore, name: Sub, value: 1}\n"
+            "  - {id: e, kind: action, call: Sub}\n"
+            "  - {id: f, kind: send, signal: go, payload: \"Sub.t +\\n Sub()\"}\n"
+            "  - {id: end, kind: end}\n"),
+        "activities/sub.yaml": "lane: Sub\nnodes:\n  - {id: start, kind: start}\n"
+                               "  - {id: t, kind: datastore, name: t, value: Sub.t}\n"
+                               "  - {id: end, kind: end}\n",
+    }
+    out = _apply(files, [{"op": "rename_component", "component": "Left", "new_name": "Right"},
+                         {"op": "rename_lane", "lane": "Sub", "new_name": "Helper"},
+                         {"op": "rename_component", "component": "Pi", "new_name": "Board"}])
+    assert out["model.yaml"] == ("name: m\ncomponents:\n  Right: {kind: actuator}\n"
+                                 "  LeftX: {kind: actuator}\n  'Board': {kind: system}\n")
+    assert out["deployment.txt"] == "Right = l298n  # Left side\nLeftX=l298n\nBoard=raspberrypi\n"
+    assert out["activities/main.yaml"] == (
+        "lane: Board\nnodes:\n"
+        "  - {id: start, kind: start}\n"
+        "  - {id: a, kind: action, call: Right.enabled(true)}\n"
+        "  - {id: b, kind: action, call: LeftX.enabled(Right.ok)}   # Left stays in comments\n"
+        "  - {id: c, kind: datastore, name: s, value: \"'Left' + Helper.Left\"}\n"
+        "  - {id: d, kind: datastore, name: Sub, value: 1}\n"
+        "  - {id: e, kind: action, call: Sub}\n"  # the lane's own datastore Sub, not the lane
+        "  - {id: f, kind: send, signal: go, payload: \"Helper.t +\\n Helper()\"}\n"  # escaped: written anew
+        "  - {id: end, kind: end}\n")
+    assert out["activities/sub.yaml"] == ("lane: Helper\nnodes:\n  - {id: start, kind: start}\n"
+                                          "  - {id: t, kind: datastore, name: t, value: Helper.t}\n"
+                                          "  - {id: end, kind: end}\n")
+
+
+@pytest.mark.parametrize("op, field, message", [
+    ({"op": "rename_node", "lane": "Stop", "id": "both", "new_id": "left off"}, "new_id", "not a plain name"),
+    ({"op": "rename_node", "lane": "Stop", "id": "both", "new_id": "stopped"}, "new_id",
+     "has a node 'stopped'"),
+    ({"op": "rename_lane", "lane": "Stop", "new_name": "2stop"}, "new_name", "not a plain name"),
+    ({"op": "rename_lane", "lane": "Stop", "new_name": "msleep"}, "new_name", "reserved"),
+    ({"op": "rename_lane", "lane": "Stop", "new_name": "Glance"}, "new_name", "a swimlane 'Glance'"),
+    ({"op": "rename_lane", "lane": "Stop", "new_name": "Sensor"}, "new_name", "a component 'Sensor'"),
+    ({"op": "rename_lane", "lane": "RaspberryPI", "new_name": "Pi"}, "new_name", "rename the component"),
+    ({"op": "rename_component", "component": "Sensor", "new_name": "Stop"}, "new_name", "a swimlane 'Stop'"),
+    ({"op": "rename_component", "component": "Sensor", "new_name": "LeftActuator"}, "new_name",
+     "another component"),
+    ({"op": "rename_lane", "lane": "Glance", "new_name": "ahead"}, "new_name",
+     "datastore 'ahead'"),  # `call: Glance` in RaspberryPI would read its datastore `ahead`
+])
+def test_a_refused_rename_names_the_field(op: dict[str, Any], field: str, message: str) -> None:
+    with pytest.raises(EditError, match=message) as info:
+        apply_ops(_texts(CAR_MODEL), parse_ops([op]))
+    assert set(info.value.fields) == {field}

@@ -231,10 +231,33 @@ def test_a_model_created_in_the_page_is_followed_under_its_own_name(browser: Bro
     errors: list[str] = []
     with studio(["studio", str(tmp_path / "newbot"), "--port", "0"], tmp_path) as proc:
         page = open_page(browser, proc.url, errors)
-        expect(page.locator("#title")).to_have_text(re.compile(r"· robot car$"))  # nothing named yet
-        page.locator('#new-model-form [name="model-name"]').fill("mybot")
+        # nothing named yet: no robot name is made up, and there is nothing to undo, save or run
+        expect(page.locator("#title")).to_have_text("new model")
+        expect(page.locator("#edit-tools")).to_be_hidden()
+        expect(page.locator("#diagnostics li")).to_have_count(0)
+        assert "robot car" not in proc.lines[-1], proc.lines
+        # a name that is no plain name is refused at the field; the fixed one clears it
+        name = page.locator('#new-model-form [name="model-name"]')
+        name.fill("Robbie the car")
+        page.locator("#new-model").click()
+        expect(page.locator('#new-model-form .field-error[data-field="name"]')).to_contain_text("plain name")
+        expect(name).to_have_attribute("aria-invalid", "true")
+        expect(page.locator("#notice")).to_be_hidden()
+        shot(page, "studio-edit-new-bad-name.png")
+        name.fill("mybot")
         page.locator("#new-model").click()
         expect(page.locator("#title")).to_have_text("mybot · robot mybot")
+        expect(page.locator("#edit-tools")).to_be_visible()
+        expect(page.locator(".field-error")).to_have_count(0)
+        # an error notice goes once a later request succeeds
+        assert page.evaluate("window.__studio.edit.send([{op: 'remove_lane', lane: 'Nope'}])") is False
+        expect(page.locator('#notice[data-kind="error"]')).to_contain_text("no swimlane 'Nope'")
+        expect(page.locator('#notice[data-kind="error"]')).not_to_contain_text("operation 1")
+        show(page, "activity-main")
+        page.locator('#palette [name="lane-name"]').fill("Wait")
+        page.locator('#palette [data-action="add-lane"]').click()
+        settled(page)
+        expect(page.locator('#notice[data-kind="error"]')).to_be_hidden()
         page.reload()
         page.wait_for_function("window.__studio && window.__studio.ready === true")
         expect(page.locator("#title")).to_have_text("mybot · robot mybot")
@@ -291,6 +314,7 @@ def test_a_bad_guard_shows_the_checkers_message_on_its_node_and_undo_removes_it(
     with studio(["studio", str(folder), "--port", "0"], tmp_path) as proc:
         page = open_page(browser, proc.url, errors)
         show(page, "activity-main")
+        page.keyboard.press("f")  # all of it: it opens readable at its top, the loop is further down
         decision = page.locator(node(page, "RaspberryPI", "running"))
         click_node(page, "RaspberryPI", "running")
         guard = page.locator('#props input[name="guard"][data-target="finish"]')
@@ -408,8 +432,18 @@ def test_run_drives_the_edited_model_in_the_simulator_and_the_page_follows_it(
         shot(page, "studio-edit-run.png")
         page.locator("#stop").click()
         expect(page.locator("#stop")).to_be_disabled()
+        expect(page.locator('#notice[data-kind="run-ended"]')).to_be_visible()  # said once, at its end
         assert (folder / "activities" / "main.yaml").read_bytes() == (
             CAR_MODEL / "activities" / "main.yaml").read_bytes()
+        # the orchestrator's status pill carries its whole text as a tooltip (it may be cut short)
+        pill = page.locator("#orchestrator-status")
+        assert pill.get_attribute("title") == pill.text_content()
+        # a reload shows where the run ended, but does not announce its end again
+        page.reload()
+        page.wait_for_function("window.__studio && window.__studio.ready === true && !!window.__studio.edit")
+        expect(page.locator("#sim svg")).to_be_visible()
+        page.wait_for_timeout(500)
+        expect(page.locator('#notice[data-kind="run-ended"]')).to_be_hidden()
         assert errors == [], errors
         page.close()
 
@@ -431,7 +465,11 @@ def test_the_component_diagram_adds_a_part_from_the_library_with_its_deployment_
         page.locator('#props [name="setting-gpio"]').fill("99")
         page.locator('#props [name="add"]').click()
         settled(page)
-        expect(page.locator('#notice[data-kind="error"]')).to_contain_text("gpio")
+        # said at the field, in words, with the schema's range; nothing was sent
+        gpio_error = page.locator('#props .field-error[data-field="settings.gpio"]')
+        expect(gpio_error).to_have_text("gpio: must be 0..27")
+        expect(page.locator('#props [name="setting-gpio"]')).to_have_attribute("aria-invalid", "true")
+        expect(page.locator('#notice[data-kind="error"]')).to_be_hidden()
         expect(page.locator('g.component[data-component="Pan"]')).to_have_count(0)
         page.locator('#props [name="setting-gpio"]').fill("17")
         page.locator('#props [name="add"]').click()
@@ -439,11 +477,16 @@ def test_the_component_diagram_adds_a_part_from_the_library_with_its_deployment_
         pan = page.locator('g.component[data-component="Pan"]')
         expect(pan).to_have_count(1)
         expect(page.locator("#props .props-head")).to_contain_text("Pan")
+        expect(page.locator("#props .field-error")).to_have_count(0)
+        # no port yet: the link row says what to do instead of an empty list
+        expect(page.locator('#props [data-hint="link"]')).to_contain_text("add a port first")
+        expect(page.locator('#props [name="link-from"]')).to_be_hidden()
         page.locator('#props [name="port"]').fill("aim")
         page.locator('#props [name="port-feature"]').select_option("angle")
         page.locator('#props [name="add-port"]').click()
         settled(page)
         expect(pan.locator("text.port-label")).to_have_text("aim → angle")
+        expect(page.locator('#props [data-hint="link"]')).to_have_count(0)
         page.locator('#props [name="link-to"]').select_option("DistanceRead.range")
         page.locator('#props [name="add-link"]').click()
         settled(page)
@@ -469,6 +512,7 @@ def test_a_dragged_node_keeps_its_place_in_the_layout_file(browser: Browser, tmp
     with studio(["studio", str(folder), "--port", "0"], tmp_path) as proc:
         page = open_page(browser, proc.url, errors)
         show(page, "activity-motion")
+        page.keyboard.press("f")  # all five lanes (it opens readable, from the left)
         moved = page.locator(node(page, "Stop", "left_off"))
         before = float(moved.get_attribute("data-x") or "nan"), float(moved.get_attribute("data-y") or "nan")
         box = moved.bounding_box()
@@ -497,3 +541,158 @@ def test_a_dragged_node_keeps_its_place_in_the_layout_file(browser: Browser, tmp
         assert float(there.get_attribute("data-y") or "nan") == round(after[1])
         assert errors == [], errors
         again.close()
+
+
+def test_the_properties_panel_shows_a_long_completion_list_whole(browser: Browser, tmp_path: Path) -> None:
+    folder = tmp_path / "car"
+    complete_car(folder)
+    errors: list[str] = []
+    with studio(["studio", str(folder), "--port", "0"], tmp_path) as proc:
+        page = open_page(browser, proc.url, errors)
+        show(page, "activity-motion")
+        page.keyboard.press("f")  # all five lanes (it opens readable, from the left)
+        click_node(page, "Stop", "left_off")
+        call = page.locator('#props input[name="call"]')
+        call.click()
+        call.press("Home")  # at the start of the call: every name is offered
+        items = page.locator("#props .completions li")
+        expect(items.nth(7)).to_be_visible()
+        assert items.count() >= 8
+        # the list is not cut by the panel: its 8th item is what is drawn at its place, inside the window
+        box = items.nth(7).bounding_box()
+        assert box and box["y"] + box["height"] <= 1000
+        hit = page.evaluate(f"document.elementFromPoint({box['x'] + 5}, {box['y'] + box['height'] / 2})"
+                            "?.closest('li')?.dataset.label")
+        assert hit == items.nth(7).get_attribute("data-label"), hit
+        shot(page, "studio-edit-completion-list.png")
+        call.press("Escape")
+        # a component's properties: the panel scrolls to its last row
+        show(page, "components")
+        page.locator('g.component[data-component="Sensor"]').click()
+        add_link = page.locator('#props [name="add-link"]')
+        add_link.scroll_into_view_if_needed()
+        expect(add_link).to_be_in_viewport()
+        shot(page, "studio-edit-component-props.png")
+        assert page.evaluate("window.__studio.edit.dirty") is False  # looking changed nothing
+        assert errors == [], errors
+        page.close()
+
+
+def test_deleting_a_lane_with_nodes_or_a_component_in_use_asks_first(
+        browser: Browser, tmp_path: Path) -> None:
+    folder = tmp_path / "car"
+    complete_car(folder)
+    errors: list[str] = []
+    with studio(["studio", str(folder), "--port", "0"], tmp_path) as proc:
+        page = open_page(browser, proc.url, errors)
+        show(page, "activity-motion")
+        page.keyboard.press("f")  # all five lanes (it opens readable, from the left)
+        lane = page.locator('svg.diagram g.lane[data-lane="Stop"]')
+        nodes = lane.locator("g.node").count()
+        lane.locator(".lane-title").first.click()
+        page.locator('#props [name="remove-lane"]').click()
+        confirm = page.locator('#notice[data-kind="confirm"]')
+        expect(confirm).to_contain_text(f"Delete the swimlane Stop with its {nodes} nodes?")
+        shot(page, "studio-edit-confirm-lane.png")
+        confirm.locator('[data-action="cancel"]').click()
+        expect(confirm).to_be_hidden()
+        expect(lane).to_have_count(1)
+        assert page.evaluate("window.__studio.edit.dirty") is False  # nothing went
+        page.locator('#props [name="remove-lane"]').click()
+        confirm.locator('[data-action="confirm"]').click()
+        settled(page)
+        expect(lane).to_have_count(0)
+        # a component that lanes call
+        show(page, "components")
+        page.locator('g.component[data-component="LeftActuator"]').click()
+        page.locator('#props [name="remove"]').click()
+        expect(confirm).to_contain_text("Delete the component LeftActuator?")
+        expect(confirm).to_contain_text("nodes call it")
+        confirm.locator('[data-action="cancel"]').click()
+        expect(page.locator('g.component[data-component="LeftActuator"]')).to_have_count(1)
+        assert errors == [], errors
+        page.close()
+
+
+def test_a_node_and_a_lane_renamed_in_the_page_are_renamed_in_the_drawing_and_the_file(
+        browser: Browser, tmp_path: Path) -> None:
+    folder = tmp_path / "car"
+    complete_car(folder)
+    errors: list[str] = []
+    with studio(["studio", str(folder), "--port", "0"], tmp_path) as proc:
+        page = open_page(browser, proc.url, errors)
+        show(page, "activity-motion")
+        page.keyboard.press("f")  # all five lanes (it opens readable, from the left)
+        page.locator(node(page, "Stop", "left_off")).dblclick()  # its name, ready to be typed over
+        name = page.locator('#props input[name="rename"]')
+        expect(name).to_be_focused()
+        expect(name).to_have_value("left_off")
+        name.fill("stopped")  # taken: said at the field, nothing changes
+        name.press("Enter")
+        settled(page)
+        expect(page.locator('#props .field-error[data-field="new_id"]')).to_contain_text(
+            "id: is taken by another node of this swimlane")
+        shot(page, "studio-edit-rename.png")
+        assert page.evaluate("window.__studio.edit.dirty") is False
+        name.fill("left_motor_off")
+        name.press("Enter")
+        settled(page)
+        expect(page.locator(node(page, "Stop", "left_motor_off"))).to_have_count(1)
+        expect(page.locator(node(page, "Stop", "left_off"))).to_have_count(0)
+        expect(page.locator("svg.diagram g.node.selected")).to_have_attribute("data-node", "left_motor_off")
+        expect(page.locator('svg.diagram g.edge[data-lane="Stop"][data-source="both"]'
+                            '[data-target="left_motor_off"]')).to_have_count(1)
+        # a virtual lane, from its title; every call of it follows
+        page.locator('svg.diagram g.lane[data-lane="Stop"] .lane-title').first.click()
+        lane_name = page.locator('#props input[name="rename"]')
+        lane_name.fill("Halt")
+        page.locator('#props [name="apply-rename"]').click()
+        settled(page)
+        expect(page.locator('svg.diagram g.lane[data-lane="Halt"]')).to_have_count(1)
+        expect(page.locator('#props input[name="rename"]')).to_have_value("Halt")
+        expect(page.locator("#diagnostics li.error")).to_have_count(0)
+        page.keyboard.press("Control+s")
+        expect(page.locator("#save")).to_have_attribute("data-dirty", "false")
+        motion = (folder / "activities" / "motion.yaml").read_text(encoding="utf-8")
+        assert "  - lane: Halt                  # both sides at once\n" in motion
+        assert "{id: both, kind: fork, targets: [left_motor_off, right_off]}" in motion
+        assert ("{id: left_motor_off, kind: action, call: LeftActuator.enabled(false), next: stopped}"
+                in motion)
+        main = (folder / "activities" / "main.yaml").read_text(encoding="utf-8")
+        assert "call: Stop" not in main and "{id: halt, kind: action, call: Halt, next: running}" in main
+        assert check_lines(folder, tmp_path) == (0, [])
+        assert errors == [], errors
+        page.close()
+
+
+def test_unsaved_edits_kept_at_quit_are_offered_back(browser: Browser, tmp_path: Path) -> None:
+    folder = tmp_path / "car"
+    complete_car(folder)
+    motion = folder / "activities" / "motion.yaml"
+    before = motion.read_bytes()
+    kept = before.decode().replace("LeftActuator.enabled(false), next: stopped",
+                                   "LeftActuator.enabled(true), next: stopped")
+    assert kept != before.decode()
+    (folder / ".umlbot-studio-recovery.json").write_text(json.dumps(
+        {"time": "2026-11-23 08:00:00", "files": {"activities/motion.yaml": kept}, "layout": None}))
+    errors: list[str] = []
+    with studio(["studio", str(folder), "--port", "0"], tmp_path) as proc:
+        page = open_page(browser, proc.url, errors)
+        offer = page.locator('#notice[data-kind="recovery"]')
+        expect(offer).to_contain_text("activities/motion.yaml")
+        expect(offer.locator('[data-action="restore"]')).to_have_text(
+            "Restore the unsaved edits of 2026-11-23 08:00:00")
+        expect(offer.locator('[data-action="discard"]')).to_be_visible()
+        shot(page, "studio-edit-recovery.png")
+        offer.locator('[data-action="restore"]').click()
+        expect(page.locator("#save")).to_have_attribute("data-dirty", "true")
+        assert motion.read_bytes() == before  # restored into the page only
+        show(page, "activity-motion")
+        expect(page.locator(node(page, "Stop", "left_off")).locator("text.label")).to_have_text(
+            "LeftActuator.enabled(true)")
+        page.keyboard.press("Control+s")
+        expect(page.locator("#save")).to_have_attribute("data-dirty", "false")
+        assert motion.read_text(encoding="utf-8") == kept
+        assert not (folder / ".umlbot-studio-recovery.json").exists()
+        assert errors == [], errors
+        page.close()

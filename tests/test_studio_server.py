@@ -5,11 +5,14 @@ from __future__ import annotations
 
 import asyncio
 import json
+import socket
 import subprocess
+import time
 from pathlib import Path
 from typing import Any
 
 import aiohttp
+import pytest
 from conftest import BrokerProcess
 from robot_run import CAR_MODEL, umlbot_argv
 from studio_support import BROKEN_MODEL, events_of, read_frames, studio
@@ -109,8 +112,75 @@ def test_replay_serves_the_recorded_events(tmp_path: Path) -> None:
     with studio(["studio", str(CAR_MODEL), "--replay", str(trace), "--port", "0"], tmp_path) as proc:
         hello = _hello(proc.url)
     assert hello["mode"] == "replay" and hello["replay"]["file"] == "run.jsonl"
-    replayed = [(e["node"], e["time"]) for e in hello["replay"]["events"]]
+    replayed = [(e["node"], e["time"]) for e in hello["replay"]["events"] if e["type"] == "trace"]
     assert replayed == [("stop_all", 100.25), ("halt", 101.25)]
+
+
+def _line(lane: str, node: str, kind: str, end: float, ms: float, **extra: Any) -> str:
+    event = {"lane": lane, "node": node, "kind": kind, "start": end - ms / 1000, "end": end,
+             "duration_ms": ms, "level": "error" if "error" in extra else "info", **extra}
+    return json.dumps(event) + "\n"
+
+
+def test_a_replay_lists_the_calls_the_notes_and_how_the_run_ended(tmp_path: Path) -> None:
+    trace = tmp_path / "run.jsonl"
+    lines = [
+        _line("Glance", "look_left", "action", 100.0, 4.5, detail="Sensor.angle(135)"),
+        _line("Glance", "settle_left", "action", 100.1, 100.0, detail="msleep(RaspberryPI.glance_ms)"),
+        _line("Glance", "left", "datastore", 100.2, 5.25, value=42, detail="left = DistanceRead.value()"),
+        _line("Ghost", "look_up", "action", 100.3, 1.0, detail="Neck.tilt(10)"),  # another model's
+        _line("Glance", "right", "datastore", 102.5, 2003.5, detail="right = DistanceRead.value()",
+              error="CallTimeout: no reply from DistanceRead.value within 2 s"),
+        _line("RaspberryPI", "stop_all", "action", 102.6, 20.0, detail="Stop"),
+    ]
+    # the run was killed while it wrote its last line
+    trace.write_text("".join(lines) + lines[0][:40], encoding="utf-8")
+    with studio(["studio", str(CAR_MODEL), "--replay", str(trace), "--port", "0"], tmp_path) as proc:
+        replay = _hello(proc.url)["replay"]
+        proc.stop()
+        stderr = proc.log_text()
+    cut = "run.jsonl:7: the last line is cut off"
+    ghost = "1 event names a node not in the model (e.g. Ghost/look_up)"
+    assert [n[:len(cut)] if n.startswith(cut) else n[:len(ghost)] for n in replay["notes"]] == [cut, ghost]
+    assert f"warning: {cut}" in stderr and ghost in stderr
+    events = replay["events"]
+    assert [e["node"] for e in events if e["type"] == "trace"] == [
+        "look_left", "settle_left", "left", "look_up", "right", "stop_all"]
+    calls = [{k: c.get(k) for k in ("time", "component", "feature", "args", "detail", "ok", "value", "error",
+                                     "latency_ms")} for c in events if c["type"] == "call"]
+    assert calls == [
+        {"time": 100.0, "component": "Sensor", "feature": "angle", "args": [135],
+         "detail": "Sensor.angle(135)", "ok": True, "value": None, "error": None, "latency_ms": 4.5},
+        {"time": 100.2, "component": "DistanceRead", "feature": "value", "args": [],
+         "detail": "DistanceRead.value()", "ok": True, "value": 42, "error": None, "latency_ms": 5.25},
+        {"time": 102.5, "component": "DistanceRead", "feature": "value", "args": [],
+         "detail": "DistanceRead.value()", "ok": False, "value": None,
+         "error": "CallTimeout: no reply from DistanceRead.value within 2 s", "latency_ms": 2003.5},
+    ]
+    status = [(e["time"], e["state"], e["detail"]) for e in events if e["type"] == "orchestrator"]
+    fault = "Glance/right: CallTimeout: no reply from DistanceRead.value within 2 s"
+    assert status == [(100.0, "running", "from the trace"), (102.5, "failed", fault)]
+
+
+def test_a_replay_without_a_fault_says_where_the_trace_ends(tmp_path: Path) -> None:
+    trace = tmp_path / "run.jsonl"
+    trace.write_text(_line("RaspberryPI", "stop_all", "action", 5.0, 1.0, detail="Stop")
+                     + _line("RaspberryPI", "halt", "action", 7.5, 1.0, detail="halt"), encoding="utf-8")
+    with studio(["studio", str(CAR_MODEL), "--replay", str(trace), "--port", "0"], tmp_path) as proc:
+        replay = _hello(proc.url)["replay"]
+    assert replay["notes"] == []
+    status = [(e["time"], e["state"]) for e in replay["events"] if e["type"] == "orchestrator"]
+    assert status == [(5.0, "running"), (7.5, "trace ended")]
+
+
+@pytest.mark.parametrize("text", ["", "\n\n  \n"])
+def test_an_empty_trace_file_is_an_error(tmp_path: Path, text: str) -> None:
+    trace = tmp_path / "empty.jsonl"
+    trace.write_text(text, encoding="utf-8")
+    result = subprocess.run(umlbot_argv("studio", str(CAR_MODEL), "--replay", str(trace), "--port", "0"),
+                            capture_output=True, text=True, timeout=60, check=False)
+    assert result.returncode == 1, result.stdout
+    assert f"{trace}: no trace events" in result.stderr and "Traceback" not in result.stderr
 
 
 def test_a_broken_trace_file_is_one_clear_error(tmp_path: Path) -> None:
@@ -156,18 +226,36 @@ def test_the_port_in_use_is_one_clear_error(tmp_path: Path) -> None:
                                 capture_output=True, text=True, timeout=60, check=False)
     assert result.returncode == 1
     assert f"cannot listen on 127.0.0.1:{port}" in result.stderr and "Traceback" not in result.stderr
-    assert "(another studio? choose one with --port)" in result.stderr
+    assert "(another studio? choose another port with --port)" in result.stderr
 
 
-def test_a_host_name_that_does_not_resolve_is_one_line_without_the_port_hint(tmp_path: Path) -> None:
+def test_sim_names_its_own_option_when_the_studio_port_is_taken(tmp_path: Path) -> None:
+    # `umlbot sim` has no --port for the studio (its --port is the broker's): the hint must say
+    # --studio-port
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        result = subprocess.run(umlbot_argv("sim", str(CAR_MODEL), "--port", "0", "--timeout", "5",
+                                            "--studio", "--studio-port", str(port)),
+                                capture_output=True, text=True, timeout=120, check=False, cwd=tmp_path)
+    assert result.returncode == 1, result.stderr
+    assert f"cannot listen on 127.0.0.1:{port}" in result.stderr and "Traceback" not in result.stderr
+    assert "(another studio? choose another port with --studio-port)" in result.stderr
+
+
+@pytest.mark.parametrize("remote", [["--allow-remote"], []])
+def test_a_host_name_that_does_not_resolve_is_one_line_without_the_port_hint(tmp_path: Path,
+                                                                           remote: list[str]) -> None:
+    # without --allow-remote too: the name is the first thing to fix, not the missing flag
     result = subprocess.run(umlbot_argv("studio", str(CAR_MODEL), "--host", "no.such.host.invalid",
-                                        "--allow-remote", "--port", "0"),
+                                        *remote, "--port", "0"),
                             capture_output=True, text=True, timeout=60, check=False, cwd=tmp_path)
     assert result.returncode == 1
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1, result.stderr
     assert "cannot listen on --host no.such.host.invalid: the name is not known" in lines[0]
-    assert "--port" not in lines[0]
+    assert "--port" not in lines[0] and "--allow-remote" not in lines[0]
 
 
 def test_a_missing_model_is_a_usage_error(tmp_path: Path) -> None:
@@ -195,3 +283,58 @@ def test_a_page_opened_after_a_sim_run_gets_its_last_world(tmp_path: Path) -> No
     assert moved > 0.5, (world["car"], start)
     assert world["pings"], "the last second's pings"
     assert all(world["t"] - ping["t"] <= 1.0 for ping in world["pings"]), world["pings"]
+
+
+def test_the_page_says_why_the_broker_is_not_reached_and_that_it_keeps_trying(tmp_path: Path) -> None:
+    with socket.socket() as probe:  # a port nobody listens on
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    with studio(["studio", str(CAR_MODEL), "--port", "0", "--broker", f"mqtt://127.0.0.1:{port}"],
+                tmp_path) as proc:
+        frames = read_frames(proc.url, lambda f: any((e.get("attempts") or 0) >= 4
+                                                     for e in events_of(f, "broker")))
+        proc.stop()
+        stderr = proc.log_text()
+    broker = events_of(frames, "broker")
+    assert all(e["url"] == f"mqtt://127.0.0.1:{port}" and e["connected"] is False for e in broker), broker
+    failed = [e for e in broker if e.get("problem")]
+    assert failed and all(e["problem"] == "Connection refused" for e in failed), broker
+    assert all(0 <= e["retry_in_s"] <= 5.0 for e in failed), failed
+    attempts = [e["attempts"] for e in failed]
+    assert attempts == sorted(attempts) and attempts[-1] >= 4  # it keeps trying
+    # logged: the first failure as a warning, the retries of the same outage not every time
+    assert stderr.count("mqtt_connect_failed") == 1, stderr
+
+
+def test_the_page_says_the_broker_is_connected_and_calls_time_out_after_the_models_time_out(
+    mosquitto_broker: BrokerProcess, raw_client: Any, tmp_path: Path
+) -> None:
+    # robot_car's call_timeout_s is 2 s: a call nobody answers is reported after 2 s (not the
+    # monitor's 5 s), at the time it was made
+    raw = raw_client(mosquitto_broker)
+    with studio(["studio", str(CAR_MODEL), "--port", "0", "--robot", ROBOT], tmp_path,
+                mosquitto_broker.url) as proc:
+        read_frames(proc.url, lambda f: any(e["connected"] for e in events_of(f, "broker")))
+        sent = time.time()
+        raw.publish(f"umlbot/{ROBOT}/DistanceRead/call/value",
+                    json.dumps({"id": "q1", "reply_to": f"umlbot/{ROBOT}/_reply/t", "args": []}))
+        frames = read_frames(proc.url, lambda f: bool(events_of(f, "call")), timeout=10.0)
+        seen = time.time()
+    (call,) = events_of(frames, "call")
+    assert (call["feature"], call["ok"], call["error"]) == ("value", False, "no reply within 2 s")
+    assert "latency_ms" not in call
+    assert sent - 0.5 <= call["time"] <= sent + 0.5, (sent, call["time"])  # the request's time
+    assert seen - sent < 4.5  # reported after about 2 s (checked once a second), not 5
+
+
+def test_a_ping_is_drawn_to_the_wall_point_its_echo_came_from() -> None:
+    # the beam is ~15° wide: an echo from a wall off the centre line is drawn where it came from,
+    # not along the centre line (where it would end beyond the wall)
+    from umlbot.sim.geometry import Point
+    from umlbot.sim.world import Ping
+    from umlbot.studio.sources import _ping
+
+    off_centre = _ping(Ping(1.0, Point(0.0, 0.0), 0.0, 50, Point(0.48, 0.13)))
+    assert (off_centre["x1"], off_centre["y1"]) == (0.48, 0.13)
+    no_echo = _ping(Ping(1.0, Point(0.0, 0.0), 0.0, None))
+    assert (no_echo["x1"], no_echo["y1"], no_echo["cm"]) == (4.0, 0.0, None)

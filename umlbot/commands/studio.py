@@ -4,10 +4,14 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
 
 from umlbot.stopsignals import StopSignals
+
+if TYPE_CHECKING:
+    from umlbot.studio.workspace import Workspace
 
 
 @click.command(name="studio")
@@ -42,7 +46,7 @@ def command(model: Path, broker_url: str | None, ca_file: Path | None, robot: st
     from services.bus import BrokerSettings, resolve_broker_url
     from services.bus.settings import redact_url
     from umlbot.studio.server import StudioServer, StudioThread, check_bind
-    from umlbot.studio.sources import RobotFollower, replay_events, studio_data
+    from umlbot.studio.sources import RobotFollower, replay_data, studio_data
 
     editable = replay_file is None and (model.is_dir() or (not model.exists() and model.parent.is_dir()))
     if not model.exists() and not editable:
@@ -59,17 +63,24 @@ def command(model: Path, broker_url: str | None, ca_file: Path | None, robot: st
         server.api = EditApi(workspace)
         data.edit = server.api.hello
     else:
-        data = studio_data(model, robot, mode="replay" if replay_file else "live")
+        from compiler.api import check_model
+
+        result = check_model(model)
+        data = studio_data(model, robot, mode="replay" if replay_file else "live", result=result)
         server = StudioServer(data, host=host, port=port, allow_remote=allow_remote)
     source: RobotFollower | None = None
     what = f"replay of {replay_file}"
+    notes: list[str] = []
     if replay_file is not None:
-        data.replay = {"file": replay_file.name, "events": replay_events(replay_file, data.robot)}
+        data.replay = replay_data(replay_file, data.robot, result.model)
+        notes = data.replay["notes"]
     else:
         url = resolve_broker_url(broker_url)
         settings = BrokerSettings.from_url(url, ca_file=ca_file)
         what = f"robot {data.robot} on {redact_url(url)}"
-        source = RobotFollower(settings, data.robot, server.hub)
+        if editable and workspace.empty and robot is None:  # no name yet: none is made up
+            what = f"a new model, followed under the name you give it, on {redact_url(url)}"
+        source = RobotFollower(settings, data.robot, server.hub, data.call_timeout_s)
         server.tick = source.tick
         if server.api is not None and robot is None:
             follower = source
@@ -94,6 +105,8 @@ def command(model: Path, broker_url: str | None, ca_file: Path | None, robot: st
             click.echo(f"umlbot studio: {page}  ({what}; Ctrl-C to quit)")
             if errors:
                 click.echo(f"  the model has {errors} error(s): the page lists them", err=True)
+            for note in notes:
+                click.echo(f"  warning: {note}", err=True)
             if editable and workspace.layout_problem is not None:
                 click.echo(f"  {workspace.layout_problem}: the page starts without the saved "
                            "positions (saving rewrites the file)", err=True)
@@ -106,3 +119,22 @@ def command(model: Path, broker_url: str | None, ca_file: Path | None, robot: st
             if source is not None:
                 source.close()
             studio.stop()
+            if editable:
+                keep_unsaved(workspace)
+
+
+def keep_unsaved(workspace: Workspace) -> None:
+    """The studio quits with unsaved edits: keep them in the folder's recovery file (the model's
+    files stay as they are) and say so in one line; the next start offers them back."""
+    with workspace.lock:
+        try:
+            path = workspace.keep_unsaved()
+        except (OSError, ValueError) as exc:
+            files = ", ".join(workspace.changed_files()) or "the layout"
+            click.echo(f"umlbot studio: unsaved edits of {files} were LOST: cannot write the recovery "
+                       f"file: {exc}", err=True)
+            return
+    if path is not None:
+        files = ", ".join(workspace.changed_files()) or "the layout"
+        click.echo(f"umlbot studio: unsaved edits of {files} kept in {path} (not saved; the next "
+                   "`umlbot studio` offers to restore them)", err=True)

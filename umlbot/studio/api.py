@@ -18,8 +18,9 @@ from typing import TYPE_CHECKING, Any
 from aiohttp import web
 
 from umlbot.logs import get_logger
+from umlbot.sim.track import bundled_tracks
 from umlbot.studio.hub import dumps
-from umlbot.studio.run import RUN_SPEED, StudioRun, bundled_tracks, resolve_track
+from umlbot.studio.run import RUN_SPEED, StudioRun, resolve_track
 from umlbot.studio.textedit import EditError
 from umlbot.studio.workspace import Conflict, Workspace
 
@@ -63,6 +64,7 @@ class EditApi:
                                                                     bool(body.get("force")))),
             "reload": lambda body: self._on_disk(self.workspace.reload()),
             "new": lambda body: self._on_disk(self.workspace.new_model(body.get("name"))),
+            "recover": lambda body: self.workspace.recover(body.get("action")),
             "complete": self._complete,
             "run": self._run,
             "stop": lambda body: self._sim().stop(),
@@ -183,8 +185,10 @@ class EditApi:
                     answer = await loop.run_in_executor(None, self._locked, handler, body)
                 except Conflict as exc:
                     return _json(exc.body, 409)
-                except (EditError, ValueError) as exc:
-                    return _json({"error": str(exc)}, 400)
+                except EditError as exc:
+                    return _json(exc.answer(), 400)
+                except ValueError as exc:
+                    return _json({"error": str(exc), "message": str(exc)}, 400)
             return _json(answer)
 
         return handle

@@ -46,6 +46,12 @@ def _features(component: dict[str, Any]) -> dict[str, lib.FeatureSpec]:
     return dict(kinds[kind]) if kind in kinds else {}
 
 
+def _gives_value(component: dict[str, Any]) -> bool:
+    """Whether a component has a feature that returns a value (one that can be read in an
+    expression)."""
+    return any(spec.returns != "none" for spec in _features(component).values())
+
+
 def _signature_of(callee: str, components: dict[str, dict[str, Any]]) -> dict[str, Any] | None:
     if callee in SLEEP_BUILTINS:
         unit = SLEEP_BUILTINS[callee]
@@ -114,10 +120,15 @@ def complete(model: dict[str, Any] | None, lane: str | None, text: str, cursor: 
         head, _, partial = typed.rpartition(".")
     call = _open_call(before)
     in_argument = call is not None  # a value: no sleeps, no lane calls (they give none)
+    # an argument, a guard or a datastore's value needs a value: nothing that gives none is offered
+    # (a feature returning none, a component without a feature that returns something)
+    needs_value = in_argument or (field is not None and field != "call")
     items: list[dict[str, Any]] = []
     if head is not None:
         if head in components:
             for name, spec in _features(components[head]).items():
+                if needs_value and spec.returns == "none":
+                    continue
                 sig = _signature_of(f"{head}.{name}", components)
                 items.append({"label": name, "kind": "feature", "detail": sig["label"] if sig else name,
                               "insert": f"{name}(" if spec.params else f"{name}()"})
@@ -134,7 +145,8 @@ def complete(model: dict[str, Any] | None, lane: str | None, text: str, cursor: 
             items += [{"label": s, "kind": "datastore", "detail": f"datastore of {lane}", "insert": s}
                       for s in own["datastores"]]
         items += [{"label": name, "kind": "component", "detail": f"{c.get('kind')} ({c.get('impl')})",
-                   "insert": f"{name}."} for name, c in sorted(components.items())]
+                   "insert": f"{name}."} for name, c in sorted(components.items())
+                  if not needs_value or _gives_value(c)]
         for name, other in sorted(lanes.items()):
             # (a lane calling itself is recursion, which the checker refuses)
             if other["virtual"] and field in (None, "call") and not in_argument and name != lane:
@@ -143,10 +155,11 @@ def complete(model: dict[str, Any] | None, lane: str | None, text: str, cursor: 
             elif other["datastores"] and name != lane:
                 items.append({"label": name, "kind": "lane", "detail": "its datastores: Lane.name",
                               "insert": f"{name}."})
-        if not in_argument:
+        if not needs_value:
             items += [{"label": name, "kind": "builtin", "detail": f"{name}({unit})", "insert": f"{name}("}
                       for name, unit in SLEEP_BUILTINS.items()]
-        items.append({"label": "Application", "kind": "builtin", "detail": "Application.exit",
+        # Application.exit is a bool: a value too, so it is offered everywhere
+        items.append({"label": "Application", "kind": "builtin", "detail": "Application.exit -> bool",
                       "insert": "Application."})
         items += [{"label": k, "kind": "keyword", "detail": "", "insert": k} for k in KEYWORDS]
     low = partial.lower()

@@ -11,12 +11,15 @@ result, so the page shows exactly `umlbot check`'s messages.
 from __future__ import annotations
 
 import re
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from dataclasses import dataclass
 from typing import Any, cast
 
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
+from compiler.checker import RESERVED
+from compiler.expr_parser import RawExpr, RBinary, RCall, RName, RUnary, parse_expression
 from compiler.source import (
     ACTIVITIES_DIR,
     ACTIVITY_FILE,
@@ -25,7 +28,8 @@ from compiler.source import (
     NODE_FIELDS,
     NODE_KINDS,
 )
-from umlbot.studio.library_view import check_settings
+from umlbot.errors import ModelError
+from umlbot.studio.library_view import check_settings, settings_problems
 from umlbot.studio.textedit import (
     EditError,
     Text,
@@ -36,7 +40,9 @@ from umlbot.studio.textedit import (
     flow,
     get,
     insert_item,
+    key_node,
     replace_node,
+    scalar,
     set_key,
 )
 
@@ -72,6 +78,8 @@ class Op(BaseModel):
     guard: str | None = None
     diagram: str | None = None
     positions: dict[str, list[float] | None] | None = None
+    new_id: str | None = None
+    new_name: str | None = None
 
 
 def parse_ops(raw: Any) -> list[Op]:
@@ -102,6 +110,8 @@ class Edits:
         self.files: dict[str, str | None] = dict(files)
         self.changed: set[str] = set()
         self.unreadable = {rel for rel, text in files.items() if text is None}
+        #: what the batch renamed, in order (the layout file's positions follow: `rename_positions`)
+        self.renames: list[Rename] = []
 
     def exists(self, rel: str) -> bool:
         return self.files.get(rel) is not None or rel in self.unreadable
@@ -304,7 +314,7 @@ def set_node(e: Edits, op: Op) -> None:
         if value is None or value == "":
             delete_key(t, item, key)
         else:
-            set_key(t, item, key, cast(Value, value))
+            set_key(t, item, key, cast(Value, value), order=("id", "kind", *NODE_FIELDS.get(kind, ())))
         e.put(t)
 
 
@@ -425,7 +435,7 @@ def set_guard(e: Edits, op: Op) -> None:
     elif guard == "":
         raise EditError("a guard is an expression (or 'else')")
     elif get(b, "if") is not None:
-        set_key(t, b, "if", guard)
+        set_key(t, b, "if", guard, order=("if", "then"))
     else:
         replace_node(t, b, flow({"if": guard, "then": target}))
     e.put(t)
@@ -438,13 +448,15 @@ def snake_case(name: str) -> str:
 def add_lane(e: Edits, op: Op) -> None:
     lane = _need(op.lane, "lane", op)
     if not _NAME.fullmatch(lane):
-        raise EditError(f"swimlane name {lane!r} is not a plain name (letters, digits and _)")
+        raise EditError(f"swimlane name {lane!r} is not a plain name (letters, digits and _)",
+                        fields={"lane": "must be a plain name (letters, digits and _; no spaces)"})
     try:
         e.find_lane(lane, whole=True)
     except EditError:
         pass
     else:
-        raise EditError(f"there is a swimlane {lane!r} already")
+        raise EditError(f"there is a swimlane {lane!r} already",
+                        fields={"lane": "is taken by another swimlane"})
     starter = [{"id": "start", "kind": "start"}, {"id": "end", "kind": "end"}]
     if op.file is not None:
         t = e.text(op.file)
@@ -497,10 +509,12 @@ def add_component(e: Edits, op: Op) -> None:
     name = _need(op.name, "name", op)
     kind = _need(op.kind, "kind", op)
     if not _NAME.fullmatch(name):
-        raise EditError(f"component name {name!r} is not a plain name (letters, digits and _)")
+        raise EditError(f"component name {name!r} is not a plain name (letters, digits and _)",
+                        fields={"name": "must be a plain name (letters, digits and _; no spaces)"})
     t, root, components = _components(e)
     if get(components, name) is not None:
-        raise EditError(f"there is a component {name!r} already")
+        raise EditError(f"there is a component {name!r} already",
+                        fields={"name": "is taken by another component"})
     if isinstance(components, yaml.MappingNode):
         set_key(t, components, name, {"kind": kind})
     else:
@@ -551,7 +565,9 @@ def _deployment_root(t: Text) -> yaml.MappingNode:
 def _write_deployment(e: Edits, component: str, impl: str, settings: dict[str, Any] | None) -> None:
     problem = check_settings(impl, settings or {})
     if problem is not None:
-        raise EditError(f"{component}: {problem}")
+        fields = {f"settings.{key}" if key else "settings": msg
+                  for key, msg in settings_problems(impl, settings or {})}
+        raise EditError(f"{component}: {problem}", fields=fields)
     entry: dict[str, Any] = {"impl": impl}
     if settings:
         entry["settings"] = settings
@@ -589,7 +605,8 @@ def add_port(e: Edits, op: Op) -> None:
     port = _need(op.port, "port", op)
     feature = _need(op.feature, "feature", op)
     if not _NAME.fullmatch(port):
-        raise EditError(f"port name {port!r} is not a plain name")
+        raise EditError(f"port name {port!r} is not a plain name",
+                        fields={"port": "must be a plain name (letters, digits and _; no spaces)"})
     t, _, components = _components(e)
     value = get(components, component)
     if value is None or not isinstance(components, yaml.MappingNode):
@@ -648,6 +665,320 @@ def remove_link(e: Edits, op: Op) -> None:
     raise EditError(f"no link {link_id!r}")
 
 
+# --- renames ---------------------------------------------------------------------------------------
+#
+# A rename changes the name's own token and every token that refers to it, nothing else: the rest
+# of each file stays byte for byte. References in expressions are found with the compiler's own
+# parser (names with their offsets), so `LeftActuatorX` or a string 'LeftActuator' is not one.
+
+
+@dataclass(frozen=True)
+class Rename:
+    """One thing renamed: a node (`lane` is its swimlane), a swimlane or a component. The layout
+    file's positions are keyed by these names (`rename_positions`)."""
+
+    kind: str  # "node", "lane" or "component"
+    old: str
+    new: str
+    lane: str | None = None
+
+    def reverse(self) -> Rename:
+        return Rename(self.kind, self.new, self.old, self.lane)
+
+
+def rename_positions(layout: dict[str, Any], renames: Sequence[Rename]) -> bool:
+    """Move the positions saved under the renamed names (`<lane>/<node>` keys of the activity
+    diagrams, a component's name in `components`) to the new names, in place; True if any moved."""
+    moved = False
+    for diagram, bucket in (layout.get("positions") or {}).items():
+        if not isinstance(bucket, dict):
+            continue
+        for r in renames:
+            for key in list(bucket):
+                if r.kind == "node":
+                    new_key = f"{r.lane}/{r.new}" if key == f"{r.lane}/{r.old}" else None
+                elif diagram == "components":
+                    new_key = r.new if r.kind == "component" and key == r.old else None
+                else:
+                    new_key = r.new + key[len(r.old):] if key.startswith(f"{r.old}/") else None
+                if new_key is not None:
+                    bucket[new_key] = bucket.pop(key)
+                    moved = True
+    return moved
+
+
+class _Patches:
+    """Replacements of spans of whole files, made at the end (each file's from its end back)."""
+
+    def __init__(self, e: Edits) -> None:
+        self.e = e
+        self.texts: dict[str, Text] = {}
+        self.spans: dict[str, set[tuple[int, int, str]]] = {}
+
+    def text(self, rel: str) -> Text:
+        if rel not in self.texts:
+            self.texts[rel] = self.e.text(rel)
+        return self.texts[rel]
+
+    def add(self, t: Text, start: int, end: int, new: str) -> None:
+        self.spans.setdefault(t.name, set()).add((start + len(t.before), end + len(t.before), new))
+
+    def scalar(self, t: Text, node: yaml.Node | None, edits: Sequence[tuple[int, int, str]]) -> None:
+        """Replace `(offset, length, new)` spans of a scalar's value: in place where the value is
+        written as it reads (plain or quoted without escapes), else the scalar is written anew."""
+        if not isinstance(node, yaml.ScalarNode) or not edits:
+            return
+        start, end = t.start(node), t.end(node)
+        raw = t.text[start:end]
+        if node.style in ("'", '"') and len(raw) >= 2 and raw[0] == raw[-1] == node.style:
+            start, end, raw = start + 1, end - 1, raw[1:-1]
+        elif node.style:
+            raw = ""  # a block scalar: written anew
+        if raw == node.value:
+            for offset, length, new in edits:
+                self.add(t, start + offset, start + offset + length, new)
+            return
+        value = node.value
+        for offset, length, new in sorted(edits, reverse=True):
+            value = value[:offset] + new + value[offset + length:]
+        self.add(t, t.start(node), t.end(node), scalar(value, expression=True))
+
+    def commit(self) -> None:
+        for rel, spans in self.spans.items():
+            t = self.e.text(rel)
+            text = t.text
+            last = len(text) + 1
+            for start, end, new in sorted(spans, reverse=True):
+                if end > last:
+                    raise EditError(f"{rel}: two renames of the same text")  # not expected
+                text = text[:start] + new + text[end:]
+                last = start
+            t.text = text
+            self.e.put(t)
+
+
+def _check_new_name(new: str, field_name: str, what: str, taken: Mapping[str, str]) -> None:
+    """A new swimlane or component name: a plain identifier, not reserved, not taken."""
+    if not _NAME.fullmatch(new):
+        raise EditError(f"{what} name {new!r} is not a plain name (letters, digits and _)",
+                        fields={field_name: "must be a plain name (letters, digits and _; no spaces, "
+                                            "not starting with a digit)"})
+    if new in RESERVED:
+        raise EditError(f"{new!r} is a reserved name", fields={field_name: f"'{new}' is reserved "
+                                                                           "(a builtin or keyword)"})
+    if new in taken:
+        raise EditError(f"there is {taken[new]} {new!r} already",
+                        fields={field_name: f"is taken by {taken[new]}"})
+
+
+def _lane_maps(t: Text) -> Iterator[yaml.MappingNode]:
+    """The swimlanes of one file (a `lanes:` list, or the file is one lane)."""
+    root = t.root()
+    if not isinstance(root, yaml.MappingNode):
+        return
+    lanes = get(root, "lanes")
+    if isinstance(lanes, yaml.SequenceNode):
+        yield from (item for item in lanes.value if isinstance(item, yaml.MappingNode))
+    elif t.name != MODEL_FILE and get(root, "lane") is not None:
+        yield root
+
+
+def _lane_names(e: Edits) -> set[str]:
+    return {name for rel in e.lane_files() for lane_map in _lane_maps(e.text(rel))
+            if (name := _scalar_text(get(lane_map, "lane"))) is not None}
+
+
+def _component_names(e: Edits) -> set[str]:
+    if e.files.get(MODEL_FILE) is None:
+        return set()
+    components = get(e.model_root()[1], "components")
+    if not isinstance(components, yaml.MappingNode):
+        return set()
+    return {k.value for k, _ in components.value if isinstance(k, yaml.ScalarNode)}
+
+
+def _expression_scalars(lane_map: yaml.MappingNode) -> Iterator[yaml.ScalarNode]:
+    """The scalars of a swimlane the compiler reads as expressions: calls, values, payloads, guards."""
+    nodes = get(lane_map, "nodes")
+    for item in nodes.value if isinstance(nodes, yaml.SequenceNode) else []:
+        for key in ("call", "value", "payload"):
+            node = get(item, key)
+            if isinstance(node, yaml.ScalarNode):
+                yield node
+        branches = get(item, "branches")
+        for branch in branches.value if isinstance(branches, yaml.SequenceNode) else []:
+            guard = get(branch, "if")
+            if isinstance(guard, yaml.ScalarNode):
+                yield guard
+
+
+def _datastores(lane_map: yaml.MappingNode) -> set[str]:
+    """The datastores a swimlane writes (a datastore node's `name`, an accept node's `store`)."""
+    nodes = get(lane_map, "nodes")
+    names: set[str] = set()
+    for item in nodes.value if isinstance(nodes, yaml.SequenceNode) else []:
+        kind = _scalar_text(get(item, "kind"))
+        name = _scalar_text(get(item, "name" if kind == "datastore" else "store" if kind == "accept"
+                                else ""))
+        if name:
+            names.add(name.strip())
+    return names
+
+
+def _names_in(text: str) -> list[tuple[RName, bool]]:
+    """Every name of an expression and whether it is called (None: it does not parse)."""
+    try:
+        expr = parse_expression(text)
+    except ModelError:
+        return []
+    found: list[tuple[RName, bool]] = []
+    stack: list[RawExpr] = [expr]
+    while stack:
+        node = stack.pop()
+        if isinstance(node, RName):
+            found.append((node, False))
+        elif isinstance(node, RCall):
+            found.append((node.name, True))
+            stack.extend(node.args)
+        elif isinstance(node, RUnary):
+            stack.append(node.operand)
+        elif isinstance(node, RBinary):
+            stack.extend((node.left, node.right))
+    return found
+
+
+def _rename_references(e: Edits, p: _Patches, old: str, new: str) -> None:
+    """Rename a swimlane's `lane:` and every expression naming `old` (a virtual lane called as
+    `Old` or `Old()`, a datastore read `Old.store`, a component's `Old.feature(...)`) in every
+    swimlane. A bare `Old` in a lane with a datastore `Old` is that datastore, and stays."""
+    for rel in e.lane_files():
+        content = e.files[rel]
+        if content is None or old not in content:
+            continue  # a reference is written out
+        t = p.text(rel)
+        for lane_map in _lane_maps(t):
+            lane_name = _scalar_text(get(lane_map, "lane"))
+            if lane_name == old:
+                p.scalar(t, get(lane_map, "lane"), [(0, len(old), new)])
+            stores = _datastores(lane_map)
+            for node in _expression_scalars(lane_map):
+                if old not in node.value:
+                    continue
+                spans: list[tuple[int, int, str]] = []
+                for name, called in _names_in(node.value):
+                    if name.parts[0] != old or (len(name.parts) == 1 and not called and old in stores):
+                        continue
+                    if len(name.parts) == 1 and new in stores and not called:
+                        raise EditError(
+                            f"swimlane {lane_name!r} has a datastore {new!r}: its {old!r} would read "
+                            "it after the rename", fields={"new_name": f"is a datastore of swimlane "
+                                                                       f"'{lane_name}'"})
+                    spans.append((name.offsets[0], len(old), new))
+                p.scalar(t, node, spans)
+
+
+def rename_node(e: Edits, op: Op) -> None:
+    lane = _need(op.lane, "lane", op)
+    old = _need(op.id, "id", op)
+    new = _need(op.new_id, "new_id", op)
+    t, nodes = _lane_nodes(e, lane)
+    _, item = _find_node(nodes, lane, old)
+    if new == old:
+        return
+    if not _NODE_ID.fullmatch(new):
+        raise EditError(f"node id {new!r} is not a plain name (letters, digits, _ and -)",
+                        fields={"new_id": "must be a plain name (letters, digits, _ and -; no spaces)"})
+    if new in _node_ids(nodes):
+        raise EditError(f"swimlane {lane!r} has a node {new!r} already",
+                        fields={"new_id": "is taken by another node of this swimlane"})
+    p = _Patches(e)
+    p.scalar(t, get(item, "id"), [(0, len(old), new)])
+    for node in nodes.value:  # the flows into it: next, a decision's then/else, a fork's targets
+        refs: list[yaml.Node | None] = [get(node, "next")]
+        branches = get(node, "branches")
+        for branch in branches.value if isinstance(branches, yaml.SequenceNode) else []:
+            refs += [get(branch, "then"), get(branch, "else")]
+        targets = get(node, "targets")
+        refs += targets.value if isinstance(targets, yaml.SequenceNode) else []
+        for ref in refs:
+            if isinstance(ref, yaml.ScalarNode) and ref.value.strip() == old:
+                p.scalar(t, ref, [(ref.value.index(old), len(old), new)])
+    p.commit()
+    e.renames.append(Rename("node", old, new, lane))
+
+
+def rename_lane(e: Edits, op: Op) -> None:
+    old = _need(op.lane, "lane", op)
+    new = _need(op.new_name, "new_name", op)
+    e.find_lane(old, whole=True)
+    components = _component_names(e)
+    if old in components:
+        raise EditError(f"swimlane {old!r} is the swimlane of component {old!r}: rename the "
+                        "component (its swimlane follows)",
+                        fields={"new_name": f"rename component '{old}' instead: its swimlane follows"})
+    if new == old:
+        return
+    taken = {name: "a swimlane" for name in _lane_names(e)}
+    taken.update((name, "a component") for name in components)
+    _check_new_name(new, "new_name", "swimlane", taken)
+    p = _Patches(e)
+    _rename_references(e, p, old, new)
+    p.commit()
+    e.renames.append(Rename("lane", old, new))
+
+
+def rename_component(e: Edits, op: Op) -> None:
+    old = _need(op.component, "component", op)
+    new = _need(op.new_name, "new_name", op)
+    t, root, components = _components(e)
+    knode = key_node(components, old) if isinstance(components, yaml.MappingNode) else None
+    if knode is None:
+        raise EditError(f"no component {old!r}")
+    if new == old:
+        return
+    lanes = _lane_names(e)
+    taken = {name: "a swimlane" for name in lanes if name != old}
+    taken.update((name, "another component") for name in _component_names(e))
+    _check_new_name(new, "new_name", "component", taken)
+    p = _Patches(e)
+    p.texts[t.name] = t
+    p.scalar(t, knode, [(0, len(old), new)])
+    links = get(root, "links")
+    for link in links.value if isinstance(links, yaml.SequenceNode) else []:
+        for end in (get(link, "from"), get(link, "to")):
+            match = _PORT_REF.fullmatch(end.value) if isinstance(end, yaml.ScalarNode) else None
+            if match is not None and match.group(1) == old:
+                p.scalar(t, end, [(0, len(old), new)])
+    # its deployment entries: inline in model.yaml, and in every deployment file there is
+    inline = get(root, "deployment")
+    if isinstance(inline, yaml.MappingNode):
+        _rename_deployment_key(p, t, inline, old, new)
+    for rel in DEPLOYMENT_FILES:
+        if not e.exists(rel) or old not in (e.files.get(rel) or old):
+            continue
+        d = p.text(rel)
+        if rel.endswith(".txt"):
+            at = 0
+            for line in d.text.splitlines(keepends=True):
+                name, sep, _ = line.split("#", 1)[0].partition("=")
+                if sep and name.strip() == old:
+                    column = len(name) - len(name.lstrip())
+                    p.add(d, at + column, at + column + len(old), new)
+                at += len(line)
+        else:
+            _rename_deployment_key(p, d, _deployment_root(d), old, new)
+    _rename_references(e, p, old, new)  # its swimlane and the calls of its features
+    p.commit()
+    e.renames.append(Rename("component", old, new))
+
+
+def _rename_deployment_key(p: _Patches, t: Text, root: yaml.MappingNode, old: str, new: str) -> None:
+    comps = get(root, "components")
+    knode = key_node(comps, old) if isinstance(comps, yaml.MappingNode) else None
+    if knode is not None:
+        p.scalar(t, knode, [(0, len(old), new)])
+
+
 OPS: dict[str, Callable[[Edits, Op], None]] = {
     "add_component": add_component,
     "remove_component": remove_component,
@@ -664,18 +995,26 @@ OPS: dict[str, Callable[[Edits, Op], None]] = {
     "connect": connect,
     "disconnect": disconnect,
     "set_guard": set_guard,
+    "rename_node": rename_node,
+    "rename_lane": rename_lane,
+    "rename_component": rename_component,
 }
 
 
-def apply_ops(files: Mapping[str, str | None], ops: list[Op]) -> dict[str, str | None]:
-    """Apply `ops` in order to the texts `files`; the changed files' new texts (None: removed)."""
+def apply_ops(files: Mapping[str, str | None], ops: list[Op],
+              renames: list[Rename] | None = None) -> dict[str, str | None]:
+    """Apply `ops` in order to the texts `files`; the changed files' new texts (None: removed).
+    What the operations renamed is added to `renames` (for the layout's positions)."""
     edits = Edits(files)
     for index, op in enumerate(ops):
         try:
             OPS[op.op](edits, op)
         except EditError as exc:
-            raise EditError(f"operation {index + 1} ({op.op}): {exc}") from None
+            raise EditError(f"operation {index + 1} ({op.op}): {exc}", fields=exc.fields,
+                            plain=exc.message) from None
+    if renames is not None:
+        renames.extend(edits.renames)
     return {rel: edits.files[rel] for rel in sorted(edits.changed) if edits.files[rel] != files.get(rel)}
 
 
-__all__ = ["OPS", "EditError", "Op", "apply_ops", "parse_ops"]
+__all__ = ["OPS", "EditError", "Op", "Rename", "apply_ops", "parse_ops", "rename_positions"]

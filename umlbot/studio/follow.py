@@ -30,8 +30,8 @@ class SimFollower:
 
         data = studio_data(self.model, robot)
         data.track = track_view(world)
-        server = StudioServer(data, port=self.port)
-        broker = BrokerSource(BrokerSettings.from_url(broker_url), robot, server.hub)
+        server = StudioServer(data, port=self.port, port_option="--studio-port")
+        broker = BrokerSource(BrokerSettings.from_url(broker_url), robot, server.hub, data.call_timeout_s)
         server.tick = broker.tick
         self._thread = StudioThread(server)
         self.url = self._thread.start()

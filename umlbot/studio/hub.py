@@ -5,7 +5,7 @@ dispatcher thread; `push` only appends them to a list under a lock (and wakes th
 nothing is scheduled yet). The event loop flushes at once when the last flush is more than
 `FLUSH_S` ago, else when it is due (so a lone event reaches the page within a millisecond or two,
 and a busy robot makes at most one frame per `FLUSH_S`). A flush keeps what a page opened later
-needs (the snapshot: the latest availability, retained state and orchestrator status, the trace
+needs (the snapshot: the latest availability, retained state, broker and orchestrator status, the trace
 history, the last calls, and with a simulated world its latest state and the pings of its last
 second) and sends one `events` frame to each connected page. Nothing is dropped on the way; the
 history is bounded (`keep_trace`): a page that opens after more than that many trace events sees
@@ -99,6 +99,8 @@ class Hub:
         self.availability: dict[str, dict[str, Any]] = {}
         self.retained: dict[str, dict[str, Any]] = {}
         self.orchestrator: dict[str, Any] | None = None
+        #: the connection to the broker (the latest `broker` event of the broker source).
+        self.broker: dict[str, Any] | None = None
         self.trace: collections.deque[dict[str, Any]] = collections.deque(maxlen=keep_trace)
         self.calls: collections.deque[dict[str, Any]] = collections.deque(maxlen=KEEP_CALLS)
         #: the simulated world's latest state and its recent pings (under `_lock`).
@@ -160,6 +162,8 @@ class Hub:
         """What a page opening now needs, in the order it should apply it."""
         events: list[dict[str, Any]] = list(self.availability.values())
         events += self.retained.values()
+        if self.broker is not None:
+            events.append(self.broker)
         if self.orchestrator is not None:
             events.append(self.orchestrator)
         events += self.trace
@@ -175,6 +179,10 @@ class Hub:
 
     def attach(self, page: Page) -> None:
         """Register a page; it gets the snapshot now and every flush after."""
+        with self._lock:
+            pending = self._scheduled
+        if pending:  # what came in since the last flush (the run's last world) is in the snapshot
+            self._safe_flush()
         page.frame(self.snapshot())
         world = self.world_snapshot()
         if world is not None:
@@ -240,6 +248,8 @@ class Hub:
             self.retained[f"{event.get('robot')}/{event.get('component')}"] = event
         elif kind == "orchestrator":
             self.orchestrator = event
+        elif kind == "broker":
+            self.broker = event
 
     def _due(self) -> None:
         wait = self._last_flush + FLUSH_S - time.monotonic()

@@ -8,18 +8,14 @@ a second definition of the model format. `library()` is the one conversion of th
 
 from __future__ import annotations
 
+import re
 from collections.abc import Mapping
 from functools import lru_cache
 from typing import Any
 
-from pydantic import ValidationError
-
 from compiler.checker import RESERVED, SLEEP_BUILTINS
 from compiler.source import NODE_FIELDS, NODE_KINDS
 from umlbot import library as lib
-from umlbot.logs import get_logger
-
-log = get_logger(__name__)
 
 _FIELD_DOCS: dict[str, tuple[str, str]] = {
     "next": ("node", "the node that follows (default: the node written below)"),
@@ -45,31 +41,11 @@ def _feature(spec: lib.FeatureSpec) -> dict[str, Any]:
     return {"params": [_param(p) for p in spec.params], "returns": spec.returns, "doc": spec.doc}
 
 
-def settings_models(impl: lib.Implementation) -> list[tuple[str, Any]]:
-    """The pydantic models of an implementation's settings on the real hardware: one per hardware
-    driver of its service kind (every driver but `auto` and the mock and sim ones, built-in or a
-    plugin's), the same model once. `driver: auto` may pick any of them, so a deployment's
-    settings must satisfy each. Empty when the service kind has no hardware driver."""
-    from services.registry import AUTO, PREFIXED_DRIVERS, get_factory, known_drivers
-    from umlbot.errors import DriverError, UnknownDriver
-
-    models: list[tuple[str, Any]] = []
-    for driver in known_drivers(impl.service):
-        if driver == AUTO or driver in PREFIXED_DRIVERS:
-            continue
-        try:
-            model = get_factory(impl.service, driver).settings_model
-        except (UnknownDriver, DriverError) as exc:  # a plugin's driver that does not load
-            log.warning("studio: no settings model from a driver", driver=driver, error=str(exc))
-            continue
-        if all(model is not seen for _, seen in models):
-            models.append((driver, model))
-    return models
-
-
 def settings_model(impl: lib.Implementation) -> Any:
     """The settings model the page's form is built from (the first hardware driver's), or None."""
-    models = settings_models(impl)
+    from services.registry import hardware_settings_models
+
+    models = hardware_settings_models(impl.service)
     return models[0][1] if models else None
 
 
@@ -114,20 +90,51 @@ def library() -> dict[str, Any]:
 
 
 def check_settings(impl_name: str, settings: Mapping[str, Any]) -> str | None:
-    """Why `settings` are not valid for the implementation `impl_name` (None when they are)."""
-    from services.registry import driver_settings
+    """Why `settings` are not valid for the implementation `impl_name` on the hardware (None when
+    they are): the editor deploys a component with the settings every hardware driver accepts."""
+    from services.registry import AUTO, settings_problems
 
     impl = lib.resolve_implementation(impl_name)
     if impl is None:
         known = ", ".join(lib.implementations())
         return f"unknown implementation {impl_name!r} (known: {known})"
-    problems: list[str] = []
-    for driver, model in settings_models(impl):
-        try:
-            model.model_validate(driver_settings(driver, settings))
-        except ValidationError as exc:
-            for err in exc.errors():
-                problem = f"{'.'.join(str(p) for p in err['loc']) or 'settings'}: {err['msg']}"
-                if problem not in problems:
-                    problems.append(problem)
+    problems = [f"{'.'.join(str(p) for p in path) or 'settings'}: {msg}"
+                for path, msg in settings_problems(impl.service, AUTO, settings)]
     return "invalid settings: " + "; ".join(problems) if problems else None
+
+
+def settings_problems(impl_name: str, settings: Mapping[str, Any]) -> list[tuple[str, str]]:
+    """(setting, what is wrong) for each problem `check_settings` finds, in words for the person
+    who typed the value ("must be at most 27"); the setting is "" for the settings as a whole."""
+    from services.registry import AUTO
+    from services.registry import settings_problems as problems
+
+    impl = lib.resolve_implementation(impl_name)
+    if impl is None:
+        return [("", f"unknown implementation {impl_name!r}")]
+    out: list[tuple[str, str]] = []
+    for path, msg in problems(impl.service, AUTO, settings):
+        key = str(path[0]) if path else ""
+        entry = (key, _plain(msg))
+        if entry not in out:
+            out.append(entry)
+    return out
+
+
+_PYDANTIC_WORDS = (
+    (re.compile(r"^Input should be less than or equal to (.+)$"), r"must be at most \1"),
+    (re.compile(r"^Input should be greater than or equal to (.+)$"), r"must be at least \1"),
+    (re.compile(r"^Input should be less than (.+)$"), r"must be below \1"),
+    (re.compile(r"^Input should be greater than (.+)$"), r"must be above \1"),
+    (re.compile(r"^Input should be a valid integer.*$"), "must be a whole number"),
+    (re.compile(r"^Input should be a valid number.*$"), "must be a number"),
+    (re.compile(r"^Field required$"), "is required"),
+    (re.compile(r"^Extra inputs are not permitted$"), "is not a setting of this part"),
+)
+
+
+def _plain(msg: str) -> str:
+    for pattern, words in _PYDANTIC_WORDS:
+        if pattern.match(msg):
+            return pattern.sub(words, msg)
+    return msg[0].lower() + msg[1:] if msg else msg

@@ -30,16 +30,9 @@ log = get_logger(__name__)
 RUN_SPEED = 2.0
 
 
-def bundled_tracks() -> dict[str, Path]:
-    """The tracks that come with umlbot, by name (`s_bend`, …)."""
-    from umlbot.sim.track import tracks_dir
-
-    folder = tracks_dir()
-    return {p.stem: p for p in sorted(folder.glob("*.yaml"))} if folder.is_dir() else {}
-
-
 def resolve_track(track: Any, model_root: Path) -> Path:
     """A bundled track's name, or a track file inside the model folder (nothing else)."""
+    from umlbot.sim.track import bundled_tracks
     from umlbot.studio.workspace import safe_path
 
     if not isinstance(track, str) or not track:

@@ -57,21 +57,31 @@ def is_loopback(host: str) -> bool:
 
 
 def check_bind(host: str, allow_remote: bool) -> None:
-    """Refuse a non-loopback bind unless the user asked for it explicitly."""
-    if not is_loopback(host) and not allow_remote:
+    """Refuse a host name that does not resolve (that is the first thing to fix), then a
+    non-loopback bind unless the user asked for it explicitly."""
+    if is_loopback(host):
+        return
+    try:
+        socket.getaddrinfo(host, None, type=socket.SOCK_STREAM)
+    except (socket.gaierror, UnicodeError) as exc:
+        reason = exc.strerror if isinstance(exc, socket.gaierror) and exc.strerror else str(exc)
+        raise ConfigError(f"studio cannot listen on --host {host}: the name is not known "
+                          f"({reason})") from None
+    if not allow_remote:
         raise ConfigError(
             f"--host {host} would let anyone who can reach this machine watch the robot and its "
             "model; add --allow-remote to bind to it anyway (see docs/studio.md, Security)"
         )
 
 
-def bind_error(host: str, port: int, exc: OSError) -> str:
-    """The one line for a listener that could not start; the hint fits the cause."""
+def bind_error(host: str, port: int, exc: OSError, port_option: str = "--port") -> str:
+    """The one line for a listener that could not start; the hint fits the cause and names the
+    command's option that chooses the port (`port_option`)."""
     if isinstance(exc, socket.gaierror):
         return f"studio cannot listen on --host {host}: the name is not known ({exc.strerror or exc})"
     text = f"studio cannot listen on {host}:{port}: {exc.strerror or exc}"
     if exc.errno == errno.EADDRINUSE:
-        return f"{text} (another studio? choose one with --port)"
+        return f"{text} (another studio? choose another port with {port_option})"
     if exc.errno == errno.EADDRNOTAVAIL:
         return f"{text} (--host must be an address of this machine)"
     return text
@@ -90,6 +100,9 @@ class StudioData:
     replay: dict[str, Any] | None = None
     #: the editing session's part of the hello (None: the page cannot edit).
     edit: Callable[[], dict[str, Any]] | None = None
+    #: the model's `call_timeout_s` (a call unanswered this long is reported, until the
+    #: orchestrator's status says the run's own time-out).
+    call_timeout_s: float | None = None
 
     def hello(self) -> dict[str, Any]:
         return {"type": "hello", "version": PROTOCOL_VERSION, "mode": self.mode, "robot": self.robot,
@@ -111,6 +124,8 @@ class StudioServer:
     tick: Callable[[], None] | None = None
     #: the editing requests (`/api/*`), when the studio edits a model folder.
     api: EditApi | None = None
+    #: the command's option that sets `port` (named when the port is taken).
+    port_option: str = "--port"
     _runner: web.AppRunner | None = None
     _tasks: list[asyncio.Task[None]] = field(default_factory=list)
 
@@ -135,7 +150,7 @@ class StudioServer:
             await site.start()
         except OSError as exc:
             await self._runner.cleanup()
-            raise ConfigError(bind_error(self.host, self.port, exc)) from exc
+            raise ConfigError(bind_error(self.host, self.port, exc, self.port_option)) from exc
         server = getattr(site, "_server", None)
         sockets = getattr(server, "sockets", None) or []
         if sockets:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 import threading
+import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -18,6 +19,7 @@ from umlbot.studio.server import StudioData
 
 if TYPE_CHECKING:
     from compiler.api import CheckResult
+    from compiler.compiled import CompiledModel
     from services.bus.settings import BrokerSettings
     from services.monitor import MonitorEvent
     from services.monitor.live import LiveMonitor
@@ -47,16 +49,85 @@ def studio_data(path: Path, robot: str | None, mode: str = "live",
     robot_id = robot or (compiled.name if compiled is not None else "car")
     return StudioData(mode=mode, robot=robot_id, source=str(path),
                       model=model_view(compiled) if compiled is not None else None,
-                      diagnostics=[diagnostic_view(d) for d in result.diagnostics])
+                      diagnostics=[diagnostic_view(d) for d in result.diagnostics],
+                      call_timeout_s=compiled.call_timeout_s if compiled is not None else None)
 
 
-def replay_events(trace_file: Path, robot: str) -> list[dict[str, Any]]:
-    """Every event of a recorded trace (`umlbot run --trace FILE`) as the page gets it."""
+def replay_data(trace_file: Path, robot: str, model: CompiledModel | None) -> dict[str, Any]:
+    """A recorded trace (`umlbot run --trace FILE`) as the page replays it: `events` (each trace
+    event, the feature calls it made, the orchestrator's state as the trace shows it) and `notes`
+    (what the user should know: a cut-off last line, nodes the model does not have).
+
+    Raises ConfigError for a bad line and for a file without events.
+    """
+    from compiler.compiled import ActionNode, DatastoreNode
+    from compiler.expr import Call, Const, FeatureTarget
     from services.monitor import MonitorState
     from services.monitor.replay import read_trace
+    from umlbot.errors import ConfigError
 
+    # (lane, node) -> the feature call the node makes: component, feature, its text, constant args
+    calls: dict[tuple[str, str], tuple[str, str, str, list[Any] | None]] = {}
+    nodes: set[tuple[str, str]] | None = None
+    if model is not None:
+        nodes = set()
+        for lane in model.lanes.values():
+            for node in lane.nodes.values():
+                nodes.add((lane.name, node.id))
+                expr = node.call if isinstance(node, ActionNode) else (
+                    node.value if isinstance(node, DatastoreNode) else None)
+                if isinstance(expr, Call) and isinstance(expr.target, FeatureTarget):
+                    text = node.label
+                    if isinstance(node, DatastoreNode) and " = " in text:
+                        text = text.split(" = ", 1)[1]  # the call, without the store it sets
+                    consts = [a.value for a in expr.args if isinstance(a, Const)]
+                    args = consts if len(consts) == len(expr.args) else None
+                    calls[(lane.name, node.id)] = (expr.target.component, expr.target.feature, text, args)
+    notes: list[str] = []
     state = MonitorState()
-    return [event_dict(state.observe_trace(trace, robot)) for trace in read_trace(trace_file)]
+    events: list[dict[str, Any]] = []
+    unknown, example = 0, ""
+    fault: dict[str, Any] | None = None
+    for trace in read_trace(trace_file, notes):
+        event = event_dict(state.observe_trace(trace, robot))
+        events.append(event)
+        key = (trace.lane, trace.node)
+        if nodes is not None and key not in nodes:
+            unknown += 1
+            example = example or f"{trace.lane}/{trace.node}"
+        made = calls.get(key)
+        if made is not None:
+            component, feature, text, args = made
+            call: dict[str, Any] = {"type": "call", "time": event["time"], "robot": robot,
+                                    "component": component, "feature": feature, "detail": text,
+                                    "ok": trace.error is None, "latency_ms": trace.duration_ms}
+            if args is not None:
+                call["args"] = args
+            if trace.error is not None:
+                call["error"] = trace.error
+            elif "value" in event:
+                call["value"] = event["value"]
+            events.append(call)
+        if fault is None and trace.level == "error" and math.isfinite(trace.end):
+            fault = event
+    if not events:
+        raise ConfigError(f"{trace_file}: no trace events")
+    times = [e["time"] for e in events if isinstance(e.get("time"), int | float) and math.isfinite(e["time"])]
+    if times:  # the trace has no status messages: what it shows of the orchestrator, said so
+        events.insert(0, {"type": "orchestrator", "time": min(times), "robot": robot, "state": "running",
+                          "detail": "from the trace"})
+        if fault is not None:
+            reason = fault.get("error") or fault.get("detail")
+            events.append({"type": "orchestrator", "time": fault["time"], "robot": robot, "state": "failed",
+                           "detail": f"{fault['lane']}/{fault['node']}: {reason}"})
+        else:
+            events.append({"type": "orchestrator", "time": max(times), "robot": robot, "state": "trace ended",
+                           "detail": "no fault recorded"})
+    if unknown:
+        what = "1 event names a node" if unknown == 1 else f"{unknown} events name nodes"
+        notes.append(f"{what} not in the model (e.g. {example}): is it the model the trace was "
+                     "recorded with?")
+    return {"file": trace_file.name, "events": events, "notes": notes}
 
 
 class BrokerSource:
@@ -66,21 +137,40 @@ class BrokerSource:
     broker is not there yet.
     """
 
-    def __init__(self, settings: BrokerSettings, robot: str, hub: Hub) -> None:
+    def __init__(self, settings: BrokerSettings, robot: str, hub: Hub,
+                 call_timeout_s: float | None = None) -> None:
+        from services.bus.settings import redact_url
+        from services.monitor import MonitorState
         from services.monitor.live import LiveMonitor
+        from services.monitor.state import DEFAULT_CALL_TIMEOUT_S
 
         self.hub = hub
-        self.monitor: LiveMonitor = LiveMonitor(settings, robot, self._on_event)
+        self.url = redact_url(settings.url)
+        # until the orchestrator's status says its time-out, the model's (`call_timeout_s`)
+        state = MonitorState(fallback_call_timeout_s=call_timeout_s or DEFAULT_CALL_TIMEOUT_S)
+        self.monitor: LiveMonitor = LiveMonitor(settings, robot, self._on_event, state=state)
+        self._broker_seen: tuple[object, ...] | None = None
 
     def _on_event(self, event: MonitorEvent) -> None:
         self.hub.push(event_dict(event))
 
     def start(self) -> None:
         self.monitor.start(timeout=None)
+        self.hub.push({"type": "broker", "time": time.time(), "url": self.url, "connected": False,
+                       "attempts": 0, "problem": None})
 
     def tick(self) -> None:
-        """Report calls that stayed unanswered."""
+        """Report calls that stayed unanswered and a change of the broker connection."""
         self.monitor.tick()
+        self.report_broker()
+
+    def report_broker(self) -> None:
+        """Push a `broker` event when the connection's state changed (connected, or why not)."""
+        status = self.monitor.broker_status()
+        seen = (status.get("connected"), status.get("problem"), status.get("attempts"))
+        if seen != self._broker_seen:
+            self._broker_seen = seen
+            self.hub.push({"type": "broker", "time": time.time(), "url": self.url, **status})
 
     def close(self) -> None:
         self.monitor.close()
@@ -90,11 +180,13 @@ class RobotFollower:
     """A `BrokerSource` whose robot can change: `follow` switches to another robot id (the model
     was created or renamed and the robot id is the model's name)."""
 
-    def __init__(self, settings: BrokerSettings, robot: str, hub: Hub) -> None:
+    def __init__(self, settings: BrokerSettings, robot: str, hub: Hub,
+                 call_timeout_s: float | None = None) -> None:
         self.settings = settings
         self.robot = robot
         self.hub = hub
-        self.source = BrokerSource(settings, robot, hub)
+        self.call_timeout_s = call_timeout_s
+        self.source = BrokerSource(settings, robot, hub, call_timeout_s)
         self._lock = threading.Lock()
         self._started = False
 
@@ -117,7 +209,7 @@ class RobotFollower:
             self.source.close()
             self.robot = robot
             self.hub.follow_robot(robot)
-            self.source = BrokerSource(self.settings, robot, self.hub)
+            self.source = BrokerSource(self.settings, robot, self.hub, self.call_timeout_s)
             if self._started:
                 self.source.start()
         log.info("studio follows another robot", robot=robot)
@@ -183,9 +275,14 @@ class WorldSource:
 
 
 def _ping(ping: Any) -> dict[str, Any]:
-    """A sonar ping as a line from the sensor to where it echoed (max range when no echo)."""
-    reach_m = (ping.distance_cm if ping.distance_cm is not None else 400) / 100.0
+    """A sonar ping as a line from the sensor to the wall point its echo came from (the beam is
+    ~15° wide: not always straight ahead); along the beam's centre at max range when no echo."""
     x0, y0 = ping.origin.x, ping.origin.y
+    hit = getattr(ping, "hit", None)
+    if hit is not None:
+        x1, y1 = hit.x, hit.y
+    else:
+        reach_m = (ping.distance_cm if ping.distance_cm is not None else 400) / 100.0
+        x1, y1 = x0 + reach_m * math.cos(ping.angle), y0 + reach_m * math.sin(ping.angle)
     return {"t": round(ping.time_s, 3), "x0": round(x0, 4), "y0": round(y0, 4),
-            "x1": round(x0 + reach_m * math.cos(ping.angle), 4),
-            "y1": round(y0 + reach_m * math.sin(ping.angle), 4), "cm": ping.distance_cm}
+            "x1": round(x1, 4), "y1": round(y1, 4), "cm": ping.distance_cm}

@@ -11,6 +11,7 @@ flow mapping on one line (`- {id: halt, kind: action, call: Stop}`), with quotes
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -22,7 +23,25 @@ Value = str | int | float | bool | None | list[Any] | dict[str, Any]
 
 
 class EditError(ValueError):
-    """An edit that cannot be made (the message says what and where)."""
+    """An edit that cannot be made (the message says what and where).
+
+    `fields` maps the request's keys the problem is about (`name`, `settings.gpio`) to what is
+    wrong with each, in words for the person who typed them; `message` is the message without
+    the operation's number (what the page shows next to the field or in its notice).
+    """
+
+    def __init__(self, message: str, *, fields: dict[str, str] | None = None,
+                 plain: str | None = None) -> None:
+        super().__init__(message)
+        self.fields: dict[str, str] = dict(fields or {})
+        self.message = plain if plain is not None else message
+
+    def answer(self) -> dict[str, Any]:
+        """The body of the request's 400 answer."""
+        body: dict[str, Any] = {"error": str(self), "message": self.message}
+        if self.fields:
+            body["fields"] = self.fields
+        return body
 
 
 _Loader: Any = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
@@ -225,9 +244,12 @@ def replace_node(t: Text, node: yaml.Node, new: str) -> None:
     t.replace(t.start(node), t.end(node), new)
 
 
-def set_key(t: Text, mapping: yaml.MappingNode, key: str, value: Value, block: bool = False) -> None:
+def set_key(t: Text, mapping: yaml.MappingNode, key: str, value: Value, block: bool = False,
+            order: Sequence[str] = ()) -> None:
     """Set `key` of `mapping` to `value`: its value's text is replaced, or a new entry is added at
-    the mapping's end (in a block mapping on its own line; `block` writes a list as a block list)."""
+    the mapping's end (in a block mapping on its own line; `block` writes a list as a block list).
+    With `order` (the keys in the order people write them), a new key goes before the first key
+    of the mapping that `order` puts after it: `call` before `next`, whichever was set first."""
     current = get(mapping, key)
     if (isinstance(current, yaml.ScalarNode) and isinstance(value, str) and current.value == value
             and not is_null(current)):
@@ -242,6 +264,11 @@ def set_key(t: Text, mapping: yaml.MappingNode, key: str, value: Value, block: b
         lines = _block_lines(t.indent_of(at), key, value)
         t.replace(t.line_start(at), t.line_end(at), t.newline.join(lines) + t.newline)
         return
+    later = _later_key(mapping, key, order)
+    if later is not None and mapping.flow_style:
+        at = t.start(later)
+        t.replace(at, at, f"{scalar(key)}: {flow(value, key in EXPRESSION_KEYS)}, ")
+        return
     if mapping.flow_style or not mapping.value:
         _flow_append(t, mapping, f"{scalar(key)}: {flow(value, key in EXPRESSION_KEYS)}")
         return
@@ -251,9 +278,24 @@ def set_key(t: Text, mapping: yaml.MappingNode, key: str, value: Value, block: b
         indent = " " * (t.start(first) - t.line_start(t.start(first)))
     lines = (_block_lines(indent, key, value) if block
              else [f"{indent}{scalar(key)}: {flow(value, key in EXPRESSION_KEYS)}"])
+    if later is not None and t.owns_line(t.start(later)):
+        at = t.line_start(t.start(later))
+        t.replace(at, at, t.newline.join(lines) + t.newline)
+        return
     at = t.end(mapping)
     for line in reversed(lines):
         t.insert_line_after(at, line)
+
+
+def _later_key(mapping: yaml.MappingNode, key: str, order: Sequence[str]) -> yaml.Node | None:
+    """The first key node of `mapping` that `order` puts after `key` (None: `key` goes last)."""
+    if key not in order:
+        return None
+    rank = order.index(key)
+    for knode, _ in mapping.value:
+        if isinstance(knode, yaml.ScalarNode) and knode.value in order and order.index(knode.value) > rank:
+            return knode
+    return None
 
 
 def _block_lines(indent: str, key: str, value: Value) -> list[str]:

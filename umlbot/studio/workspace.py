@@ -20,6 +20,7 @@ import re
 import secrets
 import tempfile
 import threading
+import time
 from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath
 from typing import Any
@@ -28,10 +29,12 @@ from compiler.api import CheckResult, check_model
 from compiler.source import ACTIVITIES_DIR, MODEL_FILE, Unreadable, read_model_folder
 from umlbot.errors import ModelError
 from umlbot.files import decode_utf8, file_problem, loads_json
-from umlbot.studio.edit import EditError, apply_ops, parse_ops
+from umlbot.studio.edit import EditError, Rename, apply_ops, parse_ops, rename_positions
 from umlbot.studio.model_view import attribute, diagnostic_view, node_index, source_view
 
 LAYOUT_FILE = ".umlbot-studio.json"
+#: unsaved edits kept when the studio quits; the next start offers to restore or discard them.
+RECOVERY_FILE = ".umlbot-studio-recovery.json"
 HISTORY = 200
 
 
@@ -157,6 +160,9 @@ class State:
     """One state of the working copy (what undo and redo go back and forth between)."""
 
     files: dict[str, Content]
+    #: the renames that going back to this state undoes: the layout's positions follow them
+    #: (positions are not edits, but a position kept under a name that is gone is lost)
+    renames: list[Rename] = field(default_factory=list)
 
 
 @dataclass
@@ -181,6 +187,8 @@ class Workspace:
         self._seen_disk = dict(self.disk)
         self.result: CheckResult | None = None
         self.answer_cache: dict[str, Any] = {}
+        #: unsaved edits a previous studio kept when it quit (None: none, or decided).
+        self.recovery: dict[str, Any] | None = self._read_recovery()
         self.check()
 
     # --- reading -----------------------------------------------------------------------------------
@@ -201,7 +209,7 @@ class Workspace:
         """The `edit` part of the socket's hello."""
         return {"token": self.token, "root": str(self.root), "empty": self.empty, "dirty": self.dirty,
                 "version": self.version, "layout": self.layout, "conflict": sorted(self.conflicts),
-                **self.answer_cache}
+                "recovery": self.recovery_view(), **self.answer_cache}
 
     def texts(self) -> dict[str, str]:
         """The files' texts (a bad byte shown as U+FFFD); a file that cannot be read is left out
@@ -225,7 +233,8 @@ class Workspace:
         self.answer_cache = {
             "model": source_view(result.source) if result.source is not None and self.files else None,
             "compiled": result.model is not None,
-            "diagnostics": diagnostics,
+            # an empty folder is offered a starter, not told that it is no model
+            "diagnostics": diagnostics if self.files else [],
         }
         return self.answer()
 
@@ -259,7 +268,8 @@ class Workspace:
             except UnicodeDecodeError:
                 texts[rel] = None
             # None: there but unreadable, which an edit refuses to change; the compiler reports it
-        changes = apply_ops(texts, text_ops) if text_ops else {}
+        renames: list[Rename] = []
+        changes = apply_ops(texts, text_ops, renames) if text_ops else {}
         for op in layout_ops:
             diagram = op.diagram or "components"
             positions = op.positions or {}
@@ -272,7 +282,8 @@ class Workspace:
         self.version += 1
         if not changes:
             return self.answer()
-        self.undo_stack.append(State(dict(self.files)))
+        moved = rename_positions(self.layout, renames)
+        self.undo_stack.append(State(dict(self.files), [r.reverse() for r in reversed(renames)]))
         del self.undo_stack[:-HISTORY]
         self.redo_stack.clear()
         for rel, text in changes.items():
@@ -281,7 +292,7 @@ class Workspace:
             else:
                 self.files[rel] = text.encode("utf-8")
         self.check()
-        return self.answer(sorted(changes))
+        return self._with_layout(self.answer(sorted(changes)), moved)
 
     def undo(self) -> dict[str, Any]:
         return self._step(self.undo_stack, self.redo_stack, "undo")
@@ -293,12 +304,17 @@ class Workspace:
         if not source:
             raise Conflict({"error": f"nothing to {what}", "version": self.version})
         state = source.pop()
-        other.append(State(dict(self.files)))
+        other.append(State(dict(self.files), [r.reverse() for r in reversed(state.renames)]))
+        moved = rename_positions(self.layout, state.renames)
         changed = _differ(state.files, self.files)
         self.files = state.files
         self.version += 1
         self.check()
-        return self.answer(changed)
+        return self._with_layout(self.answer(changed), moved)
+
+    def _with_layout(self, answer: dict[str, Any], moved: bool) -> dict[str, Any]:
+        """The answer, with the layout when a rename moved positions to the new names."""
+        return {**answer, "layout": self.layout} if moved else answer
 
     # --- files on disk -------------------------------------------------------------------------------
 
@@ -383,13 +399,96 @@ class Workspace:
             frames.append({"type": "conflict", "changed": sorted(self.conflicts), "version": self.version})
         return frames
 
+    # --- unsaved edits when the studio quits ------------------------------------------------------
+
+    def _read_recovery(self) -> dict[str, Any] | None:
+        path = self.root / RECOVERY_FILE
+        try:
+            data = json.loads(path.read_bytes().decode("utf-8"))
+        except FileNotFoundError:
+            return None
+        except (OSError, ValueError):
+            return None  # not ours to judge: left as it is on disk
+        if not isinstance(data, dict) or not isinstance(data.get("files"), dict):
+            return None
+        files = data["files"]
+        if not all(isinstance(k, str) and (v is None or isinstance(v, str)) for k, v in files.items()):
+            return None
+        return data
+
+    def recovery_view(self) -> dict[str, Any] | None:
+        """What the page says about kept edits: when, which files."""
+        if self.recovery is None:
+            return None
+        return {"time": self.recovery.get("time"), "files": sorted(self.recovery["files"]),
+                "layout": self.recovery.get("layout") is not None}
+
+    def keep_unsaved(self) -> Path | None:
+        """The studio quits: write the unsaved edits (the changed files' texts, None for a removed
+        one, and the layout) into `RECOVERY_FILE` inside the folder, atomically; the model's own
+        files are not touched. A recovery file not yet restored or discarded is kept beside it
+        under a name with its time. The path written, None when there was nothing unsaved."""
+        if not self.dirty:
+            return None
+        files: dict[str, str | None] = {}
+        for rel in self.changed_files():
+            data = self.files.get(rel)
+            if data is None:
+                files[rel] = None
+            elif isinstance(data, bytes):
+                files[rel] = data.decode("utf-8", "surrogateescape")
+        body: dict[str, Any] = {
+            "time": time.strftime("%Y-%m-%d %H:%M:%S"),
+            "files": files,
+            "layout": self.layout if self.layout != self.layout_disk else None,
+        }
+        path = self.root / RECOVERY_FILE
+        if self.recovery is not None and path.exists():
+            stamp = re.sub(r"\D", "", str(self.recovery.get("time") or "")) or str(int(time.time()))
+            os.replace(path, self.root / f".umlbot-studio-recovery.{stamp}.json")
+        write_atomic(self.root, RECOVERY_FILE,
+                     (json.dumps(body, indent=1, sort_keys=True) + "\n").encode("utf-8"))
+        return path
+
+    def recover(self, action: Any) -> dict[str, Any]:
+        """`restore`: the kept edits become the working copy's (unsaved: Save writes them; Undo
+        goes back to the files on disk); `discard`: forget them. Either way the recovery file
+        goes."""
+        if self.recovery is None:
+            raise Conflict({"error": "there are no kept edits", "version": self.version})
+        if action not in ("restore", "discard"):
+            raise EditError("'action' is restore or discard")
+        changed: list[str] = []
+        if action == "restore":
+            self.undo_stack.append(State(dict(self.files)))
+            self.redo_stack.clear()
+            for rel, text in self.recovery["files"].items():
+                safe_path(self.root, rel)
+                if isinstance(self.files.get(rel), Unreadable):
+                    continue  # never over a file that cannot be read
+                if text is None:
+                    self.files.pop(rel, None)
+                else:
+                    self.files[rel] = text.encode("utf-8", "surrogateescape")
+                changed.append(rel)
+            layout = self.recovery.get("layout")
+            if isinstance(layout, dict):
+                self.layout = layout
+            self.version += 1
+        with contextlib.suppress(FileNotFoundError):
+            safe_path(self.root, RECOVERY_FILE).unlink()
+        self.recovery = None
+        self.check()
+        return {**self.answer(sorted(changed)), "layout": self.layout}
+
     def new_model(self, name: str | None) -> dict[str, Any]:
         """Write the starter model into an empty folder (and save it)."""
         if not self.empty:
             raise Conflict({"error": "the folder holds a model already", "version": self.version})
         model_name = name or self.root.resolve().name
         if not re.fullmatch(r"[A-Za-z0-9_][A-Za-z0-9_-]*", model_name):
-            raise EditError(f"a model's name is a plain name (letters, digits, _ and -), not {model_name!r}")
+            raise EditError(f"a model's name is a plain name (letters, digits, _ and -), not {model_name!r}",
+                            fields={"name": "must be a plain name (letters, digits, _ and -; no spaces)"})
         self.root.mkdir(exist_ok=True)
         self.files = {rel: text.replace("{name}", model_name).encode("utf-8")
                       for rel, text in STARTER.items()}

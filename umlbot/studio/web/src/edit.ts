@@ -119,7 +119,7 @@ export class Editor {
   private layout: LayoutMap;
   private sel: Selection = null;
   private connectFrom: { lane: string; id: string } | null = null;
-  private queue: { ops: Op[]; resolve: (ok: boolean) => void }[] = [];
+  private queue: { ops: Op[]; resolve: (ok: boolean) => void; form?: HTMLElement }[] = [];
   private forceSave = false;
   private laneFile = "";
 
@@ -140,7 +140,7 @@ export class Editor {
     this.hooks = hooks;
     this.layout = info.layout?.positions ?? {};
     document.body.classList.add("editing");
-    this.tools.hidden = false;
+    this.tools.hidden = info.empty; // Undo, Save, Run: once there is a model
     this.palette.hidden = false;
     this.props.hidden = false;
     this.hooks.version = info.version;
@@ -154,11 +154,21 @@ export class Editor {
     void this.loadLibrary();
     void this.loadTracks();
     this.renderProps();
+    // a double click on a node, a lane's title or a component: its name, ready to be typed over
+    host.canvas.addEventListener("dblclick", (ev) => {
+      const t = ev.target as Element;
+      if (!t.closest?.("g.node, g.component, .lane-header, .lane-title, .lane-sub")) return;
+      const input = this.props.querySelector<HTMLInputElement>('input[name="rename"]');
+      if (!input) return;
+      input.focus();
+      input.select();
+    });
   }
 
   /** A new hello (reconnect): the server's state wins. */
   setInfo(info: EditInfo): void {
     this.info = info;
+    this.tools.hidden = info.empty;
     this.layout = info.layout?.positions ?? {};
     this.hooks.version = info.version;
     this.setDirty(info.dirty);
@@ -169,13 +179,47 @@ export class Editor {
   /** After the hello's model is drawn: a standing conflict, a run going on. */
   afterHello(info: EditInfo): void {
     if (info.conflict?.length) this.showConflict(info.conflict);
-    if (info.run) this.onRun({ type: "run", state: info.run.running ? "running" : "ended", ...info.run });
+    if (info.run) this.onRun({ type: "run", state: info.run.running ? "running" : "ended", ...info.run }, true);
+    if (info.recovery && !info.conflict?.length) this.showRecovery(info.recovery);
   }
 
-  onRun(msg: RunMsg): void {
+  /** Edits a previous studio kept when it quit unsaved: the user restores or discards them. */
+  private showRecovery(r: NonNullable<EditInfo["recovery"]>): void {
+    const when = r.time ?? "a previous session";
+    const what = [...r.files, ...(r.layout ? ["positions"] : [])].join(", ");
+    this.showNotice("recovery", `The studio quit with unsaved edits (${what}); they were kept, your files are unchanged.`, [
+      ["restore", `Restore the unsaved edits of ${when}`, async () => {
+        const a = await this.request<EditAnswer>("/api/recover", { action: "restore" });
+        if (a) {
+          this.apply(a);
+          this.showNotice("restored", `Restored the edits of ${when}: Save writes them, Undo goes back to the files.`, [], 8000);
+        }
+      }],
+      ["discard", "Discard", async () => {
+        if (await this.request<EditAnswer>("/api/recover", { action: "discard" })) {
+          this.showNotice("discarded", "The kept edits were discarded.", [], 4000);
+        }
+      }],
+    ]);
+  }
+
+  /** `again`: the hello repeats a run that ended already (a reload): its end was said once. */
+  onRun(msg: RunMsg, again = false): void {
     this.setRunning(msg.running ?? msg.state === "running");
     const r = msg.result;
+    const key = `umlbot-studio-run-end:${this.info.token}`;
+    const stamp = JSON.stringify(r ?? null);
+    if (msg.state === "ended" && r && again) {
+      let seen = false;
+      try {
+        seen = localStorage.getItem(key) === stamp;
+      } catch { /* no storage: say it */ }
+      if (seen) return;
+    }
     if (msg.state === "ended" && r) {
+      try {
+        localStorage.setItem(key, stamp);
+      } catch { /* no storage */ }
       const what = r.goal_reached ? "reached the goal" : `ended: ${r.failure ?? r.reason ?? "stopped"}`;
       const figures = [r.sim_s !== undefined ? `${r.sim_s.toFixed(1)} s` : "", r.distance_m !== undefined ? `${r.distance_m.toFixed(2)} m` : "",
         r.collisions ? `${r.collisions} collision${r.collisions === 1 ? "" : "s"}` : ""].filter(Boolean).join(" · ");
@@ -193,15 +237,17 @@ export class Editor {
     const form = el("form", { id: "new-model-form" }, target);
     el("h2", {}, form, "This folder has no model yet");
     el("p", {}, form, `Start one in ${this.info.root}: a starter model with the car's components, their deployment and a main activity (start → end).`);
-    const name = el("input", { name: "model-name", placeholder: "robot name", value: this.info.root.split("/").filter(Boolean).pop() ?? "my_robot", required: "" }, form);
+    const name = el("input", { name: "model-name", placeholder: "robot name", value: this.info.root.split("/").filter(Boolean).pop() ?? "my_robot", required: "", "data-field": "name" }, form);
     const btn = el("button", { id: "new-model", type: "submit" }, form, "Create the model");
     form.onsubmit = async (ev) => {
       ev.preventDefault();
       btn.disabled = true;
-      const a = await this.request<EditAnswer>("/api/new", { name: name.value.trim() });
+      clearFieldErrors(form);
+      const a = await this.request<EditAnswer>("/api/new", { name: name.value.trim() }, false, form);
       btn.disabled = false;
       if (a) {
         this.info.empty = false;
+        this.tools.hidden = false;
         this.apply(a);
       }
     };
@@ -210,7 +256,7 @@ export class Editor {
   // ------------------------------------------------------------------ server
 
   /** POST to the studio with the token; null (and a notice, unless `quiet`) when it failed. */
-  private async request<T>(path: string, body: Record<string, unknown>, quiet = false): Promise<T | null> {
+  private async request<T>(path: string, body: Record<string, unknown>, quiet = false, form?: HTMLElement): Promise<T | null> {
     this.hooks.requests += 1;
     try {
       const res = await fetch(path, {
@@ -230,9 +276,13 @@ export class Editor {
         return null;
       }
       if (!res.ok) {
-        const err = (data as { error?: string } | null)?.error ?? `${res.status} ${res.statusText}`;
+        const failed = data as { error?: string; message?: string; fields?: Record<string, string> } | null;
+        const err = failed?.message ?? failed?.error ?? `${res.status} ${res.statusText}`;
         if (quiet) return null;
-        if (res.status === 409 && (data as { conflict?: string[] } | null)?.conflict) {
+        if (form && failed?.fields && markFieldErrors(form, failed.fields)) {
+          // said at the field(s) it is about; a notice of an earlier problem is stale now
+          this.clearErrorNotice();
+        } else if (res.status === 409 && (data as { conflict?: string[] } | null)?.conflict) {
           this.showConflict((data as { conflict: string[] }).conflict);
         } else if (res.status === 409 && path === "/api/edit") {
           // another window edited meanwhile: take the server's state (a fresh hello) and say so
@@ -242,6 +292,7 @@ export class Editor {
         this.hooks.errors.push(err);
         return null;
       }
+      if (!quiet) this.clearErrorNotice(); // it worked: an error shown before is over
       return data as T;
     } catch (exc) {
       if (quiet) return null;
@@ -250,10 +301,17 @@ export class Editor {
     }
   }
 
-  /** Apply operations (queued: one request at a time, each with the version it edits). */
-  edit(ops: Op[]): Promise<boolean> {
+  /** An error notice goes when a later request succeeds (what it said is fixed or moot). */
+  private clearErrorNotice(): void {
+    if (this.notice.dataset.kind === "error") this.notice.hidden = true;
+  }
+
+  /** Apply operations (queued: one request at a time, each with the version it edits); a problem
+   * with a field of `form` (`data-field`) is shown at that field. */
+  edit(ops: Op[], form?: HTMLElement): Promise<boolean> {
+    if (form) clearFieldErrors(form);
     return new Promise((resolve) => {
-      this.queue.push({ ops, resolve });
+      this.queue.push({ ops, resolve, form });
       if (this.queue.length === 1) void this.pump();
     });
   }
@@ -261,8 +319,8 @@ export class Editor {
   private async pump(): Promise<void> {
     this.hooks.busy = true;
     while (this.queue.length) {
-      const { ops, resolve } = this.queue[0];
-      const a = await this.request<EditAnswer>("/api/edit", { version: this.hooks.version, ops });
+      const { ops, resolve, form } = this.queue[0];
+      const a = await this.request<EditAnswer>("/api/edit", { version: this.hooks.version, ops }, false, form);
       if (a) this.apply(a, !ops.every((o) => o.op === "set_layout"));
       this.queue.shift();
       resolve(!!a);
@@ -490,7 +548,7 @@ export class Editor {
     }
     el("div", { class: "panel-title" }, p, "Swimlanes");
     const form = el("form", { class: "add-lane" }, p);
-    const lane = el("input", { name: "lane-name", placeholder: "component or new activity", list: "lane-options", autocomplete: "off" }, form);
+    const lane = el("input", { name: "lane-name", placeholder: "component or new activity", list: "lane-options", autocomplete: "off", "data-field": "lane" }, form);
     const dl = el("datalist", { id: "lane-options" }, form);
     const used = new Set(m.diagrams.flatMap((d) => d.lanes.map((l) => l.name)));
     for (const c of m.components) if (!used.has(c.name)) el("option", { value: c.name }, dl);
@@ -507,7 +565,7 @@ export class Editor {
       if (!name) return;
       const op: Op = { op: "add_lane", lane: name };
       if (file.value) op.file = file.value;
-      if (await this.edit([op])) {
+      if (await this.edit([op], form)) {
         lane.value = "";
         const d = this.host.model()?.diagrams.find((x) => x.lanes.some((l) => l.name === name));
         if (d) this.host.select(d.id);
@@ -763,6 +821,7 @@ export class Editor {
 
   /** Keys of the editor; true when handled. */
   key(ev: KeyboardEvent): boolean {
+    if (this.info.empty) return false; // no model yet: nothing to save, undo or delete
     const t = ev.target as HTMLElement;
     const typing = /^(INPUT|SELECT|TEXTAREA)$/.test(t.tagName);
     const mod = ev.ctrlKey || ev.metaKey;
@@ -797,9 +856,49 @@ export class Editor {
     return false;
   }
 
-  private async removeSelection(): Promise<void> {
+  /** What deleting the selection takes with it that the user may not see (null: nothing much). */
+  private loss(s: NonNullable<Selection>): string | null {
+    const m = this.host.model();
+    if (!m) return null;
+    const plural = (n: number, what: string): string => `${n} ${what}${n === 1 ? "" : "s"}`;
+    if (s.type === "lane") {
+      const lane = this.lane(s.lane);
+      if (!lane) return null;
+      const n = lane.nodes.filter((x) => x.kind !== "start" && x.kind !== "end").length;
+      const alone = m.diagrams.find((d) => d.file === lane.file)?.lanes.length === 1;
+      if (!n) return null;
+      return `Delete the swimlane ${s.lane} with its ${plural(lane.nodes.length, "node")}${alone ? ` and its file ${lane.file}` : ""}?`;
+    }
+    if (s.type === "component") {
+      const lanes = m.diagrams.flatMap((d) => d.lanes).filter((l) => (l.component ?? l.name) === s.name && !l.virtual);
+      let calls = 0;
+      for (const d of m.diagrams) for (const l of d.lanes) for (const x of l.nodes) {
+        const text = [x.label, ...Object.values(x.fields ?? {}).map((v) => (typeof v === "string" ? v : JSON.stringify(v)))].join(" ");
+        if (new RegExp(`(^|[^\\w.])${s.name}\\.`).test(text)) calls += 1;
+      }
+      if (!lanes.length && !calls) return null;
+      const parts = [lanes.length ? `${plural(lanes.length, "swimlane")} run${lanes.length === 1 ? "s" : ""} on it` : "",
+        calls ? `${plural(calls, "node")} call${calls === 1 ? "s" : ""} it` : ""].filter(Boolean);
+      return `Delete the component ${s.name}? ${parts.join(" and ")} (${lanes.length && calls ? "they" : lanes.length ? "it" : "they"} will no longer check).`;
+    }
+    return null;
+  }
+
+  private async removeSelection(confirmed = false): Promise<void> {
     const s = this.sel;
     if (!s) return;
+    const loss = confirmed ? null : this.loss(s);
+    if (loss) {
+      const what = JSON.stringify(s);
+      this.showNotice("confirm", loss, [
+        ["confirm", "Delete", async () => {
+          this.notice.hidden = true;
+          if (JSON.stringify(this.sel) === what) await this.removeSelection(true);
+        }],
+        ["cancel", "Keep it", () => { this.notice.hidden = true; }],
+      ]);
+      return;
+    }
     let op: Op | null = null;
     if (s.type === "node") op = { op: "remove_node", lane: s.lane, id: s.id };
     else if (s.type === "edge") op = { op: "disconnect", lane: s.lane, source: s.source, target: s.target };
@@ -859,12 +958,35 @@ export class Editor {
     return b;
   }
 
+  /** A name and a Rename button: the server renames it and every reference to it; a refused name
+   * is said at the field. */
+  private renameForm(body: HTMLElement, label: string, current: string, field: string, op: (name: string) => Op,
+    selection: (name: string) => NonNullable<Selection>): void {
+    const form = el("form", { class: "row rename", novalidate: "" }, body);
+    el("span", { class: "key" }, form, label);
+    const input = el("input", { name: "rename", value: current, autocomplete: "off", spellcheck: "false", size: "14", "data-field": field, "data-label": label }, form);
+    input.title = "a new name: every reference to it in the model is renamed too";
+    el("button", { type: "submit", name: "apply-rename" }, form, "Rename");
+    form.onsubmit = async (ev) => {
+      ev.preventDefault();
+      const name = input.value.trim();
+      if (!name || name === current) return;
+      if (await this.edit([op(name)], form)) {
+        this.sel = selection(name);
+        this.renderProps();
+        this.highlightSelection();
+      }
+    };
+  }
+
   private nodeProps(body: HTMLElement, laneName: string, id: string): void {
     const lane = this.lane(laneName);
     const node = lane?.nodes.find((n) => n.id === id);
     if (!lane || !node) return;
     el("div", { class: "props-head" }, body, `${node.kind} · ${id}`);
     el("div", { class: "props-sub" }, body, `swimlane ${laneName} · ${lane.file}:${node.line}`);
+    this.renameForm(body, "id", id, "new_id", (v) => ({ op: "rename_node", lane: laneName, id, new_id: v }),
+      (v) => ({ type: "node", lane: laneName, id: v }));
     const marks = this.host.diagnostics().filter((d) => sameFile(d.file, lane.file) && d.line >= node.line && d.line < nextLine(lane, node));
     for (const d of marks) el("div", { class: `problem ${d.severity}`, "data-severity": d.severity }, body, d.text);
     const fields = this.library?.node_kinds[node.kind]?.fields ?? defaultFields(node.kind);
@@ -934,6 +1056,12 @@ export class Editor {
     el("div", { class: "props-head" }, body, `swimlane ${laneName}`);
     el("div", { class: "props-sub" }, body,
       `${lane.virtual ? "virtual: an activity that other lanes call" : `runs on the component ${lane.component ?? laneName}`} · ${lane.file}:${lane.line}`);
+    if (lane.virtual) {
+      this.renameForm(body, "name", laneName, "new_name", (v) => ({ op: "rename_lane", lane: laneName, new_name: v }),
+        (v) => ({ type: "lane", lane: v }));
+    } else {
+      el("div", { class: "hint", "data-hint": "rename" }, body, `Its name is the component's: rename the component ${laneName} to rename it.`);
+    }
     el("div", { class: "hint" }, body, "Drag nodes from the palette into it, or click a node kind to add it here.");
     const actions = el("div", { class: "actions" }, body);
     this.button(actions, "remove-lane", "Delete swimlane", () => void this.removeSelection(), "danger");
@@ -956,16 +1084,17 @@ export class Editor {
     let n = 1;
     const base = impl.kind[0].toUpperCase() + impl.kind.slice(1);
     while (taken.has(`${base}${n}`)) n += 1;
-    const name = el("input", { name: "name", value: seed ?? `${base}${n}`, autocomplete: "off", spellcheck: "false" }, this.row(form, "name"));
+    const name = el("input", { name: "name", value: seed ?? `${base}${n}`, autocomplete: "off", spellcheck: "false", "data-field": "name" }, this.row(form, "name"));
     el("div", { class: "hint" }, form, `features: ${Object.keys(features(impl, this.library)).join(", ")}`);
     const settings = this.settingsForm(form, impl, {});
     el("button", { type: "submit", name: "add" }, form, "Add component");
     form.onsubmit = async (ev) => {
       ev.preventDefault();
+      clearFieldErrors(form);
       const values = settings();
       if (values === null) return;
       const op: Op = { op: "add_component", name: name.value.trim(), kind: impl.kind, impl: impl.id, settings: values };
-      if (await this.edit([op])) {
+      if (await this.edit([op], form)) {
         this.sel = { type: "component", name: name.value.trim() };
         this.renderProps();
       }
@@ -979,7 +1108,7 @@ export class Editor {
     const required = new Set(root.required ?? []);
     const box = el("fieldset", { class: "settings", "data-impl": impl.id }, parent);
     el("legend", {}, box, `settings of ${impl.id}`);
-    const readers: [string, () => { ok: boolean; value?: unknown }][] = [];
+    const readers: [string, () => { ok: boolean; value?: unknown; why?: string }][] = [];
     if (!Object.keys(props).length) el("div", { class: "hint" }, box, "no settings");
     for (const [key, raw] of Object.entries(props)) {
       const s = resolve(raw, root);
@@ -992,20 +1121,20 @@ export class Editor {
       // sent: what the deployment has, what is required, and what the user changed from the default
       const keep = key in current || required.has(key);
       if (s.enum) {
-        const sel = el("select", { name: `setting-${key}` }, r);
+        const sel = el("select", { name: `setting-${key}`, "data-field": `settings.${key}` }, r);
         el("option", { value: "" }, sel, "");
         for (const v of s.enum) el("option", { value: JSON.stringify(v) }, sel, String(v));
         if (cur !== undefined) sel.value = JSON.stringify(cur);
         const initial = sel.value;
         readers.push([key, () => ({ ok: true, value: sel.value && (keep || sel.value !== initial) ? JSON.parse(sel.value) : undefined })]);
       } else if (type === "boolean") {
-        const cb = el("input", { type: "checkbox", name: `setting-${key}` }, r);
+        const cb = el("input", { type: "checkbox", name: `setting-${key}`, "data-field": `settings.${key}` }, r);
         cb.checked = cur === true;
         const initial = cb.checked;
         readers.push([key, () => ({ ok: true, value: keep || cb.checked !== initial ? cb.checked : undefined })]);
       } else {
         const numeric = type === "integer" || type === "number";
-        const input = el("input", { name: `setting-${key}`, autocomplete: "off", spellcheck: "false" }, r);
+        const input = el("input", { name: `setting-${key}`, autocomplete: "off", spellcheck: "false", "data-field": `settings.${key}` }, r);
         if (numeric) {
           input.type = "number";
           if (s.minimum !== undefined) input.min = String(s.minimum);
@@ -1020,14 +1149,22 @@ export class Editor {
         const initial = input.value;
         readers.push([key, () => {
           const t = input.value.trim();
-          if (!t) return { ok: !required.has(key) };
+          if (!t) return required.has(key) ? { ok: false, why: "is required" } : { ok: true };
           if (!keep && input.value === initial) return { ok: true }; // the default: not written
-          if (numeric) return Number.isNaN(Number(t)) ? { ok: true, value: t } : { ok: true, value: Number(t) }; // the server says what is wrong
+          if (numeric) {
+            // the schema's own bounds, checked here before anything is sent (the server checks too)
+            const v = Number(t);
+            const bounds = range ? `must be ${range.replace("≥", "at least").replace("≤", "at most")}` : "";
+            if (Number.isNaN(v)) return { ok: false, why: type === "integer" ? "must be a whole number" : "must be a number" };
+            if (type === "integer" && !Number.isInteger(v)) return { ok: false, why: `must be a whole number${range ? `, ${range}` : ""}` };
+            if ((s.minimum !== undefined && v < s.minimum) || (s.maximum !== undefined && v > s.maximum)) return { ok: false, why: bounds };
+            return { ok: true, value: v };
+          }
           if (type === "array" || type === "object") {
             try {
               return { ok: true, value: JSON.parse(t) };
             } catch {
-              return { ok: false };
+              return { ok: false, why: `must be JSON (${type === "array" ? "[1, 2]" : "{}"})` };
             }
           }
           return { ok: true, value: t };
@@ -1037,14 +1174,16 @@ export class Editor {
     }
     return () => {
       const out: Record<string, unknown> = {};
+      const wrong: Record<string, string> = {};
       for (const [key, read] of readers) {
-        const { ok, value } = read();
-        if (!ok) {
-          this.showNotice("error", `settings of ${impl.id}: ${key} needs a valid value`, [], 5000);
-          box.querySelector<HTMLInputElement>(`[name="setting-${CSS.escape(key)}"]`)?.focus();
-          return null;
-        }
-        if (value !== undefined) out[key] = value;
+        const { ok, value, why } = read();
+        if (!ok) wrong[`settings.${key}`] = why ?? "needs a valid value";
+        else if (value !== undefined) out[key] = value;
+      }
+      clearFieldErrors(box);
+      if (Object.keys(wrong).length) {
+        markFieldErrors(box, wrong);
+        return null;
       }
       return out;
     };
@@ -1056,6 +1195,8 @@ export class Editor {
     if (!m || !c) return;
     el("div", { class: "props-head" }, body, `${c.kind} · ${name}`);
     el("div", { class: "props-sub" }, body, `${c.impl} · ${c.service} · ${c.driver}`);
+    this.renameForm(body, "name", name, "new_name", (v) => ({ op: "rename_component", component: name, new_name: v }),
+      (v) => ({ type: "component", name: v }));
     // deployment
     const dep = el("form", { class: "deployment", novalidate: "" }, body);
     el("div", { class: "props-section" }, dep, "Deployment");
@@ -1074,9 +1215,10 @@ export class Editor {
     el("button", { type: "submit", name: "apply-deployment" }, dep, "Apply deployment");
     dep.onsubmit = (ev) => {
       ev.preventDefault();
+      clearFieldErrors(dep);
       const settings = read();
       if (settings === null) return;
-      void this.edit([{ op: "set_deployment", component: name, impl: implSel.value, settings }]);
+      void this.edit([{ op: "set_deployment", component: name, impl: implSel.value, settings }], dep);
     };
     // ports
     el("div", { class: "props-section" }, body, "Ports");
@@ -1086,14 +1228,14 @@ export class Editor {
       this.button(r, "remove-port", "×", () => void this.edit([{ op: "remove_port", component: name, port }]), "small").dataset.port = port;
     }
     const pf = el("form", { class: "inline" }, body);
-    const portName = el("input", { name: "port", placeholder: "port", autocomplete: "off", size: "8" }, pf);
+    const portName = el("input", { name: "port", placeholder: "port", autocomplete: "off", size: "8", "data-field": "port" }, pf);
     const feat = el("select", { name: "port-feature" }, pf);
     for (const f of c.features) el("option", { value: f }, feat, f);
     el("button", { type: "submit", name: "add-port" }, pf, "Add port");
     pf.onsubmit = (ev) => {
       ev.preventDefault();
       if (!portName.value.trim()) return;
-      void this.edit([{ op: "add_port", component: name, port: portName.value.trim(), feature: feat.value }]);
+      void this.edit([{ op: "add_port", component: name, port: portName.value.trim(), feature: feat.value }], pf);
     };
     // links
     el("div", { class: "props-section" }, body, "Links");
@@ -1102,15 +1244,19 @@ export class Editor {
       el("span", {}, r, `${l.id}: ${l.source.component}.${l.source.port} → ${l.target.component}.${l.target.port}`);
       this.button(r, "remove-link", "×", () => void this.edit([{ op: "remove_link", id: l.id }]), "small").dataset.link = l.id;
     }
+    const others = m.components.filter((o) => o.name !== name).flatMap((o) => Object.keys(o.ports).map((port) => `${o.name}.${port}`));
+    if (!Object.keys(c.ports).length || !others.length) {
+      // a link joins two ports: say what is missing instead of an empty list
+      el("div", { class: "hint", "data-hint": "link" }, body,
+        !Object.keys(c.ports).length ? `A link starts at a port of ${name}: add a port first (above).` : "No other component has a port yet: add one to link to.");
+    }
     const lf = el("form", { class: "inline" }, body);
+    lf.hidden = !Object.keys(c.ports).length || !others.length;
     const from = el("select", { name: "link-from" }, lf);
     for (const port of Object.keys(c.ports)) el("option", { value: `${name}.${port}` }, from, `${name}.${port}`);
     el("span", {}, lf, "→");
     const to = el("select", { name: "link-to" }, lf);
-    for (const o of m.components) {
-      if (o.name === name) continue;
-      for (const port of Object.keys(o.ports)) el("option", { value: `${o.name}.${port}` }, to, `${o.name}.${port}`);
-    }
+    for (const o of others) el("option", { value: o }, to, o);
     el("button", { type: "submit", name: "add-link" }, lf, "Add link");
     lf.onsubmit = (ev) => {
       ev.preventDefault();
@@ -1142,6 +1288,27 @@ export class Editor {
       list.hidden = true;
       items = [];
     };
+    // The list floats over the page (fixed, under the input, or above it when the window has
+    // no room below), so the panel's own height and scrolling never cut it.
+    const place = (): void => {
+      if (list.hidden) return;
+      const r = input.getBoundingClientRect();
+      const below = window.innerHeight - r.bottom - 8;
+      const above = r.top - 8;
+      const room = below >= 160 || below >= above ? below : above;
+      list.style.position = "fixed";
+      list.style.left = `${r.left}px`;
+      list.style.width = `${Math.max(r.width, 260)}px`;
+      list.style.maxHeight = `${Math.max(80, Math.min(360, room))}px`;
+      if (room === below) {
+        list.style.top = `${r.bottom + 2}px`;
+        list.style.bottom = "";
+      } else {
+        list.style.top = "";
+        list.style.bottom = `${window.innerHeight - r.top + 2}px`;
+      }
+    };
+    this.props.addEventListener("scroll", place, { passive: true });
     const draw = (): void => {
       list.replaceChildren();
       items.forEach((it, i) => {
@@ -1155,6 +1322,8 @@ export class Editor {
         };
       });
       list.hidden = items.length === 0;
+      place();
+      list.querySelector("li.active")?.scrollIntoView({ block: "nearest" });
     };
     const ask = async (): Promise<void> => {
       const mine = ++seq;
@@ -1300,4 +1469,40 @@ function defaultFields(kind: NodeKind): Record<string, FieldInfo> {
     case "accept": return { signal: { required: true }, store: {} };
     default: return {};
   }
+}
+
+/** Remove the marks `markFieldErrors` left in `form`. */
+export function clearFieldErrors(form: Element): void {
+  for (const e of form.querySelectorAll(".field-error")) e.remove();
+  for (const e of form.querySelectorAll("[aria-invalid]")) {
+    e.removeAttribute("aria-invalid");
+    e.classList.remove("invalid");
+  }
+}
+
+/** Mark each field of `form` named in `fields` (`data-field`) invalid with its message under it
+ * (`gpio: must be 0..27`); true when every problem found its field. */
+export function markFieldErrors(form: Element, fields: Record<string, string>): boolean {
+  let all = true;
+  let first: HTMLElement | null = null;
+  for (const [field, why] of Object.entries(fields)) {
+    const input = form.querySelector<HTMLElement>(`[data-field="${CSS.escape(field)}"]`);
+    if (!input) {
+      all = false;
+      continue;
+    }
+    input.setAttribute("aria-invalid", "true");
+    input.classList.add("invalid");
+    const label = input.dataset.label ?? field.split(".").pop() ?? field;
+    const msg = document.createElement("div");
+    msg.className = "field-error";
+    msg.dataset.field = field;
+    msg.textContent = `${label}: ${why}`;
+    const row = input.closest(".row");
+    if (row) row.append(msg);
+    else input.after(msg); // right under (or beside) the field it is about
+    first ??= input;
+  }
+  first?.focus();
+  return all;
 }

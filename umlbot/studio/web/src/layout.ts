@@ -53,7 +53,13 @@ export interface LaneGeom {
 }
 export interface ActivityLayout { kind: "activity"; diagram: ModelDiagram; width: number; height: number; lanes: LaneGeom[] }
 
-const HEADER_H = 34;
+// The header holds the lane's name, with the stereotype («component», «activity») on a line above it.
+export const HEADER_H = 44;
+/** A guard longer than this is shown cut with an ellipsis (its full text is the label's tooltip). */
+export const GUARD_CHARS = 32;
+export function shortGuard(text: string): string {
+  return text.length > GUARD_CHARS ? text.slice(0, GUARD_CHARS - 1) + "…" : text;
+}
 const LANE_GAP = 0;
 const STATS_W = () => textWidth(STATS_SAMPLE, SMALL_PX);
 // Stats beside a small node (start, end, fork, join, decision) take two lines.
@@ -86,6 +92,11 @@ const LANE_OPTIONS: Record<string, string> = {
   "elk.spacing.edgeNode": "18",
   "elk.spacing.edgeEdge": "12",
   "elk.spacing.edgeLabel": "3",
+  // A guard is an inline label on its own flow, in the first layer after the decision (not in the
+  // middle of a long flow, where it floated between parallel flows): a reader sees which branch
+  // it names, and ELK reserves its room.
+  // (inline and CENTER are set on each label: ELK reads them from the label)
+  "elk.layered.edgeLabels.centerLabelPlacementStrategy": "TAIL_LAYER",
   "elk.layered.considerModelOrder.strategy": "NODES_AND_EDGES",
   "elk.layered.cycleBreaking.strategy": "MODEL_ORDER",
   "elk.layered.nodePlacement.strategy": "NETWORK_SIMPLEX",
@@ -94,9 +105,73 @@ const LANE_OPTIONS: Record<string, string> = {
   "elk.json.shapeCoords": "ROOT",
 };
 
+/**
+ * The lane's nodes in flow order: a depth-first walk from the start node(s) finds the flows that go
+ * back (loops); without them the nodes are sorted topologically (ties in the walk's order). ELK's
+ * model-order cycle breaking then turns around exactly the loops' flows, so everything else flows
+ * down — whatever order the nodes were written (or added in the page) in: start -> a -> b -> end
+ * reads top to bottom even when `end` was written second.
+ */
+export function flowOrder(lane: ModelLane): ModelNode[] {
+  const ids = new Map(lane.nodes.map((n, i) => [n.id, i]));
+  const out: number[][] = lane.nodes.map(() => []);
+  for (const e of lane.edges) {
+    const a = ids.get(e.source);
+    const b = ids.get(e.target);
+    if (a !== undefined && b !== undefined) out[a].push(b);
+  }
+  const seen = new Uint8Array(lane.nodes.length); // 0 new, 1 on the stack, 2 done
+  const pre = new Array<number>(lane.nodes.length).fill(-1);
+  const back = new Set<string>();
+  let counter = 0;
+  const roots = [
+    ...lane.nodes.map((n, i) => (n.kind === "start" ? i : -1)).filter((i) => i >= 0),
+    ...lane.nodes.map((_, i) => i),
+  ];
+  for (const root of roots) {
+    if (seen[root]) continue;
+    const stack: [number, number][] = [[root, 0]];
+    seen[root] = 1;
+    pre[root] = counter++;
+    while (stack.length) {
+      const top = stack[stack.length - 1];
+      const [v, k] = top;
+      if (k >= out[v].length) {
+        seen[v] = 2;
+        stack.pop();
+        continue;
+      }
+      top[1] = k + 1;
+      const w = out[v][k];
+      if (seen[w] === 1) back.add(`${v}>${w}`);
+      else if (seen[w] === 0) {
+        seen[w] = 1;
+        pre[w] = counter++;
+        stack.push([w, 0]);
+      }
+    }
+  }
+  const indeg = new Array<number>(lane.nodes.length).fill(0);
+  for (let v = 0; v < out.length; v++) for (const w of out[v]) if (!back.has(`${v}>${w}`)) indeg[w] += 1;
+  // Kahn's algorithm, the ready node first in the walk's order (a small list: lanes are small)
+  const ready = lane.nodes.map((_, i) => i).filter((i) => indeg[i] === 0);
+  const order: ModelNode[] = [];
+  while (ready.length) {
+    let best = 0;
+    for (let i = 1; i < ready.length; i++) if (pre[ready[i]] < pre[ready[best]]) best = i;
+    const v = ready.splice(best, 1)[0];
+    order.push(lane.nodes[v]);
+    for (const w of out[v]) {
+      if (back.has(`${v}>${w}`)) continue;
+      if (--indeg[w] === 0) ready.push(w);
+    }
+  }
+  return order.length === lane.nodes.length ? order : lane.nodes;
+}
+
 async function layoutLane(lane: ModelLane): Promise<LaneGeom> {
   const sizes = new Map<string, ReturnType<typeof nodeSize>>();
-  const children: ElkNode[] = lane.nodes.map((n) => {
+  const children: ElkNode[] = flowOrder(lane).map((n) => {
     const s = nodeSize(n);
     sizes.set(n.id, s);
     const child: ElkNode = { id: n.id, width: s.w, height: s.h };
@@ -112,7 +187,11 @@ async function layoutLane(lane: ModelLane): Promise<LaneGeom> {
     .map((e) => {
       const edge: ElkExtendedEdge = { id: e.id, sources: [e.source], targets: [e.target] };
       if (e.label) {
-        edge.labels = [{ id: `${e.id}#label`, text: e.label, width: textWidth(e.label + "  ×8888", SMALL_PX) + 8, height: 16 }];
+        const text = shortGuard(e.label);
+        edge.labels = [{
+          id: `${e.id}#label`, text, width: textWidth(text + "  ×8888", SMALL_PX) + 8, height: 16,
+          layoutOptions: { "elk.edgeLabels.inline": "true", "elk.edgeLabels.placement": "CENTER" },
+        }];
       }
       return edge;
     });
@@ -282,7 +361,43 @@ export interface ComponentLayout {
   components: ComponentGeom[]; links: LinkGeom[]; orch: { x: number; y: number; w: number; h: number };
 }
 
-async function layoutComponentsNow(model: ModelView, positions: Positions): Promise<ComponentLayout> {
+// Where each component of a model was drawn last (ELK's place, or the one it kept): an edit that
+// adds, removes or links a component leaves the others where they are (ELK alone would reshuffle
+// them all); only a new component gets a new place. Kept for the page's life (a reload lays the
+// diagram out afresh).
+const lastPlaces = new Map<string, Map<string, Point>>();
+
+/** Keep the places of components drawn before; put new ones where ELK put them if free, else below. */
+function stickyPlaces(modelName: string, elkBoxes: { id: string; x: number; y: number; w: number; h: number }[]): Positions {
+  const before = lastPlaces.get(modelName);
+  const kept: Positions = {};
+  const now = new Map<string, Point>();
+  if (before && elkBoxes.some((b) => before.has(b.id))) {
+    const boxes = elkBoxes.filter((b) => before.has(b.id)).map((b) => {
+      const p = before.get(b.id)!;
+      kept[b.id] = [p.x, p.y];
+      return { ...b, x: p.x, y: p.y };
+    });
+    let bottom = Math.max(...boxes.map((b) => b.y + b.h));
+    const gap = 40;
+    for (const b of elkBoxes) {
+      if (before.has(b.id)) continue;
+      const hits = boxes.some((o) => b.x < o.x + o.w + gap && o.x < b.x + b.w + gap && b.y < o.y + o.h + gap && o.y < b.y + b.h + gap);
+      const place = hits ? { x: 30, y: bottom + gap + 20 } : { x: b.x, y: b.y };
+      kept[b.id] = [place.x, place.y];
+      boxes.push({ ...b, ...place });
+      bottom = Math.max(bottom, place.y + b.h);
+    }
+  }
+  for (const b of elkBoxes) {
+    const k = kept[b.id];
+    now.set(b.id, k ? { x: k[0], y: k[1] } : { x: b.x, y: b.y });
+  }
+  lastPlaces.set(modelName, now);
+  return kept;
+}
+
+async function layoutComponentsNow(model: ModelView, userPositions: Positions): Promise<ComponentLayout> {
   const incoming = new Set(model.links.map((l) => `${l.target.component}.${l.target.port}`));
   const orchW = 420;
   const orchH = 70;
@@ -335,6 +450,13 @@ async function layoutComponentsNow(model: ModelView, positions: Positions): Prom
     edges,
   };
   const out = await engine().layout(graph);
+  const elkBoxes = (out.children ?? []).map((c) => ({ id: c.id, x: c.x ?? 0, y: c.y ?? 0, w: c.width ?? 200, h: c.height ?? 100 }));
+  // the places kept from the last drawing, then the ones the user chose (the layout file)
+  const positions: Positions = { ...stickyPlaces(model.name, elkBoxes), ...userPositions };
+  for (const [id, p] of Object.entries(positions)) {
+    const b = elkBoxes.find((x) => x.id === id);
+    if (b && Math.abs(b.x - p[0]) < 0.5 && Math.abs(b.y - p[1]) < 0.5) delete positions[id]; // where ELK put it
+  }
   const components: ComponentGeom[] = [];
   for (const c of out.children ?? []) {
     const m = model.components.find((mc) => mc.name === c.id);

@@ -14,6 +14,7 @@ import type { Diagnostic, HelloMsg, ModelView, MonitorEvent, ServerMsg } from ".
 interface StudioHooks {
   latencies: number[]; frames: number[]; ready: boolean; applied: number; edit: EditHooks | null;
   durationCounters: () => number; // counters the nodes' duration histograms hold (memory; tests)
+  reveal: (lane: string, node: string) => void; // centre a node (tests and docs screenshots)
 }
 declare global {
   interface Window { __studio: StudioHooks }
@@ -25,6 +26,7 @@ const hooks: StudioHooks = {
     for (const s of state.nodes.values()) n += s.durs.buckets;
     return n;
   },
+  reveal: (lane, node) => reveal(lane, node),
 };
 window.__studio = hooks;
 const KEEP = 10_000;
@@ -43,6 +45,8 @@ const connEl = $<HTMLElement>("#connection");
 const gapsEl = $<HTMLElement>("#gaps");
 const diagEl = $<HTMLUListElement>("#diagnostics");
 const callsBody = $<HTMLTableSectionElement>("#calls tbody");
+const brokerEl = $<HTMLElement>("#broker-status");
+const replayNotesEl = $<HTMLElement>("#replay-notes");
 const replayEl = $<HTMLElement>("#replay");
 const playBtn = $<HTMLButtonElement>("#replay-play");
 const speedSel = $<HTMLSelectElement>("#replay-speed");
@@ -285,8 +289,36 @@ function applyView(v: DiagramView): void {
   v.viewport.setAttribute("transform", `translate(${v.view.x},${v.view.y}) scale(${v.view.k})`);
   // Level of detail: text too small to read is not drawn (keeps big diagrams fast).
   const k = v.view.k;
-  v.svg.classList.toggle("lod-mid", k < 0.45);
-  v.svg.classList.toggle("lod-far", k < 0.3);
+  v.svg.classList.toggle("lod-mid", k < LOD_MID);
+  v.svg.classList.toggle("lod-far", k < LOD_FAR);
+  cullLanes(v);
+}
+
+// Swimlanes wholly outside the canvas are not drawn (display: none): at a readable zoom a big
+// diagram shows a few lanes, and the live updates of the others then cost no layout or paint.
+const laneSpan = new WeakMap<Element, { t: string; x: number; w: number }>();
+function cullLanes(v: DiagramView): void {
+  if (!v.view) return;
+  const W = canvas.clientWidth || 800;
+  const margin = 200;
+  for (const g of v.viewport.children) {
+    if (!g.classList.contains("lane")) continue;
+    const t = g.getAttribute("transform") ?? "";
+    let span = laneSpan.get(g);
+    if (!span || span.t !== t) {
+      const m = /translate\(([-\d.e]+)/.exec(t);
+      span = { t, x: m ? Number(m[1]) : 0, w: Number(g.querySelector(".lane-bg")?.getAttribute("width") ?? 0) };
+      laneSpan.set(g, span);
+    }
+    const left = v.view.x + span.x * v.view.k;
+    const right = left + span.w * v.view.k;
+    g.classList.toggle("culled", right < -margin || left > W + margin);
+  }
+}
+
+/** Draw the lane of `el` (culled when it was off the canvas) so that it can be measured. */
+function uncull(el: Element): void {
+  el.closest("g.lane")?.classList.remove("culled");
 }
 
 /** Centre the view on a node (at a readable zoom) and flash it. */
@@ -294,6 +326,7 @@ function reveal(lane: string, node: string): void {
   const v = views.get(current);
   const g = canvas.querySelector<SVGGElement>(`g.node[data-lane="${CSS.escape(lane)}"][data-node="${CSS.escape(node)}"]`);
   if (!v || !v.view || !g) return;
+  uncull(g);
   if (v.view.k < 0.8) {
     const r = canvas.getBoundingClientRect();
     const cx = r.width / 2;
@@ -303,6 +336,7 @@ function reveal(lane: string, node: string): void {
     v.view.k = 0.9;
     applyView(v);
   }
+  uncull(g);
   const c = canvas.getBoundingClientRect();
   const b = g.getBoundingClientRect();
   v.view.x += c.left + c.width / 2 - (b.left + b.width / 2);
@@ -333,6 +367,7 @@ function keepInView(v: DiagramView): void {
 /** Pan (no zoom) so that `el` is inside the canvas. */
 function showElement(v: DiagramView, el: Element): void {
   if (!v.view) return;
+  uncull(el);
   const c = canvas.getBoundingClientRect();
   const b = el.getBoundingClientRect();
   const pad = 24;
@@ -348,21 +383,37 @@ function showElement(v: DiagramView, el: Element): void {
   applyView(v);
 }
 
-/** Show the whole diagram; `readable`: when that is too small to read, fit its width from the top. */
+// Zoom levels: below LOD_MID the stats, values and guards are not drawn, below LOD_FAR not even
+// the nodes' names (applyView). A diagram opens whole when that is readable (READABLE_K or more);
+// a bigger one opens at OPEN_K on its start node, from the top: Fit (f) shows all of it.
+const LOD_MID = 0.45;
+const LOD_FAR = 0.3;
+const READABLE_K = 0.65; // 11 px texts at >= 7 px
+const OPEN_K = 0.8;
+
+/** Show the whole diagram; `readable`: when that is too small to read, a readable part from the top. */
 function fit(v: DiagramView, readable = true): void {
   const W = canvas.clientWidth || 800;
   const H = canvas.clientHeight || 600;
   const pad = 16;
   let k = Math.min((W - 2 * pad) / v.width, (H - 2 * pad) / v.height, 1.25);
   let y = (H - v.height * k) / 2;
-  if (readable && k < 0.45) {
-    // Too small to read when fitted whole: fit the width and start at the top.
-    k = Math.min((W - 2 * pad) / v.width, 1);
-    if (v.height * k > H) y = pad;
-    else y = (H - v.height * k) / 2;
+  let x = (W - v.width * k) / 2;
+  if (readable && k < READABLE_K) {
+    // Too small to read when fitted whole: its width if that is readable, else OPEN_K, from the top,
+    // around the start node (or the left edge).
+    const kWidth = (W - 2 * pad) / v.width;
+    k = kWidth >= READABLE_K ? Math.min(kWidth, 1) : OPEN_K;
+    y = v.height * k > H - 2 * pad ? pad : (H - v.height * k) / 2;
+    const w = v.width * k;
+    if (w <= W - 2 * pad) x = (W - w) / 2;
+    else {
+      const fx = v.focus ? v.focus.x * k : 0;
+      x = Math.min(pad, Math.max(W - pad - w, W / 2 - fx));
+    }
   }
   k = Math.max(k, 0.02);
-  v.view = { k, x: (W - v.width * k) / 2, y };
+  v.view = { k, x, y };
   applyView(v);
 }
 
@@ -446,7 +497,7 @@ function fillRow(tr: HTMLTableRowElement, r: CallRow): void {
   const cells = tr.cells;
   cells[0].textContent = clockText(r.time);
   cells[1].textContent = `${r.component}.${r.feature}`;
-  cells[2].textContent = r.args === undefined ? "" : jsonText(r.args);
+  cells[2].textContent = r.args === undefined ? r.detail : jsonText(r.args);
   const res = cells[3];
   if (r.ok === true) {
     res.textContent = r.hasValue ? jsonText(r.value) : "ok";
@@ -494,6 +545,13 @@ function flushCalls(full: boolean): void {
       callRows.delete(key);
     }
   }
+  // new rows go on top; one listed below a row already shown (a time-out keeps its request's
+  // time) rebuilds the table
+  let top = true;
+  for (const r of newest) {
+    if (callRows.has(r.key)) top = false;
+    else if (!top) return flushCalls(true);
+  }
   const frag = document.createDocumentFragment();
   for (const r of newest) {
     const re = callRows.get(r.key);
@@ -516,6 +574,7 @@ function flushStatus(): void {
   if (o.detail) text += ` — ${o.detail}`;
   if (state.exitPayload !== undefined) text += ` · exit ${jsonText(state.exitPayload)}`;
   orchEl.textContent = text;
+  orchEl.title = text; // the pill may be cut short: the whole text on hover
   updateGaps();
 }
 
@@ -626,6 +685,47 @@ function tick(ts: number): void {
   else lastTs = 0;
 }
 
+// ---------------------------------------------------------------- broker status
+
+// The studio's own connection to the broker (not the page's socket to the studio): without it
+// the page can show nothing of the robot, so it says why and when the next attempt is.
+let brokerRetryAt = 0;
+let brokerLast: MonitorEvent | null = null;
+let brokerTimer = 0;
+
+function showBroker(e: MonitorEvent): void {
+  brokerLast = e;
+  brokerRetryAt = e.retry_in_s !== undefined ? performance.now() + e.retry_in_s * 1000 : 0;
+  drawBroker();
+  if (!e.connected && !brokerTimer) brokerTimer = window.setInterval(drawBroker, 1000);
+  if (e.connected && brokerTimer) {
+    window.clearInterval(brokerTimer);
+    brokerTimer = 0;
+  }
+}
+
+function drawBroker(): void {
+  const e = brokerLast;
+  if (!e) return;
+  brokerEl.hidden = false;
+  brokerEl.title = e.url ?? "";
+  if (e.connected) {
+    brokerEl.title = `connected to ${e.url ?? "the broker"}`;
+    brokerEl.dataset.state = "connected";
+    brokerEl.textContent = "broker connected";
+    return;
+  }
+  brokerEl.dataset.state = e.problem ? "failed" : "connecting";
+  let text = `broker ${e.url ?? ""}: ${e.problem ?? "connecting…"}`;
+  if (e.problem) {
+    const left = Math.max(0, Math.ceil((brokerRetryAt - performance.now()) / 1000));
+    text += left > 0 ? `, retrying in ${left} s` : ", retrying…";
+    if ((e.attempts ?? 0) > 1) text += ` (attempt ${e.attempts})`;
+  }
+  brokerEl.textContent = text;
+  brokerEl.title = text; // the toolbar may cut it short
+}
+
 // ---------------------------------------------------------------- replay
 
 // A snapshot of the state every SNAP_EVERY events, further apart when the duration histograms
@@ -650,7 +750,10 @@ interface Replay {
 }
 let replay: Replay | null = null;
 
-function setupReplay(events: MonitorEvent[]): void {
+function setupReplay(events: MonitorEvent[], notes: string[]): void {
+  replayNotesEl.hidden = notes.length === 0;
+  replayNotesEl.textContent = notes.map((n) => `⚠ ${n}`).join("  ");
+  replayNotesEl.title = notes.join("\n");
   const sorted = events.map((e, i) => ({ e, i }))
     .sort((a, b) => a.e.time - b.e.time || a.i - b.i).map((x) => x.e);
   const times = new Float64Array(sorted.length);
@@ -815,8 +918,10 @@ function resetSession(hello: HelloMsg): void {
   callRows = new Map();
   callsBody.replaceChildren();
   robotName = hello.robot;
-  const name = shown?.name ?? "(no model)";
-  titleEl.textContent = `${name} · robot ${hello.robot}`;
+  // an empty folder has no name yet (the robot is followed under the name it is given)
+  const fresh = !!hello.edit?.empty;
+  const name = shown?.name ?? (fresh ? "new model" : "(no model)");
+  titleEl.textContent = fresh ? name : `${name} · robot ${hello.robot}`;
   $<HTMLElement>("#source").textContent = hello.source;
   titleEl.title = hello.source;
   modeEl.textContent = mode === "replay" ? `replay${hello.replay ? ` · ${hello.replay.file}` : ""}` : "live";
@@ -833,7 +938,8 @@ function resetSession(hello: HelloMsg): void {
   }
   setModel(shown, shownDiagnostics);
   if (hello.edit) editor?.afterHello(hello.edit);
-  if (mode === "replay") setupReplay(hello.replay?.events ?? []);
+  brokerEl.hidden = true; // until the broker source says how its connection is
+  if (mode === "replay") setupReplay(hello.replay?.events ?? [], hello.replay?.notes ?? []);
   state.markAllDirty();
   schedule();
 }
@@ -851,7 +957,10 @@ function onMessage(msg: ServerMsg): void {
       expectSeq = msg.seq + 1;
       dropped += msg.dropped ?? 0;
       if (mode === "live") {
-        for (const e of msg.events) queue.push(e);
+        for (const e of msg.events) {
+          if (e.type === "broker") showBroker(e);
+          else queue.push(e);
+        }
         lastArrival = performance.now();
       }
       state.dirtyOrch = true;

@@ -3,7 +3,7 @@
 
 import { percentiles } from "./durations";
 import type { ActivityLayout, ComponentLayout, NodeBox, Point } from "./layout";
-import { COMP_STATE_LINES } from "./layout";
+import { COMP_STATE_LINES, shortGuard } from "./layout";
 import type { Level, NodeStats, StudioState, ComponentState } from "./state";
 import { TRAIL, edgeKey, nextNodes, nodeKey } from "./state";
 import type { ModelView } from "./types";
@@ -60,6 +60,8 @@ export interface DiagramView {
   width: number;
   height: number;
   view: { x: number; y: number; k: number } | null;
+  /** Where a reader starts (the first start node's centre, diagram units); a view opens there. */
+  focus?: Point;
 }
 
 export interface Mark { level: Level; message: string }
@@ -143,6 +145,14 @@ export class Renderer {
     const v = reuse ?? this.newSvg(d.id, layout.width, layout.height);
     v.width = layout.width;
     v.height = layout.height;
+    v.focus = undefined;
+    for (const lg of layout.lanes) {
+      const nb = lg.nodes.find((b) => b.node.kind === "start");
+      if (nb) {
+        v.focus = { x: lg.x + nb.x + nb.w / 2, y: lg.y + lg.headerH + nb.y + nb.h / 2 };
+        break;
+      }
+    }
     const marker = `url(#arrow-${d.id})`;
     let budget = performance.now();
     const mine = new Set<SVGGElement>();
@@ -184,10 +194,11 @@ export class Renderer {
       mine.add(g);
       svgEl("rect", { class: "lane-bg", x: 0, y: 0, width: lg.w, height: lg.h }, g);
       svgEl("rect", { class: "lane-header", x: 0, y: 0, width: lg.w, height: lg.headerH }, g);
-      svgEl("text", { class: "lane-title", x: lg.w / 2, y: 22 }, g, lane.name);
-      // a virtual lane is a called activity; a component's lane runs on that component
+      // a virtual lane is a called activity; a component's lane runs on that component: the
+      // stereotype on its own line above the name (UML's way; side by side they overlapped)
       const sub = lane.virtual ? "«activity»" : lane.component ? "«component»" : "";
-      if (sub) svgEl("text", { class: "lane-sub", x: 8, y: 21 }, g, sub);
+      if (sub) svgEl("text", { class: "lane-sub", x: lg.w / 2, y: 15 }, g, sub);
+      svgEl("text", { class: "lane-title", x: lg.w / 2, y: sub ? 34 : 28 }, g, lane.name);
       const body = svgEl("g", { class: "lane-body", transform: `translate(0,${lg.headerH})` }, g);
       const edgesG = svgEl("g", { class: "edges" }, body);
       const nodesG = svgEl("g", { class: "nodes" }, body);
@@ -198,10 +209,13 @@ export class Renderer {
         svgEl("path", { class: "hit", d }, eg); // a wide invisible stroke to click an edge (edit mode)
         let label: SVGTextElement | null = null;
         if (e.labelBox) {
-          label = svgEl("text", { class: "elabel", x: e.labelBox.x + 2, y: e.labelBox.y + 12 }, eg, e.label);
+          // centred on its flow (an inline ELK label: the flow runs through the label's box)
+          const text = shortGuard(e.label);
+          label = svgEl("text", { class: "elabel guard", x: e.labelBox.x + e.labelBox.w / 2, y: e.labelBox.y + 12 }, eg, text);
+          if (text !== e.label) svgEl("title", {}, eg, e.label);
         }
         const ek = edgeKey(lane.name, e.source, e.target);
-        const ee = { g: eg, label, guard: e.label, count: -1 };
+        const ee = { g: eg, label, guard: shortGuard(e.label), count: -1 };
         this.edgeEls.set(ek, ee);
         laneEdges.set(ek, ee);
         this.freshEdges.push(ek);
@@ -276,7 +290,8 @@ export class Renderer {
       // UML call behaviour action: the rake symbol.
       g.classList.add("calls");
       g.setAttribute("data-calls", called);
-      svgEl("path", { class: "rake", d: `M${X(w - 16)},${Y(h - 6)} v-9 M${X(w - 21)},${Y(h - 6)} v-5 h10 v5` }, g);
+      // (14 x 14 units: big enough to see and to click at the zoom a diagram opens at)
+      svgEl("path", { class: "rake", d: `M${X(w - 17)},${Y(h - 5)} v-14 M${X(w - 24)},${Y(h - 5)} v-7 h14 v7` }, g);
     }
     let value: SVGTextElement | null = null;
     if (n.kind === "datastore") value = svgEl("text", { class: "value", x: X(w / 2), y: Y(47) }, g, "—");

@@ -38,6 +38,7 @@ export interface CallRow {
   hasValue: boolean;
   error: string;
   latencyMs: number | undefined;
+  detail: string; // the call as written (a replay's calls: their arguments are expressions)
 }
 
 export interface Snapshot {
@@ -269,6 +270,7 @@ export class StudioState {
       hasValue: "value" in e,
       error: e.error ?? "",
       latencyMs: e.latency_ms,
+      detail: e.detail ?? "",
     };
     if (e.id) {
       const key = `${row.component}\u0000${e.id}`;
@@ -285,7 +287,10 @@ export class StudioState {
     } else {
       row.key = `#${++this.callSerial}`;
     }
-    this.calls.push(row);
+    // In time order: a call reported without a reply (time-out) keeps its request's time.
+    let at = this.calls.length;
+    while (at > 0 && this.calls[at - 1].time > row.time) at--;
+    this.calls.splice(at, 0, row);
     if (this.calls.length > 2 * CALLS_KEPT) this.calls.splice(0, this.calls.length - CALLS_KEPT);
     this.dirtyCalls = true;
   }

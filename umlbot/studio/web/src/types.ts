@@ -86,7 +86,7 @@ export interface TrackView {
 }
 
 export interface MonitorEvent {
-  type: "availability" | "call" | "state" | "signal" | "trace" | "orchestrator" | "exit";
+  type: "availability" | "call" | "state" | "signal" | "trace" | "orchestrator" | "exit" | "broker";
   time: number;
   robot?: string;
   topic?: string;
@@ -108,6 +108,12 @@ export interface MonitorEvent {
   detail?: string;
   payload?: unknown;
   seq?: number;
+  // a `broker` event (the studio's connection to the broker)
+  url?: string;
+  connected?: boolean;
+  problem?: string | null;
+  attempts?: number;
+  retry_in_s?: number;
 }
 
 export interface HelloMsg {
@@ -119,7 +125,7 @@ export interface HelloMsg {
   model: ModelView | null;
   diagnostics: Diagnostic[];
   track: TrackView | null;
-  replay: { file: string; events: MonitorEvent[] } | null;
+  replay: { file: string; events: MonitorEvent[]; notes?: string[] } | null;
   edit?: EditInfo | null;
 }
 
@@ -147,6 +153,8 @@ export interface EditInfo {
   compiled?: boolean;
   diagnostics?: Diagnostic[];
   run?: RunInfo;
+  /** unsaved edits a previous studio kept when it quit */
+  recovery?: { time: string | null; files: string[]; layout: boolean } | null;
 }
 
 export interface ParamInfo { name: string; type?: string; minimum?: number | null; maximum?: number | null; unit?: string | null }
