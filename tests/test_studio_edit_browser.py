@@ -19,7 +19,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from playwright.sync_api import Browser, Page, expect
+from playwright.sync_api import Browser, Page, Route, expect
 from robot_run import CAR_MODEL, umlbot_argv
 from studio_support import chromium, shot, studio
 
@@ -302,6 +302,51 @@ def test_a_decisions_second_output_asks_for_its_guard_instead_of_making_one_up(
         page.close()
     text = (folder / "activities" / "main.yaml").read_text(encoding="utf-8")
     assert f"branches: [{{if: Application.exit, then: end}}, {{else: {action}}}]" in text, text
+    assert errors == [], errors
+
+
+def test_completions_answered_late_for_older_text_do_not_rewrite_what_was_typed(
+        browser: Browser, tmp_path: Path) -> None:
+    # The completion asked for when the guard field got focus (empty text) is held back until
+    # the user has typed the whole guard; its late answer must not be taken for the typed text
+    # (it once was, and Enter then spliced the first completion in front of the guard).
+    folder = tmp_path / "bot"
+    errors: list[str] = []
+    with studio(["studio", str(folder), "--port", "0"], tmp_path) as proc:
+        page = open_page(browser, proc.url, errors)
+        page.locator('#new-model-form [name="model-name"]').fill("bot")
+        page.locator("#new-model").click()
+        settled(page)
+        show(page, "activity-main")
+        click_node(page, "RaspberryPI", "start")
+        click_kind(page, "decision")
+        decision = selected_node(page)
+        click_kind(page, "action")
+        action = selected_node(page)
+        connect(page, "RaspberryPI", "start", decision)
+        connect(page, "RaspberryPI", decision, action)
+        held: list[Route] = []
+        page.route("**/api/complete", lambda route: held.append(route))
+        connect(page, "RaspberryPI", decision, "end")  # focuses the empty guard: asks
+        guard = page.locator('#props input[name="guard"][data-target="end"]')
+        expect(guard).to_be_focused()
+        for _ in range(50):
+            if held:
+                break
+            page.wait_for_timeout(20)
+        assert len(held) == 1, "the focused guard field asks for completions"
+        guard.fill("Application.exit")
+        held[0].continue_()  # the answer for "" arrives after the text changed
+        page.wait_for_timeout(300)
+        guard.press("Enter")
+        settled(page)
+        for route in held[1:]:
+            route.continue_()
+        page.unroute("**/api/complete")
+        expect(guard).to_have_value("Application.exit")
+        edge = f'svg.diagram g.edge[data-source="{decision}"][data-target="end"] text.elabel'
+        expect(page.locator(edge)).to_have_text("Application.exit")
+        page.close()
     assert errors == [], errors
 
 

@@ -1328,10 +1328,13 @@ export class Editor {
     const ask = async (): Promise<void> => {
       const mine = ++seq;
       const cursor = input.selectionStart ?? input.value.length;
-      const a = await this.request<CompleteAnswer>("/api/complete", { lane, text: input.value, cursor, field: name }, true);
-      if (mine !== seq || document.activeElement !== input) return;
+      const text = input.value;
+      const a = await this.request<CompleteAnswer>("/api/complete", { lane, text, cursor, field: name }, true);
+      // an answer for text that has changed since (typed or pasted on) is stale: its replace
+      // range would splice the completion into the wrong place; the change asks again
+      if (mine !== seq || document.activeElement !== input || input.value !== text) return;
       answer = a;
-      answered = input.value;
+      answered = text;
       // nothing to complete right after a closed call, a number or a string
       const prev = input.value.slice(0, cursor).trimEnd().slice(-1);
       items = /[)\]0-9'"]/.test(prev) ? [] : (a?.items ?? []);
@@ -1351,9 +1354,10 @@ export class Editor {
         sig.hidden = false;
       } else sig.hidden = true;
     };
-    const accept = (i: number): void => {
+    /** The input's text and cursor once item i is accepted. */
+    const accepted = (i: number): { value: string; at: number } | null => {
       const it = items[i];
-      if (!it) return;
+      if (!it) return null;
       const text = it.insert ?? it.label;
       const cursor = input.selectionStart ?? input.value.length;
       let from = answer?.replace?.[0];
@@ -1367,9 +1371,13 @@ export class Editor {
         const after = /^[A-Za-z0-9_]*/.exec(input.value.slice(cursor));
         if (after) to += after[0].length;
       }
-      input.value = input.value.slice(0, from) + text + input.value.slice(to);
-      const at = from + text.length;
-      input.setSelectionRange(at, at);
+      return { value: input.value.slice(0, from) + text + input.value.slice(to), at: from + text.length };
+    };
+    const accept = (i: number): void => {
+      const next = accepted(i);
+      if (!next) return;
+      input.value = next.value;
+      input.setSelectionRange(next.at, next.at);
       close();
       void ask();
     };
@@ -1390,7 +1398,10 @@ export class Editor {
           draw();
           return;
         }
-        if (ev.key === "Tab" || (ev.key === "Enter" && !ev.ctrlKey)) {
+        // Enter on a completion that is already typed out in full commits the text, as it would
+        // with the list closed: a user who typed the whole name and pressed Enter meant "done"
+        const typedOut = ev.key === "Enter" && accepted(active)?.value === input.value;
+        if (ev.key === "Tab" || (ev.key === "Enter" && !ev.ctrlKey && !typedOut)) {
           ev.preventDefault();
           accept(active);
           return;
