@@ -4,9 +4,10 @@
 One MQTT user per service kind the deployment uses (`umlbot-motor`, `umlbot-sonar`,
 `umlbot-servo`, `umlbot-gpio`, and a plugin's kinds alike, e.g. `umlbot-buzzer`), `umlbot-all` for
 `umlbot service all` (every kind's rights together), one for
-the orchestrator, a read-only `umlbot-monitor` and a full-rights `umlbot-operator` (for
-`umlbot call`, `mosquitto_pub`, exit requests). Each service user may only
-serve the topics of the components the deployment gives its kind. Run it with the venv's Python:
+the orchestrator, a read-only `umlbot-monitor` and a write-only `umlbot-operator` (for
+`umlbot call`, `mosquitto_pub`: calls, signals and exit requests; it reads only its own replies).
+Each service user may only serve the topics of the components the deployment gives its kind.
+Run it with the venv's Python:
 
     /opt/umlbot/venv/bin/python /opt/umlbot/share/broker_auth.py \\
         --deployment /opt/umlbot/robot/deployment.yaml --robot car --out /etc/umlbot/auth
@@ -66,6 +67,9 @@ def grants(components: dict[str, str], robot: str) -> dict[str, Grants]:
     orchestrator's status (a motor stops when the orchestrator goes offline). The orchestrator
     calls the deployed components, reads their status and state, owns `orchestrator/#` and the
     signals. `all` (`umlbot service all`) has the rights of every service kind together.
+    `monitor` reads everything and publishes nothing. `operator` (people, tools) publishes calls to
+    the deployed components, signals and exit requests, and reads nothing but its own replies: it
+    cannot pose as a component (`status`, `state`, replies) nor as the orchestrator (`status`).
     Every client reads its own replies: on Mosquitto through the `%c` pattern, on amqtt
     (no patterns) through `_reply/#`.
     """
@@ -90,7 +94,9 @@ def grants(components: dict[str, str], robot: str) -> dict[str, Grants]:
         write=[*(f"{base}/{name}/call/#" for name in names), f"{base}/signal/#", f"{base}/orchestrator/#"],
     )
     table["monitor"] = Grants(read=[f"{base}/#"])
-    table["operator"] = Grants(read=[f"{base}/#"], write=[f"{base}/#"])
+    table["operator"] = Grants(
+        write=[*(f"{base}/{name}/call/#" for name in names), f"{base}/signal/#", f"{base}/orchestrator/exit"],
+    )
     return table
 
 

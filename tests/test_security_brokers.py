@@ -127,6 +127,45 @@ def test_a_user_without_rights_cannot_move_a_motor(secured: SecuredBroker, conne
     assert [m.payload for m in seen] == [b"10"]
 
 
+def test_the_operator_writes_calls_signals_and_exit_requests_and_reads_only_its_replies(
+    secured: SecuredBroker, connect: Any
+) -> None:
+    """`umlbot-operator` publishes calls to the deployed components, signals and exit requests; it
+    cannot pose as a component or the orchestrator, and reads nothing but its own replies. The
+    monitor reads everything, the replies too."""
+    base = f"umlbot/{ROBOT}"
+    monitor = as_role(secured, connect, "monitor")
+    assert monitor.subscribe(f"{base}/#")
+    operator = as_role(secured, connect, "operator", client_id="operator-1")
+    assert operator.subscribe(f"{base}/_reply/operator-1")
+    everything = operator.subscribe(f"{base}/#")
+    if secured.kind == "amqtt":
+        assert not everything  # refused in the SUBACK; Mosquitto grants it and delivers nothing
+    forged = [f"{base}/LeftActuator/status", f"{base}/LeftActuator/state", f"{base}/orchestrator/status",
+              f"{base}/orchestrator/trace", f"{base}/_reply/orchestrator-1", f"{base}/Stranger/call/x"]
+    for topic in forged:
+        operator.publish(topic, "forged")
+    allowed = {(f"{base}/LeftActuator/call/enabled", "false"), (f"{base}/DistanceRead/call/value", "[]"),
+               (f"{base}/signal/go", "1"), (f"{base}/orchestrator/exit", "{}")}
+    for topic, payload in sorted(allowed):
+        operator.publish(topic, payload)
+    motor = as_role(secured, connect, "motor")
+    motor.publish(f"{base}/LeftActuator/status", '{"state":"online"}')
+    reply = '{"id":"1","ok":true,"value":null}'
+    motor.publish(f"{base}/_reply/operator-1", reply)
+
+    got = operator.wait_for(f"{base}/_reply/operator-1", reply)
+    got += operator.received("#", QUIET_S)
+    assert {m.topic for m in got} == {f"{base}/_reply/operator-1"}, [m.topic for m in got]
+
+    seen = monitor.wait_for(f"{base}/_reply/operator-1", reply)  # the monitor reads replies
+    seen += monitor.received("#", QUIET_S)
+    pairs = {(m.topic, m.payload.decode()) for m in seen}
+    assert allowed <= pairs, allowed - pairs
+    assert (f"{base}/LeftActuator/status", '{"state":"online"}') in pairs
+    assert [m.topic for m in seen if m.payload == b"forged"] == []
+
+
 def umlbot_call(broker: SecuredBroker, role: str, query: str, *args: str) -> subprocess.CompletedProcess[str]:
     """`umlbot call` as `role`; `query` is appended to the broker URL (e.g. `?protocol=5`)."""
     url = f"mqtt://umlbot-{role}:{broker.passwords[role]}@127.0.0.1:{broker.port}{query}"
@@ -207,7 +246,7 @@ def test_the_all_services_user_serves_every_component_and_nothing_else(
     secured: SecuredBroker, connect: Any
 ) -> None:
     """`umlbot-all` (for `umlbot service all`) has the four service users' rights, no more."""
-    watcher = as_role(secured, connect, "operator")
+    watcher = as_role(secured, connect, "monitor")
     assert watcher.subscribe(f"umlbot/{ROBOT}/#")
     every = as_role(secured, connect, "all")
     assert every.subscribe(f"umlbot/{ROBOT}/LeftActuator/call/#")
@@ -321,7 +360,7 @@ def test_no_message_lost_while_other_clients_subscribe(tmp_path: Path, connect: 
         receiver = as_role(broker, connect, "monitor")
         assert receiver.subscribe(f"umlbot/{ROBOT}/signal/#")
         sender = as_role(broker, connect, "operator")
-        churners = [as_role(broker, connect, "operator") for _ in range(3)]
+        churners = [as_role(broker, connect, "monitor") for _ in range(3)]
 
         def churn(client: Client) -> None:
             n = 0
