@@ -7,13 +7,19 @@
 #   sudo deploy/install.sh --model out/robot_car.json --deployment models/robot_car/deployment.yaml
 #
 # With --root DIR everything goes under DIR (an SD-card image, a test tree): the host's systemd is
-# not touched, units are enabled by creating the same symlinks `systemctl enable` would.
+# not touched, units are enabled by creating the same symlinks `systemctl enable` would, and no
+# venv is made (a venv only works at the path it was made at: make it on the robot).
+#
+# Run it again to update: /etc/umlbot/umlbot.env keeps the lines it does not manage and the values
+# of the options not given this time; the options given replace their keys.
 set -euo pipefail
 
 usage() {
     cat <<'EOF'
 usage: install.sh [options]
-  --root DIR          install under DIR instead of / (no systemctl, no user creation on the host)
+  --root DIR          install under DIR instead of / (no systemctl, no user creation on the host);
+                      implies --no-venv: a venv works only at the path it was made at, so make
+                      it on the robot (run install.sh there, or python3 -m venv PREFIX/venv)
   --prefix DIR        installation directory (default /opt/umlbot)
   --source DIR        umlbot source checkout to install (default: the one holding this script)
   --model FILE        compiled model (`umlbot compile MODEL -o FILE`); enables the orchestrator
@@ -22,8 +28,12 @@ usage: install.sh [options]
   --broker URL        default broker URL written to umlbot.env (default: mqtt://127.0.0.1:1883)
   --driver NAME       driver for the services: auto (default: lgpio on a Pi 5, pigpio where
                       pigpiod runs), pigpio, lgpio, mock or sim
-  --services "K..."   service kinds to enable (default: "motor sonar servo gpio"; "all" is
-                      every kind in one process, for small boards); a plugin's kinds too
+                      (on a re-run, --robot, --broker, --driver, --model and --deployment update
+                      their keys in an existing umlbot.env; its other lines are kept)
+  --services "K..."   service kinds to enable (default: the kinds the deployment uses, or
+                      "motor sonar servo gpio" without one; "all" is every kind in one
+                      process, for small boards); a plugin's kinds too. A kind the deployment
+                      does not use is refused (its service would fail at start)
   --plugin SPEC       also pip-install SPEC (a plugin's folder, wheel or requirement) into the
                       venv; repeatable. Its service kinds can then be named in --services
   --embedded-broker   also enable umlbot-broker.service (the embedded amqtt broker)
@@ -31,7 +41,8 @@ usage: install.sh [options]
                       /etc/umlbot/<role>.env, Mosquitto's conf.d/umlbot.conf, umlbot.passwd and
                       umlbot.acl, and the embedded broker's password and ACL files (needs
                       --deployment)
-  --no-venv           do not create the virtual environment (one exists, or a test)
+  --no-venv           do not create the virtual environment (one exists, or a test); implied
+                      by --root
   --no-enable         install the units but do not enable them
   --start             start umlbot.target at the end (not with --root)
   --python EXE        Python 3.11+ used to create the venv (default: python3)
@@ -41,6 +52,7 @@ EOF
 
 ROOT=""
 PREFIX=/opt/umlbot
+GIVEN=" "  # the options given on this command line (they update an existing umlbot.env)
 SOURCE="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 MODEL=""
 DEPLOYMENT=""
@@ -63,10 +75,10 @@ while [ $# -gt 0 ]; do
         --source) SOURCE="$2"; shift 2 ;;
         --model) MODEL="$2"; shift 2 ;;
         --deployment) DEPLOYMENT="$2"; shift 2 ;;
-        --robot) ROBOT="$2"; shift 2 ;;
-        --broker) BROKER="$2"; shift 2 ;;
-        --driver) DRIVER="$2"; shift 2 ;;
-        --services) SERVICES="$2"; shift 2 ;;
+        --robot) ROBOT="$2"; GIVEN+="robot "; shift 2 ;;
+        --broker) BROKER="$2"; GIVEN+="broker "; shift 2 ;;
+        --driver) DRIVER="$2"; GIVEN+="driver "; shift 2 ;;
+        --services) SERVICES="$2"; GIVEN+="services "; shift 2 ;;
         --plugin) PLUGINS+=("$2"); shift 2 ;;
         --embedded-broker) EMBEDDED_BROKER=1; shift ;;
         --secure) SECURE=1; shift ;;
@@ -81,16 +93,55 @@ done
 
 die() { echo "install.sh: $*" >&2; exit 1; }
 say() { echo "install.sh: $*"; }
+given() { case "$GIVEN" in *" $1 "*) return 0 ;; esac; return 1; }
+
+# umlbot.env is read by systemd as KEY=VALUE lines. env_get FILE KEY prints KEY's value (the first
+# line that sets it) and fails when the file or the key is missing.
+env_get() {
+    local line
+    [ -f "$1" ] || return 1
+    while IFS= read -r line || [ -n "$line" ]; do
+        case "$line" in "$2="*) printf '%s\n' "${line#*=}"; return 0 ;; esac
+    done <"$1"
+    return 1
+}
+# set_arg "ARGS" --opt VALUE: ARGS with --opt's value replaced (or --opt VALUE added); others kept.
+set_arg() {
+    local words out=() found=0 i=0
+    read -ra words <<<"$1"
+    while [ "$i" -lt "${#words[@]}" ]; do
+        case "${words[$i]}" in
+            "$2") out+=("$2" "$3"); found=1; i=$((i + 2)) ;;
+            "$2="*) out+=("$2" "$3"); found=1; i=$((i + 1)) ;;
+            *) out+=("${words[$i]}"); i=$((i + 1)) ;;
+        esac
+    done
+    [ "$found" -eq 1 ] || out+=("$2" "$3")
+    printf '%s\n' "${out[*]}"
+}
 
 case "$PREFIX" in /*) ;; *) die "--prefix must be an absolute path" ;; esac
 for kind in $SERVICES; do  # the name goes into a unit name: checked against the installed kinds below
     [[ "$kind" =~ ^[a-z][a-z0-9_]*$ ]] || die "bad service kind name '$kind' (lower-case letters, digits, _)"
 done
+case " $SERVICES " in
+    *" all "*) [ "$(echo $SERVICES)" = all ] || die "--services all already serves every kind: give it alone (not '$SERVICES')" ;;
+esac
 case "$DRIVER" in auto|pigpio|lgpio|mock|sim) ;; *) die "unknown driver '$DRIVER' (auto, pigpio, lgpio, mock or sim)" ;; esac
 [ -z "$MODEL" ] || [ -f "$MODEL" ] || die "compiled model $MODEL not found"
 [ -z "$DEPLOYMENT" ] || [ -f "$DEPLOYMENT" ] || die "deployment $DEPLOYMENT not found"
 [ -f "$SOURCE/pyproject.toml" ] || die "$SOURCE is not an umlbot checkout (no pyproject.toml)"
+[[ "$ROBOT" =~ ^[A-Za-z0-9_][A-Za-z0-9_.-]*$ ]] || die "bad robot id '$ROBOT' (letters, digits, _ . -)"
+case "$BROKER" in *[[:space:]]*|"") die "bad broker URL '$BROKER'" ;; esac
+if [ -n "$ROOT" ] && [ "${#PLUGINS[@]}" -gt 0 ]; then
+    die "--plugin needs the venv, which --root does not make (install the plugin on the robot)"
+fi
 if [ "$VENV" -eq 0 ] && [ "${#PLUGINS[@]}" -gt 0 ]; then die "--plugin needs the venv (drop --no-venv)"; fi
+if [ -n "$ROOT" ] && [ "$VENV" -eq 1 ]; then
+    # A venv's scripts name the path it was made at: one made under DIR would not run on the robot.
+    say "--root: no venv is made (it would not work at $PREFIX/venv on the robot; make it there)"
+    VENV=0
+fi
 if [ "$SECURE" -eq 1 ] && [ -z "$DEPLOYMENT" ]; then die "--secure needs --deployment"; fi
 case "$BROKER" in
     *@*) if [ "$SECURE" -eq 1 ]; then die "--secure makes the credentials: give --broker without user:password"; fi ;;
@@ -129,6 +180,54 @@ done
 UNITDIR="$ROOT/etc/systemd/system"
 ETC_PATH=/etc/umlbot
 ETC="$ROOT$ETC_PATH"
+ENVFILE="$ETC/umlbot.env"
+
+# An update keeps what the existing umlbot.env says for the options not given this time.
+MODEL_PATH="$PREFIX/robot/model.json"
+DEPLOYMENT_PATH="$PREFIX/robot/deployment.yaml"
+if [ -n "$MODEL" ]; then MODEL_PATH="$PREFIX/robot/$(basename "$MODEL")"; fi
+if [ -n "$DEPLOYMENT" ]; then DEPLOYMENT_PATH="$PREFIX/robot/$(basename "$DEPLOYMENT")"; fi
+if [ -f "$ENVFILE" ]; then
+    if ! given robot && value="$(env_get "$ENVFILE" UMLBOT_ROBOT)"; then ROBOT="$value"; fi
+    if ! given broker && value="$(env_get "$ENVFILE" UMLBOT_BROKER)"; then BROKER="$value"; fi
+    if [ -z "$MODEL" ] && value="$(env_get "$ENVFILE" UMLBOT_COMPILED)"; then MODEL_PATH="$value"; fi
+    if [ -z "$DEPLOYMENT" ] && value="$(env_get "$ENVFILE" UMLBOT_DEPLOYMENT)"; then DEPLOYMENT_PATH="$value"; fi
+fi
+
+# The service kinds to enable are those the deployment uses: a service with no component to serve
+# exits at once ("the deployment has no component served by …"), so such a kind is refused here.
+CHECKED_DEPLOYMENT="$DEPLOYMENT"
+if [ -z "$CHECKED_DEPLOYMENT" ] && [ -n "$DEPLOYMENT_PATH" ] && [ -f "$ROOT$DEPLOYMENT_PATH" ]; then
+    CHECKED_DEPLOYMENT="$ROOT$DEPLOYMENT_PATH"  # an update: the installed deployment
+fi
+CHECKED_DEPLOYMENT="${CHECKED_DEPLOYMENT:+$(realpath "$CHECKED_DEPLOYMENT")}"  # read from $SOURCE
+if [ -n "$CHECKED_DEPLOYMENT" ]; then
+    USED="$(cd "$SOURCE" && "$PY" - "$CHECKED_DEPLOYMENT" <<'PYEOF'
+import sys
+from umlbot.deployment import load_deployment
+from umlbot.errors import UmlbotError
+from umlbot.library import service_kinds
+try:
+    used = {c.implementation.service for c in load_deployment(sys.argv[1]).components.values()}
+except (UmlbotError, OSError) as exc:
+    sys.exit(f"install.sh: {exc}")
+print(" ".join(k for k in service_kinds() if k in used))
+PYEOF
+)" || exit 1
+    [ -n "$USED" ] || die "the deployment $CHECKED_DEPLOYMENT has no component"
+    if given services; then
+        for kind in $SERVICES; do
+            case " $USED all " in
+                *" $kind "*) ;;
+                *) die "service kind '$kind' is not used by the deployment $CHECKED_DEPLOYMENT: its service would have nothing to serve and fail at start (the deployment uses: $USED; or all)" ;;
+            esac
+        done
+    elif [ -L "$UNITDIR/umlbot.target.wants/umlbot-service@all.service" ]; then
+        SERVICES=all  # an update of a one-process install stays one process
+    else
+        SERVICES="$USED"
+    fi
+fi
 
 install -d -m 0755 "$DEST" "$DEST/robot" "$DEST/share/docs" "$DEST/share/mosquitto" \
     "$DEST/share/amqtt" "$UNITDIR" "$ROOT/etc/sysusers.d"
@@ -147,16 +246,8 @@ if [ -z "$ROOT" ]; then
 fi
 
 # 2. The robot: compiled model and deployment (the robot needs no model sources).
-MODEL_PATH="$PREFIX/robot/model.json"
-DEPLOYMENT_PATH="$PREFIX/robot/deployment.yaml"
-if [ -n "$MODEL" ]; then
-    MODEL_PATH="$PREFIX/robot/$(basename "$MODEL")"
-    install -m 0644 "$MODEL" "$ROOT$MODEL_PATH"
-fi
-if [ -n "$DEPLOYMENT" ]; then
-    DEPLOYMENT_PATH="$PREFIX/robot/$(basename "$DEPLOYMENT")"
-    install -m 0644 "$DEPLOYMENT" "$ROOT$DEPLOYMENT_PATH"
-fi
+if [ -n "$MODEL" ]; then install -m 0644 "$MODEL" "$ROOT$MODEL_PATH"; fi
+if [ -n "$DEPLOYMENT" ]; then install -m 0644 "$DEPLOYMENT" "$ROOT$DEPLOYMENT_PATH"; fi
 
 # 3. Documentation and the broker security files, for reference on the robot.
 for doc in deploy-pi.md security.md; do
@@ -174,21 +265,19 @@ if [ -f "$SOURCE/deploy/broker_auth.py" ]; then install -m 0755 "$SOURCE/deploy/
 #    and ACLs (--secure): per-role env files with each role's own MQTT user.
 install -d -m 0755 "$ROOT/etc/mosquitto/conf.d"
 install -m 0644 "$SOURCE/deploy/mosquitto/umlbot-nodelay.conf" "$ROOT/etc/mosquitto/conf.d/umlbot-nodelay.conf"
-BROKER_ARGS="--bind 127.0.0.1 --port 1883"
+# Host and port of the broker URL (scheme://[user:password@]host[:port][/…][?…]).
+hostport="${BROKER#*://}"; hostport="${hostport%%/*}"; hostport="${hostport%%\?*}"; hostport="${hostport##*@}"
+case "$hostport" in
+    *:[0-9]*) host="${hostport%:*}"; port="${hostport##*:}" ;;
+    *) host="$hostport"; case "$BROKER" in mqtts://*) port=8883 ;; *) port=1883 ;; esac ;;
+esac
+BROKER_ARGS="--bind 127.0.0.1 --port $port"
 if [ "$SECURE" -eq 1 ]; then
     AUTH="$ETC/auth"
-    hostport="${BROKER#*://}"; hostport="${hostport%%/*}"
-    host="${hostport%:*}"; port="${hostport##*:}"
-    if [ "$port" = "$hostport" ]; then port=1883; fi
     tls=(); case "$BROKER" in mqtts://*) tls=(--tls) ;; esac
     install -d -m 0750 "$AUTH"
     "$PY" "$SOURCE/deploy/broker_auth.py" --deployment "$DEPLOYMENT" --robot "$ROBOT" --out "$AUTH" \
         --host "$host" --port "$port" "${tls[@]}"
-    for kind in $SERVICES; do
-        if [ "$kind" != all ] && [ ! -f "$AUTH/$kind.env" ]; then
-            say "warning: the deployment has no component of service kind '$kind': its service serves nothing"
-        fi
-    done
     for role in $KINDS all orchestrator; do  # monitor.env and operator.env stay in auth/ (for people)
         if [ -f "$AUTH/$role.env" ]; then install -m 0640 "$AUTH/$role.env" "$ETC/$role.env"; fi
     done
@@ -202,32 +291,76 @@ if [ "$SECURE" -eq 1 ]; then
         fi
     fi
     chmod 0640 "$AUTH/amqtt.passwd"
-    BROKER_ARGS="--bind 127.0.0.1 --port $port --passwd $ETC_PATH/auth/amqtt.passwd --acl $ETC_PATH/auth/amqtt-acl.yaml"
+    BROKER_ARGS="$BROKER_ARGS --passwd $ETC_PATH/auth/amqtt.passwd --acl $ETC_PATH/auth/amqtt-acl.yaml"
     say "broker users written to /etc/umlbot/auth (operator.env and monitor.env are for people)"
 fi
 
-# 5. /etc/umlbot/umlbot.env: written once, never overwritten (it may hold credentials).
-ENVFILE="$ETC/umlbot.env"
-if [ -e "$ENVFILE" ]; then
-    say "keeping existing $ENVFILE"
+# 5. /etc/umlbot/umlbot.env (it may hold credentials: root:umlbot 0640). Made on the first run; an
+#    update sets the keys of the options given (and adds keys it lacks) and keeps every other line.
+SERVICE_ARGS="--driver $DRIVER"
+RUN_ARGS=""
+LOG_LEVEL=INFO
+if [ -f "$ENVFILE" ]; then
+    if old="$(env_get "$ENVFILE" UMLBOT_SERVICE_ARGS)"; then
+        SERVICE_ARGS="$old"
+        if given driver; then SERVICE_ARGS="$(set_arg "$old" --driver "$DRIVER")"; fi
+    fi
+    if old="$(env_get "$ENVFILE" UMLBOT_BROKER_ARGS)"; then
+        new="$old"
+        if given broker || [ "$SECURE" -eq 1 ]; then new="$(set_arg "$new" --port "$port")"; fi
+        if [ "$SECURE" -eq 1 ]; then
+            new="$(set_arg "$new" --passwd "$ETC_PATH/auth/amqtt.passwd")"
+            new="$(set_arg "$new" --acl "$ETC_PATH/auth/amqtt-acl.yaml")"
+        fi
+        BROKER_ARGS="$new"
+    fi
+    if value="$(env_get "$ENVFILE" UMLBOT_RUN_ARGS)"; then RUN_ARGS="$value"; fi
+    if value="$(env_get "$ENVFILE" UMLBOT_LOG_LEVEL)"; then LOG_LEVEL="$value"; fi
+fi
+declare -A SETTING=(
+    [UMLBOT_ROBOT]="$ROBOT" [UMLBOT_BROKER]="$BROKER" [UMLBOT_DEPLOYMENT]="$DEPLOYMENT_PATH"
+    [UMLBOT_COMPILED]="$MODEL_PATH" [UMLBOT_SERVICE_ARGS]="$SERVICE_ARGS" [UMLBOT_RUN_ARGS]="$RUN_ARGS"
+    [UMLBOT_BROKER_ARGS]="$BROKER_ARGS" [UMLBOT_LOG_LEVEL]="$LOG_LEVEL"
+)
+SETTING_ORDER=(UMLBOT_ROBOT UMLBOT_BROKER UMLBOT_DEPLOYMENT UMLBOT_COMPILED UMLBOT_SERVICE_ARGS
+               UMLBOT_RUN_ARGS UMLBOT_BROKER_ARGS UMLBOT_LOG_LEVEL)
+declare -A DONE=()
+CHANGED=()
+NEWENV="$ENVFILE.new"
+umask 027
+if [ -f "$ENVFILE" ]; then
+    while IFS= read -r line || [ -n "$line" ]; do
+        key="${line%%=*}"
+        if [[ "$key" =~ ^[A-Z_][A-Z0-9_]*$ ]] && [ -n "${SETTING[$key]+set}" ]; then
+            if [ -n "${DONE[$key]+set}" ]; then continue; fi  # said twice: keep one line, the new value
+            DONE[$key]=1
+            if [ "${line#*=}" != "${SETTING[$key]}" ]; then CHANGED+=("$key"); fi
+            printf '%s=%s\n' "$key" "${SETTING[$key]}"
+        else
+            printf '%s\n' "$line"
+        fi
+    done <"$ENVFILE" >"$NEWENV"
 else
-    umask 027
-    cat >"$ENVFILE" <<EOF
+    cat >"$NEWENV" <<'EOF'
 # /etc/umlbot/umlbot.env — read by every umlbot unit. Keep it root:umlbot 0640: the broker URL
 # may carry a password. /etc/umlbot/<role>.env (a service kind, all, orchestrator) may override
-# UMLBOT_BROKER with that role's own MQTT user (see docs/security.md).
-UMLBOT_ROBOT=$ROBOT
-UMLBOT_BROKER=$BROKER
-UMLBOT_DEPLOYMENT=$DEPLOYMENT_PATH
-UMLBOT_COMPILED=$MODEL_PATH
-UMLBOT_SERVICE_ARGS=--driver $DRIVER
-UMLBOT_RUN_ARGS=
-UMLBOT_BROKER_ARGS=$BROKER_ARGS
-UMLBOT_LOG_LEVEL=INFO
+# UMLBOT_BROKER with that role's own MQTT user (see docs/security.md). install.sh run again sets
+# the keys of the options it is given and keeps every other line.
 EOF
-    umask 022
-    chmod 0640 "$ENVFILE"
 fi
+for key in "${SETTING_ORDER[@]}"; do  # new keys (first run, or an update that brings a new one)
+    if [ -z "${DONE[$key]+set}" ]; then
+        if [ -f "$ENVFILE" ]; then CHANGED+=("$key"); fi
+        printf '%s=%s\n' "$key" "${SETTING[$key]}" >>"$NEWENV"
+    fi
+done
+umask 022
+chmod 0640 "$NEWENV"
+if [ -f "$ENVFILE" ]; then
+    if [ "${#CHANGED[@]}" -gt 0 ]; then say "updated ${CHANGED[*]} in $ETC_PATH/umlbot.env (its other lines kept)"
+    else say "$ETC_PATH/umlbot.env is up to date"; fi
+fi
+mv -f "$NEWENV" "$ENVFILE"
 if [ -z "$ROOT" ] && id umlbot >/dev/null 2>&1; then
     chgrp -R umlbot "$ETC"
 fi
@@ -238,13 +371,52 @@ for unit in "$SOURCE"/deploy/systemd/*.service "$SOURCE"/deploy/systemd/*.target
     chmod 0644 "$UNITDIR/$(basename "$unit")"
 done
 
-# 7. Enable: umlbot.target on boot, and under it every service kind and the orchestrator.
-WANTED=()
-for kind in $SERVICES; do WANTED+=("umlbot-service@$kind.service"); done
+# 7. Start order, in drop-ins (rewritten on every run): the services and the orchestrator want the
+#    broker they use (Mosquitto, or the embedded broker, when on this machine) and start after it;
+#    the orchestrator also wants the service units of this install and starts after them.
+SERVICE_UNITS=()
+for kind in $SERVICES; do SERVICE_UNITS+=("umlbot-service@$kind.service"); done
+BROKER_UNIT=""
+if [ "$EMBEDDED_BROKER" -eq 1 ]; then
+    BROKER_UNIT=umlbot-broker.service
+else
+    case "$host" in 127.0.0.1|localhost|"[::1]") BROKER_UNIT=mosquitto.service ;; esac
+fi
+for unit in umlbot-service@.service umlbot-orchestrator.service; do
+    dropin="$UNITDIR/$unit.d"
+    install -d -m 0755 "$dropin"
+    {
+        echo "# Written by deploy/install.sh on every run: the broker this robot uses."
+        echo "[Unit]"
+        if [ -n "$BROKER_UNIT" ]; then
+            echo "Wants=$BROKER_UNIT"
+            echo "After=$BROKER_UNIT"
+        fi
+    } >"$dropin/10-umlbot-broker.conf"
+    chmod 0644 "$dropin/10-umlbot-broker.conf"
+done
+{
+    echo "# Written by deploy/install.sh on every run: the orchestrator calls these services, so it"
+    echo "# pulls them in and starts after them (and then waits until their components are online)."
+    echo "[Unit]"
+    echo "Wants=${SERVICE_UNITS[*]}"
+    echo "After=${SERVICE_UNITS[*]}"
+} >"$UNITDIR/umlbot-orchestrator.service.d/20-umlbot-services.conf"
+chmod 0644 "$UNITDIR/umlbot-orchestrator.service.d/20-umlbot-services.conf"
+
+# 8. Enable: umlbot.target on boot, and under it every service kind and the orchestrator.
+WANTED=("${SERVICE_UNITS[@]}")
 if [ -n "$MODEL" ]; then WANTED+=(umlbot-orchestrator.service); fi
 if [ "$EMBEDDED_BROKER" -eq 1 ]; then WANTED+=(umlbot-broker.service); fi
 
 if [ "$ENABLE" -eq 1 ]; then
+    # An update that enables fewer kinds disables the others (they would fail or serve twice).
+    for link in "$UNITDIR"/umlbot.target.wants/umlbot-service@*.service; do
+        [ -L "$link" ] || continue
+        case " ${WANTED[*]} " in *" $(basename "$link") "*) continue ;; esac
+        say "disabling $(basename "$link") (not in --services)"
+        if [ "$LIVE" -eq 1 ]; then systemctl disable "$(basename "$link")"; else rm -f "$link"; fi
+    done
     if [ "$LIVE" -eq 1 ]; then
         systemctl daemon-reload
         systemctl enable umlbot.target "${WANTED[@]}"

@@ -71,13 +71,16 @@ def test_install_into_a_root_produces_the_tree(tmp_path: Path, robot_files: tupl
         ).read_text(encoding="utf-8")
     wants = units / "umlbot.target.wants"
     enabled = {p.name: os.readlink(p) for p in wants.iterdir()}
-    assert enabled == {
-        **{f"umlbot-service@{k}.service": "/etc/systemd/system/umlbot-service@.service" for k in KINDS},
+    assert enabled == {  # the deployment has motors only: only the motor service is enabled
+        "umlbot-service@motor.service": "/etc/systemd/system/umlbot-service@.service",
         "umlbot-orchestrator.service": "/etc/systemd/system/umlbot-orchestrator.service",
     }
     on_boot = units / "multi-user.target.wants" / "umlbot.target"
     assert os.readlink(on_boot) == "/etc/systemd/system/umlbot.target"
     assert (root / "etc" / "sysusers.d" / "umlbot.conf").read_text(encoding="utf-8").startswith("#")
+    # The directories the units write are systemd's StateDirectory= (owned by User=umlbot when
+    # made); install.sh makes none of them, so none is left owned by root.
+    assert not (root / "var").exists()
 
 
 def test_installed_units_verify(tmp_path: Path, robot_files: tuple[Path, Path]) -> None:
@@ -119,15 +122,195 @@ def test_prefix_is_filled_into_the_units_and_env(tmp_path: Path, robot_files: tu
                        "umlbot-orchestrator.service", "umlbot-broker.service"}
 
 
-def test_existing_env_file_is_kept(tmp_path: Path) -> None:
+def env_of(env_file: Path) -> dict[str, str]:
+    return dict(line.split("=", 1) for line in env_file.read_text(encoding="utf-8").splitlines()
+                if line and not line.startswith("#"))
+
+
+def test_existing_env_file_keeps_its_values_and_gets_the_keys_it_lacks(tmp_path: Path) -> None:
     root = tmp_path / "root"
     (root / "etc" / "umlbot").mkdir(parents=True)
     env_file = root / "etc" / "umlbot" / "umlbot.env"
     env_file.write_text("UMLBOT_BROKER=mqtt://orchestrator:secret@broker:1883\n", encoding="utf-8")
     result = run_install("--root", str(root), "--no-venv", "--no-enable")
     assert result.returncode == 0, result.stderr
-    assert env_file.read_text(encoding="utf-8") == "UMLBOT_BROKER=mqtt://orchestrator:secret@broker:1883\n"
+    lines = env_file.read_text(encoding="utf-8").splitlines()
+    assert lines[0] == "UMLBOT_BROKER=mqtt://orchestrator:secret@broker:1883"  # kept as it was
+    assert env_of(env_file) == {
+        "UMLBOT_BROKER": "mqtt://orchestrator:secret@broker:1883", "UMLBOT_ROBOT": "car",
+        "UMLBOT_DEPLOYMENT": "/opt/umlbot/robot/deployment.yaml",
+        "UMLBOT_COMPILED": "/opt/umlbot/robot/model.json", "UMLBOT_SERVICE_ARGS": "--driver auto",
+        "UMLBOT_RUN_ARGS": "", "UMLBOT_BROKER_ARGS": "--bind 127.0.0.1 --port 1883",
+        "UMLBOT_LOG_LEVEL": "INFO",
+    }
+    assert "secret" not in result.stdout + result.stderr
     assert not (root / "etc/systemd/system/umlbot.target.wants").exists()
+
+
+def test_a_rerun_updates_the_keys_of_the_options_given_and_keeps_the_rest(
+    tmp_path: Path, robot_files: tuple[Path, Path]
+) -> None:
+    """An update with a new --robot, --broker, --driver and model changes those keys only: the
+    user's own lines, comments and extra arguments stay."""
+    model, deployment = robot_files
+    root = tmp_path / "root"
+    first = run_install("--root", str(root), "--model", str(model), "--deployment", str(deployment),
+                        "--robot", "car", "--broker", "mqtt://127.0.0.1:1883")
+    assert first.returncode == 0, first.stderr
+    env_file = root / "etc" / "umlbot" / "umlbot.env"
+    text = env_file.read_text(encoding="utf-8")
+    text = text.replace("UMLBOT_SERVICE_ARGS=--driver auto", "UMLBOT_SERVICE_ARGS=--driver auto --log-json")
+    text = text.replace("UMLBOT_RUN_ARGS=", "UMLBOT_RUN_ARGS=--trace /var/lib/umlbot/trace.jsonl")
+    text = text.replace("UMLBOT_BROKER_ARGS=--bind 127.0.0.1", "UMLBOT_BROKER_ARGS=--bind 0.0.0.0")
+    text += "# my own setting\nPIGPIO_ADDR=10.0.0.9\n"
+    env_file.write_text(text, encoding="utf-8")
+    again = run_install("--root", str(root), "--no-venv", "--robot", "rover", "--broker",
+                        "mqtt://127.0.0.1:1884", "--driver", "mock")
+    assert again.returncode == 0, again.stderr
+    assert ("updated UMLBOT_ROBOT UMLBOT_BROKER UMLBOT_SERVICE_ARGS UMLBOT_BROKER_ARGS in "
+            "/etc/umlbot/umlbot.env") in again.stdout
+    updated = env_file.read_text(encoding="utf-8")
+    assert updated.endswith("# my own setting\nPIGPIO_ADDR=10.0.0.9\n")
+    assert env_of(env_file) == {
+        "UMLBOT_ROBOT": "rover", "UMLBOT_BROKER": "mqtt://127.0.0.1:1884",
+        "UMLBOT_DEPLOYMENT": "/opt/umlbot/robot/deployment.txt",
+        "UMLBOT_COMPILED": "/opt/umlbot/robot/robot_car.json",
+        "UMLBOT_SERVICE_ARGS": "--driver mock --log-json",
+        "UMLBOT_RUN_ARGS": "--trace /var/lib/umlbot/trace.jsonl",
+        "UMLBOT_BROKER_ARGS": "--bind 0.0.0.0 --port 1884", "UMLBOT_LOG_LEVEL": "INFO",
+        "PIGPIO_ADDR": "10.0.0.9",
+    }
+    assert stat.S_IMODE(env_file.stat().st_mode) == 0o640
+    assert not (env_file.parent / "umlbot.env.new").exists()
+
+    # A new model: only UMLBOT_COMPILED changes. Nothing given: nothing changes.
+    newer = tmp_path / "newer.json"
+    newer.write_text('{"format": 1}\n', encoding="utf-8")
+    assert run_install("--root", str(root), "--model", str(newer)).returncode == 0
+    assert env_of(env_file)["UMLBOT_COMPILED"] == "/opt/umlbot/robot/newer.json"
+    before = env_file.read_bytes()
+    same = run_install("--root", str(root))
+    assert same.returncode == 0, same.stderr
+    assert "umlbot.env is up to date" in same.stdout
+    assert env_file.read_bytes() == before
+
+
+def test_root_implies_no_venv(tmp_path: Path) -> None:
+    """A venv made under --root would name the staging path: --root makes none, and says why."""
+    calls = tmp_path / "calls"
+    python = tmp_path / "python"
+    python.write_text(f'#!/bin/sh\necho "$*" >>{calls}\n'
+                      f'case "$*" in *"-m venv"*|*"-m pip"*) exit 3 ;; esac\nexec {sys.executable} "$@"\n',
+                      encoding="utf-8")
+    python.chmod(0o755)
+    root = tmp_path / "root"
+    result = run_install("--root", str(root), "--python", str(python))
+    assert result.returncode == 0, result.stderr
+    assert "--root: no venv is made" in result.stdout
+    assert not (root / "opt" / "umlbot" / "venv").exists()
+    assert "venv" not in calls.read_text(encoding="utf-8") and "pip" not in calls.read_text(encoding="utf-8")
+    refused = run_install("--root", str(tmp_path / "r2"), "--plugin", "umlbot-buzzer")
+    assert refused.returncode != 0
+    assert "--plugin needs the venv, which --root does not make" in refused.stderr
+    help_text = run_install("--help").stdout
+    assert "implies --no-venv" in help_text
+
+
+def test_a_kind_the_deployment_does_not_use_is_refused(
+    tmp_path: Path, robot_files: tuple[Path, Path]
+) -> None:
+    """Its service would exit at once ("no component served by the sonar service"): refused, with
+    the kinds the deployment uses; also on an update that names no deployment (the installed one)."""
+    model, deployment = robot_files  # motors only
+    root = tmp_path / "root"
+    result = run_install("--root", str(root), "--deployment", str(deployment), "--services", "motor sonar")
+    assert result.returncode != 0
+    assert (f"service kind 'sonar' is not used by the deployment {deployment}: its service would have "
+            "nothing to serve and fail at start (the deployment uses: motor; or all)") in result.stderr
+    assert not root.exists()
+    first = run_install("--root", str(root), "--deployment", str(deployment), "--model", str(model))
+    assert first.returncode == 0, first.stderr
+    update = run_install("--root", str(root), "--services", "servo")
+    assert update.returncode != 0
+    assert "service kind 'servo' is not used by the deployment" in update.stderr
+    assert "(the deployment uses: motor; or all)" in update.stderr
+    together = run_install("--root", str(root), "--services", "motor all")
+    assert together.returncode != 0 and "--services all already serves every kind" in together.stderr
+    # `all` alone is fine, and an update to it disables the single kinds
+    one = run_install("--root", str(root), "--services", "all")
+    assert one.returncode == 0, one.stderr
+    wants = root / "etc" / "systemd" / "system" / "umlbot.target.wants"
+    assert sorted(p.name for p in wants.iterdir()) == ["umlbot-orchestrator.service",
+                                                       "umlbot-service@all.service"]
+
+
+def _dropin(root: Path, unit: str, name: str) -> dict[str, list[str]]:
+    text = (root / "etc/systemd/system" / f"{unit}.d" / name).read_text(encoding="utf-8")
+    keys: dict[str, list[str]] = {}
+    for line in text.splitlines():
+        if "=" in line and not line.startswith("#"):
+            key, _, value = line.partition("=")
+            keys.setdefault(key, []).extend(value.split())
+    return keys
+
+
+@pytest.mark.parametrize(
+    ("args", "services", "broker"),
+    [
+        ([], [f"umlbot-service@{k}.service" for k in KINDS], ["mosquitto.service"]),
+        (["--embedded-broker", "--services", "all"], ["umlbot-service@all.service"],
+         ["umlbot-broker.service"]),
+        (["--broker", "mqtt://10.0.0.2:1883", "--services", "motor"], ["umlbot-service@motor.service"], []),
+    ],
+)
+def test_drop_ins_order_the_orchestrator_after_the_broker_and_its_services(
+    tmp_path: Path, args: list[str], services: list[str], broker: list[str]
+) -> None:
+    root = tmp_path / "root"
+    model = tmp_path / "robot_car.json"
+    model.write_text('{"format": 1}\n', encoding="utf-8")
+    result = run_install("--root", str(root), "--model", str(model), "--deployment",
+                         str(REPO / "models" / "robot_car" / "deployment.yaml"), *args)
+    assert result.returncode == 0, result.stderr
+    ordered = _dropin(root, "umlbot-orchestrator.service", "20-umlbot-services.conf")
+    assert ordered == {"Wants": services, "After": services}
+    for unit in ("umlbot-orchestrator.service", "umlbot-service@.service"):
+        on_broker = _dropin(root, unit, "10-umlbot-broker.conf")
+        assert on_broker == ({"Wants": broker, "After": broker} if broker else {})
+
+
+def test_installed_units_with_their_drop_ins_verify_and_order_the_orchestrator_last(tmp_path: Path) -> None:
+    """systemd-analyze reads the drop-ins: clean; and a service ordered after the orchestrator
+    (a cycle only the drop-in's After= on the services can close) is reported."""
+    root = tmp_path / "root"
+    model = tmp_path / "robot_car.json"
+    model.write_text('{"format": 1}\n', encoding="utf-8")
+    result = run_install("--root", str(root), "--model", str(model), "--deployment",
+                         str(REPO / "models" / "robot_car" / "deployment.yaml"), "--embedded-broker")
+    assert result.returncode == 0, result.stderr
+    analyze = shutil.which("systemd-analyze")
+    assert analyze, "systemd-analyze is missing (Debian package systemd)"
+    units = root / "etc" / "systemd" / "system"
+    checked = tmp_path / "checked"
+    checked.mkdir()
+    for unit in units.glob("umlbot*"):
+        if unit.name.endswith(".d"):
+            shutil.copytree(unit, checked / unit.name)  # the drop-ins
+        elif unit.is_file():
+            text = unit.read_text(encoding="utf-8").replace("/opt/umlbot/venv", sys.prefix)
+            (checked / unit.name).write_text(text, encoding="utf-8")
+
+    def verify() -> str:
+        done = subprocess.run([analyze, "verify", "umlbot-orchestrator.service"], cwd=checked,
+                              capture_output=True, text=True, timeout=60, check=False)
+        assert done.returncode == 0, done.stderr
+        return done.stderr.strip()
+
+    assert verify() == ""
+    (checked / "umlbot-service@.service.d" / "99-cycle.conf").write_text(
+        "[Unit]\nAfter=umlbot-orchestrator.service\n", encoding="utf-8")
+    cycle = verify()
+    assert "ordering cycle" in cycle and "umlbot-service@motor.service" in cycle, cycle
 
 
 @pytest.mark.parametrize(
