@@ -120,3 +120,23 @@ def test_hardware_services_reach_the_gpiochips_for_lgpio_and_nothing_else() -> N
     assert "m umlbot gpio" in sysusers, "the group that owns /dev/gpiochip*"
     for other in ("umlbot-orchestrator.service", "umlbot-broker.service"):
         assert _unit(other)["Service"]["PrivateDevices"] == "yes"
+
+
+@pytest.mark.parametrize("name", SERVICE_UNITS)
+def test_the_directories_the_units_write_belong_to_the_service_user(name: str) -> None:
+    """The one writable place, /var/lib/umlbot (traces, lgpio's pipe), is the units' StateDirectory=:
+    systemd makes it (and chowns it on every start) for User=/Group=umlbot. No tmpfiles.d entry may
+    make an umlbot directory for another owner (systemd-tmpfiles runs as root: root would own it)."""
+    unit = _unit(name)
+    service = unit["Service"]
+    assert service["User"] == "umlbot" and service["Group"] == "umlbot"
+    assert service["StateDirectory"] == "umlbot"
+    assert service["WorkingDirectory"] == "/var/lib/umlbot"
+    assert "ReadWritePaths" not in service, "a writable path systemd does not make for the service user"
+    for key in ("RuntimeDirectory", "LogsDirectory", "CacheDirectory"):  # systemd-made, user-owned too
+        assert service.get(key, "umlbot").split()[0].startswith("umlbot")
+    for conf in sorted((REPO / "deploy").glob("tmpfiles.d/*.conf")):
+        for line in conf.read_text(encoding="utf-8").splitlines():
+            fields = line.split()
+            if fields and not line.startswith("#") and "umlbot" in fields[1]:
+                assert fields[0][0] in "dDv" and fields[3:5] == ["umlbot", "umlbot"], (conf.name, line)
