@@ -29,7 +29,7 @@ from services.bus.settings import BrokerSettings
 from services.bus.topics import Topics
 from services.component_service import ComponentService
 from services.registry import SettingsError, create_driver
-from umlbot.deployment import Deployment, shared_pin_message, shared_pins
+from umlbot.deployment import Deployment, owned_pins, shared_pins
 from umlbot.errors import ConfigError, UnknownDriver
 from umlbot.library import ServiceKind, service_kinds, service_spec
 from umlbot.logs import get_logger
@@ -44,17 +44,6 @@ ORCHESTRATOR_STATES = frozenset({"starting", "running", "stopping", "stopped", "
 BAD_STATUS_WARN_EVERY_S = 10.0
 
 TICK_S = 0.05
-
-
-def owned_pins(deployment: Deployment) -> dict[int, str]:
-    """GPIO -> component for every pin a component's settings name (its implementation's `pin_keys`)."""
-    owners: dict[int, str] = {}
-    for name, comp in deployment.components.items():
-        for key in comp.implementation.pin_keys:
-            pin = comp.settings.get(key)
-            if isinstance(pin, int) and not isinstance(pin, bool):
-                owners.setdefault(pin, name)
-    return owners
 
 
 def _service_class(kind: ServiceKind) -> type[ComponentService]:
@@ -107,10 +96,10 @@ class ServiceHost:
             served = {name: comp for name, comp in served.items() if name in components}
         if not served:
             raise ConfigError(f"the deployment has no component served by the {kind} service")
-        for pin, name, key, first, first_key in shared_pins(deployment):
-            if name in served or first in served:  # one would take the pin over: `umlbot check` refuses too
-                raise ConfigError(f"{deployment.where('components', name, 'settings', key)}: "
-                                  f"{shared_pin_message(pin, name, key, first, first_key)}")
+        for shared in shared_pins(deployment):
+            if shared.component in served or shared.first in served:  # `umlbot check` refuses it too
+                at = deployment.where("components", shared.component, "settings", *shared.path)
+                raise ConfigError(f"{at}: {shared.message()}")
         self.component_deployments = served
         self.drivers: dict[str, Any] = {}
         self.services: dict[str, ComponentService] = {}
@@ -135,12 +124,7 @@ class ServiceHost:
             reserved = {
                 pin: owner for pin, owner in owned_pins(self.deployment).items() if owner != component
             }
-            listed = settings.get("pins")
-            if isinstance(listed, list):
-                clash = sorted(p for p in listed if p in reserved)
-                if clash:
-                    owners = ", ".join(f"GPIO {p} ({reserved[p]})" for p in clash)
-                    raise ConfigError(f"{component}: pins {owners} belong to other components")
+            # a listed pin another component owns was refused in __init__ (`shared_pins`)
             settings["reserved_pins"] = {**reserved, **settings.get("reserved_pins", {})}
         return settings
 

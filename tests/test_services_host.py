@@ -53,7 +53,9 @@ def test_a_typo_in_a_pigpio_setting_is_a_config_error() -> None:
 
 
 def test_owned_pins_of_the_reference_robot() -> None:
-    assert owned_pins(deployment()) == {22: "LeftActuator", 23: "LeftActuator", 24: "RightActuator",
+    # the gpio component's `pins` list counts as its own, as every single-pin setting does
+    assert owned_pins(deployment()) == {4: "RaspberryPI", 17: "RaspberryPI", 27: "RaspberryPI",
+                                        22: "LeftActuator", 23: "LeftActuator", 24: "RightActuator",
                                         25: "RightActuator", 18: "Sensor", 8: "DistanceRead",
                                         7: "DistanceRead"}
 
