@@ -52,6 +52,36 @@ def test_a_typo_in_a_pigpio_setting_is_a_config_error() -> None:
         registry.create_driver("motor", "pigpio", "LeftActuator", {"in_1": 22, "in2": 23})
 
 
+@pytest.mark.parametrize("driver", ["mock", "sim"])
+def test_the_mock_and_sim_drivers_refuse_what_the_hardware_drivers_refuse(driver: str) -> None:
+    """A misspelt key or a pin out of range is refused as pigpio refuses it (so what runs under
+    mock is not refused on the robot); only a missing pin is forgiven (they need no pins)."""
+    typo = {"in_1": 22, "in2": 23}
+    with pytest.raises(ConfigError) as hardware:
+        registry.create_driver("motor", "pigpio", "LeftActuator", typo)
+    with pytest.raises(ConfigError) as mock:
+        registry.create_driver("motor", driver, "LeftActuator", typo)
+    assert str(mock.value) == "LeftActuator: invalid settings: in_1: Extra inputs are not permitted"
+    assert "in_1: Extra inputs are not permitted" in str(hardware.value)
+    with pytest.raises(ConfigError, match=r"^Sensor: invalid settings: gpio: Input should be less than or "
+                                          r"equal to 27$"):
+        registry.create_driver("servo", "mock", "Sensor", {"gpio": 28})
+    assert registry.settings_problems("motor", driver, typo) == [(("in_1",), "Extra inputs are not "
+                                                                             "permitted")]
+    assert registry.settings_problems("motor", driver, {}) == []  # no pins: fine without hardware
+    channel = registry.create_driver("motor", "mock", "LeftActuator", {"mock_latency_s": 0})
+    channel.close()
+
+
+def test_a_misspelt_setting_under_mock_is_refused_at_its_position() -> None:
+    dep = parse_deployment("driver: mock\ncomponents:\n  LeftActuator:\n    impl: l298n\n"
+                           "    settings: {in1: 22, in_2: 23}\n", "deployment.yaml")
+    host = ServiceHost("motor", dep, broker_settings("mqtt://127.0.0.1:1"), ROBOT)
+    with pytest.raises(ConfigError, match=r"^deployment\.yaml:5:25: component LeftActuator: settings\.in_2: "
+                                          r"Extra inputs are not permitted$"):
+        host.start()
+
+
 def test_owned_pins_of_the_reference_robot() -> None:
     # the gpio component's `pins` list counts as its own, as every single-pin setting does
     assert owned_pins(deployment()) == {4: "RaspberryPI", 17: "RaspberryPI", 27: "RaspberryPI",
