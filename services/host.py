@@ -28,7 +28,7 @@ from services.bus.server import STATUS_WAIT_S, ComponentServer
 from services.bus.settings import BrokerSettings
 from services.bus.topics import Topics
 from services.component_service import ComponentService
-from services.registry import SettingsError, create_driver
+from services.registry import SettingsError, create_driver, resolve_driver
 from umlbot.deployment import Deployment, owned_pins, shared_pins
 from umlbot.errors import ConfigError, UnknownDriver
 from umlbot.library import ServiceKind, service_kinds, service_spec
@@ -102,6 +102,8 @@ class ServiceHost:
                 raise ConfigError(f"{at}: {shared.message()}")
         self.component_deployments = served
         self.drivers: dict[str, Any] = {}
+        #: component -> the driver that runs it (`auto` resolved), filled in as the drivers are built
+        self.chosen_drivers: dict[str, str] = {}
         self.services: dict[str, ComponentService] = {}
         self.servers: dict[str, ComponentServer] = {}
         self._lock = threading.Lock()
@@ -156,8 +158,9 @@ class ServiceHost:
             self.stop()
             raise
         self._serving = True
+        # the drivers that run, `auto` resolved (`driver_auto` says why it chose that one)
         log.info("service_started", kind=self.kind, robot=self.robot,
-                 components={n: self.driver_name(n) for n in self.services}, broker=self.settings.url)
+                 components={n: self.chosen_drivers[n] for n in self.services}, broker=self.settings.url)
 
     def _build(self) -> None:
         service_cls = _service_class(self.kind)
@@ -178,7 +181,9 @@ class ServiceHost:
         """The component's driver; a deployment mistake names its `file:line:col`."""
         dep = self.deployment
         try:
-            return create_driver(self.kind, self.driver_name(name), name, self._driver_settings(name))
+            driver = create_driver(self.kind, self.driver_name(name), name, self._driver_settings(name))
+            self.chosen_drivers[name] = resolve_driver(self.driver_name(name))
+            return driver
         except SettingsError as exc:
             path, message = exc.problems[0]
             more = len(exc.problems) - 1

@@ -166,6 +166,42 @@ def _cli(
     )
 
 
+def test_service_started_names_the_drivers_that_run(mosquitto_broker: BrokerProcess, tmp_path: Path) -> None:
+    """`driver: auto` is logged as what it chose (here the fake lgpio), not as "auto"."""
+    import json
+    import queue
+    import threading
+
+    deploy = tmp_path / "d.yaml"
+    deploy.write_text("driver: auto\ncomponents:\n  Sensor: {impl: servo, settings: {gpio: 18}}\n"
+                      "  Tilt: {impl: servo, driver: mock, settings: {gpio: 19}}\n")
+    env = {**os.environ, "UMLBOT_FAKE_LGPIO": "1"}
+    env.pop("UMLBOT_FAKE_PIGPIO", None)
+    proc = subprocess.Popen(
+        [sys.executable, "-c", "from umlbot.cli import main; main()", "--log-level", "INFO", "--log-json",
+         "service", "servo", "--deploy", str(deploy), "--robot", "autocar", "--broker", mosquitto_broker.url],
+        stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True, env=env)
+    lines: queue.Queue[str] = queue.Queue()
+    assert proc.stderr is not None
+    stderr = proc.stderr
+    threading.Thread(target=lambda: [lines.put(line) for line in stderr], daemon=True).start()
+    try:
+        deadline = time.monotonic() + 30
+        started = None
+        while started is None and time.monotonic() < deadline:
+            try:
+                line = lines.get(timeout=max(0.0, deadline - time.monotonic()))
+            except queue.Empty:
+                break
+            if line.startswith("{") and json.loads(line).get("event") == "service_started":
+                started = json.loads(line)
+        assert started is not None, "no service_started line within 30 s"
+        assert started["components"] == {"Sensor": "lgpio", "Tilt": "mock"}
+    finally:
+        proc.terminate()
+        assert proc.wait(10) == 0
+
+
 def test_cli_unknown_driver_is_one_clear_line(tmp_path: Path) -> None:
     deploy = tmp_path / "d.txt"
     deploy.write_text("LeftActuator=CModelL298NActuator\n")
