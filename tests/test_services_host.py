@@ -15,10 +15,10 @@ from conftest import BrokerProcess, free_port
 from services_support import ROBOT, broker_settings, client, deployment, running
 
 from services import registry
-from services.host import ServiceGroup, ServiceHost, owned_pins
+from services.host import ServiceGroup, ServiceHost
 from services.motor.driver import L298NSettings
 from services.motor.mock import MockMotorChannel, MockMotorSettings
-from umlbot.deployment import parse_deployment
+from umlbot.deployment import owned_pins, parse_deployment
 from umlbot.errors import ConfigError, DriverError, NotConnected, UnknownDriver
 from umlbot.library import service_kinds
 
@@ -184,7 +184,11 @@ def test_service_started_names_the_drivers_that_run(mosquitto_broker: BrokerProc
     lines: queue.Queue[str] = queue.Queue()
     assert proc.stderr is not None
     stderr = proc.stderr
-    threading.Thread(target=lambda: [lines.put(line) for line in stderr], daemon=True).start()
+    def read() -> None:
+        for line in stderr:
+            lines.put(line)
+
+    threading.Thread(target=read, daemon=True).start()
     try:
         deadline = time.monotonic() + 30
         started = None
