@@ -203,7 +203,8 @@ def test_service_started_names_the_drivers_that_run(mosquitto_broker: BrokerProc
         assert started["components"] == {"Sensor": "lgpio", "Tilt": "mock"}
     finally:
         proc.terminate()
-        assert proc.wait(10) == 0
+        # 130: the signal came in the instant between the line and the command's "running" mark
+        assert proc.wait(10) in (0, 130)
 
 
 def test_cli_unknown_driver_is_one_clear_line(tmp_path: Path) -> None:
