@@ -631,13 +631,14 @@ class _Checker:
 
     def check_shared_pins(self, dep: SourceDeployment) -> None:
         """Two components wired to one GPIO: the second service to start would take the pin over."""
-        from umlbot.deployment import shared_pin_message, shared_pins
+        from umlbot.deployment import shared_pins
 
         assert dep.deployment is not None
-        for pin, name, key, first, first_key in shared_pins(dep.deployment):
-            if name in self.scope.impls and first in self.scope.impls:  # else its entry's own error
-                self.d.error(shared_pin_message(pin, name, key, first, first_key),
-                             self._deployment_loc(dep, "components", name, "settings", key))
+        for shared in shared_pins(dep.deployment):
+            name = shared.component
+            if name in self.scope.impls and shared.first in self.scope.impls:  # else its entry's own error
+                self.d.error(shared.message(),
+                             self._deployment_loc(dep, "components", name, "settings", *shared.path))
 
     # --- swimlanes -----------------------------------------------------------------------------------
 

@@ -28,8 +28,8 @@ from services.bus.server import STATUS_WAIT_S, ComponentServer
 from services.bus.settings import BrokerSettings
 from services.bus.topics import Topics
 from services.component_service import ComponentService
-from services.registry import SettingsError, create_driver
-from umlbot.deployment import Deployment, shared_pin_message, shared_pins
+from services.registry import SettingsError, create_driver, resolve_driver
+from umlbot.deployment import Deployment, owned_pins, shared_pins
 from umlbot.errors import ConfigError, UnknownDriver
 from umlbot.library import ServiceKind, service_kinds, service_spec
 from umlbot.logs import get_logger
@@ -44,17 +44,6 @@ ORCHESTRATOR_STATES = frozenset({"starting", "running", "stopping", "stopped", "
 BAD_STATUS_WARN_EVERY_S = 10.0
 
 TICK_S = 0.05
-
-
-def owned_pins(deployment: Deployment) -> dict[int, str]:
-    """GPIO -> component for every pin a component's settings name (its implementation's `pin_keys`)."""
-    owners: dict[int, str] = {}
-    for name, comp in deployment.components.items():
-        for key in comp.implementation.pin_keys:
-            pin = comp.settings.get(key)
-            if isinstance(pin, int) and not isinstance(pin, bool):
-                owners.setdefault(pin, name)
-    return owners
 
 
 def _service_class(kind: ServiceKind) -> type[ComponentService]:
@@ -107,12 +96,14 @@ class ServiceHost:
             served = {name: comp for name, comp in served.items() if name in components}
         if not served:
             raise ConfigError(f"the deployment has no component served by the {kind} service")
-        for pin, name, key, first, first_key in shared_pins(deployment):
-            if name in served or first in served:  # one would take the pin over: `umlbot check` refuses too
-                raise ConfigError(f"{deployment.where('components', name, 'settings', key)}: "
-                                  f"{shared_pin_message(pin, name, key, first, first_key)}")
+        for shared in shared_pins(deployment):
+            if shared.component in served or shared.first in served:  # `umlbot check` refuses it too
+                at = deployment.where("components", shared.component, "settings", *shared.path)
+                raise ConfigError(f"{at}: {shared.message()}")
         self.component_deployments = served
         self.drivers: dict[str, Any] = {}
+        #: component -> the driver that runs it (`auto` resolved), filled in as the drivers are built
+        self.chosen_drivers: dict[str, str] = {}
         self.services: dict[str, ComponentService] = {}
         self.servers: dict[str, ComponentServer] = {}
         self._lock = threading.Lock()
@@ -135,12 +126,7 @@ class ServiceHost:
             reserved = {
                 pin: owner for pin, owner in owned_pins(self.deployment).items() if owner != component
             }
-            listed = settings.get("pins")
-            if isinstance(listed, list):
-                clash = sorted(p for p in listed if p in reserved)
-                if clash:
-                    owners = ", ".join(f"GPIO {p} ({reserved[p]})" for p in clash)
-                    raise ConfigError(f"{component}: pins {owners} belong to other components")
+            # a listed pin another component owns was refused in __init__ (`shared_pins`)
             settings["reserved_pins"] = {**reserved, **settings.get("reserved_pins", {})}
         return settings
 
@@ -172,8 +158,9 @@ class ServiceHost:
             self.stop()
             raise
         self._serving = True
+        # the drivers that run, `auto` resolved (`driver_auto` says why it chose that one)
         log.info("service_started", kind=self.kind, robot=self.robot,
-                 components={n: self.driver_name(n) for n in self.services}, broker=self.settings.url)
+                 components={n: self.chosen_drivers[n] for n in self.services}, broker=self.settings.url)
 
     def _build(self) -> None:
         service_cls = _service_class(self.kind)
@@ -194,7 +181,9 @@ class ServiceHost:
         """The component's driver; a deployment mistake names its `file:line:col`."""
         dep = self.deployment
         try:
-            return create_driver(self.kind, self.driver_name(name), name, self._driver_settings(name))
+            driver = create_driver(self.kind, self.driver_name(name), name, self._driver_settings(name))
+            self.chosen_drivers[name] = resolve_driver(self.driver_name(name))
+            return driver
         except SettingsError as exc:
             path, message = exc.problems[0]
             more = len(exc.problems) - 1

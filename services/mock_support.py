@@ -3,8 +3,9 @@
 Mock drivers are package code, like gpiozero's MockFactory, so users can test their own models
 without hardware: `umlbot service motor --driver mock`, or `ServiceHost(..., driver="mock")` and
 then read `host.drivers["LeftActuator"].commands`. Their settings come from the deployment's
-component settings, under keys starting with `mock_` (other keys, such as pins, are ignored so
-one deployment serves every driver).
+component settings, under keys starting with `mock_` (other keys, such as pins, do nothing here,
+so one deployment serves every driver; they are still checked as the hardware drivers check them,
+none required: `services.registry.hardware_problems`).
 """
 
 from __future__ import annotations

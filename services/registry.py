@@ -16,7 +16,11 @@ at run time with a factory closure; that entry overrides the entry points for th
 
 Settings: the component's deployment `settings` mapping is validated by the factory's pydantic
 model. Keys prefixed with another driver's name (`mock_…`, `sim_…`) are dropped first, so one
-deployment can carry the settings of every backend and `--driver` switches between them.
+deployment can carry the settings of every backend and `--driver` switches between them. The mock
+and sim drivers ignore the hardware keys, but do not let a wrong one through: the settings they
+are given are also checked against every hardware driver's model, with only the missing required
+keys (pins) forgiven (`hardware_problems`), so a deployment that runs under mock or sim is not
+refused on the robot for a misspelt key or a pin out of range.
 """
 
 from __future__ import annotations
@@ -67,12 +71,9 @@ class DriverFactory(Generic[S]):
         try:
             settings = self.settings_model.model_validate(dict(raw_settings))
         except ValidationError as exc:
-            problems = "; ".join(
-                f"{'.'.join(str(p) for p in err['loc']) or 'settings'}: {err['msg']}"
-                for err in exc.errors()
-            )
-            raise SettingsError(component, [(tuple(err["loc"]), str(err["msg"])) for err in exc.errors()],
-                                f"{component}: invalid settings: {problems}") from exc
+            problems = [(tuple(err["loc"]), str(err["msg"])) for err in exc.errors()]
+            raise SettingsError(component, problems,
+                                f"{component}: invalid settings: {_describe(problems)}") from exc
         return self.create(component, settings)
 
 
@@ -104,10 +105,7 @@ def get_factory(kind: ServiceKind, driver: str) -> DriverFactory[Any]:
     if kind not in service_kinds():
         raise UnknownDriver(f"unknown service kind {kind!r}; known kinds: {', '.join(service_kinds())}")
     chosen_by_auto = driver == AUTO
-    if chosen_by_auto:
-        from services.autodetect import auto_driver
-
-        driver = auto_driver()
+    driver = resolve_driver(driver)
     with _lock:
         runtime = _runtime.get((kind, driver))
     if runtime is not None:
@@ -138,10 +136,49 @@ def driver_settings(driver: str, settings: Mapping[str, Any]) -> dict[str, Any]:
 def create_driver(kind: ServiceKind, driver: str, component: str, settings: Mapping[str, Any]) -> Any:
     """Build the driver of one component from its deployment settings.
 
-    Raises `UnknownDriver` for an unknown name, `ConfigError` for invalid settings and
-    `DriverError` when the hardware cannot be reached (e.g. pigpiod not running).
+    Raises `UnknownDriver` for an unknown name, `ConfigError` for invalid settings (for the mock
+    and sim drivers also the hardware keys: `hardware_problems`) and `DriverError` when the
+    hardware cannot be reached (e.g. pigpiod not running).
     """
-    return get_factory(kind, driver).build(component, driver_settings(driver, settings))
+    factory = get_factory(kind, driver)
+    if resolve_driver(driver) in PREFIXED_DRIVERS:
+        problems = hardware_problems(kind, settings)
+        if problems:
+            raise SettingsError(component, problems,
+                                f"{component}: invalid settings: {_describe(problems)}")
+    return factory.build(component, driver_settings(driver, settings))
+
+
+def resolve_driver(driver: str) -> str:
+    """The driver name that runs: `auto` resolved to the backend this machine has."""
+    if driver != AUTO:
+        return driver
+    from services.autodetect import auto_driver
+
+    return auto_driver()
+
+
+def _describe(problems: list[tuple[tuple[int | str, ...], str]]) -> str:
+    return "; ".join(f"{'.'.join(str(p) for p in path) or 'settings'}: {message}"
+                     for path, message in problems)
+
+
+def hardware_problems(kind: ServiceKind,
+                      settings: Mapping[str, Any]) -> list[tuple[tuple[int | str, ...], str]]:
+    """What the hardware drivers (every one `driver: auto` may pick) refuse in `settings` besides
+    a missing required key: a misspelt key, a value of the wrong type or out of range. The mock
+    and sim drivers run without pins but are held to this, so that what runs there is not
+    refused on the robot."""
+    problems: list[tuple[tuple[int | str, ...], str]] = []
+    for name, model in hardware_settings_models(kind):
+        try:
+            model.model_validate(driver_settings(name, settings))
+        except ValidationError as exc:
+            for err in exc.errors():
+                problem = (tuple(err["loc"]), str(err["msg"]))
+                if err["type"] != "missing" and problem not in problems:
+                    problems.append(problem)
+    return problems
 
 
 def hardware_settings_models(kind: ServiceKind) -> list[tuple[str, type[BaseModel]]]:
@@ -165,18 +202,22 @@ def hardware_settings_models(kind: ServiceKind) -> list[tuple[str, type[BaseMode
 def settings_problems(kind: ServiceKind, driver: str,
                       settings: Mapping[str, Any]) -> list[tuple[tuple[int | str, ...], str]]:
     """Why a component's deployment `settings` would be refused when its service starts with
-    `driver` (`auto`: by every hardware driver): (path in the settings, message) pairs, empty when
+    `driver` (`auto`: by every hardware driver; `mock`, `sim`: by their own model and, but for a
+    missing key, by every hardware driver): (path in the settings, message) pairs, empty when
     they are valid. The check `umlbot check` and the studio make before any service runs."""
+    hardware: list[tuple[tuple[int | str, ...], str]] = []
     if driver == AUTO:
         models = hardware_settings_models(kind)
     else:
+        if driver in PREFIXED_DRIVERS:
+            hardware = hardware_problems(kind, settings)
         try:
             models = [(driver, get_factory(kind, driver).settings_model)]
         except UnknownDriver as exc:
             return [((), str(exc))]
         except DriverError:
             return []  # a plugin's driver that does not load: `umlbot plugins` says why
-    problems: list[tuple[tuple[int | str, ...], str]] = []
+    problems = hardware
     for name, model in models:
         try:
             model.model_validate(driver_settings(name, settings))

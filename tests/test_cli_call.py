@@ -64,6 +64,18 @@ def test_call_prints_the_reply_as_json(served: BrokerProcess) -> None:
     assert received == [("dutycycle", 60)]
 
 
+def test_log_options_after_the_target_are_options_not_arguments(served: BrokerProcess) -> None:
+    """`--log-level X` among the ARGS is the log option (as before the command name); it used
+    to be sent as two more arguments. `--` still passes such a text as an argument."""
+    result = run_call(served.url, "--robot", "clicar", "LeftActuator.dutycycle", "60", "--log-level", "ERROR",
+                      "--no-log-json")
+    assert result.returncode == 0, result.stderr
+    assert received == [("dutycycle", 60)]
+    result = run_call(served.url, "--robot", "clicar", "LeftActuator.echo", "--", "--log-level")
+    assert result.returncode == 0, result.stderr
+    assert json.loads(result.stdout) == {"ok": True, "value": "--log-level"}
+
+
 def test_error_reply_exits_1_with_code_and_message(served: BrokerProcess) -> None:
     result = run_call(served.url, "--robot", "clicar", "LeftActuator.dutycycle", "150")
     assert result.returncode == EXIT_ERROR_REPLY

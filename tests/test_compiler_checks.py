@@ -232,6 +232,21 @@ CASES: list[tuple[str, str, str, str, int]] = [
      .replace("Sonar: {impl: hcsr04}", "Sonar: {impl: hcsr04, settings: {trigger: 8, echo: 6}}") + MAIN,
      "GPIO 6 ('echo' of 'Sonar') is already wired to 'Motor' ('in2'): each pin belongs to one component",
      "echo", 0),
+    ("a gpio pin list entry on another component's pin",
+     HEADER.replace("Pi: {impl: raspberrypi}", "Pi: {impl: raspberrypi, settings: {pins: [4, 6]}}")
+     .replace("Motor: {impl: l298n}", "Motor: {impl: l298n, settings: {in1: 5, in2: 6}}") + MAIN,
+     "GPIO 6 ('in2' of 'Motor') is already wired to 'Pi' ('pins'): each pin belongs to one component",
+     "in2: 6", 0),
+    ("a misspelt hardware setting under the mock driver (the robot would refuse it)",
+     HEADER.replace("Motor: {impl: l298n}", "Motor: {impl: l298n, settings: {in_1: 5, in2: 6}}") + MAIN,
+     "settings of 'Motor' (l298n) refused by driver 'mock': in_1: Extra inputs are not permitted",
+     "in_1", 0),
+    ("a hardware setting out of range under the sim driver",
+     HEADER.replace("Sonar: {impl: hcsr04}", "Sonar: {impl: hcsr04, driver: sim, settings: {trigger: 30}}")
+     + MAIN,
+     "settings of 'Sonar' (hcsr04) refused by driver 'sim': trigger: Input should be less than or equal "
+     "to 27",
+     "trigger: 30", 0),
     ("reserved name",
      HEADER + MAIN + lane("{id: start, kind: start}", "{id: end, kind: end}", name="Application"),
      "'Application' is a reserved name; choose another swimlane name", "Application", 0),

@@ -788,9 +788,12 @@ def test_error_codes_are_the_stable_codes() -> None:
 
 @cache
 def command_of(name: str) -> click.Command:
+    """The command as `umlbot` serves it (with the options every command gets: --log-level …)."""
+    from umlbot.cli import with_log_options
+
     module = importlib.import_module(f"umlbot.commands.{name}")
     command: click.Command = module.command
-    return command
+    return with_log_options(command)
 
 
 def options_of(command: click.Command) -> dict[str, click.Parameter]:

@@ -215,6 +215,22 @@ def test_live_view_renders(mosquitto_broker: BrokerProcess, raw_client: Any, tmp
     assert any("LeftActuator.enabled" in line and "[true]" in line for line in stdout.splitlines())
 
 
+def test_live_view_counts_the_time_online_from_the_status_since(mosquitto_broker: BrokerProcess,
+                                                              raw_client: Any) -> None:
+    """A component online for ten minutes before the monitor starts is shown as 10m, not 0.0s."""
+    raw = raw_client(mosquitto_broker)
+    since = time.time() - 600
+    raw.publish(f"umlbot/{ROBOT}/Sensor/status",
+                json.dumps({"state": "online", "impl": "servo", "since": since}), retain=True)
+    result = subprocess.run(
+        umlbot_argv("monitor", "--broker", mosquitto_broker.url, "--robot", ROBOT, "--duration", "1.5"),
+        capture_output=True, text=True, timeout=60, env={**os.environ, "COLUMNS": "200"}, check=False)
+    assert result.returncode == 0, result.stderr
+    rows = [line for line in result.stdout.splitlines() if "Sensor" in line and "online" in line]
+    assert rows, result.stdout
+    assert "10m" in rows[-1] and "s " not in rows[-1].split("servo", 1)[1], rows[-1]
+
+
 def test_malformed_messages_are_counted_never_a_traceback(
     broker: BrokerProcess, raw_client: Any, tmp_path: Path
 ) -> None:

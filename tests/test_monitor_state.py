@@ -78,6 +78,29 @@ def test_availability_events_only_on_change() -> None:
     assert state.availability[("car", "LeftActuator")].state == "offline"
 
 
+def test_the_time_in_a_state_counts_from_the_since_the_status_gives() -> None:
+    """A service online since 1000 s is shown online for 500 s at 1500 s, though the monitor saw
+    its (retained) status only at 1490 s; a status without a usable `since` counts from when it
+    was seen."""
+    state = MonitorState()
+    topic = "umlbot/car/Sensor/status"
+    state.observe(topic, j({"state": "online", "impl": "servo", "since": 1000.0}), 1490.0)
+    assert state.availability[("car", "Sensor")].since == 1000.0
+    state.observe(topic, j({"state": "online", "impl": "servo", "since": 1200.0}), 1495.0)  # restarted
+    assert state.availability[("car", "Sensor")].since == 1200.0
+    state.observe(topic, j({"state": "offline"}), 1497.0)  # the last will says no since
+    assert state.availability[("car", "Sensor")].since == 1497.0
+    for bad in ("yesterday", -5, True, None, [1]):
+        state.observe(topic, j({"state": "online", "since": bad}), 1498.0)
+        assert state.availability[("car", "Sensor")].since in (1497.0, 1498.0)
+        state.observe(topic, j({"state": "offline"}), 1497.0)
+    state.observe(topic, j({"state": "online", "impl": "servo", "since": 1000.0}), 1499.0)
+    out = io.StringIO()
+    Console(file=out, width=160).print(render(state, now=1500.0))
+    row = next(line for line in out.getvalue().splitlines() if "Sensor" in line)
+    assert "online" in row and "500.0s" not in row and re.search(r"\b8m\b", row), row
+
+
 def test_orchestrator_status_signal_state_and_exit() -> None:
     state = MonitorState()
     [status] = state.observe("umlbot/car/orchestrator/status", j({"state": "running", "model": "m"}), 1.0)

@@ -53,10 +53,11 @@ def test_default_pins_exclude_every_owned_pin(mosquitto_broker: BrokerProcess) -
 
 
 def test_listing_an_owned_pin_is_a_config_error(mosquitto_broker: BrokerProcess) -> None:
+    """Refused before anything connects, in the words of `umlbot check` (one shared-pin rule)."""
     dep = deployment(RaspberryPI={"pins": [4, 8]})
-    host = ServiceHost("gpio", dep, broker_settings(mosquitto_broker.url), ROBOT)
-    with pytest.raises(ConfigError, match=r"GPIO 8 \(DistanceRead\)"):
-        host.start()
+    with pytest.raises(ConfigError, match=r"GPIO 8 \('trigger' of 'DistanceRead'\) is already wired to "
+                                          r"'RaspberryPI' \('pins'\)"):
+        ServiceHost("gpio", dep, broker_settings(mosquitto_broker.url), ROBOT)
 
 
 def test_raw_bare_write_and_read(

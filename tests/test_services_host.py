@@ -15,10 +15,10 @@ from conftest import BrokerProcess, free_port
 from services_support import ROBOT, broker_settings, client, deployment, running
 
 from services import registry
-from services.host import ServiceGroup, ServiceHost, owned_pins
+from services.host import ServiceGroup, ServiceHost
 from services.motor.driver import L298NSettings
 from services.motor.mock import MockMotorChannel, MockMotorSettings
-from umlbot.deployment import parse_deployment
+from umlbot.deployment import owned_pins, parse_deployment
 from umlbot.errors import ConfigError, DriverError, NotConnected, UnknownDriver
 from umlbot.library import service_kinds
 
@@ -52,8 +52,40 @@ def test_a_typo_in_a_pigpio_setting_is_a_config_error() -> None:
         registry.create_driver("motor", "pigpio", "LeftActuator", {"in_1": 22, "in2": 23})
 
 
+@pytest.mark.parametrize("driver", ["mock", "sim"])
+def test_the_mock_and_sim_drivers_refuse_what_the_hardware_drivers_refuse(driver: str) -> None:
+    """A misspelt key or a pin out of range is refused as pigpio refuses it (so what runs under
+    mock is not refused on the robot); only a missing pin is forgiven (they need no pins)."""
+    typo = {"in_1": 22, "in2": 23}
+    with pytest.raises(ConfigError) as hardware:
+        registry.create_driver("motor", "pigpio", "LeftActuator", typo)
+    with pytest.raises(ConfigError) as mock:
+        registry.create_driver("motor", driver, "LeftActuator", typo)
+    assert str(mock.value) == "LeftActuator: invalid settings: in_1: Extra inputs are not permitted"
+    assert "in_1: Extra inputs are not permitted" in str(hardware.value)
+    with pytest.raises(ConfigError, match=r"^Sensor: invalid settings: gpio: Input should be less than or "
+                                          r"equal to 27$"):
+        registry.create_driver("servo", "mock", "Sensor", {"gpio": 28})
+    assert registry.settings_problems("motor", driver, typo) == [(("in_1",), "Extra inputs are not "
+                                                                             "permitted")]
+    assert registry.settings_problems("motor", driver, {}) == []  # no pins: fine without hardware
+    channel = registry.create_driver("motor", "mock", "LeftActuator", {"mock_latency_s": 0})
+    channel.close()
+
+
+def test_a_misspelt_setting_under_mock_is_refused_at_its_position() -> None:
+    dep = parse_deployment("driver: mock\ncomponents:\n  LeftActuator:\n    impl: l298n\n"
+                           "    settings: {in1: 22, in_2: 23}\n", "deployment.yaml")
+    host = ServiceHost("motor", dep, broker_settings("mqtt://127.0.0.1:1"), ROBOT)
+    with pytest.raises(ConfigError, match=r"^deployment\.yaml:5:25: component LeftActuator: settings\.in_2: "
+                                          r"Extra inputs are not permitted$"):
+        host.start()
+
+
 def test_owned_pins_of_the_reference_robot() -> None:
-    assert owned_pins(deployment()) == {22: "LeftActuator", 23: "LeftActuator", 24: "RightActuator",
+    # the gpio component's `pins` list counts as its own, as every single-pin setting does
+    assert owned_pins(deployment()) == {4: "RaspberryPI", 17: "RaspberryPI", 27: "RaspberryPI",
+                                        22: "LeftActuator", 23: "LeftActuator", 24: "RightActuator",
                                         25: "RightActuator", 18: "Sensor", 8: "DistanceRead",
                                         7: "DistanceRead"}
 
@@ -132,6 +164,47 @@ def _cli(
         [sys.executable, "-c", "from umlbot.cli import main; main()", *args],
         capture_output=True, text=True, timeout=timeout, env={**os.environ, **(env or {})},
     )
+
+
+def test_service_started_names_the_drivers_that_run(mosquitto_broker: BrokerProcess, tmp_path: Path) -> None:
+    """`driver: auto` is logged as what it chose (here the fake lgpio), not as "auto"."""
+    import json
+    import queue
+    import threading
+
+    deploy = tmp_path / "d.yaml"
+    deploy.write_text("driver: auto\ncomponents:\n  Sensor: {impl: servo, settings: {gpio: 18}}\n"
+                      "  Tilt: {impl: servo, driver: mock, settings: {gpio: 19}}\n")
+    env = {**os.environ, "UMLBOT_FAKE_LGPIO": "1"}
+    env.pop("UMLBOT_FAKE_PIGPIO", None)
+    proc = subprocess.Popen(
+        [sys.executable, "-c", "from umlbot.cli import main; main()", "--log-level", "INFO", "--log-json",
+         "service", "servo", "--deploy", str(deploy), "--robot", "autocar", "--broker", mosquitto_broker.url],
+        stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True, env=env)
+    lines: queue.Queue[str] = queue.Queue()
+    assert proc.stderr is not None
+    stderr = proc.stderr
+    def read() -> None:
+        for line in stderr:
+            lines.put(line)
+
+    threading.Thread(target=read, daemon=True).start()
+    try:
+        deadline = time.monotonic() + 30
+        started = None
+        while started is None and time.monotonic() < deadline:
+            try:
+                line = lines.get(timeout=max(0.0, deadline - time.monotonic()))
+            except queue.Empty:
+                break
+            if line.startswith("{") and json.loads(line).get("event") == "service_started":
+                started = json.loads(line)
+        assert started is not None, "no service_started line within 30 s"
+        assert started["components"] == {"Sensor": "lgpio", "Tilt": "mock"}
+    finally:
+        proc.terminate()
+        # 130: the signal came in the instant between the line and the command's "running" mark
+        assert proc.wait(10) in (0, 130)
 
 
 def test_cli_unknown_driver_is_one_clear_line(tmp_path: Path) -> None:

@@ -31,6 +31,35 @@ def test_angle_via_the_bus_and_state(broker: BrokerProcess) -> None:
     assert (servo.pulsing, servo.closed) == (False, True), "stopping the service stops the pulses"
 
 
+def test_a_safe_stop_makes_the_servo_limp_and_says_so(mosquitto_broker: BrokerProcess) -> None:
+    """As docs/services.md says: a lost broker connection and the service stopping switch the
+    pulses off and the retained state becomes {"angle": null}; the next angle drives it again."""
+    with running("servo", deployment(), mosquitto_broker.url) as host:
+        servo: MockServo = host.drivers["Sensor"]
+        with client(mosquitto_broker.url) as bus:
+            bus.call("Sensor", "angle", 45)
+            assert servo.pulsing
+        mosquitto_broker.restart()  # no persistence: the retained state is gone with it
+        assert servo.wait_until(lambda: not servo.pulsing, timeout=10), "limp on a lost connection"
+        with client(mosquitto_broker.url) as bus:
+            watch = StateWatch(bus, "Sensor")
+            assert watch.wait("Sensor", lambda s: True, timeout=15) == {"angle": None}  # republished
+            assert bus.call("Sensor", "angle", 60, timeout=5.0) is None
+            assert servo.angle_deg == 60 and servo.pulsing
+            watch.wait("Sensor", lambda s: s["angle"] == 60)
+    with client(mosquitto_broker.url) as bus:
+        watch = StateWatch(bus, "Sensor")
+        assert watch.wait("Sensor", lambda s: True) == {"angle": None}, "the stop left the old angle"
+    assert (servo.pulsing, servo.closed) == (False, True)
+
+
+def test_the_initial_angle_is_the_first_state(mosquitto_broker: BrokerProcess) -> None:
+    with running("servo", deployment(Sensor={"initial_angle_deg": 90}), mosquitto_broker.url) as host, \
+            client(mosquitto_broker.url) as bus:
+        assert StateWatch(bus, "Sensor").wait("Sensor", lambda s: True) == {"angle": 90}
+        assert host.drivers["Sensor"].pulsing
+
+
 @pytest.mark.parametrize("degrees", [181, 360, -5])
 def test_angle_outside_the_implementation_range_is_out_of_range(
     mosquitto_broker: BrokerProcess, degrees: int

@@ -2,12 +2,19 @@
 
 Each command lives in its own module `umlbot/commands/<name>.py` exposing `command`, loaded only
 when it is used so that `umlbot call` starts fast on a Raspberry Pi.
+
+`--log-level` and `--log-json/--no-log-json` are the group's options and every command's too:
+`umlbot --log-level DEBUG run X` and `umlbot run X --log-level DEBUG` are the same (given in both
+places, the one after the command name wins). Logging is configured once, just before the command
+runs, from what both places said.
 """
 
 from __future__ import annotations
 
+import functools
 import importlib
 import sys
+from typing import Any
 
 import click
 
@@ -42,22 +49,65 @@ class LazyGroup(click.Group):
             return None
         module = importlib.import_module(f"umlbot.commands.{cmd_name}")
         command: click.Command = module.command
-        return command
+        return with_log_options(command)
 
     def format_commands(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
         with formatter.section("Commands"):
             formatter.write_dl([(name, COMMANDS[name]) for name in self.list_commands(ctx)])
 
 
+LOG_LEVELS = ("DEBUG", "INFO", "WARNING", "ERROR")
+
+
+def _log_level_option(**kwargs: Any) -> click.Option:
+    return click.Option(["--log-level"], default=None, metavar="LEVEL",
+                        type=click.Choice(LOG_LEVELS, case_sensitive=False),
+                        help="DEBUG, INFO, WARNING or ERROR (env UMLBOT_LOG_LEVEL).", **kwargs)
+
+
+def _log_json_option(**kwargs: Any) -> click.Option:
+    return click.Option(["--log-json/--no-log-json"], default=None,
+                        help="JSON log lines (default: when not a terminal).", **kwargs)
+
+
+def _remember(ctx: click.Context, param: click.Parameter, value: Any) -> None:
+    """A log option given after the command name: it goes where the group's own value is kept
+    (the root context's params, where `umlbot sim` also looks), overriding it."""
+    if value is not None and param.name is not None:
+        ctx.find_root().params[param.name] = value
+
+
+def with_log_options(command: click.Command) -> click.Command:
+    """`command` accepting the group's log options too, and configuring logging before it runs
+    (once per command object: the commands are module-level singletons)."""
+    if getattr(command, "_umlbot_log_options", False):
+        return command
+    command.params += [_log_level_option(expose_value=False, callback=_remember),
+                       _log_json_option(expose_value=False, callback=_remember)]
+    original = command.callback
+    if original is not None:
+        @functools.wraps(original)
+        def run(*args: Any, **kwargs: Any) -> Any:
+            root = click.get_current_context().find_root()
+            configure_logging(root.params.get("log_level"), root.params.get("log_json"))
+            return original(*args, **kwargs)
+
+        command.callback = run
+    command._umlbot_log_options = True  # type: ignore[attr-defined]
+    return command
+
+
 @click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(__version__, prog_name="umlbot")
 @click.option("--log-level", default=None, metavar="LEVEL",
-              type=click.Choice(["DEBUG", "INFO", "WARNING", "ERROR"], case_sensitive=False),
-              help="DEBUG, INFO, WARNING or ERROR (env UMLBOT_LOG_LEVEL).")
-@click.option("--log-json/--no-log-json", default=None, help="JSON log lines (default: when not a terminal).")
+              type=click.Choice(LOG_LEVELS, case_sensitive=False),
+              help="DEBUG, INFO, WARNING or ERROR (env UMLBOT_LOG_LEVEL); also after the command name.")
+@click.option("--log-json/--no-log-json", default=None,
+              help="JSON log lines (default: when not a terminal); also after the command name.")
 def cli(log_level: str | None, log_json: bool | None) -> None:
     """umlbot: build a robot from UML models."""
-    configure_logging(log_level, log_json)
+    # logging is configured just before the command runs (`with_log_options`): the command's
+    # own --log-level / --log-json, given after its name, are not parsed yet here
 
 
 def main() -> None:

@@ -21,7 +21,7 @@ checks the shape and resolves implementation ids (seed aliases included).
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationError
 
@@ -78,25 +78,73 @@ class Deployment(BaseModel):
         }
 
 
+class PinSetting(NamedTuple):
+    """One GPIO a component's settings name: the pin, the settings key, and the path of the value
+    under `settings` (`("in1",)`, or `("pins", 1)` for the second entry of a pin list)."""
+
+    pin: int
+    key: str
+    path: tuple[str | int, ...]
+
+
+def component_pins(impl: Implementation | None, settings: dict[str, Any]) -> list[PinSetting]:
+    """Every GPIO a component's settings name, in the order written: the single-pin keys of its
+    implementation (`pin_keys`) and each entry of its pin-list keys (`pin_list_keys`). The one
+    place that reads pins from settings (the shared-pin check, the gpio service's reserved pins).
+    Values that are not pin numbers are left to the driver's settings check."""
+    if impl is None:
+        return []
+    found: list[PinSetting] = []
+    for key, value in settings.items():
+        if key in impl.pin_keys:
+            values: list[tuple[tuple[str | int, ...], Any]] = [((key,), value)]
+        elif key in impl.pin_list_keys and isinstance(value, list):
+            values = [((key, index), item) for index, item in enumerate(value)]
+        else:
+            continue
+        found += [PinSetting(pin, key, path) for path, pin in values
+                  if isinstance(pin, int) and not isinstance(pin, bool)]
+    return found
+
+
+def owned_pins(deployment: Deployment) -> dict[int, str]:
+    """GPIO -> component for every pin a component's settings name (the first one, in file order)."""
+    owners: dict[int, str] = {}
+    for name, comp in deployment.components.items():
+        for setting in component_pins(resolve_implementation(comp.impl), comp.settings):
+            owners.setdefault(setting.pin, name)
+    return owners
+
+
+class SharedPin(NamedTuple):
+    """A GPIO setting naming a pin another component already owns."""
+
+    pin: int
+    component: str
+    key: str
+    first: str
+    first_key: str
+    path: tuple[str | int, ...]  # of the value under the component's `settings`
+
+    def message(self) -> str:
+        return shared_pin_message(self.pin, self.component, self.key, self.first, self.first_key)
+
+
 def shared_pin_message(pin: int, component: str, key: str, first: str, first_key: str) -> str:
     """The one wording of a GPIO wired to two components (`umlbot check` and the service host)."""
     return (f"GPIO {pin} ('{key}' of '{component}') is already wired to '{first}' ('{first_key}'): "
             "each pin belongs to one component")
 
 
-def shared_pins(deployment: Deployment) -> list[tuple[int, str, str, str, str]]:
-    """Every GPIO setting that names a pin another component already owns, in file order:
-    (pin, component, key, first owner, its key), as `shared_pin_message` takes them."""
+def shared_pins(deployment: Deployment) -> list[SharedPin]:
+    """Every GPIO setting (a single pin, or an entry of a pin list such as gpio's `pins`) that
+    names a pin another component already owns, in file order."""
     owners: dict[int, tuple[str, str]] = {}
-    shared: list[tuple[int, str, str, str, str]] = []
+    shared: list[SharedPin] = []
     for name, comp in deployment.components.items():
-        impl = resolve_implementation(comp.impl)
-        for key in impl.pin_keys if impl is not None else ():
-            pin = comp.settings.get(key)
-            if not isinstance(pin, int) or isinstance(pin, bool):
-                continue
+        for pin, key, path in component_pins(resolve_implementation(comp.impl), comp.settings):
             if pin in owners and owners[pin][0] != name:
-                shared.append((pin, name, key, *owners[pin]))
+                shared.append(SharedPin(pin, name, key, *owners[pin], path))
             else:
                 owners.setdefault(pin, (name, key))
     return shared

@@ -61,6 +61,20 @@ class BrokerRefused(BusError, PermissionError):
         self.reason = reason
 
 
+class LoginRefused(BrokerRefused, NotConnected):
+    """The broker refused the connection's login (CONNACK: bad user name or password, not
+    authorised, banned): trying again with the same credentials cannot help."""
+
+    def __init__(self, broker: str, username: str | None, reason: str) -> None:
+        who = f"of user {username!r}" if username is not None else "without a user (anonymous)"
+        BusError.__init__(self, f"the MQTT broker at {broker} refused the login {who}: {reason} "
+                                "(check the user name and password in the broker URL)")
+        self.what = "the login"
+        self.reason = reason
+        self.broker = broker
+        self.username = username
+
+
 class RemoteError(BusError):
     """The service answered a call with an error reply; `code` is the stable slug."""
 

@@ -96,6 +96,8 @@ class Implementation:
     settings_doc: dict[str, str] = field(default_factory=dict)
     #: settings keys that name a GPIO this part owns (no other component may use it).
     pin_keys: tuple[str, ...] = ()
+    #: settings keys that list GPIOs this part owns (`pins: [5, 6]`), as `pin_keys` for each one.
+    pin_list_keys: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -143,6 +145,7 @@ BUILTIN = ComponentPlugin(
             title="Raspberry Pi GPIO (system)",
             aliases=("CModelSystemRaspberryPI",),
             settings_doc={"pins": "GPIO pins the model may read or write (BCM numbers)"},
+            pin_list_keys=("pins",),
         ),
         Implementation(
             id="l298n",

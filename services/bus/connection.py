@@ -25,7 +25,7 @@ from paho.mqtt.properties import Properties
 
 from services.bus.envelopes import parse_json, to_payload
 from services.bus.settings import BrokerSettings, make_client_id
-from umlbot.errors import BrokerRefused, BusError, ConfigError, NotConnected
+from umlbot.errors import BrokerRefused, BusError, ConfigError, LoginRefused, NotConnected
 from umlbot.lazy import import_lean
 from umlbot.logs import get_logger
 
@@ -44,6 +44,15 @@ RECONNECT_MAX_S = 5.0
 #: while the broker stays unreachable, `mqtt_connect_failed` is logged as a warning on the first
 #: failed attempt and then at most once per this many seconds (the attempts between at debug).
 CONNECT_WARN_EVERY_S = 30.0
+#: CONNACK reasons that refuse the login itself (MQTT 5 codes; paho maps 3.1.1's return codes 4
+#: "bad user name or password" and 5 "not authorised" onto 134 and 135): the same credentials
+#: will be refused again, so `start()` gives up at once instead of retrying until its time-out.
+LOGIN_REFUSED_CODES = frozenset({
+    134,  # Bad user name or password
+    135,  # Not authorized
+    138,  # Banned
+    140,  # Bad authentication method
+})
 
 
 @dataclass(frozen=True)
@@ -188,6 +197,7 @@ class BusConnection:
         #: when (time.time()) the next attempt starts, while the broker is unreachable.
         self.next_attempt_at: float | None = None
         self._start_waiting = False  # start() waits for the first connection
+        self._login_refused: str | None = None  # CONNACK reason while start() waits, see start()
         self._accepted = False
 
     # -- set-up ---------------------------------------------------------------------------------
@@ -245,7 +255,10 @@ class BusConnection:
     def start(self, timeout: float | None = 5.0) -> None:
         """Connect in the background; with a timeout, wait for the first connection.
 
-        Raises NotConnected (after cleaning up) when the broker was not reached in time.
+        Raises NotConnected (after cleaning up) when the broker was not reached in time, and at
+        once LoginRefused (a NotConnected) when the broker refuses the login: a wrong user or
+        password does not become right by waiting. Without a timeout a refused login is retried
+        with the back-off, as after a lost connection (the broker's password file may change).
         """
         if self._closed:
             raise BusError("this connection was closed; make a new one")
@@ -267,6 +280,9 @@ class BusConnection:
             connected = self._wait_connected_or_closed(deadline)
         finally:
             self._start_waiting = False
+        if self._login_refused is not None and not connected:
+            self.close(timeout=0.5)
+            raise LoginRefused(self.settings.url, self.settings.username, self._login_refused)
         if self._closing.is_set() and not connected:  # close() from another thread: give up now
             raise NotConnected(f"closed while connecting to the MQTT broker at {self.settings.url}")
         if not connected:
@@ -292,7 +308,7 @@ class BusConnection:
     def _wait_connected_or_closed(self, deadline: float) -> bool:
         """Wait for the first connection until `deadline`; False as soon as close() was called."""
         while not self._connected.wait(min(0.1, max(0.0, deadline - time.monotonic()))):
-            if self._closing.is_set() or time.monotonic() >= deadline:
+            if self._closing.is_set() or self._login_refused is not None or time.monotonic() >= deadline:
                 return False
         return True
 
@@ -432,6 +448,11 @@ class BusConnection:
         if reason.is_failure:
             self._last_error = f"broker refused the connection: {reason}"
             self.connect_problem = f"the broker refused the connection: {reason}"
+            if self._start_waiting and getattr(reason, "value", None) in LOGIN_REFUSED_CODES:
+                # start() raises LoginRefused, which says all of it: no log line besides
+                self._login_refused = str(reason)
+                self._closing.set()  # no further attempt; start() closes the connection
+                return
             log.warning("mqtt_connect_refused", broker=self.settings.url, client_id=self.client_id,
                         reason=str(reason))
             return

@@ -109,7 +109,9 @@ class Stats:
 
 @dataclass
 class Availability:
-    """The last status a component published."""
+    """The last status a component published; `since` (unix seconds) is when it entered that
+    state: the `since` its status says (an online status says when the service came online),
+    else when the monitor first saw the state (the last will, `{"state": "offline"}`, says none)."""
 
     state: str
     impl: str | None
@@ -356,11 +358,14 @@ class MonitorState:
             return []
         state = (_text(data.get("state")) if isinstance(data, dict) else None) or "unknown"
         impl = _text(data.get("impl")) if isinstance(data, dict) else None
+        since = _since(data.get("since")) if isinstance(data, dict) else None
         previous = self.availability.get((robot, component))
         if previous is not None and previous.state == state:
             previous.impl = impl or previous.impl
+            if since is not None:  # e.g. a service that restarted and is online again
+                previous.since = since
             return []
-        self.availability[(robot, component)] = Availability(state, impl, at)
+        self.availability[(robot, component)] = Availability(state, impl, at if since is None else since)
         return [MonitorEvent(type="availability", time=at, robot=robot, topic=topic, component=component,
                              state=state, impl=impl)]
 
@@ -396,6 +401,13 @@ class MonitorState:
 def trace_items(data: Any) -> list[Any]:
     """The events of one trace message: a single `TraceEvent` object or a JSON array of them."""
     return data if isinstance(data, list) else [data]
+
+
+def _since(value: Any) -> float | None:
+    """A status's `since` when it is a plausible unix time (a finite number > 0), else None."""
+    if isinstance(value, int | float) and not isinstance(value, bool) and 0 < value < math.inf:
+        return float(value)
+    return None
 
 
 def _text(value: Any) -> str | None:

@@ -2,8 +2,9 @@
 
 Exit codes: 0 the call succeeded; 1 the service answered with an error reply (stderr shows
 `code: message`); 2 bad command line; 3 no reply within `--timeout`; 4 the broker could not be
-reached (or the connection dropped during the call); 5 the broker refused the request or the
-reply subscription (its ACL), which only MQTT 5 reports (`?protocol=5` in the broker URL).
+reached (or the connection dropped during the call); 5 the broker refused the login (a wrong user
+or password: at once, no retrying) or the request or the reply subscription (its ACL), which
+only MQTT 5 reports (`?protocol=5` in the broker URL).
 
 The request goes out at QoS 1, so that the broker's acknowledgement can carry that refusal. Over
 MQTT 3.1.1 a broker drops a publish its ACL refuses without a word: on a broker with users the
@@ -129,12 +130,13 @@ def command(
     Each ARG is JSON when it parses (60, true, "text", [1,2]) and a string otherwise; NaN and
     Infinity are refused (they are not JSON).
     Exit status: 0 ok, 1 error reply, 3 time-out, 4 broker not reachable, 5 refused by the
-    broker (MQTT 5 only: over 3.1.1 a refused request ends as a time-out).
+    broker: the login (user or password), or the request (MQTT 5 only: over 3.1.1 a refused
+    request ends as a time-out).
 
     Example: umlbot call LeftActuator.dutycycle 60
     """
     from services.bus import BrokerSettings, BusClient, resolve_broker_url
-    from umlbot.errors import BrokerRefused, CallTimeout, NotConnected, RemoteError
+    from umlbot.errors import BrokerRefused, CallTimeout, LoginRefused, NotConnected, RemoteError
 
     component, feature = parse_target(target)
     values = [parse_arg(a) for a in args]
@@ -153,6 +155,8 @@ def command(
         except CallTimeout as exc:
             hint = timeout_hint(component, robot, settings.username, settings.protocol)
             raise TimeoutFailure(f"timeout: {exc} ({hint})") from None
+        except LoginRefused as exc:
+            raise RefusedFailure(f"refused: {exc}") from None
         except BrokerRefused as exc:
             user = f" for user {settings.username!r}" if settings.username else ""
             raise RefusedFailure(f"refused: {exc}{user}") from None
