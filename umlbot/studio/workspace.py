@@ -277,6 +277,15 @@ class Workspace:
             # None: there but unreadable, which an edit refuses to change; the compiler reports it
         renames: list[Rename] = []
         changes = apply_ops(texts, text_ops, renames) if text_ops else {}
+        files = dict(self.files)
+        for rel, text in changes.items():
+            if text is None:
+                files.pop(rel, None)
+            else:
+                files[rel] = text.encode("utf-8")
+        result = check_model(self.root, files=files) if changes else None
+        if result is not None:
+            self._refuse_names_the_compiler_refuses(text_ops, result)  # before anything changes
         for op in layout_ops:
             diagram = op.diagram or "components"
             positions = op.positions or {}
@@ -286,18 +295,9 @@ class Workspace:
                     bucket.pop(key, None)
                 else:
                     bucket[key] = [round(float(v), 1) for v in value]
-        if not changes:
-            self.version += 1
-            return self.answer()
-        files = dict(self.files)
-        for rel, text in changes.items():
-            if text is None:
-                files.pop(rel, None)
-            else:
-                files[rel] = text.encode("utf-8")
-        result = check_model(self.root, files=files)
-        self._refuse_names_the_compiler_refuses(text_ops, result)
         self.version += 1
+        if result is None:
+            return self.answer()
         moved = rename_positions(self.layout, renames)
         self.undo_stack.append(State(dict(self.files), [r.reverse() for r in reversed(renames)]))
         del self.undo_stack[:-HISTORY]
@@ -313,15 +313,24 @@ class Workspace:
         has no rule of its own. Nothing changes then. (A node id is checked only for being a plain
         name, which its YAML text needs; a new node's other problems, such as the call it does not
         have yet, are the diagnostics of an unfinished node, not a refusal.)"""
-        before = {d.message for d in self.result.diagnostics} if self.result is not None else set()
+        source = result.source
+        if source is None:
+            return
         for op in ops:
-            named = {"rename_lane": ("new_name", op.new_name), "rename_component": ("new_name", op.new_name),
-                     "add_lane": ("lane", op.lane), "add_component": ("name", op.name)}.get(op.op)
+            named = {"rename_lane": ("new_name", op.new_name, "lane"), "add_lane": ("lane", op.lane, "lane"),
+                     "rename_component": ("new_name", op.new_name, "component"),
+                     "add_component": ("name", op.name, "component")}.get(op.op)
             if named is None or not isinstance(named[1], str):
                 continue
-            field_name, name = named
+            field_name, name, what = named
+            # where the name is written: an error there is about the name itself (a pin wired
+            # twice by a new component is its settings' problem, shown at that field instead)
+            if what == "lane":
+                at = {lane.loc for lane in source.lanes if lane.name == name}
+            else:
+                at = {source.components[name].loc} if name in source.components else set()
             for d in result.diagnostics:
-                if d.severity == "error" and f"'{name}'" in d.message and d.message not in before:
+                if d.severity == "error" and d.location in at:
                     raise EditError(d.message, fields={field_name: str(d)})
 
     def undo(self) -> dict[str, Any]:
