@@ -1558,19 +1558,28 @@ function defaultFields(kind: NodeKind): Record<string, FieldInfo> {
  * `field`), each as the line `umlbot check` prints. */
 export function markDiagnostics(form: Element, list: Diagnostic[]): void {
   for (const d of list) {
-    const input = form.querySelector<HTMLElement>(`[data-field="${CSS.escape(d.field ?? "")}"]`);
-    if (!input) continue;
-    input.setAttribute("aria-invalid", "true");
-    input.classList.add("invalid");
-    const msg = document.createElement("div");
-    msg.className = `field-error field-problem ${d.severity}`;
-    msg.dataset.field = d.field ?? "";
+    const msg = markField(form, d.field ?? "", d.text);
+    if (!msg) continue;
+    msg.classList.add("field-problem", d.severity);
     msg.dataset.severity = d.severity;
-    msg.textContent = d.text;
-    const row = input.closest(".row");
-    if (row) row.append(msg);
-    else input.after(msg);
   }
+}
+
+/** Mark the field `field` (`data-field`) of `form` invalid, with `text` under it; the message, or
+ * null when the form has no such field. */
+function markField(form: Element, field: string, text: string): HTMLElement | null {
+  const input = form.querySelector<HTMLElement>(`[data-field="${CSS.escape(field)}"]`);
+  if (!input) return null;
+  input.setAttribute("aria-invalid", "true");
+  input.classList.add("invalid");
+  const msg = document.createElement("div");
+  msg.className = "field-error";
+  msg.dataset.field = field;
+  msg.textContent = text;
+  const row = input.closest(".row");
+  if (row) row.append(msg);
+  else input.after(msg); // right under (or beside) the field it is about
+  return msg;
 }
 
 /** Remove the marks `markFieldErrors` left in `form`. */
@@ -1593,17 +1602,9 @@ export function markFieldErrors(form: Element, fields: Record<string, string>): 
       all = false;
       continue;
     }
-    input.setAttribute("aria-invalid", "true");
-    input.classList.add("invalid");
     const label = input.dataset.label ?? field.split(".").pop() ?? field;
-    const msg = document.createElement("div");
-    msg.className = "field-error";
-    msg.dataset.field = field;
     // the compiler's own line (`file:line:col: error: …`) as it is; a word of ours with the field's name
-    msg.textContent = /:\d+:\d+: (error|warning): /.test(why) ? why : `${label}: ${why}`;
-    const row = input.closest(".row");
-    if (row) row.append(msg);
-    else input.after(msg); // right under (or beside) the field it is about
+    markField(form, field, /:\d+:\d+: (error|warning): /.test(why) ? why : `${label}: ${why}`);
     first ??= input;
   }
   first?.focus();
