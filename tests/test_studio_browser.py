@@ -357,7 +357,7 @@ def test_a_page_opened_after_a_sim_run_draws_where_the_run_ended(browser: Browse
         proc.wait_line("the run has ended")
         page = open_page(browser, proc.url)
         expect(page.locator("#sim .sim-info")).to_contain_text("goal reached")
-        expect(page.locator("#sim .sim-info")).to_contain_text("collisions 0")
+        expect(page.locator("#sim .sim-info")).to_contain_text("no collisions")
         start = page.locator("#sim .start")
         x0, y0 = float(start.get_attribute("cx") or "nan"), float(start.get_attribute("cy") or "nan")
         car = page.locator("#sim .car").get_attribute("transform") or ""

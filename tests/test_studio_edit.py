@@ -679,6 +679,10 @@ def test_a_plugins_part_gets_its_settings_from_its_hardware_driver(car: tuple[Pa
 def test_studio_on_a_new_folder_offers_and_writes_the_starter(tmp_path: Path) -> None:
     folder = tmp_path / "my_robot"
     with studio(["studio", str(folder), "--port", "0"], tmp_path) as proc:
+        # the terminal says there is no model there yet and what the page offers
+        proc.wait_line("offers a starter model")
+        said = f"umlbot studio: {folder} does not exist yet: the page offers a starter model"
+        assert said in proc.lines[-1], proc.lines
         hello = read_frames(proc.url, lambda f: len(f) >= 1)[0]
         assert hello["edit"]["empty"] is True
 
@@ -1228,7 +1232,6 @@ def test_references_are_the_parsers_names_not_matching_text() -> None:
     ({"op": "rename_node", "lane": "Stop", "id": "both", "new_id": "stopped"}, "new_id",
      "has a node 'stopped'"),
     ({"op": "rename_lane", "lane": "Stop", "new_name": "2stop"}, "new_name", "not a plain name"),
-    ({"op": "rename_lane", "lane": "Stop", "new_name": "msleep"}, "new_name", "reserved"),
     ({"op": "rename_lane", "lane": "Stop", "new_name": "Glance"}, "new_name", "a swimlane 'Glance'"),
     ({"op": "rename_lane", "lane": "Stop", "new_name": "Sensor"}, "new_name", "a component 'Sensor'"),
     ({"op": "rename_lane", "lane": "RaspberryPI", "new_name": "Pi"}, "new_name", "rename the component"),
@@ -1242,3 +1245,66 @@ def test_a_refused_rename_names_the_field(op: dict[str, Any], field: str, messag
     with pytest.raises(EditError, match=message) as info:
         apply_ops(_texts(CAR_MODEL), parse_ops([op]))
     assert set(info.value.fields) == {field}
+
+
+def test_a_name_the_compiler_refuses_is_refused_at_its_field_with_the_compilers_line(
+        car: tuple[Path, Editor]) -> None:
+    # the compiler decides what a name may be: a swimlane named after a builtin is refused with
+    # exactly the line `umlbot check` prints for it; a node id `msleep` the compiler accepts is
+    # accepted (the studio has no rule of its own)
+    root, editor = car
+    version = editor.get("files")["version"]
+    status, answer = editor.post("edit", {"version": version, "ops": [
+        {"op": "rename_lane", "lane": "Stop", "new_name": "msleep"}]})
+    assert status == 400, answer
+    copy = root.parent / "copy"
+    shutil.copytree(root, copy)
+    motion = copy / "activities" / "motion.yaml"
+    motion.write_text(motion.read_text(encoding="utf-8").replace("- lane: Stop ", "- lane: msleep "),
+                      encoding="utf-8")
+    check = subprocess.run(umlbot_argv("check", str(copy)), capture_output=True, text=True,
+                           timeout=60, check=False)
+    line = next(x for x in (check.stdout + check.stderr).splitlines() if "'msleep' is a reserved" in x)
+    assert answer["fields"] == {"new_name": line.replace(str(copy), str(root))}
+    assert editor.get("files")["version"] == version  # nothing changed
+    for op, field, name in (
+            ({"op": "rename_component", "component": "Sensor", "new_name": "Application"}, "new_name",
+             "Application"),
+            ({"op": "add_lane", "lane": "usleep"}, "lane", "usleep")):
+        status, answer = editor.post("edit", {"version": version, "ops": [op]})
+        assert status == 400, answer
+        assert f"error: '{name}' is a reserved name" in answer["fields"][field], answer
+    status, answer = editor.post("edit", {"version": version, "ops": [
+        {"op": "rename_node", "lane": "Stop", "id": "left_off", "new_id": "msleep"}]})
+    assert status == 200 and answer["compiled"], answer
+    assert answer["renamed"] == [{"kind": "node", "old": "left_off", "new": "msleep", "lane": "Stop"}]
+    # an undo names what it renamed back (the page keeps the node selected under its old id)
+    status, answer = editor.post("undo", {})
+    assert status == 200
+    assert answer["renamed"] == [{"kind": "node", "old": "msleep", "new": "left_off", "lane": "Stop"}]
+
+
+def test_a_pin_wired_twice_is_said_at_the_setting_with_umlbot_checks_line(car: tuple[Path, Editor]) -> None:
+    from umlbot.deployment import shared_pin_message
+
+    root, editor = car
+    version = editor.get("files")["version"]
+    status, answer = editor.post("edit", {"version": version, "ops": [
+        {"op": "set_deployment", "component": "RightActuator", "impl": "l298n",
+         "settings": {"in1": 22, "in2": 25}}]})
+    assert status == 200, answer
+    shared = [d for d in answer["diagnostics"] if d.get("component") == "RightActuator"]
+    assert len(shared) == 1, answer["diagnostics"]
+    assert shared[0]["field"] == "settings.in1"
+    assert shared[0]["message"] == shared_pin_message(22, "RightActuator", "in1", "LeftActuator", "in1")
+    (root / "deployment.yaml").write_text(editor.get("files")["files"]["deployment.yaml"], encoding="utf-8")
+    check = subprocess.run(umlbot_argv("check", str(root)), capture_output=True, text=True,
+                           timeout=60, check=False)
+    assert check.returncode == 1 and shared[0]["text"] in (check.stdout + check.stderr).splitlines()
+    # a new component on a pin in use is added (its name is fine): the problem is its setting's
+    status, answer = editor.post("edit", {"version": answer["version"], "ops": [
+        {"op": "add_component", "name": "Pan", "kind": "actuator", "impl": "servo",
+         "settings": {"gpio": 18}}]})
+    assert status == 200, answer
+    assert [(d["component"], d["field"]) for d in answer["diagnostics"] if "'Pan'" in d["message"]] == [
+        ("Pan", "settings.gpio")]

@@ -103,6 +103,10 @@ def command(model: Path, broker_url: str | None, ca_file: Path | None, robot: st
                 source.start()
             signals.running()
             click.echo(f"umlbot studio: {page}  ({what}; Ctrl-C to quit)")
+            if editable and workspace.empty:
+                state = "does not exist yet" if not model.exists() else "holds no model yet"
+                click.echo(f"umlbot studio: {model} {state}: the page offers a starter model "
+                           "(type the robot's name, press 'Create the model')")
             if errors:
                 click.echo(f"  the model has {errors} error(s): the page lists them", err=True)
             for note in notes:

@@ -153,6 +153,11 @@ class EditApi:
             with contextlib.suppress(RuntimeError):  # the loop has closed
                 loop.call_soon_threadsafe(self.server.hub.broadcast, frame)
 
+    def tick(self) -> None:
+        """About once a second (the server's tick): a run's broker connection and calls."""
+        if self.run is not None:
+            self.run.tick()
+
     def close(self) -> None:
         """End a run that is going on (the studio stops)."""
         if self.run is not None and self.run.running:

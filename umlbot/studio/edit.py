@@ -18,7 +18,6 @@ from typing import Any, cast
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
-from compiler.checker import RESERVED
 from compiler.expr_parser import RawExpr, RBinary, RCall, RName, RUnary, parse_expression
 from compiler.source import (
     ACTIVITIES_DIR,
@@ -758,14 +757,12 @@ class _Patches:
 
 
 def _check_new_name(new: str, field_name: str, what: str, taken: Mapping[str, str]) -> None:
-    """A new swimlane or component name: a plain identifier, not reserved, not taken."""
+    """A new swimlane or component name: a plain identifier, not taken (what the compiler refuses
+    besides, e.g. a reserved name, is refused with its message: `Workspace.edit`)."""
     if not _NAME.fullmatch(new):
         raise EditError(f"{what} name {new!r} is not a plain name (letters, digits and _)",
                         fields={field_name: "must be a plain name (letters, digits and _; no spaces, "
                                             "not starting with a digit)"})
-    if new in RESERVED:
-        raise EditError(f"{new!r} is a reserved name", fields={field_name: f"'{new}' is reserved "
-                                                                           "(a builtin or keyword)"})
     if new in taken:
         raise EditError(f"there is {taken[new]} {new!r} already",
                         fields={field_name: f"is taken by {taken[new]}"})

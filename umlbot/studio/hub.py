@@ -101,6 +101,8 @@ class Hub:
         self.orchestrator: dict[str, Any] | None = None
         #: the connection to the broker (the latest `broker` event of the broker source).
         self.broker: dict[str, Any] | None = None
+        #: the connection to the broker of a studio *Run* (its latest `broker` event).
+        self.run_broker: dict[str, Any] | None = None
         self.trace: collections.deque[dict[str, Any]] = collections.deque(maxlen=keep_trace)
         self.calls: collections.deque[dict[str, Any]] = collections.deque(maxlen=KEEP_CALLS)
         #: the simulated world's latest state and its recent pings (under `_lock`).
@@ -164,6 +166,8 @@ class Hub:
         events += self.retained.values()
         if self.broker is not None:
             events.append(self.broker)
+        if self.run_broker is not None:
+            events.append(self.run_broker)
         if self.orchestrator is not None:
             events.append(self.orchestrator)
         events += self.trace
@@ -248,6 +252,8 @@ class Hub:
             self.retained[f"{event.get('robot')}/{event.get('component')}"] = event
         elif kind == "orchestrator":
             self.orchestrator = event
+        elif kind == "broker" and event.get("source") == "run":
+            self.run_broker = event
         elif kind == "broker":
             self.broker = event
 

@@ -251,13 +251,50 @@ def node_index(source: SourceModel) -> dict[str, list[tuple[int, str, str | None
     return index
 
 
+#: a deployment position (file, line, column) -> the component and the editor's field there
+#: (`settings.<key>`, `impl`, or None for the component's entry).
+FieldIndex = dict[tuple[str, int, int], tuple[str, str | None]]
+
+
+def deployment_fields(source: SourceModel) -> FieldIndex:
+    """Where each component's deployment entry, implementation and settings are written: the
+    positions the compiler reports their problems at (a pin wired twice, a refused setting)."""
+    from compiler.source import locate
+
+    dep = source.deployment
+    root = dep.root if dep is not None else None
+    out: FieldIndex = {}
+    components = root.items.get("components") if isinstance(root, YMap) else None
+    if root is None or not isinstance(components, YMap):
+        return out
+    for name, entry in components.items.items():
+        at = locate(root, ("components", name))
+        out[(at.file, at.line, at.column)] = (name, None)
+        if not isinstance(entry, YMap):
+            continue
+        for key in ("impl",):
+            if key in entry.items:
+                at = locate(root, ("components", name, key))
+                out[(at.file, at.line, at.column)] = (name, key)
+        settings = entry.items.get("settings")
+        for key in settings.items if isinstance(settings, YMap) else {}:
+            at = locate(root, ("components", name, "settings", key))
+            out[(at.file, at.line, at.column)] = (name, f"settings.{key}")
+    return out
+
+
 def attribute(view: dict[str, Any], rel: str | None,
-              index: dict[str, list[tuple[int, str, str | None]]]) -> dict[str, Any]:
-    """Add `relpath` and the `lane`/`node` a diagnostic points into (by its file and line)."""
+              index: dict[str, list[tuple[int, str, str | None]]],
+              fields: FieldIndex | None = None) -> dict[str, Any]:
+    """Add `relpath` and the `lane`/`node` a diagnostic points into (by its file and line), or the
+    `component` and its deployment `field` (by its position in the deployment)."""
     view["relpath"] = rel
     rows = index.get(rel or "")
     if rows:
         at = bisect.bisect_right(rows, view["line"], key=lambda row: row[0]) - 1
         if at >= 0:
             view["lane"], view["node"] = rows[at][1], rows[at][2]
+    owner = (fields or {}).get((view["file"], view["line"], view["column"]))
+    if owner is not None:
+        view["component"], view["field"] = owner
     return view

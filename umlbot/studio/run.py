@@ -91,11 +91,18 @@ class StudioRun:
         self.hub.reset_world()  # a page opening later gets this run's world, not the last one's
         self.current = {"running": True, "robot": robot, "track": track_view(world)}
         self.broadcast({"type": "run", "state": "running", **self.current})
-        self._sources = [BrokerSource(BrokerSettings.from_url(broker_url), robot, self.hub),
+        self._sources = [BrokerSource(BrokerSettings.from_url(broker_url), robot, self.hub, origin="run"),
                          WorldSource(world, self.hub)]
         for source in self._sources:
             source.start()
         return self._finish
+
+    def tick(self) -> None:
+        """About once a second: the run's broker connection (the toolbar says it), calls that
+        stayed unanswered."""
+        for source in list(self._sources):
+            if isinstance(source, BrokerSource):
+                source.tick()
 
     def _finish(self) -> None:
         for source in self._sources:

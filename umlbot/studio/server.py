@@ -185,9 +185,11 @@ class StudioServer:
     async def _ticker(self) -> None:
         while True:
             await asyncio.sleep(EXPIRE_EVERY_S)
-            if self.tick is not None:
+            for tick in (self.tick, self.api.tick if self.api is not None else None):
+                if tick is None:
+                    continue
                 try:
-                    self.tick()
+                    tick()
                 except Exception as exc:
                     log.warning("studio tick failed", error=str(exc))
 

@@ -138,7 +138,7 @@ class BrokerSource:
     """
 
     def __init__(self, settings: BrokerSettings, robot: str, hub: Hub,
-                 call_timeout_s: float | None = None) -> None:
+                 call_timeout_s: float | None = None, origin: str | None = None) -> None:
         from services.bus.settings import redact_url
         from services.monitor import MonitorState
         from services.monitor.live import LiveMonitor
@@ -150,6 +150,9 @@ class BrokerSource:
         state = MonitorState(fallback_call_timeout_s=call_timeout_s or DEFAULT_CALL_TIMEOUT_S)
         self.monitor: LiveMonitor = LiveMonitor(settings, robot, self._on_event, state=state)
         self._broker_seen: tuple[object, ...] | None = None
+        #: `broker` events say where they come from when it is not the robot's broker ("run":
+        #: the simulator's own broker of a studio *Run*).
+        self._origin = {"source": origin} if origin else {}
 
     def _on_event(self, event: MonitorEvent) -> None:
         self.hub.push(event_dict(event))
@@ -157,7 +160,7 @@ class BrokerSource:
     def start(self) -> None:
         self.monitor.start(timeout=None)
         self.hub.push({"type": "broker", "time": time.time(), "url": self.url, "connected": False,
-                       "attempts": 0, "problem": None})
+                       "attempts": 0, "problem": None, **self._origin})
 
     def tick(self) -> None:
         """Report calls that stayed unanswered and a change of the broker connection."""
@@ -170,7 +173,7 @@ class BrokerSource:
         seen = (status.get("connected"), status.get("problem"), status.get("attempts"))
         if seen != self._broker_seen:
             self._broker_seen = seen
-            self.hub.push({"type": "broker", "time": time.time(), "url": self.url, **status})
+            self.hub.push({"type": "broker", "time": time.time(), "url": self.url, **status, **self._origin})
 
     def close(self) -> None:
         self.monitor.close()

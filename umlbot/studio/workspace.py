@@ -30,7 +30,7 @@ from compiler.source import ACTIVITIES_DIR, MODEL_FILE, Unreadable, read_model_f
 from umlbot.errors import ModelError
 from umlbot.files import decode_utf8, file_problem, loads_json
 from umlbot.studio.edit import EditError, Rename, apply_ops, parse_ops, rename_positions
-from umlbot.studio.model_view import attribute, diagnostic_view, node_index, source_view
+from umlbot.studio.model_view import attribute, deployment_fields, diagnostic_view, node_index, source_view
 
 LAYOUT_FILE = ".umlbot-studio.json"
 #: unsaved edits kept when the studio quits; the next start offers to restore or discard them.
@@ -223,12 +223,15 @@ class Workspace:
 
     # --- checking ------------------------------------------------------------------------------------
 
-    def check(self) -> dict[str, Any]:
-        """Check the working copy with the compiler; the page's answer (model view, diagnostics)."""
-        result = check_model(self.root, files=self.files)
+    def check(self, result: CheckResult | None = None) -> dict[str, Any]:
+        """Check the working copy with the compiler (unless `result` is that check already); the
+        page's answer (model view, diagnostics)."""
+        if result is None:
+            result = check_model(self.root, files=self.files)
         self.result = result
         index = node_index(result.source) if result.source is not None else {}
-        diagnostics = [attribute(diagnostic_view(d), self._relative(d.location.file), index)
+        fields = deployment_fields(result.source) if result.source is not None else {}
+        diagnostics = [attribute(diagnostic_view(d), self._relative(d.location.file), index, fields)
                        for d in result.diagnostics]
         self.answer_cache = {
             "model": source_view(result.source) if result.source is not None and self.files else None,
@@ -244,9 +247,13 @@ class Workspace:
         except ValueError:
             return None
 
-    def answer(self, changed: list[str] | None = None) -> dict[str, Any]:
+    def answer(self, changed: list[str] | None = None, renames: list[Rename] | None = None) -> dict[str, Any]:
+        """The answer to the page; `renamed`: what this step renamed (an undo of a rename names it
+        back), so that the page keeps the renamed thing selected."""
         return {"version": self.version, **self.answer_cache, "changed": changed or [],
-                "dirty": self.dirty}
+                "dirty": self.dirty,
+                "renamed": [{"kind": r.kind, "old": r.old, "new": r.new, "lane": r.lane}
+                            for r in renames or []]}
 
     # --- editing -------------------------------------------------------------------------------------
 
@@ -270,6 +277,15 @@ class Workspace:
             # None: there but unreadable, which an edit refuses to change; the compiler reports it
         renames: list[Rename] = []
         changes = apply_ops(texts, text_ops, renames) if text_ops else {}
+        files = dict(self.files)
+        for rel, text in changes.items():
+            if text is None:
+                files.pop(rel, None)
+            else:
+                files[rel] = text.encode("utf-8")
+        result = check_model(self.root, files=files) if changes else None
+        if result is not None:
+            self._refuse_names_the_compiler_refuses(text_ops, result)  # before anything changes
         for op in layout_ops:
             diagram = op.diagram or "components"
             positions = op.positions or {}
@@ -280,19 +296,42 @@ class Workspace:
                 else:
                     bucket[key] = [round(float(v), 1) for v in value]
         self.version += 1
-        if not changes:
+        if result is None:
             return self.answer()
         moved = rename_positions(self.layout, renames)
         self.undo_stack.append(State(dict(self.files), [r.reverse() for r in reversed(renames)]))
         del self.undo_stack[:-HISTORY]
         self.redo_stack.clear()
-        for rel, text in changes.items():
-            if text is None:
-                self.files.pop(rel, None)
+        self.files = files
+        self.check(result)
+        return self._with_layout(self.answer(sorted(changes), renames), moved)
+
+    def _refuse_names_the_compiler_refuses(self, ops: list[Any], result: CheckResult) -> None:
+        """A swimlane or component name given by an edit (new or renamed) that the compiler
+        refuses (e.g. `msleep`, a builtin, as a swimlane) is refused at its field with the
+        compiler's own line (`umlbot check`'s): the compiler decides what a name may be, the studio
+        has no rule of its own. Nothing changes then. (A node id is checked only for being a plain
+        name, which its YAML text needs; a new node's other problems, such as the call it does not
+        have yet, are the diagnostics of an unfinished node, not a refusal.)"""
+        source = result.source
+        if source is None:
+            return
+        for op in ops:
+            named = {"rename_lane": ("new_name", op.new_name, "lane"), "add_lane": ("lane", op.lane, "lane"),
+                     "rename_component": ("new_name", op.new_name, "component"),
+                     "add_component": ("name", op.name, "component")}.get(op.op)
+            if named is None or not isinstance(named[1], str):
+                continue
+            field_name, name, what = named
+            # where the name is written: an error there is about the name itself (a pin wired
+            # twice by a new component is its settings' problem, shown at that field instead)
+            if what == "lane":
+                at = {lane.loc for lane in source.lanes if lane.name == name}
             else:
-                self.files[rel] = text.encode("utf-8")
-        self.check()
-        return self._with_layout(self.answer(sorted(changes)), moved)
+                at = {source.components[name].loc} if name in source.components else set()
+            for d in result.diagnostics:
+                if d.severity == "error" and d.location in at:
+                    raise EditError(d.message, fields={field_name: str(d)})
 
     def undo(self) -> dict[str, Any]:
         return self._step(self.undo_stack, self.redo_stack, "undo")
@@ -310,7 +349,7 @@ class Workspace:
         self.files = state.files
         self.version += 1
         self.check()
-        return self._with_layout(self.answer(changed), moved)
+        return self._with_layout(self.answer(changed, state.renames), moved)
 
     def _with_layout(self, answer: dict[str, Any], moved: bool) -> dict[str, Any]:
         """The answer, with the layout when a rename moved positions to the new names."""

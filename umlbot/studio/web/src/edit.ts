@@ -5,9 +5,10 @@
 
 import type { Positions } from "./layout";
 import { sameFile } from "./paths";
+import { runEndText, speedWords } from "./runtext";
 import type {
   CompleteAnswer, Completion, ConflictMsg, Diagnostic, EditAnswer, EditInfo, FeatureInfo, FieldInfo, FilesMsg,
-  ImplInfo, JsonSchema, LayoutMap, Library, ModelComponent, ModelEdge, ModelLane, ModelNode, ModelView, NodeKind, RunMsg,
+  ImplInfo, JsonSchema, LayoutMap, Library, ModelComponent, ModelEdge, ModelLane, ModelNode, ModelView, NodeKind, Renamed, RunMsg,
 } from "./types";
 
 export interface EditorHost {
@@ -122,6 +123,8 @@ export class Editor {
   private queue: { ops: Op[]; resolve: (ok: boolean) => void; form?: HTMLElement }[] = [];
   private forceSave = false;
   private laneFile = "";
+  /** the next drawing of a component's properties shows its first deployment problem */
+  private revealProblems = false;
 
   private tools = $<HTMLElement>("#edit-tools");
   private palette = $<HTMLElement>("#palette");
@@ -187,7 +190,7 @@ export class Editor {
   private showRecovery(r: NonNullable<EditInfo["recovery"]>): void {
     const when = r.time ?? "a previous session";
     const what = [...r.files, ...(r.layout ? ["positions"] : [])].join(", ");
-    this.showNotice("recovery", `The studio quit with unsaved edits (${what}); they were kept, your files are unchanged.`, [
+    this.showNotice("recovery", `The studio quit with unsaved edits (${what}); they were kept, your files are unchanged. Restore them into the page, or discard them for good.`, [
       ["restore", `Restore the unsaved edits of ${when}`, async () => {
         const a = await this.request<EditAnswer>("/api/recover", { action: "restore" });
         if (a) {
@@ -195,12 +198,14 @@ export class Editor {
           this.showNotice("restored", `Restored the edits of ${when}: Save writes them, Undo goes back to the files.`, [], 8000);
         }
       }],
-      ["discard", "Discard", async () => {
+      ["discard", "Discard them", async () => {
         if (await this.request<EditAnswer>("/api/recover", { action: "discard" })) {
           this.showNotice("discarded", "The kept edits were discarded.", [], 4000);
         }
       }],
     ]);
+    this.notice.querySelector('[data-action="restore"]')?.setAttribute("title", "Put the kept edits back into the page (not saved yet: Save writes them)");
+    this.notice.querySelector('[data-action="discard"]')?.setAttribute("title", "Delete the kept edits for good; your model files stay as they are");
   }
 
   /** `again`: the hello repeats a run that ended already (a reload): its end was said once. */
@@ -220,10 +225,7 @@ export class Editor {
       try {
         localStorage.setItem(key, stamp);
       } catch { /* no storage */ }
-      const what = r.goal_reached ? "reached the goal" : `ended: ${r.failure ?? r.reason ?? "stopped"}`;
-      const figures = [r.sim_s !== undefined ? `${r.sim_s.toFixed(1)} s` : "", r.distance_m !== undefined ? `${r.distance_m.toFixed(2)} m` : "",
-        r.collisions ? `${r.collisions} collision${r.collisions === 1 ? "" : "s"}` : ""].filter(Boolean).join(" · ");
-      this.showNotice(r.goal_reached ? "run-goal" : "run-ended", `The run ${what}${figures ? ` (${figures})` : ""}.`, [], 10000);
+      this.showNotice(r.goal_reached ? "run-goal" : "run-ended", runEndText(r), [], 10000);
     }
   }
 
@@ -237,7 +239,10 @@ export class Editor {
     const form = el("form", { id: "new-model-form" }, target);
     el("h2", {}, form, "This folder has no model yet");
     el("p", {}, form, `Start one in ${this.info.root}: a starter model with the car's components, their deployment and a main activity (start → end).`);
-    const name = el("input", { name: "model-name", placeholder: "robot name", value: this.info.root.split("/").filter(Boolean).pop() ?? "my_robot", required: "", "data-field": "name" }, form);
+    const label = el("label", { for: "model-name", class: "field-label" }, form, "Robot name");
+    const name = el("input", { id: "model-name", name: "model-name", placeholder: "e.g. my_robot", value: this.info.root.split("/").filter(Boolean).pop() ?? "my_robot", required: "", "data-field": "name", "aria-describedby": "model-name-hint" }, form);
+    el("small", { id: "model-name-hint", class: "hint" }, form, "letters, digits, _ and -; it is also the robot's id on the broker");
+    label.title = "the model's name";
     const btn = el("button", { id: "new-model", type: "submit" }, form, "Create the model");
     form.onsubmit = async (ev) => {
       ev.preventDefault();
@@ -333,11 +338,32 @@ export class Editor {
     this.hooks.version = a.version;
     if (a.layout?.positions) this.layout = a.layout.positions;
     this.setDirty(a.dirty);
+    this.followRenames(a.renamed ?? []);
     if (redraw && a.model !== undefined) {
       this.host.setModel(a.model, a.diagnostics ?? []);
       this.validateSelection();
       this.renderPalette();
       this.renderProps();
+    }
+  }
+
+  /** What an edit, undo or redo renamed: the selection keeps the renamed thing (a rename's undo
+   * selects the node under its old id again, so the panel shows that id, not a stale one). */
+  private followRenames(renamed: Renamed[]): void {
+    for (const r of renamed) {
+      const s = this.sel;
+      if (!s) return;
+      if (r.kind === "node") {
+        if (s.type === "node" && s.lane === r.lane && s.id === r.old) this.sel = { ...s, id: r.new };
+        else if (s.type === "edge" && s.lane === r.lane) {
+          this.sel = { ...s, source: s.source === r.old ? r.new : s.source, target: s.target === r.old ? r.new : s.target };
+        }
+      } else if (r.kind === "lane" && (s.type === "node" || s.type === "edge" || s.type === "lane") && s.lane === r.old) {
+        this.sel = { ...s, lane: r.new };
+      } else if (r.kind === "component") {
+        if (s.type === "component" && s.name === r.old) this.sel = { ...s, name: r.new };
+        else if ((s.type === "node" || s.type === "edge" || s.type === "lane") && s.lane === r.old) this.sel = { ...s, lane: r.new };
+      }
     }
   }
 
@@ -430,7 +456,13 @@ export class Editor {
       const b = el("button", { type: "button", "data-action": action }, n, label);
       b.onclick = () => void fn();
     }
-    const close = el("button", { type: "button", "data-action": "dismiss", title: "Dismiss" }, n, "×");
+    // what closing does, in words: it hides the notice; it never undoes, discards or saves anything
+    const later = kind === "recovery";
+    const close = el("button", { type: "button", "data-action": "dismiss" }, n, later ? "Decide later" : "×");
+    close.title = later
+      ? "Hide this notice: the kept edits stay in the recovery file, unrestored and not discarded; the next start of the studio offers them again"
+      : "Hide this notice (nothing is undone)";
+    close.setAttribute("aria-label", later ? "Decide later" : "Hide this notice");
     close.onclick = () => { n.hidden = true; };
     n.hidden = false;
     if (hideAfterMs) {
@@ -477,7 +509,7 @@ export class Editor {
     if (!a) return;
     this.setRunning(true);
     this.host.resetLive();
-    this.showNotice("run", `Running the edited model in the simulator on ${this.trackSel.value} at ${speed}×.`, [], 4000);
+    this.showNotice("run", `Running the edited model in the simulator on ${this.trackSel.value} at ${speed}× (${speedWords(speed)}).`, [], 4000);
   }
 
   private async stop(): Promise<void> {
@@ -505,6 +537,11 @@ export class Editor {
     const cur = this.host.current();
     if (cur === "components" || !m) {
       el("div", { class: "panel-title" }, p, "Component library");
+      if (this.info.empty) {
+        // browsable before there is a model; adding a part needs the model it goes into
+        el("div", { class: "hint", "data-hint": "no-model" }, p,
+          "There is no model yet: create it first (the form in the middle). Then click a part here to add it to the model.");
+      }
       if (!this.library) {
         el("div", { class: "hint" }, p, "loading…");
         return;
@@ -832,7 +869,9 @@ export class Editor {
       void this.save();
       return true;
     }
-    if (typing) return false;
+    // Undo/redo in a field: the field's own text undo while something is typed in it; with
+    // nothing typed (e.g. the name field a new node focuses), the model's undo/redo.
+    if (typing && !(mod && (k === "z" || k === "y") && t instanceof HTMLInputElement && t.value === t.defaultValue)) return false;
     if (mod && k === "z") {
       ev.preventDefault();
       void this.history(ev.shiftKey ? "redo" : "undo");
@@ -914,17 +953,19 @@ export class Editor {
 
   renderProps(): void {
     const p = this.props;
-    // An answer redraws the panel: a field being typed in keeps its text, caret and focus.
+    // An answer redraws the panel: the focused field keeps its focus and caret, and the text typed
+    // in it that is not sent yet; a field with nothing typed shows the model's value (after an undo
+    // or a rename, the value now, not the one it showed before).
     const a = document.activeElement;
     const typing = a instanceof HTMLInputElement && p.contains(a) && a.name
       ? { sel: `[name="${CSS.escape(a.name)}"]${a.dataset.target ? `[data-target="${CSS.escape(a.dataset.target)}"]` : ""}`,
-        value: a.value, start: a.selectionStart, end: a.selectionEnd, what: JSON.stringify(this.sel) }
+        value: a.value, typed: a.value !== a.defaultValue, start: a.selectionStart, end: a.selectionEnd, what: JSON.stringify(this.sel) }
       : null;
     p.replaceChildren();
     if (typing) queueMicrotask(() => {
       const again = p.querySelector<HTMLInputElement>(typing.sel);
       if (!again || typing.what !== JSON.stringify(this.sel)) return;
-      if (again.value !== typing.value) again.value = typing.value;
+      if (typing.typed && again.value !== typing.value) again.value = typing.value;
       again.focus();
       if (typing.start !== null && typing.end !== null) again.setSelectionRange(typing.start, typing.end);
     });
@@ -933,6 +974,11 @@ export class Editor {
     const s = this.sel;
     this.highlightSelection();
     p.dataset.selection = s ? s.type : "";
+    if (!s && this.info.empty) {
+      el("div", { class: "hint", "data-hint": "no-model" }, body,
+        "There is no model yet: create it with the form in the middle. Then select a node, a flow or a component to edit it here.");
+      return;
+    }
     if (!s) {
       el("div", { class: "hint" }, body, this.host.current() === "components"
         ? "Click a component to edit its deployment, ports and links, or pick one from the library to add it."
@@ -1077,6 +1123,12 @@ export class Editor {
     const impl = this.library?.implementations.find((i) => i.id === implId);
     if (!impl) return;
     el("div", { class: "props-head" }, body, `new ${impl.kind} · ${impl.id}`);
+    if (this.info.empty) {
+      el("div", { class: "hint" }, body, `features: ${Object.keys(features(impl, this.library)).join(", ")}`);
+      el("div", { class: "hint", "data-hint": "no-model" }, body,
+        `A ${impl.id} can be added once there is a model: create it first (the form in the middle), then click ${impl.id} again.`);
+      return;
+    }
     const form = el("form", { class: "new-component", novalidate: "" }, body);
     const m = this.host.model();
     const taken = new Set(m?.components.map((c) => c.name) ?? []);
@@ -1212,12 +1264,32 @@ export class Editor {
     };
     drawSettings();
     implSel.onchange = drawSettings;
+    implSel.dataset.field = "impl";
+    // the checker's problems with this component's deployment (a pin wired twice, a setting a
+    // driver refuses), each at the field it is about, as `umlbot check` prints it
+    const problems = this.host.diagnostics().filter((d) => d.component === name);
+    const atField = problems.filter((d) => d.field && dep.querySelector(`[data-field="${CSS.escape(d.field)}"]`));
+    markDiagnostics(dep, atField);
+    if (this.revealProblems) {
+      // the deployment just applied has problems: show the first one (the panel may be scrolled
+      // down to its Apply button); after the answer's last redraw of the panel
+      queueMicrotask(() => {
+        if (!this.revealProblems) return;
+        this.revealProblems = false;
+        this.props.querySelector(".deployment .field-problem, .deployment .problem")?.scrollIntoView({ block: "nearest" });
+      });
+    }
+    const title = dep.querySelector(".props-section");
+    for (const d of problems.filter((x) => !atField.includes(x)).reverse()) {
+      title?.after(el("div", { class: `problem ${d.severity}`, "data-severity": d.severity }, null, d.text));
+    }
     el("button", { type: "submit", name: "apply-deployment" }, dep, "Apply deployment");
     dep.onsubmit = (ev) => {
       ev.preventDefault();
       clearFieldErrors(dep);
       const settings = read();
       if (settings === null) return;
+      this.revealProblems = true;
       void this.edit([{ op: "set_deployment", component: name, impl: implSel.value, settings }], dep);
     };
     // ports
@@ -1482,6 +1554,34 @@ function defaultFields(kind: NodeKind): Record<string, FieldInfo> {
   }
 }
 
+/** Show the checker's problems at the fields they are about (`data-field` = the diagnostic's
+ * `field`), each as the line `umlbot check` prints. */
+export function markDiagnostics(form: Element, list: Diagnostic[]): void {
+  for (const d of list) {
+    const msg = markField(form, d.field ?? "", d.text);
+    if (!msg) continue;
+    msg.classList.add("field-problem", d.severity);
+    msg.dataset.severity = d.severity;
+  }
+}
+
+/** Mark the field `field` (`data-field`) of `form` invalid, with `text` under it; the message, or
+ * null when the form has no such field. */
+function markField(form: Element, field: string, text: string): HTMLElement | null {
+  const input = form.querySelector<HTMLElement>(`[data-field="${CSS.escape(field)}"]`);
+  if (!input) return null;
+  input.setAttribute("aria-invalid", "true");
+  input.classList.add("invalid");
+  const msg = document.createElement("div");
+  msg.className = "field-error";
+  msg.dataset.field = field;
+  msg.textContent = text;
+  const row = input.closest(".row");
+  if (row) row.append(msg);
+  else input.after(msg); // right under (or beside) the field it is about
+  return msg;
+}
+
 /** Remove the marks `markFieldErrors` left in `form`. */
 export function clearFieldErrors(form: Element): void {
   for (const e of form.querySelectorAll(".field-error")) e.remove();
@@ -1502,16 +1602,9 @@ export function markFieldErrors(form: Element, fields: Record<string, string>): 
       all = false;
       continue;
     }
-    input.setAttribute("aria-invalid", "true");
-    input.classList.add("invalid");
     const label = input.dataset.label ?? field.split(".").pop() ?? field;
-    const msg = document.createElement("div");
-    msg.className = "field-error";
-    msg.dataset.field = field;
-    msg.textContent = `${label}: ${why}`;
-    const row = input.closest(".row");
-    if (row) row.append(msg);
-    else input.after(msg); // right under (or beside) the field it is about
+    // the compiler's own line (`file:line:col: error: …`) as it is; a word of ours with the field's name
+    markField(form, field, /:\d+:\d+: (error|warning): /.test(why) ? why : `${label}: ${why}`);
     first ??= input;
   }
   first?.focus();

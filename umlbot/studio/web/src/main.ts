@@ -496,7 +496,7 @@ function jsonText(v: unknown): string {
 function fillRow(tr: HTMLTableRowElement, r: CallRow): void {
   const cells = tr.cells;
   cells[0].textContent = clockText(r.time);
-  cells[1].textContent = `${r.component}.${r.feature}`;
+  cells[1].replaceChildren(r.component, document.createElement("wbr"), `.${r.feature}`); // may wrap before the dot
   cells[2].textContent = r.args === undefined ? r.detail : jsonText(r.args);
   const res = cells[3];
   if (r.ok === true) {
@@ -510,6 +510,7 @@ function fillRow(tr: HTMLTableRowElement, r: CallRow): void {
     res.className = "result pending";
   }
   cells[4].textContent = r.latencyMs === undefined ? "" : `${fmtMs(r.latencyMs)} ms`;
+  for (const c of cells) c.title = c.textContent ?? ""; // a cell cut short: its whole text on hover
 }
 
 function newRow(r: CallRow): HTMLTableRowElement {
@@ -689,34 +690,55 @@ function tick(ts: number): void {
 
 // The studio's own connection to the broker (not the page's socket to the studio): without it
 // the page can show nothing of the robot, so it says why and when the next attempt is.
-let brokerRetryAt = 0;
-let brokerLast: MonitorEvent | null = null;
+// While a Run of the editor goes on, the toolbar shows the connection to that run's own broker
+// (the simulator's), reported like the robot's; after the run, the robot's broker again.
+interface BrokerSeen { e: MonitorEvent; retryAt: number }
+let brokerLast: BrokerSeen | null = null;
+let runBroker: BrokerSeen | null = null;
+let runActive = false;
 let brokerTimer = 0;
 
 function showBroker(e: MonitorEvent): void {
-  brokerLast = e;
-  brokerRetryAt = e.retry_in_s !== undefined ? performance.now() + e.retry_in_s * 1000 : 0;
+  const seen = { e, retryAt: e.retry_in_s !== undefined ? performance.now() + e.retry_in_s * 1000 : 0 };
+  if (e.source === "run") runBroker = seen;
+  else brokerLast = seen;
   drawBroker();
-  if (!e.connected && !brokerTimer) brokerTimer = window.setInterval(drawBroker, 1000);
-  if (e.connected && brokerTimer) {
-    window.clearInterval(brokerTimer);
-    brokerTimer = 0;
-  }
+}
+
+/** A Run started or ended: the toolbar shows whose broker connection is relevant now. */
+function setRunActive(active: boolean): void {
+  runActive = active;
+  if (active) runBroker = null; // this run's broker, not the last run's
+  drawBroker();
 }
 
 function drawBroker(): void {
-  const e = brokerLast;
-  if (!e) return;
+  const run = runActive && runBroker !== null;
+  const seen = run ? runBroker : brokerLast;
+  const connected = !!seen?.e.connected;
+  if (!connected && seen && !brokerTimer) brokerTimer = window.setInterval(drawBroker, 1000);
+  if ((connected || !seen) && brokerTimer) {
+    window.clearInterval(brokerTimer);
+    brokerTimer = 0;
+  }
+  brokerEl.dataset.source = run ? "run" : "robot";
+  if (!seen) {
+    brokerEl.hidden = true;
+    return;
+  }
+  const e = seen.e;
+  const brokerRetryAt = seen.retryAt;
   brokerEl.hidden = false;
   brokerEl.title = e.url ?? "";
+  const who = run ? "sim broker" : "broker";
   if (e.connected) {
-    brokerEl.title = `connected to ${e.url ?? "the broker"}`;
+    brokerEl.title = run ? `connected to the simulator's own broker of this run (${e.url ?? ""})` : `connected to ${e.url ?? "the broker"}`;
     brokerEl.dataset.state = "connected";
-    brokerEl.textContent = "broker connected";
+    brokerEl.textContent = `${who} connected`;
     return;
   }
   brokerEl.dataset.state = e.problem ? "failed" : "connecting";
-  let text = `broker ${e.url ?? ""}: ${e.problem ?? "connecting…"}`;
+  let text = `${who} ${e.url ?? ""}: ${e.problem ?? "connecting…"}`;
   if (e.problem) {
     const left = Math.max(0, Math.ceil((brokerRetryAt - performance.now()) / 1000));
     text += left > 0 ? `, retrying in ${left} s` : ", retrying…";
@@ -923,6 +945,7 @@ function resetSession(hello: HelloMsg): void {
   const name = shown?.name ?? (fresh ? "new model" : "(no model)");
   titleEl.textContent = fresh ? name : `${name} · robot ${hello.robot}`;
   $<HTMLElement>("#source").textContent = hello.source;
+  $<HTMLElement>("#source").title = hello.source;
   titleEl.title = hello.source;
   modeEl.textContent = mode === "replay" ? `replay${hello.replay ? ` · ${hello.replay.file}` : ""}` : "live";
   modeEl.dataset.mode = mode;
@@ -939,6 +962,9 @@ function resetSession(hello: HelloMsg): void {
   setModel(shown, shownDiagnostics);
   if (hello.edit) editor?.afterHello(hello.edit);
   brokerEl.hidden = true; // until the broker source says how its connection is
+  brokerLast = null;
+  runBroker = null;
+  runActive = !!hello.edit?.run?.running;
   if (mode === "replay") setupReplay(hello.replay?.events ?? [], hello.replay?.notes ?? []);
   state.markAllDirty();
   schedule();
@@ -979,6 +1005,7 @@ function onMessage(msg: ServerMsg): void {
       editor?.onConflict(msg);
       break;
     case "run":
+      setRunActive(msg.state === "running");
       if (msg.state === "running") {
         // a new run: the sim panel shows its track, the counts start from zero
         sim.setTrack(msg.track ?? null);

@@ -93,7 +93,9 @@ export class SimPanel {
       lines[i].style.opacity = (1 - (0.75 * age) / PING_SECONDS).toFixed(2);
     }
     if (this.info) {
-      this.info.textContent = `t ${last.t.toFixed(1)} s · servo ${last.servo_deg.toFixed(0)}° · collisions ${last.collisions}${last.goal ? " · goal reached" : ""}`;
+      const hits = last.collisions ? `hit a wall ${last.collisions === 1 ? "once" : `${last.collisions} times`}` : "no collisions";
+      this.info.textContent = `${last.t.toFixed(1)} s driven (simulated time) · sonar turned to ${last.servo_deg.toFixed(0)}° · ${hits}${last.goal ? " · goal reached" : ""}`;
+      this.info.title = "The simulated car's own clock: the same at any run speed";
     }
     this.pending.length = 0;
   }

@@ -75,6 +75,9 @@ export interface Diagnostic {
   relpath?: string;
   lane?: string | null;
   node?: string | null;
+  /** a deployment problem: the component, and the editor's field (`settings.in1`, `impl`) */
+  component?: string;
+  field?: string | null;
 }
 
 export interface TrackView {
@@ -114,6 +117,8 @@ export interface MonitorEvent {
   problem?: string | null;
   attempts?: number;
   retry_in_s?: number;
+  /** a broker event's origin: "run", the simulator's own broker of a studio Run */
+  source?: string;
 }
 
 export interface HelloMsg {
@@ -202,7 +207,11 @@ export interface EditAnswer {
   changed?: string[];
   dirty: boolean;
   layout?: { positions?: LayoutMap } | null;
+  /** what this step renamed (an undo names it back) */
+  renamed?: Renamed[];
 }
+
+export interface Renamed { kind: "node" | "lane" | "component"; old: string; new: string; lane?: string | null }
 
 export interface Completion { label: string; kind: string; detail?: string; insert?: string }
 export interface Signature { label: string; params: ParamInfo[]; active: number; returns?: string; doc?: string }
