@@ -307,6 +307,14 @@ export const STICKY_PX = 20;
  */
 async function relayoutLane(lane: ModelLane, g: LaneGeom): Promise<LaneGeom> {
   const old = matchOld(g, lane);
+  // an end that a new flow enters from below (a lane built in the page: its end was drawn under
+  // its start) goes below the lane's content, as a new node would: flows go down
+  const was = new Set(g.edges.map((e) => `${e.source}>${e.target}`));
+  for (const e of lane.edges) {
+    const a = old.get(e.source);
+    const b = old.get(e.target);
+    if (a && b && b.node.kind === "end" && b.y < a.y + a.h && !was.has(`${a.node.id}>${b.node.id}`)) old.delete(e.target);
+  }
   const hints = hintsFrom(g, lane, old);
   const fresh = await layoutLane(lane, hints);
   const far = fresh.nodes.some((nb) => {
