@@ -105,6 +105,20 @@ const LANE_OPTIONS: Record<string, string> = {
   "elk.json.shapeCoords": "ROOT",
 };
 
+// A lane laid out again after an edit: ELK's interactive strategies take the layers, the order
+// within them and the places across from where the nodes were drawn before (the hints), so an
+// edit moves the nodes it touches, not the whole lane.
+const INTERACTIVE_OPTIONS: Record<string, string> = {
+  ...LANE_OPTIONS,
+  "elk.layered.cycleBreaking.strategy": "INTERACTIVE",
+  "elk.layered.layering.strategy": "INTERACTIVE",
+  "elk.layered.crossingMinimization.strategy": "INTERACTIVE",
+  "elk.layered.interactiveReferencePoint": "TOP_LEFT",
+  // one graph: ELK would lay out a node not yet connected on its own and pack it in beside the
+  // rest, at the top
+  "elk.separateConnectedComponents": "false",
+};
+
 /**
  * The lane's nodes in flow order: a depth-first walk from the start node(s) finds the flows that go
  * back (loops); without them the nodes are sorted topologically (ties in the walk's order). ELK's
@@ -169,12 +183,20 @@ export function flowOrder(lane: ModelLane): ModelNode[] {
   return order.length === lane.nodes.length ? order : lane.nodes;
 }
 
-async function layoutLane(lane: ModelLane): Promise<LaneGeom> {
+/** Where each node of a lane was drawn before an edit (ELK's top-left corners, lane coordinates). */
+type Hints = Map<string, Point>;
+
+async function layoutLane(lane: ModelLane, hints?: Hints): Promise<LaneGeom> {
   const sizes = new Map<string, ReturnType<typeof nodeSize>>();
   const children: ElkNode[] = flowOrder(lane).map((n) => {
     const s = nodeSize(n);
     sizes.set(n.id, s);
     const child: ElkNode = { id: n.id, width: s.w, height: s.h };
+    const at = hints?.get(n.id);
+    if (at) {
+      child.x = at.x;
+      child.y = at.y;
+    }
     if (!s.statsInside) {
       child.labels = [{ id: `${n.id}#stats`, text: "stats", width: STATS2_W(), height: 28 }];
       child.layoutOptions = { "elk.nodeLabels.placement": "OUTSIDE V_CENTER H_RIGHT" };
@@ -195,7 +217,7 @@ async function layoutLane(lane: ModelLane): Promise<LaneGeom> {
       }
       return edge;
     });
-  const graph: ElkNode = { id: "root", layoutOptions: LANE_OPTIONS, children, edges };
+  const graph: ElkNode = { id: "root", layoutOptions: hints ? INTERACTIVE_OPTIONS : LANE_OPTIONS, children, edges };
   const out = await engine().layout(graph);
   const nodes: NodeBox[] = [];
   const byId = new Map(lane.nodes.map((n) => [n.id, n]));
@@ -251,23 +273,142 @@ function cached<T extends Layout>(key: string, make: () => Promise<T>): Promise<
 /** Positions the user chose in one diagram ("<lane>/<node>" or a component's name -> [x, y]). */
 export type Positions = Record<string, [number, number]>;
 
-// Lanes are laid out one by one and cached by their own text: an edit relays out only its lane.
+// Lanes are laid out one by one and cached by their own text: an edit relays out only its lane
+// (and an undo finds the drawing from before the edit).
 const laneCache = new Map<string, Promise<LaneGeom>>();
-function laneLayout(lane: ModelLane): Promise<LaneGeom> {
+// The last drawing of each lane ("<diagram>/<lane>"): an edited lane is laid out again with its
+// nodes' places there as hints. Kept for the page's life (a reload lays the diagram out afresh).
+const lastLane = new Map<string, Promise<LaneGeom>>();
+
+function laneLayout(diagram: string, lane: ModelLane, index: number, before: ModelDiagram | undefined): Promise<LaneGeom> {
   const key = JSON.stringify(lane);
   let p = laneCache.get(key);
   if (!p) {
     if (laneCache.size > 4096) laneCache.clear();
-    p = layoutLane(lane);
+    // a renamed lane is found at its index in the diagram as drawn before
+    const was = lastLane.get(`${diagram}/${lane.name}`) ?? (before && before.lanes[index] && !before.lanes.some((l) => l.name === lane.name)
+      ? lastLane.get(`${diagram}/${before.lanes[index].name}`) : undefined);
+    p = was ? was.then((g) => relayoutLane(lane, g), () => layoutLane(lane)) : layoutLane(lane);
     laneCache.set(key, p);
     p.catch(() => laneCache.delete(key));
   }
+  lastLane.set(`${diagram}/${lane.name}`, p);
   return p;
 }
 
+/** How far (px) ELK may move a node drawn before when it lays out an edited lane again. */
+export const STICKY_PX = 20;
+
+/**
+ * An edited lane: ELK lays it out again with the last drawing as hints; when that moves a node
+ * drawn before by more than STICKY_PX (ELK's interactive layering does not reproduce a big lane
+ * with loops: the car's main moved by hundreds of px), the nodes drawn before keep their places
+ * and flows, and only the new nodes and flows are placed and routed.
+ */
+async function relayoutLane(lane: ModelLane, g: LaneGeom): Promise<LaneGeom> {
+  const old = matchOld(g, lane);
+  // an end that a new flow enters from below (a lane built in the page: its end was drawn under
+  // its start) goes below the lane's content, as a new node would: flows go down
+  const was = new Set(g.edges.map((e) => `${e.source}>${e.target}`));
+  for (const e of lane.edges) {
+    const a = old.get(e.source);
+    const b = old.get(e.target);
+    if (a && b && b.node.kind === "end" && b.y < a.y + a.h && !was.has(`${a.node.id}>${b.node.id}`)) old.delete(e.target);
+  }
+  const hints = hintsFrom(g, lane, old);
+  const fresh = await layoutLane(lane, hints);
+  const far = fresh.nodes.some((nb) => {
+    const o = old.get(nb.node.id);
+    return o !== undefined && Math.max(Math.abs(o.x - nb.x), Math.abs(o.y - nb.y)) > STICKY_PX;
+  });
+  return far ? keepPlaces(fresh, g, old, hints) : fresh;
+}
+
+/** The nodes drawn before: each node's own box, or a renamed one's (by its place in the list). */
+function matchOld(g: LaneGeom, lane: ModelLane): Map<string, NodeBox> {
+  const was = new Map(g.nodes.map((nb) => [nb.node.id, nb]));
+  const ids = new Set(lane.nodes.map((n) => n.id));
+  const match = new Map<string, NodeBox>();
+  lane.nodes.forEach((n, i) => {
+    let nb = was.get(n.id);
+    const o = g.lane.nodes[i];
+    if (!nb && o && o.kind === n.kind && !ids.has(o.id)) nb = was.get(o.id);
+    if (nb) match.set(n.id, nb);
+  });
+  return match;
+}
+
+/** `fresh` with the nodes of `g` back at their places, their flows as drawn there. */
+function keepPlaces(fresh: LaneGeom, g: LaneGeom, old: Map<string, NodeBox>, hints: Hints): LaneGeom {
+  const nodes = fresh.nodes.map((nb) => {
+    const p = old.get(nb.node.id) ?? hints.get(nb.node.id);
+    if (!p) return nb;
+    const dx = p.x - nb.x;
+    const dy = p.y - nb.y;
+    return { ...nb, x: p.x, y: p.y, statsX: nb.statsX + dx, statsY: nb.statsY + dy };
+  });
+  const box = new Map(nodes.map((nb) => [nb.node.id, nb]));
+  const oldId = new Map([...old].map(([id, nb]) => [id, nb.node.id]));
+  const oldEdges = new Map(g.edges.map((e) => [`${e.source}>${e.target}`, e]));
+  const same = (id: string): boolean => {
+    const a = box.get(id);
+    const o = old.get(id);
+    return !!a && !!o && a.w === o.w && a.h === o.h;
+  };
+  const edges = fresh.edges.map((e) => {
+    const o = oldEdges.get(`${oldId.get(e.source)}>${oldId.get(e.target)}`);
+    if (o && same(e.source) && same(e.target) && o.label === e.label) return { ...e, points: o.points, labelBox: o.labelBox };
+    const a = box.get(e.source);
+    const b = box.get(e.target);
+    if (!a || !b) return e;
+    const points = routeEdge(a, b);
+    const mid = points[Math.floor((points.length - 1) / 2)];
+    const labelBox = e.labelBox ? { ...e.labelBox, x: mid.x + 4, y: mid.y - 8 } : null;
+    return { ...e, points, labelBox };
+  });
+  let w = g.w;
+  let h = g.h - g.headerH;
+  for (const nb of nodes) {
+    w = Math.max(w, nb.x + nb.w + (nb.statsInside ? 24 : STATS2_W() + 24));
+    h = Math.max(h, nb.y + nb.h + 24);
+  }
+  return { ...fresh, w, h: h + fresh.headerH, nodes, edges };
+}
+
+/**
+ * The places of a lane's nodes in its last drawing (`old`); a new node goes below the lane's
+ * content (a layer of its own: the nodes drawn before keep theirs), under its first drawn
+ * predecessor.
+ */
+function hintsFrom(g: LaneGeom, lane: ModelLane, old: Map<string, NodeBox>): Hints {
+  const hints: Hints = new Map([...old].map(([id, nb]) => [id, { x: nb.x, y: nb.y }]));
+  let bottom = 0;
+  for (const nb of g.nodes) bottom = Math.max(bottom, nb.y + nb.h);
+  for (const n of lane.nodes) {
+    if (hints.has(n.id)) continue;
+    const from = lane.edges.map((e) => (e.target === n.id ? hints.get(e.source) : undefined)).find((p) => p);
+    // below the lane's content: a layer of its own, so the nodes drawn before keep theirs
+    bottom += 40;
+    hints.set(n.id, { x: from ? from.x : 24, y: bottom });
+    bottom += nodeSize(n).h;
+  }
+  return hints;
+}
+
+// The last version of each activity diagram laid out (to find a renamed lane's last drawing).
+const lastDiagram = new Map<string, ModelDiagram>();
+
 export function layoutActivity(d: ModelDiagram, positions: Positions = {}): Promise<ActivityLayout> {
   const mine = Object.entries(positions).filter(([k]) => d.lanes.some((l) => k.startsWith(`${l.name}/`)));
-  return cached("a" + JSON.stringify([d, mine]), () => layoutActivityNow(d, positions));
+  const before = lastDiagram.get(d.id);
+  lastDiagram.set(d.id, d);
+  const out = cached("a" + JSON.stringify([d, mine]), () => layoutActivityNow(d, positions, before));
+  // drawn from the cache (an undo): its lanes are the last drawings now
+  for (const l of d.lanes) {
+    const p = laneCache.get(JSON.stringify(l));
+    if (p) lastLane.set(`${d.id}/${l.name}`, p);
+  }
+  return out;
 }
 
 export function layoutComponents(model: ModelView, positions: Positions = {}): Promise<ComponentLayout> {
@@ -333,8 +474,8 @@ function routeEdge(a: NodeBox, b: NodeBox): Point[] {
   return [{ x: x0, y: ay }, { x: mx, y: ay }, { x: mx, y: by }, { x: x1, y: by }];
 }
 
-async function layoutActivityNow(d: ModelDiagram, positions: Positions): Promise<ActivityLayout> {
-  const auto = await Promise.all(d.lanes.map(laneLayout));
+async function layoutActivityNow(d: ModelDiagram, positions: Positions, before: ModelDiagram | undefined): Promise<ActivityLayout> {
+  const auto = await Promise.all(d.lanes.map((l, i) => laneLayout(d.id, l, i, before)));
   // copies: the cached lane geometry is shared and must not be changed
   const lanes = auto.map((l) => placeLane({ ...l }, positions));
   let x = 0;
