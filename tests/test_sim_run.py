@@ -18,7 +18,7 @@ import pytest
 from conftest import BrokerProcess
 
 from umlbot.errors import SimError
-from umlbot.sim.runner import Progress, SimOptions, SimResult, run_sim, wall_limit_s
+from umlbot.sim.runner import Progress, SimOptions, SimResult, run_sim
 from umlbot.sim.track import tracks_dir
 
 pytestmark = [pytest.mark.network, pytest.mark.slow]
@@ -252,24 +252,27 @@ def test_the_timeout_holds_on_a_track_of_60000_walls(tmp_path: Path) -> None:
     result = run_sim(SimOptions(model=MODEL, track=track, speed=SPEED, port=0, timeout_s=5.0))
     assert result.reason == "timeout", result
     assert 5.0 <= result.sim_s < 5.0 + 0.5, result  # the runner looks every 20 ms wall = 0.2 s sim
-    assert result.wall_s < wall_limit_s(5.0, SPEED), result
+    assert result.wall_s < 2 * 5.0 / SPEED + 10.0, result  # the world kept up with the clock
     assert result.actions > 10  # the car really drove: the world kept up with the clock
     assert result.failure is None and not result.ok
 
 
-@pytest.mark.timeout(120)
-def test_the_wall_time_bound_ends_a_run_whose_sim_time_cannot_keep_pace(tmp_path: Path) -> None:
-    # at speed 2000, 3000 sim s would be 1.5 wall s, but sim time stands still during each of the
-    # model's calls: the run is ended by its wall-time bound (2 x 1.5 + 10 s), and says so
+@pytest.mark.timeout(240)
+def test_a_run_faster_than_the_world_keeps_up_still_ends_at_its_sim_timeout(tmp_path: Path) -> None:
+    # at speed 2000, 150 sim s would be 0.075 wall s, but sim time stands still during each of
+    # the model's calls and the world keeps up only so fast: the run takes longer than the old
+    # wall bound (2 x 0.075 + 10 s), which cut it at a sim time that depended on the machine.
+    # Sim time moves, so no bound cuts it now: it ends at its sim time-out, like at speed 10
     track = _room(tmp_path)
-    speed, timeout_s = 2000.0, 3000.0
-    # collisions do not end it: only the bound may
+    speed, timeout_s = 2000.0, 150.0
+    # collisions do not end it: only the time-out may
     result = run_sim(SimOptions(model=MODEL, track=track, speed=speed, port=0, timeout_s=timeout_s,
                                 max_collisions=1_000_000, check_goal=False))
     assert result.reason == "timeout", result
-    assert result.sim_s < timeout_s, result
-    assert result.wall_s < wall_limit_s(timeout_s, speed) + 1.0, result
-    assert result.failure is not None and "wall-time limit of 13 s" in result.failure, result
+    assert result.failure is None, result
+    assert timeout_s <= result.sim_s < timeout_s + 1.0, result
+    # paced slower than asked (here ~15 s wall; the old bound of 10.15 s cut it)
+    assert result.wall_s > timeout_s / speed, result
     assert not result.ok
 
 

@@ -273,7 +273,7 @@ def test_start_inside_a_wall_is_refused() -> None:
 def test_bad_track_files_raise_sim_error_naming_the_field(tmp_path: Path) -> None:
     with pytest.raises(SimError, match="goal"):
         parse_track("name: x\nstart: {x: 0, y: 0}\nwalls: [[[0, 0], [1, 0]]]\n", "t.yaml")
-    with pytest.raises(SimError, match="wall 0 needs at least 2 points"):
+    with pytest.raises(SimError, match=r"t.yaml:4:\d+: invalid track: walls.0: .*needs at least 2 points"):
         parse_track("name: x\nstart: {x: 0, y: 0}\ngoal: {x_min: 0, x_max: 1, y_min: 0, y_max: 1}\n"
                     "walls: [[[0, 0]]]\n", "t.yaml")
     with pytest.raises(SimError, match="cannot read"):

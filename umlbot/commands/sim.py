@@ -13,13 +13,14 @@ import click
 from umlbot.commands.options import Number, seconds
 from umlbot.stopsignals import StopSignals
 
-DEFAULT_TRACK = "models/tracks/s_bend.yaml"
+DEFAULT_TRACK = "s_bend"  # the bundled track, wherever umlbot is run from
 
 
 @click.command(name="sim")
 @click.argument("model", type=click.Path(exists=True, path_type=Path))
 @click.option("--track", "track", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help=f"Track file, or a bundled track's name such as corridor (default: {DEFAULT_TRACK}).")
+              help="Track file, or a bundled track's bare name such as corridor (no '/', no .yaml: a path "
+              f"that is not there is an error) (default: the bundled {DEFAULT_TRACK}).")
 @click.option("--speed", type=Number(min=0.1, max=100), default=10.0, show_default=True,
               help="Sim seconds per wall second (model sleeps and the world).")
 @click.option("--broker", "broker_url", default=None, metavar="URL",
@@ -30,7 +31,8 @@ DEFAULT_TRACK = "models/tracks/s_bend.yaml"
 @click.option("--timeout", "timeout_s", type=seconds(1), default=600.0, show_default=True,
               help="Give up after this many sim seconds.")
 @click.option("--plot", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help="Write the track, path and sonar pings to this PNG or SVG file.")
+              help="Write the track, path and sonar pings to this .png, .svg or .pdf file (also the track "
+              "and its problem when the track is refused).")
 @click.option("--processes", is_flag=True,
               help="Run each service as its own 'umlbot service' process (as on the robot).")
 @click.option("--seed", type=int, default=None, help="Seed of the sonar noise and dropped echoes.")

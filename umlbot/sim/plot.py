@@ -3,11 +3,16 @@
 from __future__ import annotations
 
 import math
+import textwrap
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 from umlbot.errors import SimError
 from umlbot.sim.geometry import rectangle_corners
-from umlbot.sim.world import World
+from umlbot.sim.world import CarSpec, World
+
+if TYPE_CHECKING:
+    from umlbot.sim.track import Track
 
 #: pings drawn at most (the newest); a long run makes thousands.
 MAX_PINGS = 1500
@@ -21,25 +26,75 @@ def check_plot_path(path: str | Path) -> Path:
     return out
 
 
-def plot_run(world: World, path: str | Path, title: str = "") -> Path:
-    """Draw the run into `path` (PNG or SVG by its suffix) and return the path."""
+def _pyplot() -> Any:
     import matplotlib
 
     matplotlib.use("Agg")  # no display needed; also safe in threads and on servers
     import matplotlib.pyplot as plt
-    from matplotlib.patches import Polygon, Rectangle
 
+    return plt
+
+
+def _draw_walls_and_goal(ax: Any, track: Track) -> None:
+    from matplotlib.patches import Rectangle
+
+    goal = track.goal
+    ax.add_patch(Rectangle((goal.x_min, goal.y_min), goal.x_max - goal.x_min, goal.y_max - goal.y_min,
+                           color="tab:green", alpha=0.25, label="goal"))
+    for i, seg in enumerate(track.segments):
+        ax.plot([seg.a.x, seg.b.x], [seg.a.y, seg.b.y], color="black", linewidth=2.5,
+                label="wall" if i == 0 else None)
+
+
+def finish_figure(fig: Any, ax: Any, out: Path) -> None:
+    """Axes, grid, and the legend outside the axes (right of them), where it hides nothing."""
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0, fontsize="small")
+    fig.savefig(out, dpi=110, bbox_inches="tight")
+
+
+def plot_track(track: Track, path: str | Path, problem: str = "",
+               spot: tuple[float, float] | None = None, car: CarSpec | None = None) -> Path:
+    """Draw a track alone — walls, goal, the car's footprint at the start and, when given, the
+    spot of its `problem` — into `path` and return the path: the picture of a refused track."""
+    from matplotlib.patches import Polygon
+
+    plt = _pyplot()
+    car = car or CarSpec()
+    out = check_plot_path(path)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig, ax = plt.subplots(figsize=(7, 7))
+    try:
+        _draw_walls_and_goal(ax, track)
+        start = track.start
+        ax.plot([start.x], [start.y], "o", color="tab:blue", label="start")
+        ax.add_patch(Polygon(rectangle_corners(start.pose, car.length_m, car.width_m), closed=True,
+                             fill=False, edgecolor="tab:blue", linewidth=1.5, label="car at the start"))
+        if spot is not None:
+            ax.plot([spot[0]], [spot[1]], "x", color="tab:red", markersize=12, mew=2.5, label="problem")
+        ax.set_title(f"{track.name}: refused" + ("\n" + textwrap.fill(problem, 80) if problem else ""),
+                     fontsize="small")
+        finish_figure(fig, ax, out)
+    finally:
+        plt.close(fig)
+    return out
+
+
+def plot_run(world: World, path: str | Path, title: str = "") -> Path:
+    """Draw the run into `path` (.png, .svg or .pdf by its suffix) and return the path."""
+    from matplotlib.patches import Polygon
+
+    plt = _pyplot()
     out = check_plot_path(path)
     out.parent.mkdir(parents=True, exist_ok=True)
     track = world.track
     snap = world.snapshot()
     fig, ax = plt.subplots(figsize=(7, 7))
     try:
-        goal = track.goal
-        ax.add_patch(Rectangle((goal.x_min, goal.y_min), goal.x_max - goal.x_min, goal.y_max - goal.y_min,
-                               color="tab:green", alpha=0.25, label="goal"))
-        for seg in track.segments:
-            ax.plot([seg.a.x, seg.b.x], [seg.a.y, seg.b.y], color="black", linewidth=2.5)
+        _draw_walls_and_goal(ax, track)
         # each echo where it came from: the point of the wall its ray met (on the wall, never
         # beyond it; the ray may lie off the beam's centre); a ping recorded without that point
         # (an older trace) is drawn hollow at the measured range along the beam's centre
@@ -75,12 +130,7 @@ def plot_run(world: World, path: str | Path, title: str = "") -> Path:
         outcome = "goal reached" if snap.goal_reached else "goal not reached"
         ax.set_title(title or f"{track.name}: {outcome}, {snap.collisions} collision(s), "
                      f"{snap.distance_m:.2f} m in {snap.time_s:.1f} s")
-        ax.set_aspect("equal")
-        ax.set_xlabel("x (m)")
-        ax.set_ylabel("y (m)")
-        ax.grid(True, alpha=0.3)
-        ax.legend(loc="best", fontsize="small")
-        fig.savefig(out, dpi=110, bbox_inches="tight")
+        finish_figure(fig, ax, out)
     finally:
         plt.close(fig)
     return out

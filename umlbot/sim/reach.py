@@ -18,10 +18,11 @@ from __future__ import annotations
 import math
 from bisect import bisect_left
 from collections import deque
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from umlbot.logs import get_logger
-from umlbot.sim.geometry import Segment
+from umlbot.sim.geometry import Segment, rectangle_corners, rectangle_hits
 
 if TYPE_CHECKING:
     import numpy as np
@@ -130,11 +131,51 @@ def _reaches(rows: list[_Runs], reach: set[tuple[int, int]], rows_lo: int, rows_
                for k in _overlapping(rows[j], cols_lo, cols_hi))
 
 
+@dataclass(frozen=True)
+class TrackProblem:
+    """Why a track is refused, and the spot the problem is at when there is one (for the picture)."""
+
+    message: str
+    spot: tuple[float, float] | None = None
+
+
+def _nearest(segment: Segment, x: float, y: float) -> tuple[float, float]:
+    ax, ay, bx, by = segment.a.x, segment.a.y, segment.b.x, segment.b.y
+    dx, dy = bx - ax, by - ay
+    length2 = dx * dx + dy * dy
+    t = 0.0 if length2 == 0 else min(1.0, max(0.0, ((x - ax) * dx + (y - ay) * dy) / length2))
+    return ax + t * dx, ay + t * dy
+
+
+def start_problem(track: Track, car_length_m: float, car_width_m: float) -> TrackProblem | None:
+    """The wall the car's footprint at the start overlaps (its index, file line and the point of
+    it nearest the car's centre), or None."""
+    start = track.start
+    corners = rectangle_corners(start.pose, car_length_m, car_width_m)
+    for index, segment in enumerate(track.segments):
+        if rectangle_hits(corners, [segment]):
+            wall = track.wall_of_segment(index)
+            spot = _nearest(segment, start.x, start.y)
+            return TrackProblem(
+                f"the car's start footprint ({car_length_m:g} m x {car_width_m:g} m round "
+                f"({start.x:g}, {start.y:g}), heading {start.heading_deg:g}°) overlaps "
+                f"{track.wall_place(wall)} near ({spot[0]:.2f}, {spot[1]:.2f}): move the start "
+                f"at least {math.hypot(car_length_m, car_width_m) / 2:.2f} m from every wall", spot)
+    return None
+
+
 def goal_problem(track: Track, car_width_m: float) -> str | None:
     """Why a car `car_width_m` wide cannot reach the goal from the start, or None.
 
     None also when the track is too large for the grid (see the module docstring).
     """
+    problem = goal_problem_at(track, car_width_m)
+    return None if problem is None else problem.message
+
+
+def goal_problem_at(track: Track, car_width_m: float) -> TrackProblem | None:
+    """`goal_problem` with the spot it is at: the start or the goal when one lies outside the
+    walls, the goal when it lies on a wall, none when the way is shut somewhere between."""
     half = car_width_m / 2
     grid = _Grid(track, pad_m=half + 3 * CELL_M)
     if grid.cell > MAX_CELL_M:
@@ -149,9 +190,10 @@ def goal_problem(track: Track, car_width_m: float) -> str | None:
     width = f"{car_width_m:g} m"
     # the car's centre can stand where it is half the car's width from every wall
     rows = _runs(_blocked(grid, walls, half - grid.cell / 2))
+    goal_centre = ((goal.x_min + goal.x_max) / 2, (goal.y_min + goal.y_max) / 2)
     if not any(_overlapping(rows[j], gi0, gi1) for j in range(gj0, gj1 + 1)):
-        return (f"the goal region lies on a wall: no point of it is {half * 100:g} cm from every wall, "
-                f"so a car {width} wide cannot stand in it")
+        return TrackProblem(f"the goal region lies on a wall: no point of it is {half * 100:g} cm from "
+                            f"every wall, so a car {width} wide cannot stand in it", goal_centre)
     reach = _flood(rows, sj, si - 1, si + 1, diagonal=True)
     if not reach:  # no free cell next to the start: the start check (its footprint) judges that
         return None
@@ -162,5 +204,14 @@ def goal_problem(track: Track, car_width_m: float) -> str | None:
     point_reach = _flood(point_rows, sj, si - 1, si + 1, diagonal=False)
     prefix = f"goal region not reachable from the start for a car {width} wide: "
     if _reaches(point_rows, point_reach, gj0, gj1, gi0, gi1):
-        return prefix + f"every way to it passes a gap narrower than the car ({width})"
-    return prefix + "it lies outside the walls, or walls close it off from the start"
+        return TrackProblem(prefix + f"every way to it passes a gap narrower than the car ({width})")
+    # outside the walls: connected to the free border of the grid (row 0 is free: the grid's pad
+    # is wider than a wall's inflation)
+    outside = _flood(point_rows, 0, 0, 0, diagonal=False)
+    start = track.start
+    if point_reach & outside:
+        return TrackProblem(f"the start ({start.x:g}, {start.y:g}) lies outside the walls: the goal "
+                            "region is not reachable from it", (start.x, start.y))
+    if _reaches(point_rows, outside, gj0, gj1, gi0, gi1):
+        return TrackProblem(prefix + "the goal region lies outside the walls", goal_centre)
+    return TrackProblem(prefix + "walls close it off from the start")

@@ -30,10 +30,10 @@ from typing import Any
 from umlbot.errors import ConfigError, SimError
 from umlbot.logs import get_logger
 from umlbot.sim.clock import SimClock
-from umlbot.sim.reach import goal_problem
+from umlbot.sim.reach import goal_problem_at, start_problem
 from umlbot.sim.sharing import WorldServer, attach_local_world
-from umlbot.sim.track import load_track
-from umlbot.sim.world import World, WorldLoop, WorldSnapshot
+from umlbot.sim.track import load_track, track_warnings
+from umlbot.sim.world import CarSpec, World, WorldLoop, WorldSnapshot
 
 #: `run_sim`'s `observe` hook: (world, broker URL, robot id) -> what to call when the run ended.
 Observer = Callable[[World, str, str], Callable[[], None]]
@@ -44,11 +44,15 @@ log = get_logger(__name__)
 DEFAULT_PORT = 1883
 #: Sim seconds before a run is given up.
 DEFAULT_TIMEOUT_S = 600.0
-#: The wall-time bound of a run is `WALL_LIMIT_FACTOR` x timeout / speed + `WALL_LIMIT_EXTRA_S`:
-#: sim time stands still while calls are in flight, and a world that cannot keep up with the
-#: clock lags behind it; neither may stretch a run without bound.
+#: A run ends (reason `timeout`) when its sim time has not moved for `WALL_STALL_S` wall seconds:
+#: sim time stands still while a call is in flight or the model computes, and a model that never
+#: waits would hold it for ever. A run whose sim time moves is not cut however slowly it moves
+#: (a world that keeps up only 15x real time at --speed 100), so it ends the same at any speed.
+WALL_STALL_S = 30.0
+#: Only a safety net beyond that: `WALL_LIMIT_FACTOR` x timeout / min(speed, 1) +
+#: `WALL_LIMIT_EXTRA_S` wall seconds, a run whose sim time creeps at under half real time.
 WALL_LIMIT_FACTOR = 2.0
-WALL_LIMIT_EXTRA_S = 10.0
+WALL_LIMIT_EXTRA_S = 60.0
 #: Wall seconds the runner waits for the world's lock before it looks again (a long catch-up).
 SNAPSHOT_WAIT_S = 0.05
 #: Wall seconds the runner waits, at the end of a run, for the orchestrator to settle.
@@ -58,8 +62,33 @@ WORLD_LAG_REPORT_S = 1.0
 
 
 def wall_limit_s(timeout_s: float, speed: float) -> float:
-    """The wall seconds a run with this sim-time `timeout_s` and `speed` may take at most."""
-    return WALL_LIMIT_FACTOR * timeout_s / speed + WALL_LIMIT_EXTRA_S
+    """The wall seconds a run with this sim-time `timeout_s` and `speed` may take at most (the
+    safety net: it does not depend on how far above real time `speed` asks for)."""
+    return WALL_LIMIT_FACTOR * timeout_s / min(speed, 1.0) + WALL_LIMIT_EXTRA_S
+
+
+class WallGuard:
+    """The wall-time bounds of a run: `check(wall_s, sim_s)`, called as the run goes on, says why
+    the run must end (sim time stalled for `stall_s` wall seconds, or the safety net reached), or
+    None. Times are passed in, so the bounds are tested without waiting for them."""
+
+    def __init__(self, timeout_s: float, speed: float, stall_s: float = WALL_STALL_S) -> None:
+        self.timeout_s, self.speed, self.stall_s = timeout_s, speed, stall_s
+        self.limit_s = wall_limit_s(timeout_s, speed)
+        self._sim_s = -math.inf
+        self._moved_at = 0.0
+
+    def check(self, wall_s: float, sim_s: float) -> str | None:
+        """`wall_s`: wall seconds since the run started; `sim_s`: the sim clock's time."""
+        if sim_s > self._sim_s:
+            self._sim_s, self._moved_at = sim_s, wall_s
+        if wall_s - self._moved_at >= self.stall_s:
+            return (f"sim time stood still at {sim_s:.1f} s for {self.stall_s:g} s of wall time "
+                    "(a call that never ends, or a model that never waits)")
+        if wall_s >= self.limit_s:
+            return (f"wall-time limit of {self.limit_s:g} s reached at {sim_s:.1f} s sim time "
+                    f"(--timeout {self.timeout_s:g} at --speed {self.speed:g})")
+        return None
 
 
 @dataclass(frozen=True)
@@ -80,6 +109,8 @@ class SimOptions:
     sonar_drop: float = 0.0  # share of pings whose echo is lost (0..1)
     max_collisions: int = 1
     progress_interval_s: float = 0.5  # wall seconds between progress reports
+    #: wall seconds without sim time moving after which the run ends (`WallGuard`)
+    stall_s: float = WALL_STALL_S
     #: also write the orchestrator's trace to this file (JSON lines, as `umlbot run --trace`)
     trace_file: Path | None = None
     #: refuse a track whose goal a car of this width cannot reach (`umlbot.sim.reach`); off only
@@ -370,15 +401,27 @@ def run_sim(
 
         check_plot_path(options.plot)
     track = load_track(options.track)
+    for warning in track_warnings(track):
+        log.warning(f"{options.track}: {warning}")
+    car = CarSpec()
+    # a start on a wall is refused by the world; a goal the car cannot get to would only show
+    # as a time-out, minutes later
+    problem = start_problem(track, car.length_m, car.width_m)
+    if problem is None and options.check_goal:
+        problem = goal_problem_at(track, car.width_m)
+    if problem is not None:
+        message = f"{options.track}: {problem.message}"
+        if options.plot is not None:
+            from umlbot.sim.plot import plot_track
+
+            picture = plot_track(track, options.plot, problem.message, problem.spot, car)
+            message += f" (the track is drawn in {picture})"
+        raise SimError(message)
     try:
-        world = World(track, sonar_noise_cm=options.sonar_noise_cm, sonar_drop=options.sonar_drop,
+        world = World(track, car, sonar_noise_cm=options.sonar_noise_cm, sonar_drop=options.sonar_drop,
                       seed=options.seed)
     except ValueError as exc:
         raise SimError(f"{options.track}: {exc}") from exc
-    # a goal the car cannot get to would only show as a time-out, minutes later
-    problem = goal_problem(track, world.car.width_m) if options.check_goal else None
-    if problem is not None:
-        raise SimError(f"{options.track}: {problem}")
     compiled = compile_model(options.model)
     deployment = sim_deployment(compiled)
     stop = stop or threading.Event()
@@ -391,7 +434,7 @@ def run_sim(
     orch_outcome: dict[str, Any] = {}
     watch = _Watch(frozenset(compiled.components))
     wall_start = time.monotonic()
-    wall_limit = wall_limit_s(options.timeout_s, options.speed)
+    guard = WallGuard(options.timeout_s, options.speed, options.stall_s)
     reason = "interrupted"
     failure: str | None = None
     actions_at_end = 0
@@ -445,10 +488,9 @@ def run_sim(
             if sim_now >= options.timeout_s:
                 reason = "timeout"
                 break
-            if time.monotonic() - wall_start > wall_limit:
-                reason = "timeout"
-                failure = (f"wall-time limit of {wall_limit:g} s reached at {sim_now:.1f} s sim time "
-                           f"(--timeout {options.timeout_s:g} at --speed {options.speed:g})")
+            cut = guard.check(time.monotonic() - wall_start, sim_now)
+            if cut is not None:
+                reason, failure = "timeout", cut
                 break
             if not orch_thread.is_alive():
                 failure = orch_outcome.get("error") or orchestrator.failure
