@@ -29,10 +29,10 @@ def test_fork_runs_both_calls_at_once_and_join_continues_once(broker: BrokerProc
         assert code == 0, orch.failure
         actions = {e["node"]: e for e in r.trace(kind="action")}
         assert set(actions) == {"left", "right"}
-        # both 100 ms calls were in flight at once: the fork region took well under 200 ms
-        first_start = min(e["start"] for e in actions.values())
-        last_end = max(e["end"] for e in actions.values())
-        assert last_end - first_start < 0.18, actions
+        # both 100 ms calls were in flight at once: each began before the other ended (an
+        # overlap, not a wall-time bound: a loaded machine stretches both alike)
+        left, right = actions["left"], actions["right"]
+        assert left["start"] < right["end"] and right["start"] < left["end"], actions
         assert all(e["duration_ms"] >= 95 for e in actions.values())
         assert r.nodes().count("joined") == 1
         assert r.nodes().count("after") == 1
