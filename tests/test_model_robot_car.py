@@ -130,14 +130,35 @@ def test_main_lane_tuning_stop_and_loop() -> None:
         ("ahead > clearance_cm and turning == 'none'", "straight"),
         ("ahead > side_cm and turning != 'back'", "straight"),
         ("turning == 'back' and ahead > back_cm", "choose_left"), ("turning == 'left'", "turn_left"),
-        ("turning == 'right'", "turn_right"), ("ahead < near_cm", "back_off"), ("else", "look")]
+        ("turning == 'right'", "turn_right"), ("ahead < near_cm", "back_off"),
+        ("else", "forget_sides")]
     # room ahead: the step forward and the glance run together
     step = main.nodes["step"]
     assert isinstance(step, ForkNode) and sorted(step.targets) == ["forward", "glance"]
+    # after the step: a glance that jumps to more than twice the room marks an opening beside the
+    # way; when it meets a wall as near as before again, the car looks and turns into it
+    assert _branches(main, "opening") == [
+        ("aside == 'left' and Glance.left <= wall_before + 10", "look_aside"),
+        ("aside == 'right' and Glance.right <= wall_before + 10", "look_aside"),
+        ("aside == 'none' and Glance.left > 2 * was_left and Glance.left < 400", "aside_left"),
+        ("aside == 'none' and Glance.right > 2 * was_right and Glance.right < 400", "aside_right"),
+        ("else", "remember_left")]
+    assert _branches(main, "into_opening") == [
+        ("aside == 'left' and Measure.left > open_cm and ahead > side_cm", "abreast_left"),
+        ("aside == 'right' and Measure.right > open_cm and ahead > side_cm", "abreast_right"),
+        ("aside == 'left' and Measure.left > open_cm", "enter_left"),
+        ("aside == 'right' and Measure.right > open_cm", "enter_right"),
+        ("else", "no_opening_here")]
+    # steering away from a wall, never toward a marked opening
     assert _branches(main, "steer") == [
         ("ahead <= side_cm", "running"),
         ("Glance.left < corner_cm and Glance.right >= wall_cm", "retreat_right"),
         ("Glance.right < corner_cm and Glance.left >= wall_cm", "retreat_left"),
+        ("Glance.left < wall_cm and Glance.right >= wall_cm and aside != 'right'", "nudge_right"),
+        ("Glance.right < wall_cm and Glance.left >= wall_cm and aside != 'left'", "nudge_left"),
+        ("else", "running")]
+    # turned into an opening: the front corners are glanced at before driving on
+    assert _branches(main, "turned_steer") == [
         ("Glance.left < wall_cm and Glance.right >= wall_cm", "nudge_right"),
         ("Glance.right < wall_cm and Glance.left >= wall_cm", "nudge_left"), ("else", "running")]
     # no room ahead: much room on both sides, the other way than last time; else the side with
@@ -150,8 +171,11 @@ def test_main_lane_tuning_stop_and_loop() -> None:
         ("turning == 'none' and ahead > creep_cm", "creep"), ("else", "backing")]
     lanes = {node_id: main.nodes[node_id].call.target.lane  # type: ignore[union-attr]
              for node_id in ("forward", "glance", "retreat_left", "retreat_right", "nudge_left",
-                             "nudge_right", "turn_left", "turn_right", "back_off", "look", "creep")}
+                             "nudge_right", "turn_left", "turn_right", "back_off", "look", "creep",
+                             "look_aside", "enter_left", "enter_right", "check_sides")}
     assert lanes == {"forward": "MoveForward", "glance": "Glance", "retreat_left": "MoveBackward",
                      "retreat_right": "MoveBackward", "nudge_left": "TurnLeft",
                      "nudge_right": "TurnRight", "turn_left": "TurnLeft", "turn_right": "TurnRight",
-                     "back_off": "MoveBackward", "look": "Measure", "creep": "MoveForward"}
+                     "back_off": "MoveBackward", "look": "Measure", "creep": "MoveForward",
+                     "look_aside": "Measure", "enter_left": "TurnLeft", "enter_right": "TurnRight",
+                     "check_sides": "Glance"}
