@@ -233,7 +233,7 @@ CASES: list[tuple[str, list[str], int, list[str]]] = [
     ("sim-compiled-file", ["sim", "{f}/good.json", "--track", TRACK, "--port", "0"], 1,
      ["good.json:1:1", "compiled model file", "umlbot run"]),
     ("sim-missing-track", ["sim", MODEL, "--track", "{f}/nope.yaml", "--port", "0"], 1,
-     ["no track", "nope.yaml", "no such file, and no bundled track of that name (bundled: bends,"]),
+     ["no track file", "nope.yaml': no such file"]),
     ("sim-unknown-track-name", ["sim", MODEL, "--track", "corridoor", "--port", "0"], 1,
      ["no track 'corridoor': no such file, and no bundled track of that name", "corridor"]),
     ("sim-track-folder", ["sim", MODEL, "--track", "{f}/adir"], 2, ["is a directory"]),
@@ -242,8 +242,8 @@ CASES: list[tuple[str, list[str], int, list[str]]] = [
     ("sim-track-wrong-shape", ["sim", MODEL, "--track", "{f}/track_wrong.yaml", "--port", "0"], 1,
      ["track_wrong.yaml:1:1: invalid track: goal: Field required; walls: Field required (1:1)"]),
     ("sim-track-bad-wall", ["sim", MODEL, "--track", "{f}/track_bad_wall.yaml", "--port", "0"], 1,
-     ["track_bad_wall.yaml:1:1: invalid track: name: Field required;", "walls.0.2: Input should be a valid "
-      "tuple (1:16)"]),
+     ["track_bad_wall.yaml:1:1: invalid track: name: Field required;", "walls.0: Value error, a wall is a "
+      "list of [x, y] points, such as [[0, 0], [1, 0]], not one point [0, 0, 1] (1:9)"]),
     ("sim-track-binary", ["sim", MODEL, "--track", "{f}/binary.bin", "--port", "0"], 1,
      ["binary.bin:1:1: cannot read track: not UTF-8 text: byte 0xff"]),
     ("sim-track-bad-byte", ["sim", MODEL, "--track", "{f}/bad_byte.yaml", "--port", "0"], 1,
