@@ -358,21 +358,9 @@ function keepPlaces(fresh: LaneGeom, g: LaneGeom, old: Map<string, NodeBox>, hin
   const edges = fresh.edges.map((e) => {
     const o = oldEdges.get(`${oldId.get(e.source)}>${oldId.get(e.target)}`);
     if (o && same(e.source) && same(e.target) && o.label === e.label) return { ...e, points: o.points, labelBox: o.labelBox };
-    const a = box.get(e.source);
-    const b = box.get(e.target);
-    if (!a || !b) return e;
-    const points = routeEdge(a, b);
-    const mid = points[Math.floor((points.length - 1) / 2)];
-    const labelBox = e.labelBox ? { ...e.labelBox, x: mid.x + 4, y: mid.y - 8 } : null;
-    return { ...e, points, labelBox };
+    return rerouted(e, box);
   });
-  let w = g.w;
-  let h = g.h - g.headerH;
-  for (const nb of nodes) {
-    w = Math.max(w, nb.x + nb.w + (nb.statsInside ? 24 : STATS2_W() + 24));
-    h = Math.max(h, nb.y + nb.h + 24);
-  }
-  return { ...fresh, w, h: h + fresh.headerH, nodes, edges };
+  return grown(fresh, g, nodes, edges);
 }
 
 /**
@@ -431,21 +419,9 @@ function placeLane(auto: LaneGeom, positions: Positions): LaneGeom {
   const box = new Map(nodes.map((nb) => [nb.node.id, nb]));
   const edges = auto.edges.map((e) => {
     if (!moved.has(e.source) && !moved.has(e.target)) return e;
-    const a = box.get(e.source);
-    const b = box.get(e.target);
-    if (!a || !b) return e;
-    const points = routeEdge(a, b);
-    const mid = points[Math.floor((points.length - 1) / 2)];
-    const labelBox = e.labelBox ? { ...e.labelBox, x: mid.x + 4, y: mid.y - 8 } : null;
-    return { ...e, points, labelBox };
+    return rerouted(e, box);
   });
-  let w = auto.w;
-  let h = auto.h - auto.headerH;
-  for (const nb of nodes) {
-    w = Math.max(w, nb.x + nb.w + (nb.statsInside ? 24 : STATS2_W() + 24));
-    h = Math.max(h, nb.y + nb.h + 24);
-  }
-  return { ...auto, w, h: h + auto.headerH, nodes, edges };
+  return grown(auto, auto, nodes, edges);
 }
 
 /** An orthogonal route from a's bottom to b's top (or side to side when b is beside a). */
@@ -660,3 +636,25 @@ async function layoutComponentsNow(model: ModelView, userPositions: Positions): 
 }
 
 export type Layout = ActivityLayout | ComponentLayout;
+
+/** An edge drawn again as a plain right-angle line between its nodes' new boxes (as a dragged node's). */
+function rerouted(e: EdgeGeom, box: Map<string, NodeBox>): EdgeGeom {
+  const a = box.get(e.source);
+  const b = box.get(e.target);
+  if (!a || !b) return e;
+  const points = routeEdge(a, b);
+  const mid = points[Math.floor((points.length - 1) / 2)];
+  const labelBox = e.labelBox ? { ...e.labelBox, x: mid.x + 4, y: mid.y - 8 } : null;
+  return { ...e, points, labelBox };
+}
+
+/** `lane` with `nodes` and `edges`, at least as big as `size` and big enough for every node. */
+function grown(lane: LaneGeom, size: LaneGeom, nodes: NodeBox[], edges: EdgeGeom[]): LaneGeom {
+  let w = size.w;
+  let h = size.h - size.headerH;
+  for (const nb of nodes) {
+    w = Math.max(w, nb.x + nb.w + (nb.statsInside ? 24 : STATS2_W() + 24));
+    h = Math.max(h, nb.y + nb.h + 24);
+  }
+  return { ...lane, w, h: h + lane.headerH, nodes, edges };
+}
