@@ -10,11 +10,8 @@ implementation, service, driver and settings from the deployment.
 
 from __future__ import annotations
 
-import errno
 import gc
 import json
-import os
-import tempfile
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
@@ -22,7 +19,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from compiler.expr import Call, Expr
 from umlbot.errors import CompiledModelError, ConfigError, ModelError
-from umlbot.files import decode_utf8
+from umlbot.files import decode_utf8, write_atomically
 from umlbot.library import ComponentKind, ServiceKind
 
 #: The version of the compiled file's shape; bumped on any incompatible change.
@@ -207,27 +204,9 @@ def write_compiled(model: CompiledModel, path: str | Path) -> None:
     failed write keeps the previous file. `ConfigError` names the path when it cannot be written."""
     target = Path(path)
     try:
-        _write_atomically(target, dump_compiled(model))
+        write_atomically(target, dump_compiled(model))
     except OSError as exc:
         raise ConfigError(f"cannot write {target}: {exc.strerror or exc}") from exc
-
-
-def _write_atomically(path: Path, data: bytes) -> None:
-    for folder in (path.parent, *path.parent.parents):
-        if folder.exists() and not folder.is_dir():
-            raise NotADirectoryError(errno.ENOTDIR, f"{folder} is not a folder")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    umask = os.umask(0)
-    os.umask(umask)
-    try:
-        os.fchmod(fd, 0o666 & ~umask)  # mkstemp makes 0600; a compiled model is an ordinary file
-        with os.fdopen(fd, "wb") as handle:
-            handle.write(data)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
 
 
 def load_compiled(source: str | Path | bytes) -> CompiledModel:

@@ -201,8 +201,10 @@ def test_write_compiled_replaces_the_file_whole(tmp_path: Path) -> None:
     os.umask(umask)
     assert stat.S_IMODE(target.stat().st_mode) == 0o666 & ~umask  # an ordinary file, not 0600
     target.write_bytes(b"old")
+    target.chmod(0o640)
     write_compiled(model, target)
     assert load_compiled(target) == model
+    assert stat.S_IMODE(target.stat().st_mode) == 0o640  # the replaced file's mode is kept
     assert sorted(p.name for p in target.parent.iterdir()) == ["car.json"]  # no temporary left
 
 

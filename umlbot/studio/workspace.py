@@ -18,7 +18,6 @@ import json
 import os
 import re
 import secrets
-import tempfile
 import threading
 import time
 from dataclasses import dataclass, field
@@ -28,7 +27,7 @@ from typing import Any
 from compiler.api import CheckResult, check_model
 from compiler.source import ACTIVITIES_DIR, MODEL_FILE, Unreadable, read_model_folder
 from umlbot.errors import ModelError
-from umlbot.files import decode_utf8, file_problem, loads_json
+from umlbot.files import decode_utf8, file_problem, loads_json, write_atomically
 from umlbot.studio.edit import EditError, Rename, apply_ops, parse_ops, rename_positions
 from umlbot.studio.model_view import attribute, deployment_fields, diagnostic_view, node_index, source_view
 
@@ -128,26 +127,12 @@ def safe_path(root: Path, rel: str) -> Path:
 
 
 def write_atomic(root: Path, rel: str, data: bytes) -> None:
-    """Write `data` to `rel` inside `root`: a temp file in the same folder, then a rename."""
+    """Write `data` to `rel` inside `root` (`umlbot.files.write_atomically`), refused unless the
+    path and the folders made for it stay inside `root`."""
     target = safe_path(root, rel)
     target.parent.mkdir(parents=True, exist_ok=True)
     safe_path(root, rel)  # the folder just made must not lead outside either
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
-    try:
-        with os.fdopen(fd, "wb") as handle:
-            handle.write(data)
-            handle.flush()
-            os.fsync(handle.fileno())
-        if target.exists():
-            with contextlib.suppress(OSError):
-                os.chmod(tmp, target.stat().st_mode & 0o777)
-        else:
-            os.chmod(tmp, 0o644)
-        os.replace(tmp, target)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        raise
+    write_atomically(target, data)
 
 
 def _differ(a: dict[str, Content], b: dict[str, Content]) -> list[str]:
