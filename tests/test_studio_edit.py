@@ -685,6 +685,7 @@ def test_studio_on_a_new_folder_offers_and_writes_the_starter(tmp_path: Path) ->
         assert said in proc.lines[-1], proc.lines
         hello = read_frames(proc.url, lambda f: len(f) >= 1)[0]
         assert hello["edit"]["empty"] is True
+        assert "error(s)" not in proc.log_text(), proc.log_text()  # no model yet is no error
 
         async def new() -> tuple[int, dict[str, Any]]:
             async with aiohttp.ClientSession() as client, client.post(

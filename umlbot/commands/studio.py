@@ -107,7 +107,7 @@ def command(model: Path, broker_url: str | None, ca_file: Path | None, robot: st
                 state = "does not exist yet" if not model.exists() else "holds no model yet"
                 click.echo(f"umlbot studio: {model} {state}: the page offers a starter model "
                            "(type the robot's name, press 'Create the model')")
-            if errors:
+            if errors and not (editable and workspace.empty):  # no model yet is not an error
                 click.echo(f"  the model has {errors} error(s): the page lists them", err=True)
             for note in notes:
                 click.echo(f"  warning: {note}", err=True)
