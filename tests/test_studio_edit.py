@@ -334,6 +334,31 @@ def test_open_then_save_without_edits_writes_nothing(car: tuple[Path, Editor]) -
     assert {p: p.stat().st_mtime_ns for p in root.rglob("*") if p.is_file()} == mtimes
 
 
+def test_an_edit_of_a_file_linked_from_outside_the_folder_is_refused_at_once(tmp_path: Path) -> None:
+    root = tmp_path / "car"
+    shutil.copytree(CAR_MODEL, root)
+    outside = tmp_path / "outside.yaml"
+    outside.write_text("lanes:\n  - lane: Elsewhere\n    nodes:\n      - {id: start, kind: start}\n"
+                       "      - {id: end, kind: end}\n      - {from: start, to: end}\n", encoding="utf-8")
+    (root / "activities" / "link.yaml").symlink_to(outside)
+    before = outside.read_bytes()
+    editor = Editor(root)
+    try:
+        status, answer = editor.post("edit", {"version": 0, "ops": [
+            {"op": "add_lane", "lane": "Halt", "file": "activities/link.yaml"}]})
+        assert status == 400, answer
+        assert "'activities/link.yaml' is not a path inside the model folder" in answer["error"], answer
+        # nothing changed, and an edit elsewhere is saved as usual
+        status, answer = editor.post("edit", {"version": answer.get("version", 0), "ops": [
+            {"op": "set_node", "lane": "RaspberryPI", "id": "set_speed", "fields": {"value": "60"}}]})
+        assert status == 200, answer
+        status, saved = editor.post("save", {"version": answer["version"]})
+        assert status == 200 and saved["saved"] == ["activities/main.yaml"], saved
+    finally:
+        editor.thread.stop()
+    assert outside.read_bytes() == before
+
+
 def test_generated_model_round_trip_and_undo_is_byte_identical(tmp_path: Path) -> None:
     root = _bench_compile().generate(tmp_path / "gen", 500)
     before = _snapshot(root)

@@ -262,6 +262,11 @@ class Workspace:
             # None: there but unreadable, which an edit refuses to change; the compiler reports it
         renames: list[Rename] = []
         changes = apply_ops(texts, text_ops, renames) if text_ops else {}
+        for rel in changes:  # e.g. a link that leads outside: refused now, not at the next save
+            try:
+                safe_path(self.root, rel)
+            except ValueError as exc:
+                raise EditError(f"{exc}: the studio writes only inside {self.root}") from None
         files = dict(self.files)
         for rel, text in changes.items():
             if text is None:
