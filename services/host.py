@@ -53,7 +53,8 @@ def _service_class(kind: ServiceKind) -> type[ComponentService]:
     module_name, _, attribute = spec.service.partition(":")
     try:
         cls: Any = getattr(importlib.import_module(module_name), attribute)
-    except Exception as exc:  # a plugin's service class that does not load: name it, no traceback
+    # a plugin's service class that does not load (or exits at import): name it, no traceback
+    except (Exception, SystemExit) as exc:
         from umlbot.plugins import catalog
 
         package = catalog().origin.get(f"service:{kind}", "?")

@@ -23,6 +23,8 @@ if TYPE_CHECKING:
 
 ArgType = Literal["int", "float", "bool", "str"]
 ValueType = Literal["int", "float", "bool", "str", "none"]
+#: An argument of a safe-stop call (of the type of the feature's parameter).
+StopArg = bool | int | float | str
 #: A component kind's name: `system`, `actuator`, `sensor`, or one a plugin adds.
 ComponentKind = str
 #: A service kind's name: `motor`, `sonar`, `servo`, `gpio`, or one a plugin adds.
@@ -92,7 +94,7 @@ class Implementation:
     title: str
     aliases: tuple[str, ...] = ()
     #: calls (feature, args) that put this part into a safe, stopped state.
-    safe_stop: tuple[tuple[str, tuple[bool | int, ...]], ...] = ()
+    safe_stop: tuple[tuple[str, tuple[StopArg, ...]], ...] = ()
     settings_doc: dict[str, str] = field(default_factory=dict)
     #: settings keys that name a GPIO this part owns (no other component may use it).
     pin_keys: tuple[str, ...] = ()

@@ -50,7 +50,7 @@ from services.orchestrator.signals import SignalBoard
 from services.orchestrator.trace import Listener, TraceRecorder
 from umlbot.clock import Clock
 from umlbot.errors import BusError, NotConnected, OrchestratorError
-from umlbot.library import resolve_implementation
+from umlbot.library import StopArg, resolve_implementation
 from umlbot.logs import get_logger
 
 log = get_logger(__name__)
@@ -458,9 +458,9 @@ class Orchestrator:
 
     # --- actuators ----------------------------------------------------------------------------------
 
-    def _actuator_stops(self) -> list[tuple[str, str, tuple[bool | int, ...]]]:
+    def _actuator_stops(self) -> list[tuple[str, str, tuple[StopArg, ...]]]:
         """(component, feature, args) of every safe-stop call of the model's components."""
-        stops: list[tuple[str, str, tuple[bool | int, ...]]] = []
+        stops: list[tuple[str, str, tuple[StopArg, ...]]] = []
         for name, component in sorted(self.model.components.items()):
             impl = resolve_implementation(component.impl)
             if impl is None:
