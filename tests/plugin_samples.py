@@ -38,11 +38,14 @@ BAD_SPEC = ComponentPlugin(implementations=(
 
 NOT_A_PLUGIN = 42
 
-#: Types a feature cannot have: a parameter of type "double", a return value of type "list".
-BAD_TYPES = ComponentPlugin(kinds=(
-    KindSpec("lamp", (FeatureSpec("bright", (Param("level", "double", 0, 10),),  # type: ignore[arg-type]
-                                  "list"),)),  # type: ignore[arg-type]
-))
+#: Types a feature cannot have: a parameter of type "double", a return value of type "list"; a
+#: service kind's flag that is not a bool.
+BAD_TYPES = ComponentPlugin(
+    kinds=(KindSpec("lamp", (FeatureSpec("bright", (Param("level", "double", 0, 10),),  # type: ignore[arg-type]
+                                         "list"),)),),  # type: ignore[arg-type]
+    services=(ServiceSpec("lampsvc", "plugin_samples:NoSuchService",
+                          stop_when_orchestrator_offline="yes"),),  # type: ignore[arg-type]
+)
 
 #: Safe-stop calls whose arguments do not fit the features they call.
 BAD_STOP = ComponentPlugin(implementations=(

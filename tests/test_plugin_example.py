@@ -143,6 +143,33 @@ def test_its_mock_driver_runs_in_process(mosquitto_broker: BrokerProcess) -> Non
     assert host.drivers["Bell"].playing_hz is None and host.drivers["Bell"].closed
 
 
+def test_its_service_is_silenced_when_the_orchestrator_goes_offline(
+    mosquitto_broker: BrokerProcess, raw_client: Callable[..., RawClient]
+) -> None:
+    """The buzzer's ServiceSpec sets `stop_when_orchestrator_offline`, as the built-in motor's
+    does: the orchestrator's last will silences it the way it stops a motor."""
+    from services_support import broker_settings, client
+
+    from services.bus import Topics
+    from services.host import ServiceHost
+    from umlbot.deployment import load_deployment
+    from umlbot.library import service_spec
+
+    assert [kind for kind in ("motor", "sonar", "servo", "gpio", "buzzer")
+            if getattr(service_spec(kind), "stop_when_orchestrator_offline", None)] == ["motor", "buzzer"]
+    raw = raw_client(mosquitto_broker)
+    deployment = load_deployment(MODEL / "deployment.yaml")
+    with ServiceHost("buzzer", deployment, broker_settings(mosquitto_broker.url), "car", "mock") as host, \
+            client(mosquitto_broker.url) as bus:
+        bell = host.drivers["Bell"]
+        bus.call("Bell", "enabled", True)
+        raw.publish(Topics("car").orchestrator_status, json.dumps({"state": "running"}))
+        assert not bell.wait_until(lambda: bell.playing_hz is None, 0.3), "running is fine"
+        raw.publish(Topics("car").orchestrator_status, json.dumps({"state": "offline"}))
+        assert bell.wait_until(lambda: bell.playing_hz is None, 5.0)
+        assert host.services["Bell"].state() == {"on": False, "tone_hz": 440}
+
+
 def test_umlbot_sim_runs_its_sim_driver_beside_the_car(tmp_path: Path) -> None:
     """The reference car with a Bell added: `umlbot sim` serves it on the plugin's sim driver, the
     orchestrator silences it at start (its safe stop) and the model's calls reach it."""

@@ -113,7 +113,8 @@ def test_a_spec_with_wrong_types_is_named_and_skipped(tmp_path: Path) -> None:
     problems = {p.plugin: p.message for p in lib.problems}
     assert problems["badtypes"] == (
         "kind lamp.bright: parameter level: type 'double' is not one of int, float, bool, str; "
-        "kind lamp: feature bright returns 'list', not one of int, float, bool, str, none")
+        "kind lamp: feature bright returns 'list', not one of int, float, bool, str, none; "
+        "service kind 'lampsvc': stop_when_orchestrator_offline must be true or false")
     assert problems["badstop"] == (
         "implementation 'bad_stop': safe_stop enabled('abc'): on must be a bool, got 'abc'; "
         "implementation 'bad_stop': safe_stop dutycycle(150): percent must be 0..100, got 150; "

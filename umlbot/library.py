@@ -81,6 +81,10 @@ class ServiceSpec:
     name: ServiceKind
     service: str
     doc: str = ""
+    #: the host puts every served component into its safe state (`ComponentService.safe_stop`)
+    #: when the orchestrator's status says offline (its last will), stopped or failed, and
+    #: `umlbot service all` stops these kinds first: for parts that must not go on without it.
+    stop_when_orchestrator_offline: bool = False
 
 
 @dataclass(frozen=True)
@@ -133,7 +137,8 @@ SENSOR = KindSpec("sensor", (
 BUILTIN = ComponentPlugin(
     kinds=(SYSTEM, ACTUATOR, SENSOR),
     services=(
-        ServiceSpec("motor", "services.motor.service:MotorService", "L298N motor channels"),
+        ServiceSpec("motor", "services.motor.service:MotorService", "L298N motor channels",
+                    stop_when_orchestrator_offline=True),
         ServiceSpec("sonar", "services.sonar.service:SonarService", "HC-SR04 range finders"),
         ServiceSpec("servo", "services.servo.service:ServoService", "hobby servos"),
         ServiceSpec("gpio", "services.gpio.service:GpioService", "plain GPIO pins of the system"),

@@ -257,6 +257,10 @@ def _check_plugin(plugin: ComponentPlugin, lib: Catalog) -> list[str]:
                             f"{lib.origin.get('service:' + service.name, 'this plugin')}")
         if not re.fullmatch(r"[\w.]+:[\w.]+", service.service):
             problems.append(f"service kind {service.name!r}: {service.service!r} is not 'module:Class'")
+        stops: Any = service.stop_when_orchestrator_offline
+        if not isinstance(stops, bool):
+            problems.append(f"service kind {service.name!r}: stop_when_orchestrator_offline must be "
+                            "true or false")
         services.add(service.name)
     aliases = dict(lib.aliases)
     for impl in new_impls:
