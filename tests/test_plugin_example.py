@@ -86,6 +86,32 @@ def test_check_compile_and_render_see_the_plugin(tmp_path: Path) -> None:
     assert "Bell" in mermaid and "sounder" in mermaid
 
 
+def test_the_compiled_model_carries_its_safe_stop_so_the_orchestrator_needs_no_plugin(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Compiled where the plugin is installed, run where only umlbot is: the orchestrator still
+    silences the Bell at start and end, from the safe stop the compiled file carries."""
+    from importlib.metadata import entry_points
+
+    from compiler.api import compile_model
+    from compiler.compiled import SafeStopCall, dump_compiled, load_compiled
+    from services.bus import BrokerSettings
+    from services.orchestrator import Orchestrator
+    from umlbot import plugins
+
+    data = dump_compiled(compile_model(MODEL))
+    umlbot_only = plugins.build_catalog(
+        *([ep for ep in entry_points(group=group) if ep.dist and ep.dist.metadata["Name"] == "umlbot"]
+          for group in (plugins.COMPONENTS_GROUP, plugins.DRIVERS_GROUP)))
+    monkeypatch.setattr(plugins, "_catalog", umlbot_only)
+    assert resolve_implementation("passive_buzzer") is None, "the plugin is not there"
+    compiled = load_compiled(data)
+    assert compiled.components["Bell"].safe_stop == [SafeStopCall(feature="enabled", args=[False])]
+    orchestrator = Orchestrator(compiled, BrokerSettings.from_url("mqtt://127.0.0.1:1"), handle_signals=False)
+    assert orchestrator.actuators == [("Bell", "enabled", (False,))]
+    assert "Bell" in orchestrator.required
+
+
 def test_its_service_runs_a_compiled_model_end_to_end(
     mosquitto_broker: BrokerProcess, raw_client: Callable[..., RawClient], tmp_path: Path
 ) -> None:
