@@ -223,6 +223,35 @@ def test_a_decisions_second_output_waits_for_its_guard_and_the_else_stays_last(t
         ws.edit(ws.version, [{**connect, "target": "end", "guard": "else"}])
 
 
+def test_new_nodes_are_labelled_with_what_is_written_and_nothing_made_up(tmp_path: Path) -> None:
+    ws = Workspace(tmp_path / "bot")
+    ws.new_model("bot")
+    answer = ws.edit(ws.version, [
+        {"op": "add_node", "lane": "RaspberryPI", "node": {"id": kind + "1", "kind": kind}}
+        for kind in ("datastore", "send", "accept", "action")])
+
+    def labels(answer: dict[str, Any]) -> dict[str, str]:
+        return {n["id"]: n["label"] for d in answer["model"]["diagrams"] for lane in d["lanes"]
+                for n in lane["nodes"]}
+
+    assert labels(answer) | {"start": "start", "end": "end"} == {
+        "start": "start", "end": "end", "datastore1": "datastore1", "send1": "send", "accept1": "accept",
+        "action1": "action1"}
+    answer = ws.edit(ws.version, [
+        {"op": "set_node", "lane": "RaspberryPI", "id": "datastore1", "fields": {"value": "0"}},
+        {"op": "set_node", "lane": "RaspberryPI", "id": "send1", "fields": {"payload": "1"}},
+        {"op": "set_node", "lane": "RaspberryPI", "id": "accept1", "fields": {"store": "got"}}])
+    assert {k: v for k, v in labels(answer).items() if k.endswith("1")} == {
+        "datastore1": "? = 0", "send1": "send(1)", "accept1": "accept -> got", "action1": "action1"}
+    answer = ws.edit(ws.version, [
+        {"op": "set_node", "lane": "RaspberryPI", "id": "datastore1", "fields": {"name": "count"}},
+        {"op": "set_node", "lane": "RaspberryPI", "id": "send1", "fields": {"signal": "tick"}},
+        {"op": "set_node", "lane": "RaspberryPI", "id": "accept1", "fields": {"signal": "tick"}}])
+    assert {k: v for k, v in labels(answer).items() if k.endswith("1")} == {
+        "datastore1": "count = 0", "send1": "send tick(1)", "accept1": "accept tick -> got",
+        "action1": "action1"}
+
+
 def test_fields_set_in_any_order_are_written_in_the_order_people_write_them(tmp_path: Path) -> None:
     # connect first, type the call after: the file reads `call: …, next: …` as models/robot_car does
     ws = Workspace(tmp_path / "bot")
