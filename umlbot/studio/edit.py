@@ -11,7 +11,7 @@ result, so the page shows exactly `umlbot check`'s messages.
 from __future__ import annotations
 
 import re
-from collections.abc import Callable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, cast
 
@@ -149,9 +149,7 @@ class Edits:
 
     def lane_files(self) -> list[str]:
         """Files that may hold swimlanes: model.yaml, then the activity files in order."""
-        names = [rel for rel, text in self.files.items() if text is not None
-                 and ACTIVITY_FILE.fullmatch(rel)]
-        return [MODEL_FILE, *sorted(names)] if self.files.get(MODEL_FILE) is not None else sorted(names)
+        return lane_files([rel for rel, text in self.files.items() if text is not None])
 
     def find_lane(self, lane: str, whole: bool = False
                   ) -> tuple[Text, yaml.MappingNode, yaml.SequenceNode | None, int | None]:
@@ -198,6 +196,14 @@ class Edits:
             if self.exists(name):
                 return name
         return None
+
+
+def lane_files(names: Iterable[str]) -> list[str]:
+    """Of the files `names`, those that may hold swimlanes: model.yaml, then the activity files in
+    order."""
+    names = set(names)
+    activities = sorted(rel for rel in names if ACTIVITY_FILE.fullmatch(rel))
+    return [MODEL_FILE, *activities] if MODEL_FILE in names else activities
 
 
 def _lane_part(content: str, rel: str, lane: str
@@ -444,6 +450,30 @@ def snake_case(name: str) -> str:
     return re.sub(r"(?<=[a-z0-9])(?=[A-Z])", "_", name).lower()
 
 
+def lane_list(t: Text) -> yaml.SequenceNode | None:
+    """The file's block list of `lanes:` that `add_lane` adds a swimlane to, or None (a file of one
+    lane, a flow-style or empty list: the new lane goes to a file of its own)."""
+    root = t.root()
+    lanes = get(root, "lanes") if isinstance(root, yaml.MappingNode) else None
+    if not isinstance(lanes, yaml.SequenceNode) or lanes.flow_style or not lanes.value:
+        return None
+    return lanes
+
+
+#: a top-level `lanes:` key (a cheap test before a file is parsed)
+_LANES_KEY = re.compile(r"^lanes\s*:", re.MULTILINE)
+
+
+def takes_lanes(rel: str, content: str) -> bool:
+    """Whether `add_lane` can add a swimlane to the file `rel` (its `file`)."""
+    if not (rel == MODEL_FILE or ACTIVITY_FILE.fullmatch(rel)) or not _LANES_KEY.search(content):
+        return False
+    try:
+        return lane_list(Text(content, rel)) is not None
+    except EditError:  # not YAML: nothing can be added to it
+        return False
+
+
 def add_lane(e: Edits, op: Op) -> None:
     lane = _need(op.lane, "lane", op)
     if not _NAME.fullmatch(lane):
@@ -459,9 +489,8 @@ def add_lane(e: Edits, op: Op) -> None:
     starter = [{"id": "start", "kind": "start"}, {"id": "end", "kind": "end"}]
     if op.file is not None:
         t = e.text(op.file)
-        root = t.root()
-        lanes = get(root, "lanes") if isinstance(root, yaml.MappingNode) else None
-        if not isinstance(lanes, yaml.SequenceNode) or lanes.flow_style or not lanes.value:
+        lanes = lane_list(t)
+        if lanes is None:
             raise EditError(f"{op.file} holds no block list of 'lanes:'; add the lane to its own file")
         first = lanes.value[0]
         indent = " " * (t.start(first) - t.line_start(t.start(first)))
