@@ -1372,15 +1372,18 @@ export class Editor {
     const place = (): void => {
       if (list.hidden) return;
       const r = input.getBoundingClientRect();
-      const below = window.innerHeight - r.bottom - 8;
+      // under the argument hint when it is shown (the list must not cover it), inside the window
+      const under = sig.hidden ? r.bottom : Math.max(r.bottom, sig.getBoundingClientRect().bottom);
+      const below = window.innerHeight - under - 8;
       const above = r.top - 8;
       const room = below >= 160 || below >= above ? below : above;
+      const width = Math.min(Math.max(r.width, 260), window.innerWidth - 16);
       list.style.position = "fixed";
-      list.style.left = `${r.left}px`;
-      list.style.width = `${Math.max(r.width, 260)}px`;
+      list.style.left = `${Math.max(8, Math.min(r.left, window.innerWidth - width - 8))}px`;
+      list.style.width = `${width}px`;
       list.style.maxHeight = `${Math.max(80, Math.min(360, room))}px`;
       if (room === below) {
-        list.style.top = `${r.bottom + 2}px`;
+        list.style.top = `${under + 2}px`;
         list.style.bottom = "";
       } else {
         list.style.top = "";
@@ -1432,6 +1435,7 @@ export class Editor {
         if (s.doc) el("div", { class: "doc" }, sig, s.doc);
         sig.hidden = false;
       } else sig.hidden = true;
+      place(); // below the hint as it is now
     };
     /** The input's text and cursor once item i is accepted. */
     const accepted = (i: number): { value: string; at: number } | null => {
