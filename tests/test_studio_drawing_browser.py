@@ -112,8 +112,15 @@ def new_model(page: Page, name: str) -> None:
     settled(page)
 
 
-def label(page: Page, lane: str, node_id: str) -> str:
-    return str(page.locator(node(page, lane, node_id)).locator("text.label").text_content())
+def drawn(page: Page) -> None:
+    """The shown diagram draws the answer of the last edit."""
+    settled(page)
+    page.wait_for_function("window.__studio.edit.drawn === window.__studio.edit.version")
+
+
+def has_label(page: Page, lane: str, node_id: str, text: str) -> None:
+    """The node is drawn with the label `text` (once the answer of the last edit is drawn)."""
+    expect(page.locator(node(page, lane, node_id)).locator("text.label")).to_have_text(text)
 
 
 def lane_file_choices(page: Page) -> list[str]:
@@ -135,9 +142,9 @@ def test_new_nodes_show_what_is_written_and_lanes_go_only_where_a_lane_list_is(
         for kind in ("datastore", "send", "accept"):
             click_kind(page, kind)
             added[kind] = selected_node(page)
-        assert label(page, lane, added["datastore"]) == added["datastore"]
-        assert label(page, lane, added["send"]) == "send"
-        assert label(page, lane, added["accept"]) == "accept"
+        has_label(page, lane, added["datastore"], added["datastore"])
+        has_label(page, lane, added["send"], "send")
+        has_label(page, lane, added["accept"], "accept")
         shot(page, "studio-drawing-new-nodes.png")
         labels = page.locator("svg.diagram g.node text.label").all_text_contents()
         assert not [x for x in labels if "None" in x], labels
@@ -148,15 +155,15 @@ def test_new_nodes_show_what_is_written_and_lanes_go_only_where_a_lane_list_is(
             box.fill(value)
             box.press("Enter")
             settled(page)
-        assert label(page, lane, added["datastore"]) == "stopped"
-        assert label(page, lane, added["send"]) == "send halted"
-        assert label(page, lane, added["accept"]) == "accept go"
+        has_label(page, lane, added["datastore"], "stopped")
+        has_label(page, lane, added["send"], "send halted")
+        has_label(page, lane, added["accept"], "accept go")
         click_node(page, lane, added["datastore"])
         value_field = page.locator('#props input[name="value"]')
         value_field.fill("true")
         value_field.press("Enter")
         settled(page)
-        assert label(page, lane, added["datastore"]) == "stopped = true"
+        has_label(page, lane, added["datastore"], "stopped = true")
         page.close()
     # a model with `lanes:` lists (the car's measure.yaml and motion.yaml): those are offered
     folder = tmp_path / "car"
@@ -197,7 +204,7 @@ def test_a_link_added_in_the_page_goes_around_the_components_and_keeps_the_port_
         page.locator('#props [name="add-link"]').click()
         settled(page)
         expect(page.locator('g.link[data-link="link1"]')).to_have_count(1)
-        page.wait_for_timeout(300)
+        drawn(page)
         shot(page, "studio-drawing-link.png")
         found: dict[str, Any] = page.evaluate(COMPONENTS_JS)
         assert found["links"] == 1
@@ -243,7 +250,7 @@ def test_a_dragged_node_and_nodes_added_after_it_never_overlap_and_no_flow_runs_
         chain.append(first)
         for source, target in itertools.pairwise(chain):
             connect(page, lane, source, target)
-        page.wait_for_timeout(300)
+        drawn(page)
         shot(page, "studio-drawing-dragged.png")
         assert (pinned.get_attribute("data-x"), pinned.get_attribute("data-y")) == at  # kept where it was put
         found: dict[str, Any] = page.evaluate(ACTIVITY_JS, "activity-main")
@@ -254,7 +261,7 @@ def test_a_dragged_node_and_nodes_added_after_it_never_overlap_and_no_flow_runs_
         page.reload()
         page.wait_for_function("window.__studio && window.__studio.ready === true && !!window.__studio.edit")
         show(page, "activity-main")
-        page.wait_for_timeout(300)
+        drawn(page)
         shot(page, "studio-drawing-dragged-reloaded.png")
         assert (pinned.get_attribute("data-x"), pinned.get_attribute("data-y")) == at
         found = page.evaluate(ACTIVITY_JS, "activity-main")
