@@ -28,7 +28,15 @@ from compiler.api import CheckResult, check_model
 from compiler.source import ACTIVITIES_DIR, MODEL_FILE, Unreadable, read_model_folder
 from umlbot.errors import ModelError
 from umlbot.files import decode_utf8, file_problem, loads_json, write_atomically
-from umlbot.studio.edit import EditError, Rename, apply_ops, parse_ops, rename_positions
+from umlbot.studio.edit import (
+    EditError,
+    Rename,
+    apply_ops,
+    lane_files,
+    parse_ops,
+    rename_positions,
+    takes_lanes,
+)
 from umlbot.studio.model_view import attribute, deployment_fields, diagnostic_view, node_index, source_view
 
 LAYOUT_FILE = ".umlbot-studio.json"
@@ -172,6 +180,7 @@ class Workspace:
         self._seen_disk = dict(self.disk)
         self.result: CheckResult | None = None
         self.answer_cache: dict[str, Any] = {}
+        self._lanes_memo: dict[str, tuple[bytes, bool]] = {}
         #: unsaved edits a previous studio kept when it quit (None: none, or decided).
         self.recovery: dict[str, Any] | None = self._read_recovery()
         self.check()
@@ -220,11 +229,31 @@ class Workspace:
                        for d in result.diagnostics]
         self.answer_cache = {
             "model": source_view(result.source) if result.source is not None and self.files else None,
+            # where the page may offer to add a swimlane (besides a new file of its own)
+            "lane_files": self._lane_files(),
             "compiled": result.model is not None,
             # an empty folder is offered a starter, not told that it is no model
             "diagnostics": diagnostics if self.files else [],
         }
         return self.answer()
+
+    def _lane_files(self) -> list[str]:
+        """The files `add_lane` can add a swimlane to (`takes_lanes`); a file is read again only
+        when it changed (an edit changes one file: the others are not parsed again for it)."""
+        memo: dict[str, tuple[bytes, bool]] = {}
+        for rel in lane_files(self.files):
+            data = self.files[rel]
+            if not isinstance(data, bytes):
+                continue
+            seen = self._lanes_memo.get(rel)
+            if seen is None or seen[0] != data:
+                try:
+                    seen = (data, takes_lanes(rel, data.decode("utf-8")))
+                except UnicodeDecodeError:
+                    seen = (data, False)
+            memo[rel] = seen
+        self._lanes_memo = memo
+        return [rel for rel, (_, takes) in memo.items() if takes]
 
     def _relative(self, shown: str) -> str | None:
         try:
