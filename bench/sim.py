@@ -9,7 +9,8 @@ the mean sim time to the goal.
 
 `--tracks-dir DIR` drives the tracks in DIR too, after the bundled ones, as a held-out set (tracks
 the model was not tuned on, such as `bench/tracks/unseen/`): their figures are printed on their
-own, one line per track and then the set's, and they do not count toward the exit status.
+own, one line per track and then the set's, and they do not count toward the exit status
+(`--no-bundled`: only those).
 
 The last line printed is one JSON object:
 {"runs": [{"track", "seed", "goal", "reason", "collisions", "sim_s", "wall_s", "actions",
@@ -87,6 +88,7 @@ def main() -> int:
                         help="only this track (repeatable; a bundled or a --tracks-dir one); default: all")
     parser.add_argument("--tracks-dir", action="append", default=[], type=Path, metavar="DIR",
                         help="also drive the tracks in DIR, reported as a held-out set (repeatable)")
+    parser.add_argument("--no-bundled", action="store_true", help="only the --tracks-dir tracks")
     parser.add_argument("--seeds", type=int, default=5, help="runs per track, seeded 0..N-1")
     parser.add_argument("--noise", type=float, default=1.0, help="sonar noise, standard deviation in cm")
     parser.add_argument("--drop", type=float, default=5.0, help="percentage of lost sonar echoes")
@@ -94,7 +96,8 @@ def main() -> int:
     parser.add_argument("--processes", action="store_true", help="services as child processes")
     args = parser.parse_args()
     configure_logging("WARNING")
-    sets: list[tuple[str, list[Path]]] = [("bundled", sorted(tracks_dir().glob("*.yaml")))]
+    sets: list[tuple[str, list[Path]]] = [
+        ("bundled", [] if args.no_bundled else sorted(tracks_dir().glob("*.yaml")))]
     for folder in args.tracks_dir:
         if not folder.is_dir():
             parser.error(f"--tracks-dir {folder}: no such folder")
