@@ -7,6 +7,7 @@ from pathlib import Path
 from compiler.api import check_model, compile_model
 from compiler.compiled import ActionNode, CompiledModel, DatastoreNode, DecisionNode, ForkNode, Lane
 from compiler.expr import Call, Const, FeatureTarget, LaneTarget
+from services.sonar.driver import HCSR04Settings
 
 ROBOT_CAR = Path(__file__).resolve().parent.parent / "models" / "robot_car"
 
@@ -115,14 +116,19 @@ def test_main_lane_tuning_stop_and_loop() -> None:
         node = main.nodes[node.next]
     assert set(tuning) == {"speed_percent", "forward_ms", "backward_ms", "turn_ms", "nudge_ms",
                            "clearance_cm", "near_cm", "side_cm", "wall_cm", "corner_cm", "back_cm",
-                           "open_cm", "glance_ms", "servo_settle_ms", "creep_cm", "creep_ms"}
+                           "open_cm", "glance_ms", "servo_settle_ms", "creep_cm", "creep_ms",
+                           "jump_ratio", "past_cm", "quarter_ms", "no_echo_cm"}
     assert tuning["near_cm"] < tuning["clearance_cm"] < tuning["side_cm"] < tuning["back_cm"]
     # a creep ends nearer than a step would go, but not too near to turn in place
     assert tuning["near_cm"] < tuning["creep_cm"] < tuning["clearance_cm"]
     assert tuning["creep_ms"] < tuning["forward_ms"]
     assert tuning["side_cm"] < tuning["open_cm"]  # much room on a side is more than room to turn
     assert tuning["corner_cm"] < tuning["wall_cm"]
-    assert tuning["nudge_ms"] < tuning["turn_ms"]  # the small steer is smaller than a turn step
+    assert tuning["nudge_ms"] < tuning["turn_ms"] < tuning["quarter_ms"]  # 15°, 45°, 90°
+    assert tuning["jump_ratio"] > 1 and tuning["past_cm"] < tuning["wall_cm"]
+    # what the HC-SR04 service answers when no echo returns (the deployment keeps the default)
+    sonar = model.components["DistanceRead"].settings
+    assert "max_range_cm" not in sonar and tuning["no_echo_cm"] == HCSR04Settings(**sonar).max_range_cm
     # then every actuator is stopped
     assert isinstance(node, ActionNode) and node.call.target == LaneTarget(lane="Stop")
     assert _branches(main, "running") == [("Application.exit", "finish"), ("else", "ping_ahead")]
@@ -138,10 +144,12 @@ def test_main_lane_tuning_stop_and_loop() -> None:
     # after the step: a glance that jumps to more than twice the room marks an opening beside the
     # way; when it meets a wall as near as before again, the car looks and turns into it
     assert _branches(main, "opening") == [
-        ("aside == 'left' and Glance.left <= wall_before + 10", "look_aside"),
-        ("aside == 'right' and Glance.right <= wall_before + 10", "look_aside"),
-        ("aside == 'none' and Glance.left > 2 * was_left and Glance.left < 400", "aside_left"),
-        ("aside == 'none' and Glance.right > 2 * was_right and Glance.right < 400", "aside_right"),
+        ("aside == 'left' and Glance.left <= wall_before + past_cm", "look_aside"),
+        ("aside == 'right' and Glance.right <= wall_before + past_cm", "look_aside"),
+        ("aside == 'none' and Glance.left > jump_ratio * was_left and Glance.left < no_echo_cm",
+         "aside_left"),
+        ("aside == 'none' and Glance.right > jump_ratio * was_right and Glance.right < no_echo_cm",
+         "aside_right"),
         ("else", "remember_left")]
     assert _branches(main, "into_opening") == [
         ("aside == 'left' and Measure.left > open_cm and ahead > side_cm", "abreast_left"),
