@@ -216,7 +216,7 @@ def test_pings_are_60_ms_apart_and_each_costs_its_echo_time() -> None:
     clock = SimClock()  # no event loop: a charge moves sim time on at once
     w = World(parse_track(ROOM), IDEAL, clock=clock)
     for side in ("left", "right"):
-        w.set_motor(side, enabled=True, forward=True, duty_percent=50)  # type: ignore[arg-type]
+        w.set_motor(side, enabled=True, forward=True, duty_percent=50)
     readings = [w.read_sonar_cm() for _ in range(3)]
     times = [ping.time_s for ping in w.pings]
     assert IDEAL.sonar_interval_s == 0.06
