@@ -983,6 +983,7 @@ SCRIPT_OPTION_PARAGRAPHS = {
     ("docs/performance.md", "## Orchestrator"): "bench/orchestrator.py",
     ("docs/performance.md", "## Memory"): "bench/memory.py",
     ("docs/performance.md", "## Chaos"): "bench/chaos.py",
+    ("docs/performance.md", "## Sim"): "bench/sim.py",
 }
 
 

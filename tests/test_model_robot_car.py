@@ -6,7 +6,8 @@ from pathlib import Path
 
 from compiler.api import check_model, compile_model
 from compiler.compiled import ActionNode, CompiledModel, DatastoreNode, DecisionNode, ForkNode, Lane
-from compiler.expr import Call, Const, FeatureTarget, LaneTarget
+from compiler.expr import Call, Const, FeatureTarget, LaneTarget, Ref
+from services.sonar.driver import HCSR04Settings
 
 ROBOT_CAR = Path(__file__).resolve().parent.parent / "models" / "robot_car"
 
@@ -86,10 +87,12 @@ def test_measure_and_glance_read_both_sides_and_recentre() -> None:
     model = compile_model(ROBOT_CAR)
     for name, left, right in (("Measure", 180, 0), ("Glance", 135, 45)):
         lane = model.lanes[name]
-        assert lane.virtual and lane.datastores == ["left", "right"]
+        # the glance, taken while the car steps, ends with the way ahead where the step ended
+        ahead = [("read", "ahead")] if name == "Glance" else []
+        assert lane.virtual and lane.datastores == sorted(["left", "right"] + [read for _, read in ahead])
         assert _sequence(lane) == [("servo", left), ("wait", "msleep"), ("read", "left"),
                                    ("servo", right), ("wait", "msleep"), ("read", "right"),
-                                   ("servo", 90), ("wait", "msleep")]
+                                   ("servo", 90), ("wait", "msleep"), *ahead]
 
 
 def _main(model: CompiledModel) -> Lane:
@@ -108,44 +111,67 @@ def test_main_lane_tuning_stop_and_loop() -> None:
     assert not main.virtual and main.component == "RaspberryPI"
     # the tuning numbers are the first nodes after the start
     node = main.nodes[main.nodes[main.start].next]  # type: ignore[union-attr]
-    tuning: dict[str, int] = {}
+    tuning: dict[str, float] = {}
     while isinstance(node, DatastoreNode):
-        assert isinstance(node.value, Const) and isinstance(node.value.value, int)
+        assert isinstance(node.value, Const) and isinstance(node.value.value, int | float)
         tuning[node.name] = node.value.value
         node = main.nodes[node.next]
     assert set(tuning) == {"speed_percent", "forward_ms", "backward_ms", "turn_ms", "nudge_ms",
                            "clearance_cm", "near_cm", "side_cm", "wall_cm", "corner_cm", "back_cm",
-                           "open_cm", "glance_ms", "servo_settle_ms", "creep_cm", "creep_ms"}
+                           "open_cm", "glance_ms", "servo_settle_ms", "creep_cm", "creep_ms",
+                           "jump_ratio", "past_cm", "quarter_ms", "no_echo_cm", "spin_cm"}
     assert tuning["near_cm"] < tuning["clearance_cm"] < tuning["side_cm"] < tuning["back_cm"]
     # a creep ends nearer than a step would go, but not too near to turn in place
     assert tuning["near_cm"] < tuning["creep_cm"] < tuning["clearance_cm"]
     assert tuning["creep_ms"] < tuning["forward_ms"]
     assert tuning["side_cm"] < tuning["open_cm"]  # much room on a side is more than room to turn
     assert tuning["corner_cm"] < tuning["wall_cm"]
-    assert tuning["nudge_ms"] < tuning["turn_ms"]  # the small steer is smaller than a turn step
+    # a side wall too near to turn in place is nearer than a front corner to back off from
+    assert tuning["near_cm"] < tuning["spin_cm"] < tuning["corner_cm"]
+    assert tuning["nudge_ms"] < tuning["turn_ms"] < tuning["quarter_ms"]  # 15°, 45°, 90°
+    assert tuning["jump_ratio"] > 1 and tuning["past_cm"] < tuning["wall_cm"]
+    # what the HC-SR04 service answers when no echo returns (the deployment keeps the default)
+    sonar = model.components["DistanceRead"].settings
+    assert "max_range_cm" not in sonar and tuning["no_echo_cm"] == HCSR04Settings(**sonar).max_range_cm
     # then every actuator is stopped
     assert isinstance(node, ActionNode) and node.call.target == LaneTarget(lane="Stop")
-    assert _branches(main, "running") == [("Application.exit", "finish"), ("else", "ping_ahead")]
+    # the loop: the way ahead, then the exit check and the choice; a halt pings ahead anew
+    assert main.nodes["ping_ahead"].next == "running"  # type: ignore[union-attr]
+    assert main.nodes["halt"].next == "ping_ahead"  # type: ignore[union-attr]
+    assert _branches(main, "running") == [("Application.exit", "finish"), ("else", "choose")]
     assert _branches(main, "choose") == [
         ("ahead > clearance_cm and turning == 'none'", "straight"),
-        ("ahead > side_cm and turning != 'back'", "straight"),
+        # a turn ends on an echo from further than side_cm: no echo may be a wall seen obliquely
+        ("ahead > side_cm and ahead < no_echo_cm and turning != 'back'", "straight"),
         ("turning == 'back' and ahead > back_cm", "choose_left"), ("turning == 'left'", "turn_left"),
         ("turning == 'right'", "turn_right"), ("ahead < near_cm", "back_off"),
         ("else", "forget_sides")]
     # room ahead: the step forward and the glance run together
     step = main.nodes["step"]
     assert isinstance(step, ForkNode) and sorted(step.targets) == ["forward", "glance"]
+    # after the step the way ahead is the glance's last reading, taken where the step ended: the
+    # steering and the next choice go by it (no ping of their own)
+    join = main.nodes["stepped"]
+    seen = main.nodes[join.next]  # type: ignore[union-attr]
+    assert isinstance(seen, DatastoreNode) and seen.name == "ahead"
+    assert seen.value == Ref(lane="Glance", name="ahead")
+    assert "running" in {target for _, target in _branches(main, "steer")}
     # after the step: a glance that jumps to more than twice the room marks an opening beside the
     # way; when it meets a wall as near as before again, the car looks and turns into it
     assert _branches(main, "opening") == [
-        ("aside == 'left' and Glance.left <= wall_before + 10", "look_aside"),
-        ("aside == 'right' and Glance.right <= wall_before + 10", "look_aside"),
-        ("aside == 'none' and Glance.left > 2 * was_left and Glance.left < 400", "aside_left"),
-        ("aside == 'none' and Glance.right > 2 * was_right and Glance.right < 400", "aside_right"),
+        ("aside == 'left' and Glance.left <= wall_before + past_cm", "look_aside"),
+        ("aside == 'right' and Glance.right <= wall_before + past_cm", "look_aside"),
+        ("aside == 'none' and Glance.left > jump_ratio * was_left and Glance.left < no_echo_cm",
+         "aside_left"),
+        ("aside == 'none' and Glance.right > jump_ratio * was_right and Glance.right < no_echo_cm",
+         "aside_right"),
         ("else", "remember_left")]
     assert _branches(main, "into_opening") == [
-        ("aside == 'left' and Measure.left > open_cm and ahead > side_cm", "abreast_left"),
-        ("aside == 'right' and Measure.right > open_cm and ahead > side_cm", "abreast_right"),
+        # one more step only when the wall beside is not near: abreast of the opening's middle
+        ("aside == 'left' and Measure.left > open_cm and ahead > side_cm and Glance.left >= wall_cm",
+         "abreast_left"),
+        ("aside == 'right' and Measure.right > open_cm and ahead > side_cm and Glance.right >= wall_cm",
+         "abreast_right"),
         ("aside == 'left' and Measure.left > open_cm", "enter_left"),
         ("aside == 'right' and Measure.right > open_cm", "enter_right"),
         ("else", "no_opening_here")]
@@ -160,12 +186,13 @@ def test_main_lane_tuning_stop_and_loop() -> None:
     # turned into an opening: the front corners are glanced at before driving on
     assert _branches(main, "turned_steer") == [
         ("Glance.left < wall_cm and Glance.right >= wall_cm", "nudge_right"),
-        ("Glance.right < wall_cm and Glance.left >= wall_cm", "nudge_left"), ("else", "running")]
+        ("Glance.right < wall_cm and Glance.left >= wall_cm", "nudge_left"), ("else", "ping_ahead")]
     # no room ahead: much room on both sides, the other way than last time; else the side with
     # more room
     assert _branches(main, "pick_side") == [
         ("Measure.left > open_cm and Measure.right > open_cm and last_turn == 'left'", "choose_right"),
         ("Measure.left > open_cm and Measure.right > open_cm and last_turn == 'right'", "choose_left"),
+        ("Measure.left < spin_cm or Measure.right < spin_cm", "backing"),  # too near a side to turn
         ("Measure.left >= Measure.right and Measure.left > side_cm", "choose_left"),
         ("Measure.right > side_cm", "choose_right"),
         ("turning == 'none' and ahead > creep_cm", "creep"), ("else", "backing")]

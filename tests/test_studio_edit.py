@@ -1205,7 +1205,7 @@ def test_renames_in_the_car_change_only_the_renamed_words_and_compile_to_the_sam
     renamed = {rel: _only_tokens_renamed(files[rel], out[rel], CAR_NAMES) for rel in files}
     # the component's entry, its link, both deployment files; the node; the lane and its readers
     assert renamed == {"model.yaml": 2, "deployment.yaml": 1, "deployment.txt": 1,
-                       "activities/main.yaml": 1 + 1 + 2 + 12, "activities/measure.yaml": 1 + 4,
+                       "activities/main.yaml": 1 + 1 + 2 + 14, "activities/measure.yaml": 1 + 5,
                        "activities/motion.yaml": 0}
     assert "# the HC-SR04 range finder" in out["model.yaml"]  # comments and alignment stay
     for rel, text in out.items():

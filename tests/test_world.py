@@ -10,6 +10,7 @@ import pytest
 from services_support import ROOM  # 2 m x 3 m room, car in the middle facing +y
 
 from umlbot.errors import SimError
+from umlbot.sim.clock import SimClock
 from umlbot.sim.geometry import Point, Pose, Segment, cast, rectangle_corners, rectangle_hits
 from umlbot.sim.track import load_track, parse_track, tracks_dir
 from umlbot.sim.world import CarSpec, World
@@ -209,6 +210,37 @@ def test_dropped_echoes_are_seeded_and_counted_as_no_echo() -> None:
     assert set(runs[0]) - {None} == {world().read_sonar_cm()}
     with pytest.raises(ValueError, match="dropped echoes"):
         world(sonar_drop=1.5)
+
+
+def test_pings_are_60_ms_apart_and_each_costs_its_echo_time() -> None:
+    clock = SimClock()  # no event loop: a charge moves sim time on at once
+    w = World(parse_track(ROOM), IDEAL, clock=clock)
+    for side in ("left", "right"):
+        w.set_motor(side, enabled=True, forward=True, duty_percent=50)
+    readings = [w.read_sonar_cm() for _ in range(3)]
+    times = [ping.time_s for ping in w.pings]
+    assert IDEAL.sonar_interval_s == 0.06
+    # back to back, a ping waits for 60 ms after the one before; its echo takes less than that
+    assert times == pytest.approx([0.0, 0.06, 0.12])
+    last = readings[-1]
+    assert last is not None
+    assert clock.now() == pytest.approx(0.12 + 2 * last / 100 / 343.0, abs=1e-4)
+    # the ping goes out after the wait, from where the car has driven meanwhile (0.25 m/s)
+    assert [ping.origin.y for ping in w.pings] == pytest.approx(
+        [IDEAL.sonar_forward_m + 0.25 * t for t in times])
+    assert readings[0] is not None and readings[0] - last == pytest.approx(3, abs=1)  # 3 cm nearer
+    # a ping asked for more than 60 ms after the last one goes out at once
+    clock.charge(0.2)
+    asked = clock.now()
+    w.read_sonar_cm()
+    assert w.pings[-1].time_s == pytest.approx(asked)
+    # no echo: the sensor gives up after 38 ms, and the next ping still waits for the 60 ms
+    far = World(parse_track(ROOM.replace("2.0], [-1.0, 2.0]", "9.0], [-1.0, 9.0]")), IDEAL,
+                clock=SimClock())
+    assert far.read_sonar_cm() is None and far.clock is not None
+    assert far.clock.now() == pytest.approx(IDEAL.sonar_timeout_s)
+    far.read_sonar_cm()
+    assert [ping.time_s for ping in far.pings] == pytest.approx([0.0, 0.06])
 
 
 def test_servo_turns_the_beam_at_a_finite_speed() -> None:
