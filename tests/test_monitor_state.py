@@ -78,6 +78,27 @@ def test_availability_events_only_on_change() -> None:
     assert state.availability[("car", "LeftActuator")].state == "offline"
 
 
+def test_the_driver_a_status_says_is_an_event_and_a_column() -> None:
+    """A status that names its driver (`auto` resolved by the service) says it in the availability
+    event and the table; a status without one (another client's service) is still a status."""
+    state = MonitorState()
+    topic = "umlbot/car/LeftActuator/status"
+    [first] = state.observe(topic, j({"state": "online", "impl": "l298n", "driver": "mock"}), 1.0)
+    assert (first.state, first.driver) == ("online", "mock")
+    assert '"driver":"mock"' in first.line()
+    assert state.observe(topic, j({"state": "online", "impl": "l298n", "driver": "mock"}), 2.0) == []
+    [other] = state.observe(topic, j({"state": "online", "impl": "l298n", "driver": "pigpio"}), 3.0)
+    assert other.driver == "pigpio"  # the same state, another driver: said
+    out = io.StringIO()
+    Console(file=out, width=160).print(render(state, now=4.0))
+    assert "driver" in out.getvalue()
+    assert "pigpio" in next(line for line in out.getvalue().splitlines() if "LeftActuator" in line)
+    [gone] = state.observe(topic, j({"state": "offline"}), 5.0)
+    assert gone.driver is None and "driver" not in gone.line()
+    [plain] = state.observe("umlbot/car/Sensor/status", j({"state": "online", "impl": "servo"}), 6.0)
+    assert plain.driver is None and state.availability[("car", "Sensor")].state == "online"
+
+
 def test_the_time_in_a_state_counts_from_the_since_the_status_gives() -> None:
     """A service online since 1000 s is shown online for 500 s at 1500 s, though the monitor saw
     its (retained) status only at 1490 s; a status without a usable `since` counts from when it

@@ -61,6 +61,11 @@ def test_a_live_run_is_highlighted_with_counts_timings_calls_and_availability(
         for name in ("LeftActuator", "RightActuator", "Sensor", "DistanceRead", "RaspberryPI"):
             expect(page.locator(f'g.component[data-component="{name}"]')).to_have_attribute(
                 "data-state", "online")
+            # the deployment says `auto`; the services run --driver mock, and their status says so
+            expect(page.locator(f'g.component[data-component="{name}"]')).to_have_attribute(
+                "data-driver", "mock")
+        expect(page.locator('g.component[data-component="LeftActuator"] text.impl')).to_have_text(
+            "l298n · motor · auto → mock")
         made.append(Proc("run", umlbot_argv("run", str(compiled), "--robot", ROBOT), tmp_path,
                          mosquitto_broker.url))
         expect(page.locator("#orchestrator-status")).to_have_attribute("data-state", "running")
@@ -97,6 +102,8 @@ def test_a_live_run_is_highlighted_with_counts_timings_calls_and_availability(
         left = page.locator('g.component[data-component="LeftActuator"]')
         expect(left).to_have_attribute("data-state", "offline")
         expect(left).to_have_class(_has("offline"))
+        expect(left).not_to_have_attribute("data-driver", "mock")  # nothing runs it now
+        expect(left.locator("text.impl")).to_have_text("l298n · motor · auto")
         expect(page.locator("#orchestrator-status")).to_have_attribute("data-state", "failed")
         expect(page.locator("#orchestrator-status")).to_contain_text("LeftActuator")
         shot(page, "studio-offline.png")

@@ -97,6 +97,9 @@ class Status(BaseModel):
     features: list[str] = Field(default_factory=list)
     client_id: str | None = None
     since: float | None = None  # unix time the service came online
+    #: the driver the service runs the component with (`auto` resolved, e.g. "mock"); optional:
+    #: a status without it (another client's service) is still a status.
+    driver: str | None = None
 
 
 class TraceEvent(BaseModel):

@@ -225,10 +225,13 @@ class ComponentServer:
         *,
         client_id: str | None = None,
         max_request_bytes: int = MAX_REQUEST_BYTES,
+        driver: str | None = None,
     ) -> None:
         self.topics = Topics(robot)
         self.component = check_name("component", component)
         self.impl_id = impl_id
+        #: the driver the component runs with, said in its status (None: not said)
+        self.driver = driver
         self.features = {f.name: f for f in features}
         self.max_request_bytes = max_request_bytes
         self.calls_served = 0
@@ -354,6 +357,7 @@ class ComponentServer:
             features=sorted(self.features),
             client_id=self.connection.client_id,
             since=self._since,
+            driver=self.driver,
         )
 
     def publish_state(self, state: dict[str, Any]) -> None:

@@ -54,6 +54,7 @@ class MonitorEvent(BaseModel):
     feature: str | None = None
     state: str | None = None  # availability ("online"/"offline") or the orchestrator's state
     impl: str | None = None
+    driver: str | None = None  # availability: the driver the service runs (its status says it)
     args: list[Any] | None = None
     id: str | None = None
     ok: bool | None = None
@@ -116,6 +117,7 @@ class Availability:
     state: str
     impl: str | None
     since: float
+    driver: str | None = None  # the driver the status says the service runs (`auto` resolved)
 
 
 @dataclass
@@ -359,15 +361,17 @@ class MonitorState:
         state = (_text(data.get("state")) if isinstance(data, dict) else None) or "unknown"
         impl = _text(data.get("impl")) if isinstance(data, dict) else None
         since = _since(data.get("since")) if isinstance(data, dict) else None
+        driver = _text(data.get("driver")) if isinstance(data, dict) and state == "online" else None
         previous = self.availability.get((robot, component))
-        if previous is not None and previous.state == state:
+        if previous is not None and previous.state == state and driver in (None, previous.driver):
             previous.impl = impl or previous.impl
             if since is not None:  # e.g. a service that restarted and is online again
                 previous.since = since
             return []
-        self.availability[(robot, component)] = Availability(state, impl, at if since is None else since)
+        self.availability[(robot, component)] = Availability(state, impl, at if since is None else since,
+                                                             driver)
         return [MonitorEvent(type="availability", time=at, robot=robot, topic=topic, component=component,
-                             state=state, impl=impl)]
+                             state=state, impl=impl, driver=driver)]
 
     def _on_orchestrator(self, robot: str, leaf: str, topic: str, payload: bytes,
                          at: float) -> list[MonitorEvent]:

@@ -521,7 +521,7 @@ async function layoutComponentsNow(model: ModelView, userPositions: Positions): 
   const children: ElkNode[] = model.components.map((c) => {
     const lines = [
       textWidth(c.name, 15, "600") + 40,
-      textWidth(`${c.impl} · ${c.service} · ${c.driver}`, SMALL_PX) + 24,
+      textWidth(`${c.impl} · ${c.service} · ${c.driver} → pigpio`, SMALL_PX) + 24, // (+ the driver it runs)
       textWidth(`features: ${c.features.join(", ")}`, SMALL_PX) + 24,
       240,
     ];

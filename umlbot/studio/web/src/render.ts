@@ -6,7 +6,7 @@ import type { ActivityLayout, ComponentLayout, NodeBox, Point } from "./layout";
 import { COMP_STATE_LINES, shortGuard } from "./layout";
 import type { Level, NodeStats, StudioState, ComponentState } from "./state";
 import { TRAIL, edgeKey, nextNodes, nodeKey } from "./state";
-import type { ModelView } from "./types";
+import type { ModelComponent, ModelView } from "./types";
 
 const SVGNS = "http://www.w3.org/2000/svg";
 
@@ -51,7 +51,10 @@ interface NodeEl {
   valueText: string;
 }
 interface EdgeEl { g: SVGGElement; label: SVGTextElement | null; guard: string; count: number }
-interface CompEl { g: SVGGElement; state: SVGTextElement; box: SVGRectElement; flashedAt: number }
+interface CompEl {
+  g: SVGGElement; state: SVGTextElement; box: SVGRectElement; flashedAt: number;
+  implText: Text; implTitle: SVGTitleElement; model: ModelComponent; driver: string;
+}
 
 export interface DiagramView {
   id: string;
@@ -346,7 +349,9 @@ export class Renderer {
       svgEl("text", { class: "stereo", x: 12, y: 18 }, inner, `«${m.kind}»`);
       svgEl("text", { class: "name", x: 12, y: 37 }, inner, c.name);
       svgEl("circle", { class: "dot", cx: c.w - 42, cy: 16, r: 6 }, inner);
-      svgEl("text", { class: "impl", x: 12, y: 54 }, inner, `${m.impl} · ${m.service} · ${m.driver}`);
+      const implLine = svgEl("g", { class: "impl-line" }, inner); // (its tooltip is not in the text)
+      const implTitle = svgEl("title", {}, implLine);
+      const implText = svgEl("text", { class: "impl", x: 12, y: 54 }, implLine).appendChild(document.createTextNode(""));
       svgEl("text", { class: "features", x: 12, y: 69 }, inner, `features: ${m.features.join(", ")}`);
       svgEl("line", { class: "sep", x1: 0, x2: c.w, y1: 77, y2: 77 }, inner);
       const state = svgEl("text", { class: "state", x: 12, y: 92 }, inner);
@@ -354,7 +359,7 @@ export class Renderer {
         svgEl("rect", { class: "port", x: p.x - c.x, y: p.y - c.y, width: p.w, height: p.h }, inner);
         svgEl("text", { class: "port-label", x: p.labelX - c.x, y: p.labelY - c.y }, inner, `${p.name} → ${p.feature}`);
       }
-      this.compEls.set(c.name, { g, state, box, flashedAt: -1e9 });
+      this.compEls.set(c.name, { g, state, box, flashedAt: -1e9, implText, implTitle, model: m, driver: "?" });
       this.freshComps.push(c.name);
     }
     return v;
@@ -510,6 +515,19 @@ export class Renderer {
     g.classList.toggle("online", avail === "online");
     g.classList.toggle("offline", avail === "offline");
     g.classList.toggle("unknown", avail === "unknown");
+    const driver = cs?.driver ?? "";
+    if (driver !== ce.driver) {
+      // the driver the service runs (its status says it, `auto` resolved), else the deployment's
+      ce.driver = driver;
+      const m = ce.model;
+      const shown = driver && driver !== m.driver ? `${m.driver} → ${driver}` : m.driver;
+      ce.implText.data = `${m.impl} · ${m.service} · ${shown}`;
+      if (driver) g.setAttribute("data-driver", driver);
+      else g.removeAttribute("data-driver");
+      ce.implTitle.textContent = driver
+        ? `implementation ${m.impl}, ${m.service} service, running driver ${driver} (the deployment says ${m.driver})`
+        : `implementation ${m.impl}, ${m.service} service, driver ${m.driver} (as the deployment says; the service has not said which it runs)`;
+    }
     while (ce.state.firstChild) ce.state.firstChild.remove();
     if (cs && cs.hasRetained) {
       g.setAttribute("data-retained", json(cs.retained));
