@@ -22,7 +22,7 @@ from typing import Any, Final
 from pydantic import ValidationError
 
 from services.bus.connection import BusConnection, Message, Will
-from services.bus.envelopes import ENVELOPE_KEYS, CallRequest, Reply, Status, dumps, parse_json
+from services.bus.envelopes import ENVELOPE_KEYS, CallRequest, Reply, Status, dumps, is_timeout, parse_json
 from services.bus.settings import BrokerSettings
 from services.bus.topics import Topics, check_name, is_valid_publish_topic
 from umlbot.errors import BusError, DriverError, NotConnected, UmlbotError
@@ -183,6 +183,7 @@ def parse_request(payload: bytes, response_topic: str | None = None) -> _Parsed:
             and isinstance(args, list)
             and (request_id is None or _is_id(request_id))
             and (reply_to is None or (isinstance(reply_to, str) and is_valid_publish_topic(reply_to)))
+            and ("timeout_s" not in data or is_timeout(data["timeout_s"]))
         ):
             return _Parsed(request_id, reply_to, args)
         # find where to answer before validating, so a bad envelope still gets its error reply
