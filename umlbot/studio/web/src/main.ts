@@ -56,6 +56,22 @@ const messageEl = $<HTMLElement>("#canvas-message");
 const bannerEl = $<HTMLElement>("#canvas-banner");
 const sim = new SimPanel($<HTMLElement>("#sim"));
 
+// The canvas's size, kept up to date by a ResizeObserver: reading clientWidth after the drawing
+// changed would force the browser to lay out the whole diagram there and then.
+let canvasW = 0;
+let canvasH = 0;
+new ResizeObserver(() => {
+  canvasW = canvas.clientWidth;
+  canvasH = canvas.clientHeight;
+}).observe(canvas);
+function canvasSize(): { W: number; H: number } {
+  if (!canvasW) {
+    canvasW = canvas.clientWidth;
+    canvasH = canvas.clientHeight;
+  }
+  return { W: canvasW || 800, H: canvasH || 600 };
+}
+
 const renderer = new Renderer();
 let model: ModelView | null = null;
 let index = new ModelIndex(null);
@@ -77,7 +93,8 @@ function diagramIds(m: ModelView | null): string[] {
   return m ? ["components", ...m.diagrams.map((d) => d.id)] : [];
 }
 
-function setModel(m: ModelView | null, diagnostics: Diagnostic[]): void {
+/** Show model `m`; `fromEditor`: the editor's own answer (it draws its panels itself after). */
+function setModel(m: ModelView | null, diagnostics: Diagnostic[], fromEditor = false): void {
   drawnVersion = hooks.edit?.version ?? -1;
   generation += 1;
   const gen = generation;
@@ -136,8 +153,9 @@ function setModel(m: ModelView | null, diagnostics: Diagnostic[]): void {
   const wanted = hashDiagram();
   const ids = diagramIds(m);
   const first = wanted && ids.includes(wanted) ? wanted : current && ids.includes(current) ? current : (m.diagrams[0]?.id ?? "components");
+  const was = current;
   current = "";
-  select(first);
+  select(first, !(fromEditor && first === was));
   void layoutAll(m, first, gen);
 }
 
@@ -192,13 +210,13 @@ async function layoutAll(m: ModelView, first: string, gen: number): Promise<void
   }
 }
 
-function select(id: string): void {
+function select(id: string, tellEditor = true): void {
   if (!diagramIds(model).includes(id)) return;
   current = id;
   for (const li of listEl.querySelectorAll<HTMLLIElement>("li")) li.classList.toggle("selected", li.dataset.diagram === id);
   for (const [vid, v] of views) v.svg.style.display = vid === id ? "" : "none";
   for (const [vid, v] of replaced) v.svg.style.display = vid === id ? "" : "none";
-  editor?.diagramShown(id);
+  if (tellEditor) editor?.diagramShown(id);
   const v = views.get(id);
   if (v && !v.view) fit(v);
   if (hashDiagram() !== id) history.replaceState(null, "", `#diagram=${encodeURIComponent(id)}`);
@@ -217,6 +235,7 @@ let diagnostics: Diagnostic[] = [];
 function setDiagnostics(list: Diagnostic[]): void {
   diagnostics = list;
   diagEl.replaceChildren();
+  const before = new Map(renderer.marks);
   renderer.marks.clear();
   for (const d of list) {
     const li = document.createElement("li");
@@ -255,7 +274,12 @@ function setDiagnostics(list: Diagnostic[]): void {
     badge.title = `${mine.length} problem${mine.length === 1 ? "" : "s"} in this diagram`;
     li.querySelector("small")?.before(badge);
   }
-  state.markAllDirty();
+  // only the nodes whose mark came, went or changed are drawn again (not every node)
+  for (const [key, mark] of renderer.marks) {
+    const old = before.get(key);
+    if (!old || old.level !== mark.level || old.message !== mark.message) state.dirtyNodes.add(key);
+  }
+  for (const key of before.keys()) if (!renderer.marks.has(key)) state.dirtyNodes.add(key);
 }
 
 /** The diagram of a node the server named (null when it is not drawn). */
@@ -296,20 +320,40 @@ function applyView(v: DiagramView): void {
 
 // Swimlanes wholly outside the canvas are not drawn (display: none): at a readable zoom a big
 // diagram shows a few lanes, and the live updates of the others then cost no layout or paint.
-const laneSpan = new WeakMap<Element, { t: string; x: number; w: number }>();
+const laneSpan = new WeakMap<Element, LaneSpan>();
+interface LaneSpan { t: string; x: number; y: number; w: number; bodyY: number }
+/** A lane's place (diagram units) from its attributes: no layout. */
+function spanOf(g: Element): LaneSpan {
+  const t = g.getAttribute("transform") ?? "";
+  let span = laneSpan.get(g);
+  if (!span || span.t !== t) {
+    const m = /translate\(([-\d.e]+)[ ,]+([-\d.e]+)/.exec(t);
+    const body = /translate\([-\d.e]+[ ,]+([-\d.e]+)/.exec(g.querySelector(".lane-body")?.getAttribute("transform") ?? "");
+    span = {
+      t, x: m ? Number(m[1]) : 0, y: m ? Number(m[2]) : 0,
+      w: Number(g.querySelector(".lane-bg")?.getAttribute("width") ?? 0), bodyY: body ? Number(body[1]) : 0,
+    };
+    laneSpan.set(g, span);
+  }
+  return span;
+}
+
+/** A node's box in diagram units, from its data attributes and its lane's (no layout); null for
+ * anything else. */
+function nodeBox(el: Element): { x: number; y: number; w: number; h: number } | null {
+  const lane = el.matches("g.node") ? el.closest("g.lane") : null;
+  if (!lane) return null;
+  const span = spanOf(lane);
+  const num = (a: string): number => Number(el.getAttribute(a) ?? 0);
+  return { x: span.x + num("data-x"), y: span.y + span.bodyY + num("data-y"), w: num("data-w"), h: num("data-h") };
+}
 function cullLanes(v: DiagramView): void {
   if (!v.view) return;
-  const W = canvas.clientWidth || 800;
+  const { W } = canvasSize();
   const margin = 200;
   for (const g of v.viewport.children) {
     if (!g.classList.contains("lane")) continue;
-    const t = g.getAttribute("transform") ?? "";
-    let span = laneSpan.get(g);
-    if (!span || span.t !== t) {
-      const m = /translate\(([-\d.e]+)/.exec(t);
-      span = { t, x: m ? Number(m[1]) : 0, w: Number(g.querySelector(".lane-bg")?.getAttribute("width") ?? 0) };
-      laneSpan.set(g, span);
-    }
+    const span = spanOf(g);
     const left = v.view.x + span.x * v.view.k;
     const right = left + span.w * v.view.k;
     g.classList.toggle("culled", right < -margin || left > W + margin);
@@ -348,8 +392,7 @@ function reveal(lane: string, node: string): void {
 /** After an edit: a diagram that fits the canvas (at its zoom, or zoomed out to >= 0.6) is shown whole. */
 function keepInView(v: DiagramView): void {
   if (!v.view) return;
-  const W = canvas.clientWidth || 800;
-  const H = canvas.clientHeight || 600;
+  const { W, H } = canvasSize();
   const pad = 16;
   const kFit = Math.min((W - 2 * pad) / v.width, (H - 2 * pad) / v.height);
   if (kFit < v.view.k && kFit >= 0.6) {
@@ -368,8 +411,19 @@ function keepInView(v: DiagramView): void {
 function showElement(v: DiagramView, el: Element): void {
   if (!v.view) return;
   uncull(el);
-  const c = canvas.getBoundingClientRect();
-  const b = el.getBoundingClientRect();
+  const box = nodeBox(el);
+  let c: { left: number; top: number; right: number; bottom: number };
+  let b: { left: number; top: number; right: number; bottom: number };
+  if (box) {
+    // a node: where it is from its attributes (measuring it would lay the diagram out now)
+    const { W, H } = canvasSize();
+    const k = v.view.k;
+    c = { left: 0, top: 0, right: W, bottom: H };
+    b = { left: v.view.x + box.x * k, top: v.view.y + box.y * k, right: v.view.x + (box.x + box.w) * k, bottom: v.view.y + (box.y + box.h) * k };
+  } else {
+    c = canvas.getBoundingClientRect();
+    b = el.getBoundingClientRect();
+  }
   const pad = 24;
   let dx = 0;
   let dy = 0;
@@ -393,8 +447,7 @@ const OPEN_K = 0.8;
 
 /** Show the whole diagram; `readable`: when that is too small to read, a readable part from the top. */
 function fit(v: DiagramView, readable = true): void {
-  const W = canvas.clientWidth || 800;
-  const H = canvas.clientHeight || 600;
+  const { W, H } = canvasSize();
   const pad = 16;
   let k = Math.min((W - 2 * pad) / v.width, (H - 2 * pad) / v.height, 1.25);
   let y = (H - v.height * k) / 2;
@@ -637,6 +690,16 @@ function render(budgetMs = 0): void {
   state.clearDirty();
 }
 
+/** The last edit is shown once the diagram draws its version and every node change (its
+ * diagnostics among them) is drawn: the end of this frame (`window.__studio.edit.timings`). */
+function noteEditShown(): void {
+  const timings = hooks.edit?.timings ?? [];
+  const last = timings[timings.length - 1];
+  if (last && last.shown === undefined && hooks.edit!.drawn >= last.version && !state.dirtyNodes.size) {
+    last.shown = performance.now();
+  }
+}
+
 let skippedDraw = false;
 // node end times (unix s) of the live trace events applied but not drawn yet: each one's latency
 // (node end -> drawn) is recorded when the frame that shows it is drawn
@@ -674,6 +737,7 @@ function tick(ts: number): void {
   } else {
     skippedDraw = false;
     render(RENDER_BUDGET_MS);
+    noteEditShown();
     sim.flush();
     if (unshownEnds.length) {
       const now = Date.now();
@@ -906,7 +970,7 @@ const editorHost = {
       bannerEl.hidden = false;
     } else {
       bannerEl.hidden = true;
-      setModel(m, d);
+      setModel(m, d, true);
     }
     schedule();
   },
@@ -955,7 +1019,7 @@ function resetSession(hello: HelloMsg): void {
   if (hello.edit) {
     if (editor) editor.setInfo(hello.edit);
     else {
-      hooks.edit = { version: hello.edit.version, busy: false, dirty: hello.edit.dirty, requests: 0, errors: [], drawn: -1 };
+      hooks.edit = { version: hello.edit.version, busy: false, dirty: hello.edit.dirty, requests: 0, errors: [], drawn: -1, timings: [] };
       editor = new Editor(editorHost, hello.edit, hooks.edit);
     }
   }

@@ -175,15 +175,15 @@ export class Renderer {
         if (old.g.getAttribute("transform") !== at) old.g.setAttribute("transform", at);
         const bg = old.g.querySelector(".lane-bg");
         if (bg && bg.getAttribute("height") !== String(lg.h)) bg.setAttribute("height", String(lg.h));
+        // (looked at again, not rewritten: its elements still show what they showed, and a
+        // rewrite of thousands of nodes after each edit costs a style and layout pass of them all)
         for (const [k, ne] of old.nodes) {
           this.nodeEls.set(k, ne);
           this.freshNodes.push(k);
-          ne.count = -2;
         }
         for (const [k, ee] of old.edges) {
           this.edgeEls.set(k, ee);
           this.freshEdges.push(k);
-          ee.count = -1;
         }
         this.freshLanes.add(lane.name);
         this.built.set(lane.name, old);
