@@ -182,7 +182,17 @@ def test_a_laptop_window_shows_the_whole_toolbar_and_the_calls(browser: Browser,
         page.locator("#run-speed").select_option("1")
         page.locator("#run").click()
         page.wait_for_function("document.querySelectorAll('#calls tbody tr').length >= 6")
-        page.locator('svg.diagram g.node[data-lane="RaspberryPI"]').first.click()  # a node's properties too
+        # a node's properties too: one the view shows (it follows the run: not the start node)
+        shown = page.evaluate("""() => {
+          const c = document.querySelector('#canvas').getBoundingClientRect();
+          return [...document.querySelectorAll('svg.diagram g.node[data-lane="RaspberryPI"]')].map((g) => {
+            const r = g.getBoundingClientRect();
+            return r.width > 0 && r.left > c.left && r.right < c.right && r.top > c.top + 60 && r.bottom < c.bottom
+              ? g.dataset.node : null;
+          }).find((n) => n) ?? null;
+        }""")
+        assert shown is not None
+        page.locator(f'svg.diagram g.node[data-lane="RaspberryPI"][data-node="{shown}"]').click()
         page.wait_for_timeout(500)
         shot(page, "studio-laptop-run.png")
         # every control of the toolbar is inside the window, its text whole; only the source path

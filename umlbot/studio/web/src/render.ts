@@ -3,7 +3,7 @@
 
 import { percentiles } from "./durations";
 import type { ActivityLayout, ComponentLayout, NodeBox, Point } from "./layout";
-import { COMP_STATE_LINES, shortGuard } from "./layout";
+import { COMP_STATE_LINES, SMALL_PX, shortGuard, textWidth } from "./layout";
 import type { Level, NodeStats, StudioState, ComponentState } from "./state";
 import { TRAIL, edgeKey, nextNodes, nodeKey } from "./state";
 import type { ModelComponent, ModelView } from "./types";
@@ -196,12 +196,6 @@ export class Renderer {
       this.built.set(lane.name, { key, g, nodes: laneNodes, edges: laneEdges });
       mine.add(g);
       svgEl("rect", { class: "lane-bg", x: 0, y: 0, width: lg.w, height: lg.h }, g);
-      svgEl("rect", { class: "lane-header", x: 0, y: 0, width: lg.w, height: lg.headerH }, g);
-      // a virtual lane is a called activity; a component's lane runs on that component: the
-      // stereotype on its own line above the name (UML's way; side by side they overlapped)
-      const sub = lane.virtual ? "«activity»" : lane.component ? "«component»" : "";
-      if (sub) svgEl("text", { class: "lane-sub", x: lg.w / 2, y: 15 }, g, sub);
-      svgEl("text", { class: "lane-title", x: lg.w / 2, y: sub ? 34 : 28 }, g, lane.name);
       const body = svgEl("g", { class: "lane-body", transform: `translate(0,${lg.headerH})` }, g);
       const edgesG = svgEl("g", { class: "edges" }, body);
       const nodesG = svgEl("g", { class: "nodes" }, body);
@@ -227,6 +221,16 @@ export class Renderer {
         const k = this.buildNode(nodesG, lane.name, nb);
         laneNodes.set(k, this.nodeEls.get(k)!);
       }
+      // The header, after the body: the page keeps it on the lane's visible part (main.ts,
+      // stickLaneHeads), over the nodes it passes. `data-tw`: its widest text's width.
+      const head = svgEl("g", { class: "lane-head", "data-h": lg.headerH }, g);
+      svgEl("rect", { class: "lane-header", x: 0, y: 0, width: lg.w, height: lg.headerH }, head);
+      // a virtual lane is a called activity; a component's lane runs on that component: the
+      // stereotype on its own line above the name (UML's way; side by side they overlapped)
+      const sub = lane.virtual ? "«activity»" : lane.component ? "«component»" : "";
+      if (sub) svgEl("text", { class: "lane-sub", x: lg.w / 2, y: 15 }, head, sub);
+      svgEl("text", { class: "lane-title", x: lg.w / 2, y: sub ? 34 : 28 }, head, lane.name);
+      head.setAttribute("data-tw", String(Math.max(textWidth(lane.name, 15, "600"), sub ? textWidth(sub, SMALL_PX) : 0)));
       this.freshLanes.add(lane.name);
       // swap it in whole (its old drawing, if any, goes below)
       const was = old && old.g.parentNode === v.viewport ? old.g : null;
