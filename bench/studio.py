@@ -237,10 +237,12 @@ def measure_load(browser: Any, broker_url: str, nodes: int, rate: float, seconds
             "load_average": round(max(load_before, os.getloadavg()[0]), 1)}
 
 
-def edit_ops(index: int) -> list[dict[str, Any]]:
-    """The `index`-th edit of the edit part: a datastore value; a guard made bad (a diagnostic on
-    its node); the guard made good again with a call changed in the same batch."""
-    lane = f"Helper{1 + index % 18}"
+def edit_ops(index: int, nodes: int = 2000) -> list[dict[str, Any]]:
+    """The `index`-th edit of the edit part on the model of `nodes` nodes: a datastore value; a
+    guard made bad (a diagnostic on its node); a guard made good with a call changed in the same
+    batch. Each on one of the called lanes in turn (the start lane on a model of one lane)."""
+    lanes = [f"Helper{i}" for i in range(1, min(19, max(1, nodes // LANE_NODES)))] or ["RaspberryPI"]
+    lane = lanes[index % len(lanes)]
     step = index % 3
     if step == 0:
         return [{"op": "set_node", "lane": lane, "id": "b3_x", "fields": {"value": f"{index} * 2 + 1"}}]
@@ -252,9 +254,9 @@ def edit_ops(index: int) -> list[dict[str, Any]]:
             {"op": "set_node", "lane": lane, "id": "b5_wait", "fields": {"call": f"usleep(x5 * {index})"}}]
 
 
-def edited_node(index: int) -> tuple[str, str]:
+def edited_node(index: int, nodes: int) -> tuple[str, str]:
     """The (lane, node) the `index`-th edit of `edit_ops` is about (the view shows it first)."""
-    ops = edit_ops(index)
+    ops = edit_ops(index, nodes)
     return str(ops[0]["lane"]), str(ops[0].get("id") or ops[0]["source"])
 
 
@@ -273,10 +275,10 @@ def measure_edit(browser: Any, nodes: int, edits: int, workdir: Path) -> dict[st
         page = open_page(browser, studio_url(proc), diagram="activity-all")
         page.wait_for_function("!!window.__studio.edit", timeout=60_000)
         for index in range(edits):
-            lane, node = edited_node(index)
+            lane, node = edited_node(index, nodes)
             page.evaluate("([lane, node]) => window.__studio.reveal(lane, node)", [lane, node])
             page.wait_for_timeout(300)  # the view settles, as between a person's edits
-            ok = page.evaluate("ops => window.__studio.edit.send(ops)", edit_ops(index))
+            ok = page.evaluate("ops => window.__studio.edit.send(ops)", edit_ops(index, nodes))
             if not ok:
                 raise RuntimeError(f"edit {index} refused: {page.evaluate('window.__studio.edit.errors')}")
             page.wait_for_function("() => { const t = window.__studio.edit.timings; "
