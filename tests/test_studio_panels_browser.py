@@ -187,8 +187,8 @@ def test_a_laptop_window_shows_the_whole_toolbar_and_the_calls(browser: Browser,
           const c = document.querySelector('#canvas').getBoundingClientRect();
           return [...document.querySelectorAll('svg.diagram g.node[data-lane="RaspberryPI"]')].map((g) => {
             const r = g.getBoundingClientRect();
-            return r.width > 0 && r.left > c.left && r.right < c.right && r.top > c.top + 60 && r.bottom < c.bottom
-              ? g.dataset.node : null;
+            const inside = r.left > c.left && r.right < c.right && r.top > c.top + 60 && r.bottom < c.bottom;
+            return r.width > 0 && inside ? g.dataset.node : null;
           }).find((n) => n) ?? null;
         }""")
         assert shown is not None
