@@ -167,6 +167,8 @@ def test_the_view_follows_the_running_robot_until_panned_by_hand(
         # the lane's name stays on screen although its header is far above
         title = 'svg[data-diagram="activity-main"] g.lane[data-lane="RaspberryPI"] .lane-title'
         page.wait_for_function(INSIDE_CANVAS, arg=title)
+        page.wait_for_timeout(2500)  # into the loop the robot runs: the picture of docs/studio.md
+        page.wait_for_function(INSIDE_CANVAS, arg=active)
         shot(page, "studio-follow.png")
 
         _pan_by_hand(page, 150, -250)
