@@ -11,7 +11,7 @@ TRACK  ?= models/tracks/s_bend.yaml
 SPEED  ?= 10
 OUT    ?= out
 
-.PHONY: all install system-packages test lint typecheck pytest web sim bench clean studio
+.PHONY: all install system-packages test lint typecheck pytest web sim bench clean studio doc-images
 
 all: test
 
@@ -34,7 +34,7 @@ lint: $(STAMP)
 	$(BIN)/ruff check .
 
 typecheck: $(STAMP)
-	$(BIN)/mypy umlbot compiler services tests bench $(EXAMPLE_PLUGIN)/umlbot_buzzer
+	$(BIN)/mypy umlbot compiler services tests bench scripts/studio_doc_images.py $(EXAMPLE_PLUGIN)/umlbot_buzzer
 
 pytest: system-packages $(STAMP)
 	$(BIN)/pytest
@@ -66,6 +66,10 @@ bench: $(STAMP)
 # Rebuild the studio page from its sources (needs Node.js and npm; the built page is committed).
 studio:
 	cd $(WEB) && npm ci --no-audit --no-fund && npm run build
+
+# The screenshots of docs/studio.md's tutorial, taken by doing its steps in a real page (Chromium).
+doc-images: system-packages $(STAMP)
+	$(BIN)/python scripts/studio_doc_images.py --out docs/images
 
 clean:
 	rm -rf $(VENV) $(OUT) .mypy_cache .ruff_cache .pytest_cache build *.egg-info

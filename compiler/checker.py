@@ -1110,6 +1110,7 @@ class _Checker:
                 "features": sorted(impl.features),
                 "ports": {port: feature
                           for port, (feature, _) in sorted(source.components[name].ports.items())},
+                "safe_stop": [{"feature": feature, "args": list(args)} for feature, args in impl.safe_stop],
             }
         links = [
             {"id": link.id, "source_component": link.source.component, "source_port": link.source.port,

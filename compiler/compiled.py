@@ -3,18 +3,17 @@
 `umlbot compile` writes it with `write_compiled` (atomically: a reader never sees half a file) as
 the bytes of `dump_compiled` (deterministic JSON: same model, same bytes; no timestamps); the
 orchestrator reads it with `load_compiled`, which refuses a file written by a newer format version
-with a clear message. Graphs are resolved (every edge names an existing node id), expressions are
-parsed trees (`compiler.expr`), every name is lane-resolved, and every component carries its
-implementation, service, driver and settings from the deployment.
+with a clear message (an older one too: compile the model again). Graphs are resolved (every edge
+names an existing node id), expressions are parsed trees (`compiler.expr`), every name is
+lane-resolved, and every component carries its implementation, service, driver and settings from
+the deployment, and its implementation's safe stop from the library (so the orchestrator needs no
+plugin installed).
 """
 
 from __future__ import annotations
 
-import errno
 import gc
 import json
-import os
-import tempfile
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
@@ -22,15 +21,23 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from compiler.expr import Call, Expr
 from umlbot.errors import CompiledModelError, ConfigError, ModelError
-from umlbot.files import decode_utf8
-from umlbot.library import ComponentKind, ServiceKind
+from umlbot.files import decode_utf8, write_atomically
+from umlbot.library import ComponentKind, ServiceKind, StopArg
 
-#: The version of the compiled file's shape; bumped on any incompatible change.
-FORMAT_VERSION = 1
+#: The version of the compiled file's shape; bumped on any incompatible change. 2: components
+#: carry their safe stops (`CompiledComponent.safe_stop`).
+FORMAT_VERSION = 2
 
 
 class _Frozen(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class SafeStopCall(_Frozen):
+    """One call that puts a component into its safe, stopped state (an L298N: `enabled(false)`)."""
+
+    feature: str
+    args: list[StopArg] = Field(default_factory=list)
 
 
 class CompiledComponent(_Frozen):
@@ -45,6 +52,9 @@ class CompiledComponent(_Frozen):
     features: list[str] = Field(default_factory=list)
     #: the component diagram's ports: port name -> feature name.
     ports: dict[str, str] = Field(default_factory=dict)
+    #: the implementation's safe-stop calls, which the orchestrator makes at start and end; taken
+    #: from the library at compile time, so the robot needs no plugin where the orchestrator runs.
+    safe_stop: list[SafeStopCall] = Field(default_factory=list)
 
 
 class Link(_Frozen):
@@ -207,27 +217,9 @@ def write_compiled(model: CompiledModel, path: str | Path) -> None:
     failed write keeps the previous file. `ConfigError` names the path when it cannot be written."""
     target = Path(path)
     try:
-        _write_atomically(target, dump_compiled(model))
+        write_atomically(target, dump_compiled(model))
     except OSError as exc:
         raise ConfigError(f"cannot write {target}: {exc.strerror or exc}") from exc
-
-
-def _write_atomically(path: Path, data: bytes) -> None:
-    for folder in (path.parent, *path.parent.parents):
-        if folder.exists() and not folder.is_dir():
-            raise NotADirectoryError(errno.ENOTDIR, f"{folder} is not a folder")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    umask = os.umask(0)
-    os.umask(umask)
-    try:
-        os.fchmod(fd, 0o666 & ~umask)  # mkstemp makes 0600; a compiled model is an ordinary file
-        with os.fdopen(fd, "wb") as handle:
-            handle.write(data)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
 
 
 def load_compiled(source: str | Path | bytes) -> CompiledModel:
@@ -264,6 +256,11 @@ def load_compiled(source: str | Path | bytes) -> CompiledModel:
             f"{where}: compiled model format version {version} is newer than this umlbot reads "
             f"(up to {FORMAT_VERSION}); upgrade umlbot or compile the model with this version"
         )
+    if version < FORMAT_VERSION:  # it would lack what this version needs (the safe stops of 2)
+        raise CompiledModelError(
+            f"{where}: compiled model format version {version} was written by an older umlbot "
+            f"(this one reads {FORMAT_VERSION}); compile the model again with this version"
+        )
     try:
         return CompiledModel.model_validate(data)
     except RecursionError as exc:
@@ -292,6 +289,7 @@ __all__ = [
     "Lane",
     "Link",
     "Node",
+    "SafeStopCall",
     "SendNode",
     "StartNode",
     "dump_compiled",

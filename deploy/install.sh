@@ -30,10 +30,11 @@ usage: install.sh [options]
                       pigpiod runs), pigpio, lgpio, mock or sim
                       (on a re-run, --robot, --broker, --driver, --model and --deployment update
                       their keys in an existing umlbot.env; its other lines are kept)
-  --services "K..."   service kinds to enable (default: the kinds the deployment uses, or
-                      "motor sonar servo gpio" without one; "all" is every kind in one
-                      process, for small boards); a plugin's kinds too. A kind the deployment
-                      does not use is refused (its service would fail at start)
+  --services "K..."   service kinds to enable: motor, sonar, servo, gpio and the kinds of the
+                      plugins in the venv (--plugin; `umlbot plugins` lists them), or "all"
+                      for every kind in one process (small boards). Default: the kinds the
+                      deployment uses, or "motor sonar servo gpio" without one. A kind the
+                      deployment does not use is refused (its service would fail at start)
   --plugin SPEC       also pip-install SPEC (a plugin's folder, wheel or requirement) into the
                       venv; repeatable. Its service kinds can then be named in --services
   --embedded-broker   also enable umlbot-broker.service (the embedded amqtt broker)

@@ -82,7 +82,15 @@ have apt-get || cannot "no apt-get on this machine"
 SUDO=()
 if [ "$(id -u)" -ne 0 ]; then
     have sudo || cannot "not root and no sudo"
-    SUDO=(sudo)
+    # sudo that would ask for a password with no terminal to ask on fails; say that, not "apt-get
+    # update failed"
+    if sudo -n true 2>/dev/null; then
+        SUDO=(sudo -n)
+    elif [ -t 0 ]; then
+        SUDO=(sudo)
+    else
+        cannot "not root, and sudo wants a password but there is no terminal to ask on"
+    fi
 fi
 echo "system-packages.sh: installing from Debian's packages: ${missing[*]}"
 "${SUDO[@]}" env DEBIAN_FRONTEND=noninteractive apt-get update -qq \

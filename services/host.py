@@ -5,10 +5,12 @@ through the registry (driver name: `driver` if given, else the deployment's choi
 implementation's features on its own bus connection (one last will per component), publishes
 the retained `state` after every change, and guarantees the safe stops:
 
-- motors stop when the host stops (any exit path: `stop()`, context manager exit, signals in
-  `umlbot service`), when `umlbot/<robot>/orchestrator/status` says `offline` (its last will),
-  `stopped` or `failed`, when the broker connection is lost, and when the watchdog expires;
-- servos stop their pulses when the host stops.
+- every component is put into its safe state (`ComponentService.safe_stop`: motors stopped,
+  servos limp) when the host stops (any exit path: `stop()`, context manager exit, signals in
+  `umlbot service`) and when the broker connection is lost;
+- the components of a service kind whose spec says `stop_when_orchestrator_offline` (motor, and
+  any plugin's kind that sets it) also when `umlbot/<robot>/orchestrator/status` says `offline`
+  (its last will), `stopped` or `failed`; motors also when their watchdog expires.
 
 `host.drivers[component]` is the driver object, so tests can read a mock driver's commands.
 `ServiceGroup` runs several kinds in one process (`umlbot service all`, for small boards).
@@ -53,7 +55,8 @@ def _service_class(kind: ServiceKind) -> type[ComponentService]:
     module_name, _, attribute = spec.service.partition(":")
     try:
         cls: Any = getattr(importlib.import_module(module_name), attribute)
-    except Exception as exc:  # a plugin's service class that does not load: name it, no traceback
+    # a plugin's service class that does not load (or exits at import): name it, no traceback
+    except (Exception, SystemExit) as exc:
         from umlbot.plugins import catalog
 
         package = catalog().origin.get(f"service:{kind}", "?")
@@ -204,7 +207,8 @@ class ServiceHost:
         return lost
 
     def _watch_orchestrator(self) -> None:
-        if self.kind != "motor" or not self.servers:
+        spec = service_spec(self.kind)
+        if spec is None or not spec.stop_when_orchestrator_offline or not self.servers:
             return
         first = next(iter(self.servers.values()))
         first.connection.subscribe(self.topics.orchestrator_status, self._on_orchestrator_status)
@@ -225,7 +229,7 @@ class ServiceHost:
                 self._bad_status_warned = now
                 log.warning("orchestrator_status_unreadable", topic=message.topic,
                             payload=message.payload[:80].decode("utf-8", "replace"),
-                            size=len(message.payload), action="motors stopped")
+                            size=len(message.payload), action="components stopped")
             self.safe_stop_all("orchestrator status unreadable")
             return
         if state in ORCHESTRATOR_STOP_STATES:
@@ -296,12 +300,20 @@ class ServiceHost:
         return self.services
 
 
+def _stops_first(kind: ServiceKind) -> bool:
+    """Whether a kind's parts must not run on without the orchestrator (motors): they start and
+    stop first in a `ServiceGroup`."""
+    spec = service_spec(kind)
+    return spec is not None and spec.stop_when_orchestrator_offline
+
+
 class ServiceGroup:
     """Several service kinds in one process: one `ServiceHost` per kind the deployment uses.
 
     `umlbot service all` on a small board: one interpreter instead of four (each is most of a
     service's memory). Every component keeps its own connection and last will, and each host
-    its safety stops; `stop()` stops the motors first. `start()`/`stop()` (idempotent), or `with`.
+    its safety stops; `stop()` stops the motors (the kinds that stop when the orchestrator goes
+    offline) first. `start()`/`stop()` (idempotent), or `with`.
     """
 
     def __init__(
@@ -329,7 +341,7 @@ class ServiceGroup:
         self.hosts = [
             ServiceHost(kind, deployment, settings, robot, driver,
                         components=list(comps), connect_timeout_s=connect_timeout_s)
-            for kind, comps in sorted(served.items(), key=lambda item: item[0] != "motor")
+            for kind, comps in sorted(served.items(), key=lambda item: not _stops_first(item[0]))
             if comps
         ]
         if not self.hosts:
@@ -345,7 +357,7 @@ class ServiceGroup:
             raise
 
     def stop(self) -> None:
-        """Stop every host, the motors' first; idempotent."""
+        """Stop every host, the motors' (`_stops_first`) first; idempotent."""
         for host in self.hosts:
             host.stop()
 

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import importlib
 import os
+import sys
 import threading
 from typing import Any
 
@@ -59,15 +60,26 @@ def lgpio_module() -> Any:
     try:
         return importlib.import_module("lgpio")
     except ImportError as exc:
-        raise DriverError(
-            "the lgpio Python package is not installed; install it with "
-            "`pip install 'umlbot[pi]'` or `sudo apt install python3-lgpio` (or use --driver mock / sim)"
-        ) from exc
+        raise DriverError(missing_lgpio_message()) from exc
     except OSError as exc:  # importing lgpio opens its notification pipe in the working directory
         raise DriverError(
             f"lgpio cannot start ({exc}); it makes its notification pipe (.lgd-nfy*) in the working "
             f"directory {os.getcwd()}, which must be writable"
         ) from exc
+
+
+def missing_lgpio_message() -> str:
+    """What to do when `import lgpio` fails: install it into the Python that runs the service.
+
+    Debian's python3-lgpio goes into the system's Python only; a venv made without
+    --system-site-packages (deploy/install.sh's) does not see it, so that is not the advice."""
+    python = sys.executable
+    return (f"the lgpio Python package is not installed for {python}: install it into that Python with "
+            f"`{python} -m pip install 'lgpio>=0.2.2'` (umlbot's `pi` extra, which deploy/install.sh "
+            "installs); where PyPI has no lgpio wheel for this Python (lgpio 0.2.2's stop at 3.12), pip "
+            "builds it and needs `sudo apt install swig python3-dev liblgpio-dev` first. Debian's "
+            "python3-lgpio serves the system's Python only, not a virtual environment. Or use --driver "
+            "mock / sim")
 
 
 def _open(lg: Any, chip: int) -> int:

@@ -118,7 +118,7 @@ def get_factory(kind: ServiceKind, driver: str) -> DriverFactory[Any]:
         factory = entry.load()
     except DriverError:
         raise
-    except Exception as exc:  # a plugin's driver module that does not import
+    except (Exception, SystemExit) as exc:  # a plugin's driver module that does not import (or exits)
         raise DriverError(f"the {kind} driver {driver!r} of package {entry.package} cannot be loaded "
                           f"from {entry.target}: {type(exc).__name__}: {exc}") from exc
     if not isinstance(factory, DriverFactory):

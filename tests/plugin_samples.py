@@ -2,7 +2,16 @@
 
 from __future__ import annotations
 
-from umlbot.library import SENSOR, ComponentPlugin, FeatureSpec, Implementation, Param, ServiceSpec
+from umlbot.library import (
+    ACTUATOR,
+    SENSOR,
+    ComponentPlugin,
+    FeatureSpec,
+    Implementation,
+    KindSpec,
+    Param,
+    ServiceSpec,
+)
 
 #: An IR line sensor with a service kind of its own (its service class is never started here).
 GOOD = ComponentPlugin(
@@ -28,3 +37,20 @@ BAD_SPEC = ComponentPlugin(implementations=(
 ))
 
 NOT_A_PLUGIN = 42
+
+#: Types a feature cannot have: a parameter of type "double", a return value of type "list"; a
+#: service kind's flag that is not a bool.
+BAD_TYPES = ComponentPlugin(
+    kinds=(KindSpec("lamp", (FeatureSpec("bright", (Param("level", "double", 0, 10),),  # type: ignore[arg-type]
+                                         "list"),)),),  # type: ignore[arg-type]
+    services=(ServiceSpec("lampsvc", "plugin_samples:NoSuchService",
+                          stop_when_orchestrator_offline="yes"),),  # type: ignore[arg-type]
+)
+
+#: Safe-stop calls whose arguments do not fit the features they call.
+BAD_STOP = ComponentPlugin(implementations=(
+    Implementation(id="bad_stop", kind="actuator", service="motor",
+                   features=ACTUATOR.pick("enabled", "dutycycle"), title="bad stop",
+                   safe_stop=(("enabled", ("abc",)), ("dutycycle", (150,)), ("enabled", ()),
+                              ("dutycycle", (True,)))),
+))

@@ -107,7 +107,8 @@ def test_every_node_kind_compiles_to_a_resolved_graph(tmp_path: Path) -> None:
         right=Ref(lane="Pi", name="count"))
     assert model.components["Motor"].model_dump() == {
         "kind": "actuator", "impl": "l298n", "service": "motor", "driver": "mock", "settings": {},
-        "features": ["direction", "dutycycle", "enabled"], "ports": {"drive": "enabled"}}
+        "features": ["direction", "dutycycle", "enabled"], "ports": {"drive": "enabled"},
+        "safe_stop": [{"feature": "enabled", "args": [False]}]}
     assert nodes["count1"].line == 31 and pi.file == "model.yaml" and pi.line == 17
 
 
@@ -148,13 +149,24 @@ def test_a_newer_format_version_is_refused(tmp_path: Path) -> None:
     data["format_version"] = FORMAT_VERSION + 1
     path = tmp_path / "future.json"
     path.write_text(json.dumps(data), encoding="utf-8")
-    with pytest.raises(CompiledModelError, match=r"format version 2 is newer than this umlbot reads "
-                                                   r"\(up to 1\); upgrade umlbot"):
+    newer = rf"format version {FORMAT_VERSION + 1} is newer than this umlbot reads \(up to {FORMAT_VERSION}\)"
+    with pytest.raises(CompiledModelError, match=newer + "; upgrade umlbot"):
         load_compiled(path)
 
 
+def test_an_older_format_version_is_refused_with_the_way_out(tmp_path: Path) -> None:
+    """A file of format 1 has no safe stops: run, its actuators would never be stopped."""
+    data = json.loads(dump_compiled(compile_model(write(tmp_path, HEADER + MAIN))))
+    data["format_version"] = 1
+    for component in data["components"].values():
+        del component["safe_stop"]
+    with pytest.raises(CompiledModelError, match=r"format version 1 was written by an older umlbot \(this "
+                                                   rf"one reads {FORMAT_VERSION}\); compile the model again"):
+        load_compiled(json.dumps(data).encode())
+
+
 @pytest.mark.parametrize("content", [b"", b"\xff\xfe", b"[1, 2]", b"{}", b'{"format_version": "1"}',
-                                     b'{"format_version": 1}', b'{"format_version": 1, "name": 3}',
+                                     b'{"format_version": 2}', b'{"format_version": 2, "name": 3}',
                                      b"[" * 100_000])
 def test_corrupt_files_are_refused(content: bytes) -> None:
     with pytest.raises(CompiledModelError):
@@ -201,8 +213,10 @@ def test_write_compiled_replaces_the_file_whole(tmp_path: Path) -> None:
     os.umask(umask)
     assert stat.S_IMODE(target.stat().st_mode) == 0o666 & ~umask  # an ordinary file, not 0600
     target.write_bytes(b"old")
+    target.chmod(0o640)
     write_compiled(model, target)
     assert load_compiled(target) == model
+    assert stat.S_IMODE(target.stat().st_mode) == 0o640  # the replaced file's mode is kept
     assert sorted(p.name for p in target.parent.iterdir()) == ["car.json"]  # no temporary left
 
 

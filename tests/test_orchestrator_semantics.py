@@ -120,6 +120,28 @@ def test_held_signal_and_text_payload(broker: BrokerProcess, raw_client: Callabl
         assert json.loads(raw.get(topic="umlbot/test/signal/done").payload) == "hello there"
 
 
+def test_malformed_payloads_of_an_accepted_signal_arrive_as_text_and_break_nothing(
+    broker: BrokerProcess, raw_client: Callable[..., RawClient]
+) -> None:
+    import structlog
+
+    raw = raw_client(broker)
+    raw.subscribe("umlbot/test/signal/done")
+    deep = b"[" * 5000  # more than the JSON decoder's nesting: RecursionError inside it
+    with rig(broker.url, "held_signals.yaml") as r, structlog.testing.capture_logs() as logs:
+        running = r.start()
+        orch = running.orchestrator
+        assert wait_for(lambda: orch.signals.waiting("go") == 1, 5.0)
+        for junk in (b"\xff\xfe", b"NaN", b'{"a": 1e999}', b"x" * 1_000_000, b'{"k": ' * 3000, deep):
+            raw.publish("umlbot/test/signal/note", junk)
+        raw.publish("umlbot/test/signal/go", b"[[[")  # a payload the accept does not store
+        assert running.wait() == 0, orch.failure
+        note = orch.engine.stores["RaspberryPI"]["note"]
+    assert note == deep.decode()  # the newest held, as its text
+    assert json.loads(raw.get(topic="umlbot/test/signal/done").payload) == deep.decode()
+    assert not [e for e in logs if e.get("exc_info") or e.get("log_level") in ("error", "critical")]
+
+
 def test_signal_names_no_accept_node_takes_are_ignored_with_one_log_line(
     broker: BrokerProcess, raw_client: Callable[..., RawClient], caplog: pytest.LogCaptureFixture,
     capsys: pytest.CaptureFixture[str],

@@ -1,7 +1,8 @@
 """The example plugin package (examples/umlbot_buzzer), installed for real by `make install`, used
 from outside exactly like a built-in: `umlbot plugins` lists it without importing a driver, the
-compiler checks its kind's features and ranges, `umlbot render` draws it, and its service (lgpio
-driver on the fake lgpio) serves a compiled model run by `umlbot run` over a real broker."""
+compiler checks its kind's features and ranges, `umlbot render` draws it, its drivers pass one
+contract suite (mock, lgpio on the fake lgpio, sim), and its service (lgpio driver on the fake
+lgpio) serves a compiled model run by `umlbot run` over a real broker."""
 
 from __future__ import annotations
 
@@ -10,13 +11,15 @@ import os
 import shutil
 import subprocess
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
 from importlib.metadata import version
 from pathlib import Path
+from typing import Any
 
 import pytest
 from conftest import BrokerProcess, RawClient
-from services_support import wait_for
+from services_support import ROOM, wait_for
 
 from umlbot.errors import RemoteError
 from umlbot.library import implementations_for_service, kind_features, resolve_implementation
@@ -86,6 +89,32 @@ def test_check_compile_and_render_see_the_plugin(tmp_path: Path) -> None:
     assert "Bell" in mermaid and "sounder" in mermaid
 
 
+def test_the_compiled_model_carries_its_safe_stop_so_the_orchestrator_needs_no_plugin(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Compiled where the plugin is installed, run where only umlbot is: the orchestrator still
+    silences the Bell at start and end, from the safe stop the compiled file carries."""
+    from importlib.metadata import entry_points
+
+    from compiler.api import compile_model
+    from compiler.compiled import SafeStopCall, dump_compiled, load_compiled
+    from services.bus import BrokerSettings
+    from services.orchestrator import Orchestrator
+    from umlbot import plugins
+
+    data = dump_compiled(compile_model(MODEL))
+    umlbot_only = plugins.build_catalog(
+        *([ep for ep in entry_points(group=group) if ep.dist and ep.dist.metadata["Name"] == "umlbot"]
+          for group in (plugins.COMPONENTS_GROUP, plugins.DRIVERS_GROUP)))
+    monkeypatch.setattr(plugins, "_catalog", umlbot_only)
+    assert resolve_implementation("passive_buzzer") is None, "the plugin is not there"
+    compiled = load_compiled(data)
+    assert compiled.components["Bell"].safe_stop == [SafeStopCall(feature="enabled", args=[False])]
+    orchestrator = Orchestrator(compiled, BrokerSettings.from_url("mqtt://127.0.0.1:1"), handle_signals=False)
+    assert orchestrator.actuators == [("Bell", "enabled", (False,))]
+    assert "Bell" in orchestrator.required
+
+
 def test_its_service_runs_a_compiled_model_end_to_end(
     mosquitto_broker: BrokerProcess, raw_client: Callable[..., RawClient], tmp_path: Path
 ) -> None:
@@ -141,6 +170,109 @@ def test_its_mock_driver_runs_in_process(mosquitto_broker: BrokerProcess) -> Non
             bus.call("Bell", "tone", 12000)
         assert caught.value.code == "out_of_range"
     assert host.drivers["Bell"].playing_hz is None and host.drivers["Bell"].closed
+
+
+def test_its_service_is_silenced_when_the_orchestrator_goes_offline(
+    mosquitto_broker: BrokerProcess, raw_client: Callable[..., RawClient]
+) -> None:
+    """The buzzer's ServiceSpec sets `stop_when_orchestrator_offline`, as the built-in motor's
+    does: the orchestrator's last will silences it the way it stops a motor."""
+    from services_support import broker_settings, client
+
+    from services.bus import Topics
+    from services.host import ServiceHost
+    from umlbot.deployment import load_deployment
+    from umlbot.library import service_spec
+
+    assert [kind for kind in ("motor", "sonar", "servo", "gpio", "buzzer")
+            if getattr(service_spec(kind), "stop_when_orchestrator_offline", None)] == ["motor", "buzzer"]
+    raw = raw_client(mosquitto_broker)
+    deployment = load_deployment(MODEL / "deployment.yaml")
+    with ServiceHost("buzzer", deployment, broker_settings(mosquitto_broker.url), "car", "mock") as host, \
+            client(mosquitto_broker.url) as bus:
+        bell = host.drivers["Bell"]
+        bus.call("Bell", "enabled", True)
+        raw.publish(Topics("car").orchestrator_status, json.dumps({"state": "running"}))
+        assert not bell.wait_until(lambda: bell.playing_hz is None, 0.3), "running is fine"
+        raw.publish(Topics("car").orchestrator_status, json.dumps({"state": "offline"}))
+        assert bell.wait_until(lambda: bell.playing_hz is None, 5.0)
+        assert host.services["Bell"].state() == {"on": False, "tone_hz": 440}
+
+
+# --- one driver contract suite over every backend: mock, lgpio on the fake lgpio, sim -------------
+
+
+@dataclass
+class BuzzerRig:
+    driver: Any
+    playing_hz: Callable[[], int | None]  # None = silent
+
+
+@pytest.fixture(params=["mock", "lgpio-fake", "sim"])
+def buzzer(request: pytest.FixtureRequest) -> Iterator[BuzzerRig]:
+    """A buzzer driver as the service gets it, and what it sounds, read from its backend."""
+    from umlbot_buzzer.driver import BuzzerSettings
+    from umlbot_buzzer.lgpio import LgpioBuzzer
+
+    from services.fake_lgpio import FakeLgpio
+    from services.registry import create_driver
+    from umlbot.sim.sharing import attach_local_world
+    from umlbot.sim.track import parse_track
+    from umlbot.sim.world import World
+
+    if request.param == "lgpio-fake":
+        lg = FakeLgpio()
+        driver: Any = LgpioBuzzer("Bell", BuzzerSettings(gpio=12), lg=lg)
+
+        def sounding() -> int | None:
+            line = lg.line(12)
+            if not line.pwm_frequency:
+                return None
+            assert line.claim == "output" and line.pwm_duty_percent == 50, "a square wave"
+            return int(line.pwm_frequency)
+
+        yield BuzzerRig(driver, sounding)
+        driver.close()
+        assert lg.line(12).claim == "free", "close frees the pin"
+        return
+    if request.param == "sim":
+        attach_local_world(World(parse_track(ROOM)))
+        try:
+            driver = create_driver("buzzer", "sim", "Bell", {"gpio": 12})
+            yield BuzzerRig(driver, lambda: driver.playing_hz)
+            driver.close()
+        finally:
+            attach_local_world(None)
+        return
+    driver = create_driver("buzzer", "mock", "Bell", {"gpio": 12})
+    yield BuzzerRig(driver, lambda: driver.playing_hz)
+    driver.close()
+
+
+def test_a_buzzer_driver_starts_silent_and_is_a_buzzer(buzzer: BuzzerRig) -> None:
+    from umlbot_buzzer.driver import Buzzer
+
+    assert isinstance(buzzer.driver, Buzzer)
+    assert buzzer.playing_hz() is None
+
+
+def test_a_buzzer_driver_plays_the_tone_asked_until_silenced(buzzer: BuzzerRig) -> None:
+    buzzer.driver.play(523)
+    assert buzzer.playing_hz() == 523
+    buzzer.driver.play(10000)
+    assert buzzer.playing_hz() == 10000
+    buzzer.driver.silence()
+    assert buzzer.playing_hz() is None
+    buzzer.driver.silence()  # silencing a silent buzzer is no error
+    assert buzzer.playing_hz() is None
+
+
+def test_closing_a_buzzer_driver_silences_it_and_twice_is_safe(buzzer: BuzzerRig) -> None:
+    buzzer.driver.play(880)
+    buzzer.driver.close()
+    assert buzzer.playing_hz() is None
+    buzzer.driver.close()
+    assert buzzer.playing_hz() is None
 
 
 def test_umlbot_sim_runs_its_sim_driver_beside_the_car(tmp_path: Path) -> None:

@@ -8,29 +8,37 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
-from importlib.metadata import EntryPoint, entry_points
+from importlib.metadata import EntryPoint, distributions, entry_points
 from pathlib import Path
 
-from umlbot.plugins import COMPONENTS_GROUP, DRIVERS_GROUP, build_catalog, catalog
+from umlbot.plugins import COMPONENTS_GROUP, DRIVERS_GROUP, Catalog, build_catalog, catalog
 
 ROOT = Path(__file__).resolve().parent.parent
 TESTS = Path(__file__).resolve().parent
 BUZZER_MODEL = ROOT / "examples" / "umlbot_buzzer" / "model"
 
-COMPONENTS = {
-    "good": "plugin_samples:GOOD",
+#: broken-plugins 1.0: one mistake per component plugin, and a driver that goes down with them.
+BROKEN_COMPONENTS = {
     "missing": "no_such_plugin_module:PLUGIN",
     "clash": "plugin_samples:CLASH",
     "badspec": "plugin_samples:BAD_SPEC",
     "notaplugin": "plugin_samples:NOT_A_PLUGIN",
+    "badtypes": "plugin_samples:BAD_TYPES",
+    "badstop": "plugin_samples:BAD_STOP",
+    "exits": "plugin_sample_exits:PLUGIN",
 }
-DRIVERS = {
+BROKEN_DRIVERS = {"motor.hbboard": "services.motor.mock:FACTORY"}
+#: good-plugins 1.0: a good component plugin, and one mistake per driver entry point.
+GOOD_COMPONENTS = {"good": "plugin_samples:GOOD"}
+GOOD_DRIVERS = {
     "linesensor.mock": "services.sonar.mock:FACTORY",
     "warp.mock": "services.motor.mock:FACTORY",
     "motor.mock": "services.sonar.mock:FACTORY",
     "badname": "services.motor.mock:FACTORY",
     "buzzer.broken": "no_such_driver_module:FACTORY",
+    "buzzer.exits": "plugin_sample_exits:FACTORY",
 }
+SKIPPED = {*BROKEN_COMPONENTS, *BROKEN_DRIVERS, "warp.mock", "motor.mock", "badname"}
 
 
 def test_builtins_come_through_the_entry_points() -> None:
@@ -45,16 +53,40 @@ def test_builtins_come_through_the_entry_points() -> None:
     }
 
 
-def test_a_broken_plugin_is_named_and_the_others_still_load() -> None:
-    lib = build_catalog(
-        [*entry_points(group=COMPONENTS_GROUP),
-         *(EntryPoint(name, value, COMPONENTS_GROUP) for name, value in COMPONENTS.items())],
-        [*entry_points(group=DRIVERS_GROUP),
-         *(EntryPoint(name, value, DRIVERS_GROUP) for name, value in DRIVERS.items())],
-    )
+def _write_package(folder: Path, name: str, components: dict[str, str], drivers: dict[str, str]) -> None:
+    """An installed package in `folder` (its dist-info is what pip would write)."""
+    info = folder / f"{name.replace('-', '_')}-1.0.dist-info"
+    info.mkdir(parents=True)
+    (info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {name}\nVersion: 1.0\n")
+    sections = [f"[{COMPONENTS_GROUP}]", *(f"{k} = {v}" for k, v in components.items()), "",
+                f"[{DRIVERS_GROUP}]", *(f"{k} = {v}" for k, v in drivers.items()), ""]
+    (info / "entry_points.txt").write_text("\n".join(sections))
+
+
+def _installed_broken_packages(tmp_path: Path) -> dict[str, str]:
+    """broken-plugins and good-plugins installed in `tmp_path`; the environment that sees them."""
+    _write_package(tmp_path, "broken-plugins", BROKEN_COMPONENTS, BROKEN_DRIVERS)
+    _write_package(tmp_path, "good-plugins", GOOD_COMPONENTS, GOOD_DRIVERS)
+    return {**os.environ, "PYTHONPATH": os.pathsep.join([str(tmp_path), str(TESTS)]),
+            "UMLBOT_LOG_LEVEL": "WARNING"}
+
+
+def _entry_points(folder: Path, group: str) -> list[EntryPoint]:
+    return [ep for dist in distributions(path=[str(folder)]) for ep in dist.entry_points if ep.group == group]
+
+
+def _catalog_with(folder: Path) -> Catalog:
+    """The library of the installed packages and those in `folder` (theirs given first)."""
+    return build_catalog([*_entry_points(folder, COMPONENTS_GROUP), *entry_points(group=COMPONENTS_GROUP)],
+                         [*_entry_points(folder, DRIVERS_GROUP), *entry_points(group=DRIVERS_GROUP)])
+
+
+def test_a_broken_plugin_is_named_and_the_others_still_load(tmp_path: Path) -> None:
+    _installed_broken_packages(tmp_path)
+    lib = _catalog_with(tmp_path)
     problems = {p.plugin: p.message for p in lib.problems}
-    assert set(problems) == {"missing", "clash", "badspec", "notaplugin", "warp.mock", "motor.mock",
-                             "badname"}
+    assert set(problems) == SKIPPED
+    assert {p.package for p in lib.problems if p.plugin in BROKEN_COMPONENTS} == {"broken-plugins 1.0"}
     assert problems["missing"].startswith("cannot import no_such_plugin_module:PLUGIN: ModuleNotFoundError")
     taken = "alias 'CModelL298NActuator' is already taken by implementation 'l298n' of umlbot"
     assert taken in problems["clash"]
@@ -70,20 +102,58 @@ def test_a_broken_plugin_is_named_and_the_others_still_load() -> None:
     assert lib.aliases["cmodellinesensor"] == "tcrt5000"
     assert ("linesensor", "mock") in lib.drivers and ("buzzer", "broken") in lib.drivers
     assert "l298n_clone" not in lib.implementations and "wide_servo" not in lib.implementations
+    assert "lamp" not in lib.kinds and "bad_stop" not in lib.implementations
     assert lib.aliases["cmodell298nactuator"] == "l298n"
     assert lib.drivers[("motor", "mock")].package == "umlbot"
 
 
-def _installed_broken_package(tmp_path: Path) -> dict[str, str]:
-    """A package installed in a folder on PYTHONPATH (its dist-info is what pip would write)."""
-    info = tmp_path / "broken_plugins-1.0.dist-info"
-    info.mkdir()
-    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: broken-plugins\nVersion: 1.0\n")
-    sections = [f"[{COMPONENTS_GROUP}]", *(f"{k} = {v}" for k, v in COMPONENTS.items()), "",
-                f"[{DRIVERS_GROUP}]", *(f"{k} = {v}" for k, v in DRIVERS.items()), ""]
-    (info / "entry_points.txt").write_text("\n".join(sections))
-    return {**os.environ, "PYTHONPATH": os.pathsep.join([str(tmp_path), str(TESTS)]),
-            "UMLBOT_LOG_LEVEL": "WARNING"}
+def test_a_spec_with_wrong_types_is_named_and_skipped(tmp_path: Path) -> None:
+    _installed_broken_packages(tmp_path)
+    lib = _catalog_with(tmp_path)
+    problems = {p.plugin: p.message for p in lib.problems}
+    assert problems["badtypes"] == (
+        "kind lamp.bright: parameter level: type 'double' is not one of int, float, bool, str; "
+        "kind lamp: feature bright returns 'list', not one of int, float, bool, str, none; "
+        "service kind 'lampsvc': stop_when_orchestrator_offline must be true or false")
+    assert problems["badstop"] == (
+        "implementation 'bad_stop': safe_stop enabled('abc'): on must be a bool, got 'abc'; "
+        "implementation 'bad_stop': safe_stop dutycycle(150): percent must be 0..100, got 150; "
+        "implementation 'bad_stop': safe_stop enabled(): enabled takes 1 argument(s), got 0; "
+        "implementation 'bad_stop': safe_stop dutycycle(True): percent must be an int, got True")
+
+
+def test_a_plugin_that_exits_at_import_is_named_and_skipped(tmp_path: Path) -> None:
+    _installed_broken_packages(tmp_path)
+    lib = _catalog_with(tmp_path)
+    problems = {p.plugin: p.message for p in lib.problems}
+    assert problems["exits"] == "cannot import plugin_sample_exits:PLUGIN: SystemExit: 3"
+    assert "tcrt5000" in lib.implementations
+
+
+def test_the_drivers_of_a_package_whose_component_plugin_was_skipped_are_skipped(tmp_path: Path) -> None:
+    _installed_broken_packages(tmp_path)
+    lib = _catalog_with(tmp_path)
+    problem = next(p for p in lib.problems if p.plugin == "motor.hbboard")
+    assert problem.package == "broken-plugins 1.0"
+    assert problem.message == ("skipped with this package's component plugins 'badspec', 'badstop', "
+                               "'badtypes', 'clash', 'exits', 'missing', 'notaplugin'")
+    assert ("motor", "hbboard") not in lib.drivers
+    assert ("linesensor", "mock") in lib.drivers  # good-plugins' component plugin loaded
+
+
+def test_a_second_package_with_the_same_line_does_not_take_the_credit(tmp_path: Path) -> None:
+    """The order is umlbot first, then by package name, whatever order the entry points come in
+    and even when two packages declare the very same line."""
+    _write_package(tmp_path, "zz-copy", {"buzzer": "umlbot_buzzer.spec:PLUGIN"}, {})
+    _write_package(tmp_path, "zz-drivers", {}, {"buzzer.mock": "umlbot_buzzer.mock:FACTORY"})
+    lib = _catalog_with(tmp_path)
+    assert lib.origin["kind:sounder"] == lib.origin["impl:passive_buzzer"] == "umlbot-buzzer"
+    assert lib.drivers[("buzzer", "mock")].package == "umlbot-buzzer"
+    problems = {p.plugin: (p.package, p.message) for p in lib.problems}
+    assert problems["buzzer"][0] == "zz-copy 1.0"
+    assert problems["buzzer"][1].startswith("component kind 'sounder' is already defined by umlbot-buzzer; ")
+    assert problems["buzzer.mock"] == ("zz-drivers 1.0", "the buzzer driver 'mock' is already provided by "
+                                       "umlbot-buzzer")
 
 
 def _umlbot(*args: str, env: dict[str, str]) -> subprocess.CompletedProcess[str]:
@@ -92,16 +162,16 @@ def _umlbot(*args: str, env: dict[str, str]) -> subprocess.CompletedProcess[str]
 
 
 def test_an_installed_broken_package_is_reported_and_does_not_take_down_the_rest(tmp_path: Path) -> None:
-    env = _installed_broken_package(tmp_path)
+    env = _installed_broken_packages(tmp_path)
     listing = _umlbot("plugins", env=env)
     assert listing.returncode == 1
-    for name in ("missing", "clash", "badspec", "notaplugin", "warp.mock", "motor.mock", "badname"):
+    for name in SKIPPED:
         assert f"skipped plugin '{name}' (" in listing.stderr
     assert "package broken-plugins 1.0)" in listing.stderr
     assert "umlbot 0.1.0\n" in listing.stdout and "umlbot-buzzer 0.1.0\n" in listing.stdout
-    assert ("broken-plugins 1.0\n  service kinds: linesensor\n"
+    assert ("good-plugins 1.0\n  service kinds: linesensor\n"
             "  implementations: tcrt5000 (CModelLineSensor)\n"
-            "  drivers: buzzer.broken, linesensor.mock") in listing.stdout
+            "  drivers: buzzer.broken, buzzer.exits, linesensor.mock") in listing.stdout
 
     check = _umlbot("check", str(BUZZER_MODEL), env=env)
     assert check.returncode == 0, check.stdout + check.stderr
@@ -120,12 +190,17 @@ def test_an_installed_broken_package_is_reported_and_does_not_take_down_the_rest
     service = _umlbot("service", "linesensor", "--deploy", str(line_deploy), "--driver", "mock",
                       "--broker", "mqtt://127.0.0.1:1", env=env)
     assert service.returncode == 1
-    assert ("error: the linesensor service of package broken-plugins cannot be loaded from "
+    assert ("error: the linesensor service of package good-plugins cannot be loaded from "
             "plugin_samples:NoSuchService: AttributeError") in service.stderr, service.stderr
     assert "Traceback" not in service.stderr
 
     service = _umlbot("service", "buzzer", "--deploy", str(BUZZER_MODEL / "deployment.yaml"), "--driver",
                       "broken", "--broker", "mqtt://127.0.0.1:1", env=env)
     assert service.returncode == 1
-    assert ("error: the buzzer driver 'broken' of package broken-plugins cannot be loaded from "
+    assert ("error: the buzzer driver 'broken' of package good-plugins cannot be loaded from "
             "no_such_driver_module:FACTORY: ModuleNotFoundError") in service.stderr
+    service = _umlbot("service", "buzzer", "--deploy", str(BUZZER_MODEL / "deployment.yaml"), "--driver",
+                      "exits", "--broker", "mqtt://127.0.0.1:1", env=env)
+    assert service.returncode == 1, service.stderr  # not the module's own exit status 3
+    assert ("error: the buzzer driver 'exits' of package good-plugins cannot be loaded from "
+            "plugin_sample_exits:FACTORY: SystemExit: 3") in service.stderr

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import signal
 import socket
 import subprocess
@@ -18,7 +19,7 @@ import pytest
 from conftest import BrokerProcess
 
 from umlbot.errors import SimError
-from umlbot.sim.runner import Progress, SimOptions, SimResult, run_sim
+from umlbot.sim.runner import Progress, SimOptions, SimResult, run_sim, sim_driver
 from umlbot.sim.track import tracks_dir
 
 pytestmark = [pytest.mark.network, pytest.mark.slow]
@@ -316,3 +317,49 @@ def test_a_run_is_the_same_at_every_speed_and_on_every_repeat(tmp_path: Path) ->
     noisy = {"seed": 1, "sonar_noise_cm": 1.0, "sonar_drop": 0.05}
     first, second = run(20.0, **noisy), run(20.0, **noisy)
     assert _figures(first) == _figures(second), (first, second)
+
+
+@pytest.mark.timeout(180)
+def test_a_plugin_kind_without_a_sim_driver_runs_on_its_mock_driver(tmp_path: Path) -> None:
+    """A plugin's lamp (service kind `lamp`: a mock driver, no sim driver) beside the reference car:
+    `umlbot sim` runs it on its mock driver, says so at start-up, and the model's calls reach it."""
+    info = tmp_path / "site" / "lamp_plugin-1.0.dist-info"
+    info.mkdir(parents=True)
+    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: lamp-plugin\nVersion: 1.0\n")
+    (info / "entry_points.txt").write_text("[umlbot.components]\nlamp = plugin_sample_lamp:PLUGIN\n\n"
+                                           "[umlbot.drivers]\nlamp.mock = plugin_sample_lamp:FACTORY\n")
+    car = tmp_path / "car"
+    shutil.copytree(MODEL, car)
+    model = car / "model.yaml"
+    model.write_text(model.read_text().replace("\nlinks:", "  Lamp: {kind: light}\n\nlinks:"))
+    main = car / "activities" / "main.yaml"
+    look = "  - {id: look_ahead, kind: action, call: Sensor.angle(90)}\n"
+    assert look in main.read_text()
+    light = "  - {id: light, kind: action, call: Lamp.lit(true)}\n"
+    main.write_text(main.read_text().replace(look, look + light))
+    deployment = car / "deployment.yaml"
+    deployment.write_text(deployment.read_text() + "  Lamp:\n    impl: CModelLed\n    settings: {gpio: 5}\n")
+    env = {**{k: v for k, v in os.environ.items() if k != "UMLBOT_BROKER"},
+           "PYTHONPATH": os.pathsep.join([str(tmp_path / "site"), str(ROOT / "tests")])}
+    done = subprocess.run(
+        [sys.executable, "-c", "from umlbot.cli import main; main()", "--log-level", "INFO", "--log-json",
+         "sim", str(car), "--track", "corridor", "--port", "0", "--speed", "20"],
+        capture_output=True, text=True, timeout=150, env=env, cwd=ROOT, check=False,
+    )
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert "no sim driver, on their mock driver: Lamp (lamp), RaspberryPI (gpio)\n" in done.stdout
+    events = [json.loads(line) for line in done.stderr.splitlines() if line.startswith("{")]
+    said = [e for e in events if e.get("event") == "sim_mock_drivers"]
+    assert said and said[0]["components"] == {"Lamp": "lamp", "RaspberryPI": "gpio"}
+    started = {e["kind"]: e["components"] for e in events if e.get("event") == "service_started"}
+    assert started["lamp"] == {"Lamp": "mock"} and started["motor"] == {"LeftActuator": "sim",
+                                                                         "RightActuator": "sim"}
+    assert any(e.get("event") == "actuators_stopped" and "Lamp" in e["components"] for e in events)
+    assert True in [e["on"] for e in events if e.get("event") == "lamp_lit"]
+
+
+def test_each_service_kind_runs_its_sim_driver_else_its_mock_driver() -> None:
+    assert [sim_driver(kind) for kind in ("motor", "sonar", "servo", "gpio", "buzzer")] == [
+        "sim", "sim", "sim", "mock", "sim"]
+    with pytest.raises(SimError, match="the warp service kind has neither a sim nor a mock driver"):
+        sim_driver("warp")

@@ -223,6 +223,51 @@ def test_a_decisions_second_output_waits_for_its_guard_and_the_else_stays_last(t
         ws.edit(ws.version, [{**connect, "target": "end", "guard": "else"}])
 
 
+def test_new_nodes_are_labelled_with_what_is_written_and_nothing_made_up(tmp_path: Path) -> None:
+    ws = Workspace(tmp_path / "bot")
+    ws.new_model("bot")
+    answer = ws.edit(ws.version, [
+        {"op": "add_node", "lane": "RaspberryPI", "node": {"id": kind + "1", "kind": kind}}
+        for kind in ("datastore", "send", "accept", "action")])
+
+    def labels(answer: dict[str, Any]) -> dict[str, str]:
+        return {n["id"]: n["label"] for d in answer["model"]["diagrams"] for lane in d["lanes"]
+                for n in lane["nodes"]}
+
+    assert labels(answer) | {"start": "start", "end": "end"} == {
+        "start": "start", "end": "end", "datastore1": "datastore1", "send1": "send", "accept1": "accept",
+        "action1": "action1"}
+    answer = ws.edit(ws.version, [
+        {"op": "set_node", "lane": "RaspberryPI", "id": "datastore1", "fields": {"value": "0"}},
+        {"op": "set_node", "lane": "RaspberryPI", "id": "send1", "fields": {"payload": "1"}},
+        {"op": "set_node", "lane": "RaspberryPI", "id": "accept1", "fields": {"store": "got"}}])
+    assert {k: v for k, v in labels(answer).items() if k.endswith("1")} == {
+        "datastore1": "? = 0", "send1": "send(1)", "accept1": "accept -> got", "action1": "action1"}
+    answer = ws.edit(ws.version, [
+        {"op": "set_node", "lane": "RaspberryPI", "id": "datastore1", "fields": {"name": "count"}},
+        {"op": "set_node", "lane": "RaspberryPI", "id": "send1", "fields": {"signal": "tick"}},
+        {"op": "set_node", "lane": "RaspberryPI", "id": "accept1", "fields": {"signal": "tick"}}])
+    assert {k: v for k, v in labels(answer).items() if k.endswith("1")} == {
+        "datastore1": "count = 0", "send1": "send tick(1)", "accept1": "accept tick -> got",
+        "action1": "action1"}
+
+
+def test_the_answer_names_the_files_a_lane_can_be_added_to(tmp_path: Path) -> None:
+    ws = Workspace(tmp_path / "bot")
+    ws.new_model("bot")
+    assert ws.answer()["lane_files"] == []  # the starter's main.yaml is one lane, not a list
+    with pytest.raises(EditError, match="holds no block list of 'lanes:'"):
+        ws.edit(ws.version, [{"op": "add_lane", "lane": "Wait", "file": "activities/main.yaml"}])
+    car = Workspace(shutil.copytree(CAR_MODEL, tmp_path / "car"))
+    assert car.hello()["lane_files"] == ["activities/measure.yaml", "activities/motion.yaml"]
+    car.edit(car.version, [{"op": "add_lane", "lane": "Wait", "file": "activities/measure.yaml"}])
+    assert "  - lane: Wait" in car.texts()["activities/measure.yaml"]
+    # a file with an empty (flow-style) list takes none: the page does not offer it
+    (tmp_path / "car" / "activities" / "extra.yaml").write_text("lanes: []\n", encoding="utf-8")
+    assert [f["type"] for f in car.poll()] == ["files"]
+    assert car.answer()["lane_files"] == ["activities/measure.yaml", "activities/motion.yaml"]
+
+
 def test_fields_set_in_any_order_are_written_in_the_order_people_write_them(tmp_path: Path) -> None:
     # connect first, type the call after: the file reads `call: …, next: …` as models/robot_car does
     ws = Workspace(tmp_path / "bot")
@@ -332,6 +377,31 @@ def test_open_then_save_without_edits_writes_nothing(car: tuple[Path, Editor]) -
     assert status == 200 and answer["saved"] == []
     assert _snapshot(root) == before
     assert {p: p.stat().st_mtime_ns for p in root.rglob("*") if p.is_file()} == mtimes
+
+
+def test_an_edit_of_a_file_linked_from_outside_the_folder_is_refused_at_once(tmp_path: Path) -> None:
+    root = tmp_path / "car"
+    shutil.copytree(CAR_MODEL, root)
+    outside = tmp_path / "outside.yaml"
+    outside.write_text("lanes:\n  - lane: Elsewhere\n    nodes:\n      - {id: start, kind: start}\n"
+                       "      - {id: end, kind: end}\n      - {from: start, to: end}\n", encoding="utf-8")
+    (root / "activities" / "link.yaml").symlink_to(outside)
+    before = outside.read_bytes()
+    editor = Editor(root)
+    try:
+        status, answer = editor.post("edit", {"version": 0, "ops": [
+            {"op": "add_lane", "lane": "Halt", "file": "activities/link.yaml"}]})
+        assert status == 400, answer
+        assert "'activities/link.yaml' is not a path inside the model folder" in answer["error"], answer
+        # nothing changed, and an edit elsewhere is saved as usual
+        status, answer = editor.post("edit", {"version": answer.get("version", 0), "ops": [
+            {"op": "set_node", "lane": "RaspberryPI", "id": "set_speed", "fields": {"value": "60"}}]})
+        assert status == 200, answer
+        status, saved = editor.post("save", {"version": answer["version"]})
+        assert status == 200 and saved["saved"] == ["activities/main.yaml"], saved
+    finally:
+        editor.thread.stop()
+    assert outside.read_bytes() == before
 
 
 def test_generated_model_round_trip_and_undo_is_byte_identical(tmp_path: Path) -> None:
@@ -649,9 +719,16 @@ def test_library_comes_from_the_component_library(car: tuple[Path, Editor]) -> N
     assert servo["features"]["angle"]["params"][0]["maximum"] == 180
     assert "CModelActuator" in servo["aliases"]
     assert "gpio" in servo["settings_schema"]["properties"]
-    assert set(lib["node_kinds"]) == {"start", "end", "action", "datastore", "decision", "fork", "join",
-                                      "send", "accept"}
+    # the compiler's node kinds, in its order, each with a word on what it does: the page's palette
+    assert list(lib["node_kinds"]) == ["start", "end", "action", "datastore", "decision", "fork", "join",
+                                       "send", "accept"]
+    assert all(kind["doc"] for kind in lib["node_kinds"].values())
     assert lib["node_kinds"]["action"]["fields"]["call"]["required"] is True
+    # the fields written as an expression (edited with completion) and those that are flows
+    types = {name: f["type"] for kind in lib["node_kinds"].values() for name, f in kind["fields"].items()}
+    assert {name for name, t in types.items() if t == "expression"} == {"call", "value", "payload"}
+    assert {name for name, t in types.items() if t in ("node", "nodes", "branches")} == {
+        "next", "targets", "branches"}
     assert {b["name"] for b in lib["builtins"]} == {"usleep", "msleep", "Application.exit"}
 
 
@@ -685,6 +762,7 @@ def test_studio_on_a_new_folder_offers_and_writes_the_starter(tmp_path: Path) ->
         assert said in proc.lines[-1], proc.lines
         hello = read_frames(proc.url, lambda f: len(f) >= 1)[0]
         assert hello["edit"]["empty"] is True
+        assert "error(s)" not in proc.log_text(), proc.log_text()  # no model yet is no error
 
         async def new() -> tuple[int, dict[str, Any]]:
             async with aiohttp.ClientSession() as client, client.post(

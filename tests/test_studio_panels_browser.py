@@ -18,7 +18,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from playwright.sync_api import Browser, Page, expect
+from playwright.sync_api import Browser, Page, Route, expect
 from robot_run import CAR_MODEL, umlbot_argv
 from studio_support import chromium, shot, studio
 
@@ -329,5 +329,79 @@ def test_the_recovery_notice_says_what_each_button_does_and_later_keeps_the_edit
         page.reload()
         page.wait_for_function("window.__studio && window.__studio.ready === true && !!window.__studio.edit")
         expect(page.locator('#notice[data-kind="recovery"]')).to_be_visible()
+        page.close()
+    assert errors == [], errors
+
+
+def test_a_page_opened_while_a_conflict_stands_shows_the_conflict_not_the_end_of_a_run(
+        browser: Browser, tmp_path: Path) -> None:
+    folder = tmp_path / "car"
+    shutil.copytree(CAR_MODEL, folder)
+    main = folder / "activities" / "main.yaml"
+    errors: list[str] = []
+    with studio(["studio", str(folder), "--port", "0"], tmp_path) as proc:
+        page = open_page(browser, proc.url, errors)
+        show(page, "activity-main")
+        page.locator("#track").select_option("corridor")
+        page.locator("#run").click()
+        expect(page.locator("#stop")).to_be_enabled()
+        page.locator("#stop").click()
+        expect(page.locator('#notice[data-kind="run-ended"]')).to_be_visible()
+        # an unsaved edit, and the same file changed on disk: a conflict stands
+        page.locator(node("RaspberryPI", "set_speed")).click()
+        value = page.locator('#props input[name="value"]')
+        value.fill("55")
+        value.press("Enter")
+        settled(page)
+        theirs = main.read_text(encoding="utf-8").replace("value: 300}", "value: 333}")
+        main.write_text(theirs, encoding="utf-8")
+        expect(page.locator('#notice[data-kind="conflict"]')).to_be_visible()
+        page.close()
+        # a new page (a browser that has not been told how the run ended): the conflict is what it shows
+        again = open_page(browser, proc.url, errors)
+        notice = again.locator("#notice")
+        expect(notice).to_have_attribute("data-kind", "conflict")
+        again.wait_for_timeout(1000)
+        expect(notice).to_have_attribute("data-kind", "conflict")
+        expect(notice).to_be_visible()
+        expect(notice).to_contain_text("activities/main.yaml changed on disk while you have unsaved edits")
+        expect(notice.locator('[data-action="reload"]')).to_be_visible()
+        shot(again, "studio-conflict-at-open.png")
+        again.close()
+    assert errors == [], errors
+
+
+def test_the_palette_and_a_nodes_fields_are_the_servers_node_kinds(browser: Browser, tmp_path: Path) -> None:
+    # the page holds no list of node kinds or fields: a library that says otherwise is what it shows
+    folder = tmp_path / "car"
+    shutil.copytree(CAR_MODEL, folder)
+    errors: list[str] = []
+
+    def changed(route: Route) -> None:
+        answer = route.fetch()
+        library = answer.json()
+        library["node_kinds"]["wait"] = {"doc": "waits a while", "fields": {}}
+        library["node_kinds"]["action"]["fields"]["note"] = {"type": "expression", "required": False,
+                                                             "doc": "a note"}
+        del library["node_kinds"]["accept"]
+        route.fulfill(response=answer, json=library)
+
+    with studio(["studio", str(folder), "--port", "0"], tmp_path) as proc:
+        page = browser.new_page(viewport={"width": 1600, "height": 1000})
+        page.on("pageerror", lambda exc: errors.append(str(exc)))
+        page.route("**/api/library", changed)
+        page.goto(proc.url)
+        page.set_default_timeout(WAIT_MS)
+        page.wait_for_function("window.__studio && window.__studio.ready === true && !!window.__studio.edit")
+        show(page, "activity-main")
+        expect(page.locator('#palette .node-kind[data-kind="wait"]')).to_have_count(1)
+        kinds = page.locator("#palette .node-kind").evaluate_all("(l) => l.map((e) => e.dataset.kind)")
+        assert kinds == ["start", "end", "action", "datastore", "decision", "fork", "join", "send", "wait"]
+        assert page.locator('#palette .node-kind[data-kind="wait"]').get_attribute("title") == "waits a while"
+        page.keyboard.press("f")  # all of it: the action is further down
+        page.locator(node("RaspberryPI", "left_power")).click()
+        expect(page.locator('#props input[name="call"]')).to_have_class(re.compile(r"(^|\s)code(\s|$)"))
+        expect(page.locator('#props input[name="note"]')).to_have_class(re.compile(r"(^|\s)code(\s|$)"))
+        expect(page.locator('#props input[name="next"]')).to_have_count(0)  # a flow: edited by connecting
         page.close()
     assert errors == [], errors

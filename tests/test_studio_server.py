@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import asyncio
 import json
+import shutil
 import socket
 import subprocess
 import time
@@ -198,6 +199,33 @@ def test_non_loopback_bind_needs_allow_remote(tmp_path: Path) -> None:
                             capture_output=True, text=True, timeout=60, check=False)
     assert result.returncode == 1
     assert "--allow-remote" in result.stderr and "Traceback" not in result.stderr
+
+
+def test_a_studio_others_can_reach_is_read_only(tmp_path: Path) -> None:
+    # with --allow-remote the write token would go to anyone who opens a socket: no editing at all
+    folder = tmp_path / "car"
+    shutil.copytree(CAR_MODEL, folder)
+    before = {p: p.read_bytes() for p in folder.rglob("*") if p.is_file()}
+    with studio(["studio", str(folder), "--host", "0.0.0.0", "--allow-remote", "--port", "0"],
+                tmp_path) as proc:
+        port = proc.url.rstrip("/").rsplit(":", 1)[1]
+        url = f"http://127.0.0.1:{port}/"
+        hello = read_frames(url, lambda f: len(f) >= 1)[0]
+        assert hello["model"] is not None and hello.get("edit") is None
+
+        async def post() -> int:
+            async with aiohttp.ClientSession() as client, client.post(
+                    f"{url}api/edit", json={"version": 0, "ops": []}) as response:
+                return response.status
+
+        assert asyncio.run(post()) == 404
+        assert "read-only: the page can be reached from other machines" in proc.log_text()
+    assert {p: p.read_bytes() for p in folder.rglob("*") if p.is_file()} == before
+    # and a new model cannot be started there
+    result = subprocess.run(umlbot_argv("studio", str(tmp_path / "new"), "--host", "0.0.0.0",
+                                        "--allow-remote", "--port", "0"),
+                            capture_output=True, text=True, timeout=60, check=False)
+    assert result.returncode == 2 and "needs a loopback --host" in result.stderr, result.stderr
 
 
 def test_foreign_origins_and_rebound_host_names_are_refused(tmp_path: Path) -> None:

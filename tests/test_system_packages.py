@@ -105,6 +105,29 @@ def test_not_root_and_no_sudo_stops_before_apt_get(tmp_path: Path) -> None:
     assert not marker.exists()
 
 
+def test_sudo_that_wants_a_password_without_a_terminal_is_named(tmp_path: Path) -> None:
+    marker = tmp_path / "apt-get-ran"
+    # `sudo -n` fails as sudo does when it would have to ask for a password
+    path = tools(tmp_path / "bin", id="echo 1000", sudo='[ "$1" = -n ] && exit 1; "$@"',
+                 **{"apt-get": f": >{marker}"})
+    result = subprocess.run([shutil.which("bash") or "bash", str(SCRIPT)], capture_output=True, text=True,
+                            timeout=30, check=False, env={"PATH": path}, stdin=subprocess.DEVNULL)
+    assert result.returncode == 1
+    assert "(not root, and sudo wants a password but there is no terminal to ask on)" in result.stderr
+    assert not marker.exists()
+
+
+def test_passwordless_sudo_runs_apt_get_without_asking(tmp_path: Path) -> None:
+    log = tmp_path / "apt.log"
+    sudo = f'echo "sudo $*" >>{log}; [ "$1" = -n ] && shift; "$@"'
+    path = tools(tmp_path / "bin", id="echo 1000", sudo=sudo, **{"apt-get": "exit 0"})
+    result = run(path)
+    assert result.returncode == 1 and "(still missing after apt-get install)" in result.stderr
+    calls = log.read_text(encoding="utf-8").splitlines()
+    assert calls[0] == "sudo -n true"
+    assert calls[1].startswith("sudo -n env DEBIAN_FRONTEND=noninteractive apt-get update")
+
+
 def test_a_failing_apt_get_is_reported(tmp_path: Path) -> None:
     path = tools(tmp_path / "bin", id="echo 0", **{"apt-get": "exit 100"})
     result = run(path)

@@ -10,11 +10,14 @@ limits); `load_yaml` puts it behind the same one-line errors for the small files
 
 from __future__ import annotations
 
+import contextlib
+import errno
 import json
 import math
 import os
 import stat
 import sys
+import tempfile
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -41,6 +44,35 @@ def file_problem(status: os.stat_result) -> str | None:
         if test(status.st_mode):
             return f"not a regular file ({name})"
     return too_large(status.st_size)
+
+
+def write_atomically(path: Path, data: bytes) -> None:
+    """Write `data` to `path` through a temporary file in the same folder and a rename, so that a
+    reader never sees half a file and a failed write keeps the previous one. Missing folders are
+    made; a file in their place is `NotADirectoryError`. The file keeps the mode of the one it
+    replaces, else gets an ordinary file's (0666 less the umask; mkstemp's is 0600)."""
+    for folder in (path.parent, *path.parent.parents):
+        if folder.exists() and not folder.is_dir():
+            raise NotADirectoryError(errno.ENOTDIR, f"{folder} is not a folder")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        try:
+            mode = path.stat().st_mode & 0o777
+        except OSError:
+            umask = os.umask(0)
+            os.umask(umask)
+            mode = 0o666 & ~umask
+        os.fchmod(fd, mode)
+        with os.fdopen(fd, "wb") as handle:
+            handle.write(data)
+            handle.flush()
+            os.fsync(handle.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
 
 
 def byte_position(data: bytes, offset: int) -> tuple[int, int]:

@@ -23,6 +23,8 @@ if TYPE_CHECKING:
 
 ArgType = Literal["int", "float", "bool", "str"]
 ValueType = Literal["int", "float", "bool", "str", "none"]
+#: An argument of a safe-stop call (of the type of the feature's parameter).
+StopArg = bool | int | float | str
 #: A component kind's name: `system`, `actuator`, `sensor`, or one a plugin adds.
 ComponentKind = str
 #: A service kind's name: `motor`, `sonar`, `servo`, `gpio`, or one a plugin adds.
@@ -79,6 +81,10 @@ class ServiceSpec:
     name: ServiceKind
     service: str
     doc: str = ""
+    #: the host puts every served component into its safe state (`ComponentService.safe_stop`)
+    #: when the orchestrator's status says offline (its last will), stopped or failed, and
+    #: `umlbot service all` stops these kinds first: for parts that must not go on without it.
+    stop_when_orchestrator_offline: bool = False
 
 
 @dataclass(frozen=True)
@@ -92,7 +98,7 @@ class Implementation:
     title: str
     aliases: tuple[str, ...] = ()
     #: calls (feature, args) that put this part into a safe, stopped state.
-    safe_stop: tuple[tuple[str, tuple[bool | int, ...]], ...] = ()
+    safe_stop: tuple[tuple[str, tuple[StopArg, ...]], ...] = ()
     settings_doc: dict[str, str] = field(default_factory=dict)
     #: settings keys that name a GPIO this part owns (no other component may use it).
     pin_keys: tuple[str, ...] = ()
@@ -131,7 +137,8 @@ SENSOR = KindSpec("sensor", (
 BUILTIN = ComponentPlugin(
     kinds=(SYSTEM, ACTUATOR, SENSOR),
     services=(
-        ServiceSpec("motor", "services.motor.service:MotorService", "L298N motor channels"),
+        ServiceSpec("motor", "services.motor.service:MotorService", "L298N motor channels",
+                    stop_when_orchestrator_offline=True),
         ServiceSpec("sonar", "services.sonar.service:SonarService", "HC-SR04 range finders"),
         ServiceSpec("servo", "services.servo.service:ServoService", "hobby servos"),
         ServiceSpec("gpio", "services.gpio.service:GpioService", "plain GPIO pins of the system"),

@@ -10,9 +10,11 @@ Two entry point groups, read once per process:
   when a service chooses that driver.
 
 umlbot registers its own kinds, services and drivers the same way (its pyproject.toml), and they
-are read first, so a plugin can add but never replace. A plugin that cannot be imported, whose
-spec is wrong or whose names clash with what is already there is skipped as a whole; the problem
-names the entry point and its package, is logged once as a warning and listed by `umlbot plugins`.
+are read first, then the plugins by package name, so a plugin can add but never replace. A plugin
+that cannot be imported (an exception or a `sys.exit()` in its module), whose spec is wrong or
+whose names clash with what is already there is skipped as a whole, and so are the drivers of its
+package; the problem names the entry point and its package, is logged once as a warning and
+listed by `umlbot plugins`.
 """
 
 from __future__ import annotations
@@ -23,9 +25,18 @@ import threading
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from importlib.metadata import EntryPoint, entry_points
-from typing import Any
+from typing import Any, get_args
 
-from umlbot.library import ComponentPlugin, FeatureSpec, Implementation, KindSpec, Param, ServiceSpec
+from umlbot.library import (
+    ArgType,
+    ComponentPlugin,
+    FeatureSpec,
+    Implementation,
+    KindSpec,
+    Param,
+    ServiceSpec,
+    ValueType,
+)
 from umlbot.logs import get_logger
 
 log = get_logger("umlbot.plugins")
@@ -108,10 +119,13 @@ def _package(ep: EntryPoint) -> tuple[str, str]:
 
 
 def _order(eps: Iterable[EntryPoint]) -> list[EntryPoint]:
-    """Unique entry points, umlbot's own first, then by package and name (a stable order)."""
-    unique: dict[tuple[str, str, str], EntryPoint] = {}
+    """Unique entry points, umlbot's own first, then by package and name (a stable order).
+
+    An entry point is the same one only within one package: two packages that declare the very
+    same line are two claims, and the later package's is the one skipped."""
+    unique: dict[tuple[str, str, str, str], EntryPoint] = {}
     for ep in eps:
-        unique.setdefault((ep.group, ep.name, ep.value), ep)
+        unique.setdefault((_package(ep)[0].lower(), ep.group, ep.name, ep.value), ep)
 
     def key(ep: EntryPoint) -> tuple[bool, str, str]:
         name = _package(ep)[0]
@@ -123,9 +137,21 @@ def _order(eps: Iterable[EntryPoint]) -> list[EntryPoint]:
 # --- checking a component plugin ------------------------------------------------------------------
 
 
+ARG_TYPES: tuple[str, ...] = get_args(ArgType)
+VALUE_TYPES: tuple[str, ...] = get_args(ValueType)
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool)
+
+
 def _check_param(where: str, param: Any, of_kind: Param | None) -> list[str]:
     if not isinstance(param, Param):
         return [f"{where}: a parameter must be a umlbot.library.Param, got {type(param).__name__}"]
+    if param.type not in ARG_TYPES:
+        return [f"{where}: parameter {param.name}: type {param.type!r} is not one of {', '.join(ARG_TYPES)}"]
+    if not all(bound is None or _is_number(bound) for bound in (param.minimum, param.maximum)):
+        return [f"{where}: parameter {param.name}: minimum and maximum must be numbers or None"]
     if of_kind is None:
         return []
     problems = []
@@ -150,6 +176,51 @@ def _check_feature(where: str, spec: Any, of_kind: FeatureSpec | None = None) ->
     problems: list[str] = []
     for index, param in enumerate(spec.params):
         problems += _check_param(f"{where}.{spec.name}", param, of_kind.params[index] if of_kind else None)
+    if spec.returns not in VALUE_TYPES:
+        problems.append(f"{where}: feature {spec.name} returns {spec.returns!r}, not one of "
+                        f"{', '.join(VALUE_TYPES)}")
+    return problems
+
+
+def _arg_problem(param: Param, value: Any) -> str | None:
+    """Why `value` cannot be passed for `param` (a safe stop's argument), or None."""
+    fits = {"bool": isinstance(value, bool), "int": isinstance(value, int) and not isinstance(value, bool),
+            "float": _is_number(value), "str": isinstance(value, str)}
+    if not fits[param.type]:
+        return f"{param.name} must be a{'n' if param.type == 'int' else ''} {param.type}, got {value!r}"
+    if param.type in ("int", "float") and (
+            (param.minimum is not None and value < param.minimum)
+            or (param.maximum is not None and value > param.maximum)):
+        low = "" if param.minimum is None else f"{param.minimum:g}"
+        high = "" if param.maximum is None else f"{param.maximum:g}"
+        return f"{param.name} must be {low}..{high}, got {value!r}"
+    return None
+
+
+def _check_safe_stop(where: str, impl: Implementation) -> list[str]:
+    """Each safe-stop call names a feature the implementation offers, with arguments that fit it."""
+    calls: Any = impl.safe_stop
+    if not isinstance(calls, tuple):
+        return [f"{where}: safe_stop must be a tuple of (feature, arguments) pairs"]
+    problems: list[str] = []
+    for call in calls:
+        if not (isinstance(call, tuple) and len(call) == 2 and isinstance(call[0], str)
+                and isinstance(call[1], tuple)):
+            problems.append(f"{where}: safe_stop {call!r} is not a (feature, arguments tuple) pair")
+            continue
+        feature, args = call
+        shown = f"safe_stop {feature}({', '.join(repr(arg) for arg in args)})"
+        spec: Any = impl.features.get(feature)
+        if spec is None:
+            problems.append(f"{where}: safe_stop calls {feature!r}, which it does not offer")
+        elif not isinstance(spec, FeatureSpec):
+            continue  # reported with the features
+        elif len(args) != len(spec.params):
+            problems.append(f"{where}: {shown}: {feature} takes {len(spec.params)} argument(s), "
+                            f"got {len(args)}")
+        else:
+            problems += [f"{where}: {shown}: {problem}" for param, arg in zip(spec.params, args, strict=True)
+                         if (problem := _arg_problem(param, arg)) is not None]
     return problems
 
 
@@ -186,6 +257,10 @@ def _check_plugin(plugin: ComponentPlugin, lib: Catalog) -> list[str]:
                             f"{lib.origin.get('service:' + service.name, 'this plugin')}")
         if not re.fullmatch(r"[\w.]+:[\w.]+", service.service):
             problems.append(f"service kind {service.name!r}: {service.service!r} is not 'module:Class'")
+        stops: Any = service.stop_when_orchestrator_offline
+        if not isinstance(stops, bool):
+            problems.append(f"service kind {service.name!r}: stop_when_orchestrator_offline must be "
+                            "true or false")
         services.add(service.name)
     aliases = dict(lib.aliases)
     for impl in new_impls:
@@ -221,9 +296,7 @@ def _check_plugin(plugin: ComponentPlugin, lib: Catalog) -> list[str]:
                 problems.append(f"{where}: features[{name!r}] must be the FeatureSpec named {name!r}")
             else:
                 problems += _check_feature(where, spec, of_kind)
-        for feature, _args in impl.safe_stop:
-            if feature not in impl.features:
-                problems.append(f"{where}: safe_stop calls {feature!r}, which it does not offer")
+        problems += _check_safe_stop(where, impl)
     return problems
 
 
@@ -262,7 +335,9 @@ def build_catalog(components: Iterable[EntryPoint], drivers: Iterable[EntryPoint
         label, _ = info(ep)
         try:
             plugin = ep.load()
-        except Exception as exc:  # any error in third-party code: skip that plugin only
+        # any error in third-party code, even a sys.exit() at import: skip that plugin only (a
+        # KeyboardInterrupt still ends the command)
+        except (Exception, SystemExit) as exc:
             lib.problems.append(PluginProblem(ep.name, ep.group, label, f"cannot import {ep.value}: "
                                               f"{type(exc).__name__}: {exc}"))
             continue
@@ -288,12 +363,15 @@ def build_catalog(components: Iterable[EntryPoint], drivers: Iterable[EntryPoint
                                               "a driver entry point is named '<service kind>.<driver>'"))
             continue
         kind, name = match.groups()
+        skipped = [p.plugin for p in lib.problems_for(package.package) if p.group == COMPONENTS_GROUP]
+        if skipped:  # the package's drivers go down with it: they may rely on what it left out
+            lib.problems.append(PluginProblem(ep.name, ep.group, label, "skipped with this package's "
+                                              f"component plugin{'s' if len(skipped) > 1 else ''} "
+                                              f"{', '.join(map(repr, skipped))}"))
+            continue
         if kind not in lib.services:
-            skipped = [p.plugin for p in lib.problems_for(package.package) if p.group == COMPONENTS_GROUP]
-            why = f"unknown service kind {kind!r} (known: {', '.join(lib.services)})"
-            if skipped:  # most likely the kind that plugin would have added
-                why += f"; this package's component plugin {skipped[0]!r} was skipped"
-            lib.problems.append(PluginProblem(ep.name, ep.group, label, why))
+            lib.problems.append(PluginProblem(ep.name, ep.group, label, f"unknown service kind {kind!r} "
+                                              f"(known: {', '.join(lib.services)})"))
             continue
         existing = lib.drivers.get((kind, name))
         if existing is not None:

@@ -7,8 +7,8 @@ Life of a run (docs/semantics.md says the same for users):
    so a burst of trace events never queues in front of a request);
 2. wait, bounded by `startup_timeout_s`, until every used component's retained status is
    `online` (else `OrchestratorError` naming the missing ones);
-3. stop every actuator (its implementation's `safe_stop` calls), publish status `running` and
-   start every component lane at once;
+3. stop every actuator (its implementation's `safe_stop` calls, from the compiled file), publish
+   status `running` and start every component lane at once;
 4. run until every lane ended, termination was requested (SIGINT/SIGTERM, `request_exit`, a
    message on `…/orchestrator/exit`: `Application.exit` becomes true, lanes get `grace_s` to
    finish) or a fault happened (a call timed out or got an error reply, an expression failed, a
@@ -50,7 +50,7 @@ from services.orchestrator.signals import SignalBoard
 from services.orchestrator.trace import Listener, TraceRecorder
 from umlbot.clock import Clock
 from umlbot.errors import BusError, NotConnected, OrchestratorError
-from umlbot.library import resolve_implementation
+from umlbot.library import StopArg
 from umlbot.logs import get_logger
 
 log = get_logger(__name__)
@@ -458,16 +458,12 @@ class Orchestrator:
 
     # --- actuators ----------------------------------------------------------------------------------
 
-    def _actuator_stops(self) -> list[tuple[str, str, tuple[bool | int, ...]]]:
-        """(component, feature, args) of every safe-stop call of the model's components."""
-        stops: list[tuple[str, str, tuple[bool | int, ...]]] = []
-        for name, component in sorted(self.model.components.items()):
-            impl = resolve_implementation(component.impl)
-            if impl is None:
-                continue
-            for feature, args in impl.safe_stop:
-                stops.append((name, feature, args))
-        return stops
+    def _actuator_stops(self) -> list[tuple[str, str, tuple[StopArg, ...]]]:
+        """(component, feature, args) of every safe-stop call of the model's components, as the
+        compiled file carries them (no library lookup: a plugin need not be installed here)."""
+        return [(name, call.feature, tuple(call.args))
+                for name, component in sorted(self.model.components.items())
+                for call in component.safe_stop]
 
     async def _stop_actuators(self, at_start: bool) -> None:
         """Send every safe-stop call; at start a failure is a fault, at the end it is logged."""

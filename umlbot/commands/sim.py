@@ -81,6 +81,9 @@ def command(model: Path, track: Path | None, speed: float, broker_url: str | Non
             announced.append(progress.broker_url)
             url = progress.broker_url
             click.echo(f"broker {url}  (watch it: umlbot monitor --broker {url})")
+            if progress.mock_components:
+                on_mock = ", ".join(f"{name} ({kind})" for name, kind in progress.mock_components.items())
+                click.echo(f"no sim driver, on their mock driver: {on_mock}")
         s = progress.snapshot
         line = (f"t={s.time_s:7.1f}s  x={s.pose.x:6.2f} y={s.pose.y:6.2f} "
                 f"heading={math.degrees(s.pose.heading) % 360:5.1f}°  dist={s.distance_m:5.2f} m  "

@@ -32,7 +32,8 @@ if TYPE_CHECKING:
 @click.option("--port", type=click.IntRange(0, 65535), default=8080, show_default=True,
               help="Port to listen on (0 = any free port).")
 @click.option("--allow-remote", is_flag=True,
-              help="Allow --host to be a non-loopback address (anyone who reaches it sees the robot).")
+              help="Allow --host to be a non-loopback address (anyone who reaches it sees the robot; "
+              "the page is read-only then: no editing, no Run).")
 @click.option("--open", "open_browser", is_flag=True, help="Open the page in the default browser.")
 def command(model: Path, broker_url: str | None, ca_file: Path | None, robot: str | None,
             replay_file: Path | None, host: str, port: int, allow_remote: bool,
@@ -45,13 +46,19 @@ def command(model: Path, broker_url: str | None, ca_file: Path | None, robot: st
     """
     from services.bus import BrokerSettings, resolve_broker_url
     from services.bus.settings import redact_url
-    from umlbot.studio.server import StudioServer, StudioThread, check_bind
+    from umlbot.studio.server import StudioServer, StudioThread, check_bind, is_loopback
     from umlbot.studio.sources import RobotFollower, replay_data, studio_data
 
-    editable = replay_file is None and (model.is_dir() or (not model.exists() and model.parent.is_dir()))
+    # a page others can reach is read-only: its write token would be theirs too (docs/studio.md)
+    remote = not is_loopback(host)
+    editable = (replay_file is None and not remote
+                and (model.is_dir() or (not model.exists() and model.parent.is_dir())))
     if not model.exists() and not editable:
-        raise click.BadParameter(f"{model} does not exist (a new model folder needs an existing "
-                                 "parent folder)", param_hint="'MODEL'")
+        needs = "an existing parent folder"
+        if remote and model.parent.is_dir():
+            needs = "a loopback --host: a page others can reach does not edit"
+        raise click.BadParameter(f"{model} does not exist (a new model folder needs {needs})",
+                                 param_hint="'MODEL'")
     check_bind(host, allow_remote)
     if editable:
         from umlbot.studio.api import EditApi
@@ -107,10 +114,14 @@ def command(model: Path, broker_url: str | None, ca_file: Path | None, robot: st
                 state = "does not exist yet" if not model.exists() else "holds no model yet"
                 click.echo(f"umlbot studio: {model} {state}: the page offers a starter model "
                            "(type the robot's name, press 'Create the model')")
-            if errors:
+            if errors and not (editable and workspace.empty):  # no model yet is not an error
                 click.echo(f"  the model has {errors} error(s): the page lists them", err=True)
             for note in notes:
                 click.echo(f"  warning: {note}", err=True)
+            if remote and replay_file is None and model.is_dir():
+                click.echo("  read-only: the page can be reached from other machines, so it does not "
+                           "edit or run the model (to edit, keep the studio on 127.0.0.1 and use an "
+                           "SSH tunnel; docs/studio.md, Security)", err=True)
             if editable and workspace.layout_problem is not None:
                 click.echo(f"  {workspace.layout_problem}: the page starts without the saved "
                            "positions (saving rewrites the file)", err=True)

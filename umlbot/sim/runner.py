@@ -1,9 +1,10 @@
 """`umlbot sim`: the whole robot on one machine — broker, world, services, orchestrator — and a report.
 
 `run_sim(SimOptions(...))` compiles the model, starts the embedded broker (unless a broker URL is
-given), the world and its loop, the services with the `sim` drivers (in this process, or as
-`umlbot service KIND` child processes with `processes=True`, which reach the world through
-`umlbot.sim.sharing.WorldServer`) and the orchestrator in this process with the same clock. It
+given), the world and its loop, the services with the `sim` drivers (a service kind without one
+on its `mock` driver: `sim_driver`), in this process or as `umlbot service KIND` child
+processes with `processes=True` (which reach the world through
+`umlbot.sim.sharing.WorldServer`), and the orchestrator in this process with the same clock. It
 stops when the goal is reached, when the collision limit or the time-out is hit, when the
 orchestrator ends or fails, or on Ctrl-C; on every path the world is halted at once (motors off,
 time stopped: `World.halt`, no MQTT round trip that could time out), then the rest is torn down.
@@ -128,6 +129,8 @@ class Progress:
     broker_url: str = ""
     #: service kind -> process id, with `processes=True` (empty otherwise).
     service_pids: dict[str, int] = field(default_factory=dict)
+    #: the components on their mock driver (their service kind has no sim driver) -> service kind.
+    mock_components: dict[str, str] = field(default_factory=dict)
 
 
 @dataclass
@@ -202,19 +205,36 @@ class _Watch:
                 self.action = detail
 
 
+def sim_driver(service: str) -> str:
+    """The driver a service kind runs in the simulator: its `sim` driver when it has one (motor,
+    sonar, servo, a plugin's), else its `mock` driver (gpio, a plugin's kind without a sim
+    driver); `SimError` when it has neither."""
+    from services.registry import known_drivers
+
+    known = known_drivers(service)
+    for driver in ("sim", "mock"):
+        if driver in known:
+            return driver
+    raise SimError(f"the {service} service kind has neither a sim nor a mock driver (known: "
+                   f"{', '.join(known)}); umlbot sim cannot run its components")
+
+
 def sim_deployment(compiled: Any) -> Any:
-    """The deployment the services run with in the simulator: `sim` drivers, gpio on `mock`."""
+    """The deployment the services run with in the simulator: each component on `sim_driver`."""
     from umlbot.deployment import ComponentDeployment, Deployment
 
     components = {
-        name: ComponentDeployment(
-            impl=comp.impl,
-            driver="mock" if comp.service == "gpio" else "sim",
-            settings=dict(comp.settings),
-        )
+        name: ComponentDeployment(impl=comp.impl, driver=sim_driver(comp.service),
+                                  settings=dict(comp.settings))
         for name, comp in compiled.components.items()
     }
     return Deployment(robot=compiled.name, driver="sim", components=components)
+
+
+def mock_components(deployment: Any) -> dict[str, str]:
+    """The components of a sim deployment that run on their mock driver -> their service kind."""
+    return {name: comp.implementation.service for name, comp in sorted(deployment.components.items())
+            if comp.driver == "mock"}
 
 
 def _deployment_yaml(deployment: Any) -> str:
@@ -424,6 +444,10 @@ def run_sim(
         raise SimError(f"{options.track}: {exc}") from exc
     compiled = compile_model(options.model)
     deployment = sim_deployment(compiled)
+    on_mock = mock_components(deployment)
+    if on_mock:
+        log.info("sim_mock_drivers", components=on_mock,
+                 why="no sim driver for their service kind: they run on its mock driver")
     stop = stop or threading.Event()
     broker, url = _start_broker(options)
     finish_observing: Callable[[], None] | None = None
@@ -506,7 +530,7 @@ def run_sim(
                 with watch.lock:
                     action = watch.action
                 pids = {kind: child.pid for kind, child in services.children.items()}
-                on_progress(Progress(snap, action, orchestrator.stats.actions, url, pids))
+                on_progress(Progress(snap, action, orchestrator.stats.actions, url, pids, on_mock))
     except KeyboardInterrupt:
         reason = "interrupted"
     finally:

@@ -11,7 +11,7 @@ result, so the page shows exactly `umlbot check`'s messages.
 from __future__ import annotations
 
 import re
-from collections.abc import Callable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, cast
 
@@ -36,6 +36,7 @@ from umlbot.studio.textedit import (
     append_item,
     delete_item,
     delete_key,
+    events,
     flow,
     get,
     insert_item,
@@ -149,9 +150,7 @@ class Edits:
 
     def lane_files(self) -> list[str]:
         """Files that may hold swimlanes: model.yaml, then the activity files in order."""
-        names = [rel for rel, text in self.files.items() if text is not None
-                 and ACTIVITY_FILE.fullmatch(rel)]
-        return [MODEL_FILE, *sorted(names)] if self.files.get(MODEL_FILE) is not None else sorted(names)
+        return lane_files([rel for rel, text in self.files.items() if text is not None])
 
     def find_lane(self, lane: str, whole: bool = False
                   ) -> tuple[Text, yaml.MappingNode, yaml.SequenceNode | None, int | None]:
@@ -198,6 +197,14 @@ class Edits:
             if self.exists(name):
                 return name
         return None
+
+
+def lane_files(names: Iterable[str]) -> list[str]:
+    """Of the files `names`, those that may hold swimlanes: model.yaml, then the activity files in
+    order."""
+    names = set(names)
+    activities = sorted(rel for rel in names if ACTIVITY_FILE.fullmatch(rel))
+    return [MODEL_FILE, *activities] if MODEL_FILE in names else activities
 
 
 def _lane_part(content: str, rel: str, lane: str
@@ -444,6 +451,47 @@ def snake_case(name: str) -> str:
     return re.sub(r"(?<=[a-z0-9])(?=[A-Z])", "_", name).lower()
 
 
+#: a top-level `lanes:` key (a cheap test before a file is parsed)
+_LANES_KEY = re.compile(r"^lanes\s*:", re.MULTILINE)
+
+
+def takes_lanes(rel: str, content: str) -> bool:
+    """Whether `add_lane` can add a swimlane to the file `rel` (its `file`): model.yaml or an
+    activity file whose top-level `lanes:` is a block list with a lane in it (not a file of one
+    lane, nor a flow-style or empty list: a new lane then goes to a file of its own). The file's
+    YAML is read only up to that list: this is asked after every edit, of big files too."""
+    if not (rel == MODEL_FILE or ACTIVITY_FILE.fullmatch(rel)) or not _LANES_KEY.search(content):
+        return False
+    try:
+        stream = events(content)
+        opening = (yaml.StreamStartEvent, yaml.DocumentStartEvent, yaml.MappingStartEvent)
+        if not all(isinstance(next(stream), kind) for kind in opening):  # a mapping at the top
+            return False
+        while True:
+            key = next(stream)
+            if isinstance(key, yaml.MappingEndEvent):
+                return False
+            if isinstance(key, yaml.ScalarEvent) and key.value == "lanes":
+                value = next(stream)
+                return (isinstance(value, yaml.SequenceStartEvent) and not value.flow_style
+                        and not isinstance(next(stream), yaml.SequenceEndEvent))
+            _skip(key, stream)  # a key that is no plain name
+            _skip(next(stream), stream)  # its value
+    except (yaml.YAMLError, StopIteration):  # not YAML: nothing can be added to it
+        return False
+
+
+def _skip(first: yaml.Event, stream: Iterator[yaml.Event]) -> None:
+    """Read the rest of the node that begins with the event `first`."""
+    depth = 1 if isinstance(first, yaml.CollectionStartEvent) else 0
+    while depth:
+        event = next(stream)
+        if isinstance(event, yaml.CollectionStartEvent):
+            depth += 1
+        elif isinstance(event, yaml.CollectionEndEvent):
+            depth -= 1
+
+
 def add_lane(e: Edits, op: Op) -> None:
     lane = _need(op.lane, "lane", op)
     if not _NAME.fullmatch(lane):
@@ -459,10 +507,9 @@ def add_lane(e: Edits, op: Op) -> None:
     starter = [{"id": "start", "kind": "start"}, {"id": "end", "kind": "end"}]
     if op.file is not None:
         t = e.text(op.file)
-        root = t.root()
-        lanes = get(root, "lanes") if isinstance(root, yaml.MappingNode) else None
-        if not isinstance(lanes, yaml.SequenceNode) or lanes.flow_style or not lanes.value:
+        if not takes_lanes(op.file, t.whole):
             raise EditError(f"{op.file} holds no block list of 'lanes:'; add the lane to its own file")
+        lanes = cast(yaml.SequenceNode, get(cast(yaml.MappingNode, t.root()), "lanes"))
         first = lanes.value[0]
         indent = " " * (t.start(first) - t.line_start(t.start(first)))
         nl = t.newline

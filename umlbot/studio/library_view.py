@@ -28,6 +28,13 @@ _FIELD_DOCS: dict[str, tuple[str, str]] = {
     "payload": ("expression", "the value sent (optional)"),
     "store": ("name", "the datastore that receives the payload (optional)"),
 }
+#: what each node kind does, in a few words (the palette's tooltips)
+_KIND_DOCS: dict[str, str] = {
+    "start": "where the lane begins", "end": "where the lane ends",
+    "action": "calls a feature, a lane or a builtin", "datastore": "a named value",
+    "decision": "branches on guards", "fork": "runs branches at once", "join": "waits for every branch",
+    "send": "sends a signal", "accept": "waits for a signal",
+}
 _REQUIRED = {("action", "call"), ("datastore", "name"), ("datastore", "value"), ("decision", "branches"),
              ("fork", "targets"), ("send", "signal"), ("accept", "signal")}
 
@@ -69,8 +76,10 @@ def library() -> dict[str, Any]:
         for name, unit in SLEEP_BUILTINS.items()
     ] + [{"name": "Application.exit", "params": None, "returns": "bool",
           "doc": "true once the robot was asked to stop"}]
+    # in the compiler's order (the palette's); a field of type "expression" is edited with completion
     node_kinds = {
-        kind: {"fields": {name: {"type": _FIELD_DOCS[name][0], "required": (kind, name) in _REQUIRED,
+        kind: {"doc": _KIND_DOCS[kind],
+               "fields": {name: {"type": _FIELD_DOCS[name][0], "required": (kind, name) in _REQUIRED,
                                  "doc": _FIELD_DOCS[name][1]} for name in NODE_FIELDS[kind]}}
         for kind in NODE_KINDS
     }

@@ -136,18 +136,28 @@ def _source_fields(src: SourceNode) -> dict[str, Any]:
 
 
 def _source_label(kind: str, node_id: str, fields: dict[str, Any]) -> str:
+    """The node's label as the compiler writes it once it is complete; a part not written yet is
+    left out (a new datastore is drawn `datastore1` until its name is typed, a new send `send`),
+    never shown as a made-up value."""
+    def part(key: str) -> str:
+        value = fields.get(key)
+        return "" if value is None else str(value).strip()
+
     if kind == "action":
-        return str(fields.get("call") or node_id)
+        return part("call") or node_id
     if kind == "datastore":
-        return f"{fields.get('name')} = {fields.get('value')}"
+        name, value = part("name"), part("value")
+        if name and value:
+            return f"{name} = {value}"
+        return name or (f"? = {value}" if value else node_id)  # "?": as a flow's unwritten guard
     if kind in ("start", "end", "fork", "join"):
         return kind
     if kind == "send":
-        payload = fields.get("payload")
-        return f"send {fields.get('signal')}" + (f"({payload})" if payload else "")
+        signal, payload = part("signal"), part("payload")
+        return " ".join(x for x in ("send", signal) if x) + (f"({payload})" if payload else "")
     if kind == "accept":
-        store = fields.get("store")
-        return f"accept {fields.get('signal')}" + (f" -> {store}" if store else "")
+        signal, store = part("signal"), part("store")
+        return " ".join(x for x in ("accept", signal) if x) + (f" -> {store}" if store else "")
     return node_id
 
 

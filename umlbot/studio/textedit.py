@@ -11,9 +11,9 @@ flow mapping on one line (`- {id: halt, kind: action, call: Stop}`), with quotes
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, cast
 
 import yaml
 
@@ -55,6 +55,12 @@ def compose(text: str, name: str) -> yaml.Node | None:
     except yaml.YAMLError as exc:
         raise EditError(f"{name} is not valid YAML ({exc}); fix it in the file first") from None
     return node
+
+
+def events(text: str) -> Iterator[yaml.Event]:
+    """The YAML events of `text`, read as far as they are taken (a big file is not read whole to
+    look at its first keys); yaml.YAMLError where it is not valid YAML."""
+    return cast(Iterator[yaml.Event], yaml.parse(text, Loader=_Loader))
 
 
 # --- scalars and one-line values -------------------------------------------------------------------

@@ -18,7 +18,6 @@ import json
 import os
 import re
 import secrets
-import tempfile
 import threading
 import time
 from dataclasses import dataclass, field
@@ -28,8 +27,16 @@ from typing import Any
 from compiler.api import CheckResult, check_model
 from compiler.source import ACTIVITIES_DIR, MODEL_FILE, Unreadable, read_model_folder
 from umlbot.errors import ModelError
-from umlbot.files import decode_utf8, file_problem, loads_json
-from umlbot.studio.edit import EditError, Rename, apply_ops, parse_ops, rename_positions
+from umlbot.files import decode_utf8, file_problem, loads_json, write_atomically
+from umlbot.studio.edit import (
+    EditError,
+    Rename,
+    apply_ops,
+    lane_files,
+    parse_ops,
+    rename_positions,
+    takes_lanes,
+)
 from umlbot.studio.model_view import attribute, deployment_fields, diagnostic_view, node_index, source_view
 
 LAYOUT_FILE = ".umlbot-studio.json"
@@ -128,26 +135,12 @@ def safe_path(root: Path, rel: str) -> Path:
 
 
 def write_atomic(root: Path, rel: str, data: bytes) -> None:
-    """Write `data` to `rel` inside `root`: a temp file in the same folder, then a rename."""
+    """Write `data` to `rel` inside `root` (`umlbot.files.write_atomically`), refused unless the
+    path and the folders made for it stay inside `root`."""
     target = safe_path(root, rel)
     target.parent.mkdir(parents=True, exist_ok=True)
     safe_path(root, rel)  # the folder just made must not lead outside either
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
-    try:
-        with os.fdopen(fd, "wb") as handle:
-            handle.write(data)
-            handle.flush()
-            os.fsync(handle.fileno())
-        if target.exists():
-            with contextlib.suppress(OSError):
-                os.chmod(tmp, target.stat().st_mode & 0o777)
-        else:
-            os.chmod(tmp, 0o644)
-        os.replace(tmp, target)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        raise
+    write_atomically(target, data)
 
 
 def _differ(a: dict[str, Content], b: dict[str, Content]) -> list[str]:
@@ -187,6 +180,7 @@ class Workspace:
         self._seen_disk = dict(self.disk)
         self.result: CheckResult | None = None
         self.answer_cache: dict[str, Any] = {}
+        self._lanes_memo: dict[str, tuple[bytes, bool]] = {}
         #: unsaved edits a previous studio kept when it quit (None: none, or decided).
         self.recovery: dict[str, Any] | None = self._read_recovery()
         self.check()
@@ -235,11 +229,31 @@ class Workspace:
                        for d in result.diagnostics]
         self.answer_cache = {
             "model": source_view(result.source) if result.source is not None and self.files else None,
+            # where the page may offer to add a swimlane (besides a new file of its own)
+            "lane_files": self._lane_files(),
             "compiled": result.model is not None,
             # an empty folder is offered a starter, not told that it is no model
             "diagnostics": diagnostics if self.files else [],
         }
         return self.answer()
+
+    def _lane_files(self) -> list[str]:
+        """The files `add_lane` can add a swimlane to (`takes_lanes`); a file is read again only
+        when it changed (an edit changes one file: the others are not parsed again for it)."""
+        memo: dict[str, tuple[bytes, bool]] = {}
+        for rel in lane_files(self.files):
+            data = self.files[rel]
+            if not isinstance(data, bytes):
+                continue
+            seen = self._lanes_memo.get(rel)
+            if seen is None or seen[0] != data:
+                try:
+                    seen = (data, takes_lanes(rel, data.decode("utf-8")))
+                except UnicodeDecodeError:
+                    seen = (data, False)
+            memo[rel] = seen
+        self._lanes_memo = memo
+        return [rel for rel, (_, takes) in memo.items() if takes]
 
     def _relative(self, shown: str) -> str | None:
         try:
@@ -277,6 +291,11 @@ class Workspace:
             # None: there but unreadable, which an edit refuses to change; the compiler reports it
         renames: list[Rename] = []
         changes = apply_ops(texts, text_ops, renames) if text_ops else {}
+        for rel in changes:  # e.g. a link that leads outside: refused now, not at the next save
+            try:
+                safe_path(self.root, rel)
+            except ValueError as exc:
+                raise EditError(f"{exc}: the studio writes only inside {self.root}") from None
         files = dict(self.files)
         for rel, text in changes.items():
             if text is None:

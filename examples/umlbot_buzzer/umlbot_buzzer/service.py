@@ -1,6 +1,7 @@
 """The buzzer service: `enabled(bool)` and `tone(hz)` on the bus for one passive buzzer.
 
-State: `{"on": bool, "tone_hz": int}`. A safety stop (service stopping, broker lost) silences it;
+State: `{"on": bool, "tone_hz": int}`. A safety stop (service stopping, broker lost, the
+orchestrator offline, stopped or failed: `stop_when_orchestrator_offline` in spec.py) silences it;
 the orchestrator also calls `enabled(false)` at start and end (the implementation's `safe_stop`).
 """
 

@@ -16,7 +16,9 @@ SOUNDER = KindSpec("sounder", (
 
 PLUGIN = ComponentPlugin(
     kinds=(SOUNDER,),
-    services=(ServiceSpec("buzzer", "umlbot_buzzer.service:BuzzerService", "passive buzzers"),),
+    # a buzzer left sounding by an orchestrator that died is silenced, as a motor is stopped
+    services=(ServiceSpec("buzzer", "umlbot_buzzer.service:BuzzerService", "passive buzzers",
+                          stop_when_orchestrator_offline=True),),
     implementations=(
         Implementation(
             id="passive_buzzer",

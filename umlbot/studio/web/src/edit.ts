@@ -7,7 +7,7 @@ import type { Positions } from "./layout";
 import { sameFile } from "./paths";
 import { runEndText, speedWords } from "./runtext";
 import type {
-  CompleteAnswer, Completion, ConflictMsg, Diagnostic, EditAnswer, EditInfo, FeatureInfo, FieldInfo, FilesMsg,
+  CompleteAnswer, Completion, ConflictMsg, Diagnostic, EditAnswer, EditInfo, FeatureInfo, FilesMsg,
   ImplInfo, JsonSchema, LayoutMap, Library, ModelComponent, ModelEdge, ModelLane, ModelNode, ModelView, NodeKind, Renamed, RunMsg,
 } from "./types";
 
@@ -48,18 +48,14 @@ export interface EditHooks {
 
 export interface EditTiming { version: number; sent: number; answered: number; shown?: number }
 
-const NODE_KINDS: NodeKind[] = ["start", "end", "action", "datastore", "decision", "fork", "join", "send", "accept"];
-const NODE_DOC: Record<string, string> = {
-  start: "where the lane begins", end: "where the lane ends", action: "calls a feature, a lane or a builtin",
-  datastore: "a named value", decision: "branches on guards", fork: "runs branches at once",
-  join: "waits for every branch", send: "sends a signal", accept: "waits for a signal",
-};
-/** Fields edited elsewhere (structure: connect/disconnect), never as text. */
-const STRUCTURAL = new Set(["id", "kind", "next", "targets", "branches"]);
-/** Fields written as an expression or a call: edited with completion. */
+/** Field types (the server's library) that are flows: edited by connecting nodes, never as text. */
+const FLOW_TYPES = new Set(["node", "nodes", "branches"]);
 /** An empty guard's input: the output is unfinished (the checker reports it) until one is typed. */
 const GUARD_PLACEHOLDER = "type this output's guard";
-const CODE_FIELDS = new Set(["call", "value", "guard", "when", "payload", "expr"]);
+
+/** Notices that wait for the user's decision, and notices that only pass by (`showNotice`). */
+const DECISION_NOTICES = new Set(["conflict", "recovery"]);
+const PASSING_NOTICES = new Set(["run", "run-goal", "run-ended", "hint"]);
 
 const $ = <T extends HTMLElement>(sel: string): T => document.querySelector(sel) as T;
 
@@ -184,11 +180,12 @@ export class Editor {
     this.renderPalette();
   }
 
-  /** After the hello's model is drawn: a standing conflict, a run going on. */
+  /** After the hello's model is drawn: a run going on (or ended), a standing conflict, kept edits.
+   * A conflict or kept edits wait for the user's decision: a run's notice never hides them. */
   afterHello(info: EditInfo): void {
-    if (info.conflict?.length) this.showConflict(info.conflict);
     if (info.run) this.onRun({ type: "run", state: info.run.running ? "running" : "ended", ...info.run }, true);
-    if (info.recovery && !info.conflict?.length) this.showRecovery(info.recovery);
+    if (info.conflict?.length) this.showConflict(info.conflict);
+    else if (info.recovery) this.showRecovery(info.recovery);
   }
 
   /** Edits a previous studio kept when it quit unsaved: the user restores or discards them. */
@@ -226,11 +223,10 @@ export class Editor {
       } catch { /* no storage: say it */ }
       if (seen) return;
     }
-    if (msg.state === "ended" && r) {
+    if (msg.state === "ended" && r && this.showNotice(r.goal_reached ? "run-goal" : "run-ended", runEndText(r), [], 10000)) {
       try {
-        localStorage.setItem(key, stamp);
+        localStorage.setItem(key, stamp); // said: a reload does not say it again
       } catch { /* no storage */ }
-      this.showNotice(r.goal_reached ? "run-goal" : "run-ended", runEndText(r), [], 10000);
     }
   }
 
@@ -347,6 +343,7 @@ export class Editor {
   /** An answer of the server: the new version, model and problems. */
   apply(a: EditAnswer, redraw = true): void {
     this.hooks.version = a.version;
+    if (a.lane_files) this.info.lane_files = a.lane_files;
     if (a.layout?.positions) this.layout = a.layout.positions;
     this.setDirty(a.dirty);
     this.followRenames(a.renamed ?? []);
@@ -422,6 +419,7 @@ export class Editor {
   /** A file changed on disk while the page was clean: the server reloaded it. */
   onFiles(msg: FilesMsg): void {
     this.hooks.version = msg.version;
+    if (msg.lane_files) this.info.lane_files = msg.lane_files;
     if (msg.layout?.positions) this.layout = msg.layout.positions;
     this.setDirty(msg.dirty ?? false);
     this.host.setModel(msg.model, msg.diagnostics ?? []);
@@ -457,8 +455,12 @@ export class Editor {
     this.notice.dataset.files = changed.join(" ");
   }
 
-  showNotice(kind: string, text: string, actions: [string, string, () => void | Promise<void>][], hideAfterMs = 0): void {
+  /** Show a notice in place of the one shown; false when it was not shown: a passing notice (a
+   * run's, a hint) never replaces a notice that waits for the user's decision (a conflict with the
+   * disk, unsaved edits kept at quit) — the decision's buttons are the way out of that. */
+  showNotice(kind: string, text: string, actions: [string, string, () => void | Promise<void>][], hideAfterMs = 0): boolean {
     const n = this.notice;
+    if (PASSING_NOTICES.has(kind) && !n.hidden && DECISION_NOTICES.has(n.dataset.kind ?? "")) return false;
     n.replaceChildren();
     n.dataset.kind = kind;
     delete n.dataset.files;
@@ -483,6 +485,7 @@ export class Editor {
         if (n.dataset.stamp === stamp) n.hidden = true;
       }, hideAfterMs);
     } else delete n.dataset.stamp;
+    return true;
   }
 
   // ------------------------------------------------------------------ library, tracks, run
@@ -587,9 +590,10 @@ export class Editor {
     el("div", { class: "panel-title" }, p, "Nodes");
     el("div", { class: "hint" }, p, "drag onto a swimlane, or click to add to the selected one");
     const grid = el("div", { class: "kinds" }, p);
-    const kinds = this.library ? NODE_KINDS.filter((k) => k in this.library!.node_kinds || !Object.keys(this.library!.node_kinds).length) : NODE_KINDS;
-    for (const kind of kinds) {
-      const item = el("div", { class: `item node-kind kind-${kind}`, "data-kind": kind, tabindex: "0", title: this.library?.node_kinds[kind]?.doc ?? NODE_DOC[kind] }, grid);
+    // the node kinds are the compiler's (the server's library), in its order
+    if (!this.library) el("div", { class: "hint" }, grid, "loading…");
+    for (const [kind, info] of Object.entries(this.library?.node_kinds ?? {})) {
+      const item = el("div", { class: `item node-kind kind-${kind}`, "data-kind": kind, tabindex: "0", title: info.doc ?? kind }, grid);
       el("i", { class: "icon" }, item);
       el("span", {}, item, kind);
       item.addEventListener("pointerdown", (ev) => this.dragKind(ev, kind));
@@ -602,8 +606,9 @@ export class Editor {
     for (const c of m.components) if (!used.has(c.name)) el("option", { value: c.name }, dl);
     const file = el("select", { name: "lane-file", title: "where the lane is written" }, form);
     el("option", { value: "" }, file, "in a new file");
-    for (const d of m.diagrams) el("option", { value: d.file }, file, `in ${d.file}`);
-    file.value = this.laneFile;
+    // only the files a lane can be added to (the server says which: a `lanes:` list)
+    for (const f of this.info.lane_files ?? []) el("option", { value: f }, file, `in ${f}`);
+    file.value = this.info.lane_files?.includes(this.laneFile) ? this.laneFile : "";
     file.onchange = () => { this.laneFile = file.value; };
     el("button", { type: "submit", "data-action": "add-lane" }, form, "Add swimlane");
     el("div", { class: "hint" }, form, "a component's name runs on it; any other name is a virtual lane (a called activity)");
@@ -1046,12 +1051,14 @@ export class Editor {
       (v) => ({ type: "node", lane: laneName, id: v }));
     const marks = this.host.diagnostics().filter((d) => sameFile(d.file, lane.file) && d.line >= node.line && d.line < nextLine(lane, node));
     for (const d of marks) el("div", { class: `problem ${d.severity}`, "data-severity": d.severity }, body, d.text);
-    const fields = this.library?.node_kinds[node.kind]?.fields ?? defaultFields(node.kind);
+    // the kind's fields as the compiler defines them (the server's library)
+    if (!this.library) el("div", { class: "hint" }, body, "loading…");
+    const fields = this.library?.node_kinds[node.kind]?.fields ?? {};
     for (const [field, info] of Object.entries(fields)) {
-      if (STRUCTURAL.has(field)) continue;
+      if (info.type && FLOW_TYPES.has(info.type)) continue;
       const r = this.row(body, field + (info.required ? " *" : ""));
       const current = fieldText(node, field);
-      if (CODE_FIELDS.has(field)) {
+      if (info.type === "expression") { // a call or an expression: edited with completion
         this.codeInput(r, field, current, laneName, (text) => {
           void this.edit([{ op: "set_node", lane: laneName, id, fields: { [field]: typed(field, text, info.type) } }]);
         });
@@ -1376,15 +1383,18 @@ export class Editor {
     const place = (): void => {
       if (list.hidden) return;
       const r = input.getBoundingClientRect();
-      const below = window.innerHeight - r.bottom - 8;
+      // under the argument hint when it is shown (the list must not cover it), inside the window
+      const under = sig.hidden ? r.bottom : Math.max(r.bottom, sig.getBoundingClientRect().bottom);
+      const below = window.innerHeight - under - 8;
       const above = r.top - 8;
       const room = below >= 160 || below >= above ? below : above;
+      const width = Math.min(Math.max(r.width, 260), window.innerWidth - 16);
       list.style.position = "fixed";
-      list.style.left = `${r.left}px`;
-      list.style.width = `${Math.max(r.width, 260)}px`;
+      list.style.left = `${Math.max(8, Math.min(r.left, window.innerWidth - width - 8))}px`;
+      list.style.width = `${width}px`;
       list.style.maxHeight = `${Math.max(80, Math.min(360, room))}px`;
       if (room === below) {
-        list.style.top = `${r.bottom + 2}px`;
+        list.style.top = `${under + 2}px`;
         list.style.bottom = "";
       } else {
         list.style.top = "";
@@ -1436,6 +1446,7 @@ export class Editor {
         if (s.doc) el("div", { class: "doc" }, sig, s.doc);
         sig.hidden = false;
       } else sig.hidden = true;
+      place(); // below the hint as it is now
     };
     /** The input's text and cursor once item i is accepted. */
     const accepted = (i: number): { value: string; at: number } | null => {
@@ -1553,16 +1564,6 @@ function nextLine(lane: ModelLane, node: ModelNode): number {
   let best = Infinity;
   for (const n of lane.nodes) if (n.line > node.line && n.line < best) best = n.line;
   return best;
-}
-
-function defaultFields(kind: NodeKind): Record<string, FieldInfo> {
-  switch (kind) {
-    case "action": return { call: { required: true } };
-    case "datastore": return { name: { required: true }, value: { required: true } };
-    case "send": return { signal: { required: true } };
-    case "accept": return { signal: { required: true }, store: {} };
-    default: return {};
-  }
 }
 
 /** Show the checker's problems at the fields they are about (`data-field` = the diagnostic's

@@ -5,6 +5,7 @@
 
 import ELK from "elkjs/lib/elk-api.js";
 import type { ElkExtendedEdge, ElkNode } from "elkjs/lib/elk-api.js";
+import { type Dir, type Rect, grow, middle, pathCrosses, route } from "./route";
 import type { ModelDiagram, ModelLane, ModelNode, ModelView } from "./types";
 
 export const FONT = "system-ui, -apple-system, 'Segoe UI', Roboto, 'DejaVu Sans', sans-serif";
@@ -403,12 +404,14 @@ function keepPlaces(fresh: LaneGeom, g: LaneGeom, old: Map<string, NodeBox>, hin
     const o = old.get(id);
     return !!a && !!o && a.w === o.w && a.h === o.h;
   };
+  const kept = new Set<string>();
   const edges = fresh.edges.map((e) => {
     const o = oldEdges.get(`${oldId.get(e.source)}>${oldId.get(e.target)}`);
-    if (o && same(e.source) && same(e.target) && o.label === e.label) return { ...e, points: o.points, labelBox: o.labelBox };
-    return rerouted(e, box);
+    if (!o || !same(e.source) || !same(e.target) || o.label !== e.label) return e;
+    kept.add(e.id);
+    return { ...e, points: o.points, labelBox: o.labelBox };
   });
-  return grown(fresh, g, nodes, edges);
+  return grown(fresh, g, nodes, rerouteAll(edges, (e) => !kept.has(e.id), box, nodes));
 }
 
 /**
@@ -452,51 +455,122 @@ export function layoutComponents(model: ModelView, positions: Positions = {}): P
   return cached("c" + JSON.stringify([model.name, model.components, model.links, positions]), () => layoutComponentsNow(model, positions));
 }
 
-/** A lane with the user's positions applied: moved nodes, their edges re-routed, the lane grown to fit. */
+/** A lane with the user's positions applied: moved nodes at their places, the nodes laid out
+ * automatically moved down clear of them, the flows of what moved routed again (around the nodes),
+ * the lane grown to fit. */
 function placeLane(auto: LaneGeom, positions: Positions): LaneGeom {
   const name = auto.lane.name;
-  const moved = new Set<string>();
-  const nodes = auto.nodes.map((nb) => {
+  const pinned = new Set<string>();
+  let nodes = auto.nodes.map((nb) => {
     const p = positions[`${name}/${nb.node.id}`];
     if (!p) return nb;
-    moved.add(nb.node.id);
+    pinned.add(nb.node.id);
     const dx = p[0] - nb.x;
     const dy = p[1] - nb.y;
     return { ...nb, x: p[0], y: p[1], statsX: nb.statsX + dx, statsY: nb.statsY + dy };
   });
-  if (!moved.size) return auto;
-  const box = new Map(nodes.map((nb) => [nb.node.id, nb]));
-  const edges = auto.edges.map((e) => {
-    if (!moved.has(e.source) && !moved.has(e.target)) return e;
-    return rerouted(e, box);
+  if (!pinned.size) return auto;
+  const shift = clearOfPinned(nodes, pinned);
+  nodes = nodes.map((nb) => {
+    const dy = shift.get(nb.node.id) ?? 0;
+    return dy ? { ...nb, y: nb.y + dy, statsY: nb.statsY + dy } : nb;
   });
-  return grown(auto, auto, nodes, edges);
+  const box = new Map(nodes.map((nb) => [nb.node.id, nb]));
+  const moved = (e: EdgeGeom): boolean => pinned.has(e.source) || pinned.has(e.target)
+    || (shift.get(e.source) ?? 0) !== (shift.get(e.target) ?? 0);
+  const edges = auto.edges.map((e) => {
+    const dy = shift.get(e.source) ?? 0;
+    if (moved(e) || !dy) return e;
+    // both ends moved down together: the flow moves with them
+    return {
+      ...e, points: e.points.map((p) => ({ x: p.x, y: p.y + dy })),
+      labelBox: e.labelBox ? { ...e.labelBox, y: e.labelBox.y + dy } : null,
+    };
+  });
+  return grown(auto, auto, nodes, rerouteAll(edges, moved, box, nodes));
 }
 
-/** An orthogonal route from a's bottom to b's top (or side to side when b is beside a). */
-function routeEdge(a: NodeBox, b: NodeBox): Point[] {
+/** Room kept between a node placed by the user and the nodes laid out around it (px). */
+export const PINNED_GAP = 24;
+
+/** What a node takes in its lane: its box, and the stats written beside it (small nodes). */
+export function nodeExtent(nb: NodeBox): Rect {
+  if (nb.statsInside) return { x: nb.x, y: nb.y, w: nb.w, h: nb.h };
+  const right = nb.statsX + STATS2_W();
+  const top = Math.min(nb.y, nb.statsY - 12);
+  const bottom = Math.max(nb.y + nb.h, nb.statsY + 18);
+  return { x: nb.x, y: top, w: right - nb.x, h: bottom - top };
+}
+
+function overlaps(a: Rect, b: Rect): boolean {
+  return a.x < b.x + b.w && b.x < a.x + a.w && a.y < b.y + b.h && b.y < a.y + a.h;
+}
+
+/**
+ * How far (px, down) each node laid out automatically moves so that none overlaps a node the user
+ * placed (`pinned`): the first one that does moves below it, with every node at or below it, so
+ * the automatic layout's order top to bottom is kept (its flows still go down).
+ */
+function clearOfPinned(nodes: NodeBox[], pinned: Set<string>): Map<string, number> {
+  const fixed = nodes.filter((nb) => pinned.has(nb.node.id)).map((nb) => grow(nodeExtent(nb), PINNED_GAP / 2));
+  const free = nodes.filter((nb) => !pinned.has(nb.node.id)).map((nb) => ({ id: nb.node.id, r: grow(nodeExtent(nb), PINNED_GAP / 2) }))
+    .sort((p, q) => p.r.y - q.r.y);
+  const shift = new Map<string, number>();
+  for (let k = 0; k < free.length; k++) {
+    const hit = fixed.find((f) => overlaps(f, free[k].r));
+    if (!hit) continue;
+    const top = free[k].r.y;
+    const dy = hit.y + hit.h - top;
+    for (const f of free) {
+      if (f.r.y < top - 0.5) continue;
+      f.r = { ...f.r, y: f.r.y + dy };
+      shift.set(f.id, (shift.get(f.id) ?? 0) + dy);
+    }
+    k = -1; // look again from the top: a moved node may meet another placed node
+  }
+  return shift;
+}
+
+/** How far a rerouted flow keeps from the nodes it passes (px); it leaves and enters straight for a bit more. */
+const FLOW_CLEARANCE = 10;
+
+/**
+ * An orthogonal route from a's bottom to b's top (from a's side to b's side when b is beside a;
+ * out of a's side and into b's side when b is above a: a flow back), around the lane's other
+ * nodes and the stats written beside them.
+ */
+function routeEdge(a: NodeBox, b: NodeBox, nodes: NodeBox[], avoid: Point[][]): Point[] {
   const ax = a.x + a.w / 2;
   const bx = b.x + b.w / 2;
-  if (b.y >= a.y + a.h + 12) {
-    const y0 = a.y + a.h;
-    const y1 = b.y;
-    const my = (y0 + y1) / 2;
-    return Math.abs(ax - bx) < 1 ? [{ x: ax, y: y0 }, { x: bx, y: y1 }] : [{ x: ax, y: y0 }, { x: ax, y: my }, { x: bx, y: my }, { x: bx, y: y1 }];
+  // a small node's stats are written on its right: its flows back leave and enter on its left
+  const side = (nb: NodeBox): Dir => (nb.statsInside ? "E" : "W");
+  const lead = FLOW_CLEARANCE + 4;
+  let from: Dir;
+  let into: Dir;
+  if (b.y >= a.y + a.h + 2 * lead + 4) {
+    from = "S";
+    into = "N";
+  } else if (b.y + b.h + 12 <= a.y) {
+    from = side(a);
+    into = side(b);
+  } else {
+    // beside: out of the side that faces b, into b's top when it is lower (else its facing side)
+    const right = bx > ax;
+    from = right ? "E" : "W";
+    into = b.y > a.y + a.h / 2 ? "N" : right ? "W" : "E";
   }
-  if (b.y + b.h + 12 <= a.y) {
-    // upwards: leave on the right side, come back into b's right side
-    const x = Math.max(a.x + a.w, b.x + b.w) + 20;
-    const ay = a.y + a.h / 2;
-    const by = b.y + b.h / 2;
-    return [{ x: a.x + a.w, y: ay }, { x, y: ay }, { x, y: by }, { x: b.x + b.w, y: by }];
+  const at = (nb: NodeBox, d: Dir): Point => d === "S" ? { x: nb.x + nb.w / 2, y: nb.y + nb.h } : d === "N" ? { x: nb.x + nb.w / 2, y: nb.y }
+    : d === "E" ? { x: nb.x + nb.w, y: nb.y + nb.h / 2 } : { x: nb.x, y: nb.y + nb.h / 2 };
+  const keepOut: Rect[] = [];
+  for (const nb of nodes) {
+    keepOut.push(grow({ x: nb.x, y: nb.y, w: nb.w, h: nb.h }, FLOW_CLEARANCE));
+    if (!nb.statsInside && nb !== a && nb !== b) keepOut.push(grow(nodeExtent(nb), 2));
   }
-  const ay = a.y + a.h / 2;
-  const by = b.y + b.h / 2;
-  const right = bx > ax;
-  const x0 = right ? a.x + a.w : a.x;
-  const x1 = right ? b.x : b.x + b.w;
-  const mx = (x0 + x1) / 2;
-  return [{ x: x0, y: ay }, { x: mx, y: ay }, { x: mx, y: by }, { x: x1, y: by }];
+  const found = route(at(a, from), from, at(b, into), into, keepOut, { lead, avoid, bounds: { x: 2, y: 0, w: 1e6, h: 1e6 } });
+  if (found) return found;
+  // walled in: the plain line (drawn over, never lost)
+  if (from === "S") return [{ x: ax, y: a.y + a.h }, { x: ax, y: (a.y + a.h + b.y) / 2 }, { x: bx, y: (a.y + a.h + b.y) / 2 }, { x: bx, y: b.y }];
+  return [at(a, from), at(b, into)];
 }
 
 async function layoutActivityNow(d: ModelDiagram, positions: Positions, before: ModelDiagram | undefined): Promise<ActivityLayout> {
@@ -527,40 +601,105 @@ export interface ComponentLayout {
   components: ComponentGeom[]; links: LinkGeom[]; orch: { x: number; y: number; w: number; h: number };
 }
 
-// Where each component of a model was drawn last (ELK's place, or the one it kept): an edit that
-// adds, removes or links a component leaves the others where they are (ELK alone would reshuffle
-// them all); only a new component gets a new place. Kept for the page's life (a reload lays the
-// diagram out afresh).
-const lastPlaces = new Map<string, Map<string, Point>>();
+// Where each component of a model was drawn last (ELK's place, or the one it kept), and what it
+// took there (its box with its ports' labels): an edit that adds, removes or links a component
+// leaves the others where they are (ELK alone would reshuffle them all); only a new component, or
+// one whose labels now reach into another, gets a new place. Kept for the page's life (a reload
+// lays the diagram out afresh).
+const lastPlaces = new Map<string, Map<string, { at: Point; extent: string }>>();
 
-/** Keep the places of components drawn before; put new ones where ELK put them if free, else below. */
-function stickyPlaces(modelName: string, elkBoxes: { id: string; x: number; y: number; w: number; h: number }[]): Positions {
+/** A component as ELK laid it out: its box and what it takes with its ports and their labels
+ * (`extent`, relative to the box's corner). */
+interface CompBox { id: string; x: number; y: number; w: number; h: number; extent: Rect }
+
+/** Room kept between the components' boxes and labels when one is placed anew (px). */
+const COMP_GAP = 40;
+
+/**
+ * The places of the components: the user's (`pinned`), then those kept from the last drawing that
+ * have room there, then the others at ELK's place if that has room, else below everything.
+ */
+function stickyPlaces(modelName: string, elkBoxes: CompBox[], pinned: Positions): Positions {
   const before = lastPlaces.get(modelName);
   const kept: Positions = {};
-  const now = new Map<string, Point>();
-  if (before && elkBoxes.some((b) => before.has(b.id))) {
-    const boxes = elkBoxes.filter((b) => before.has(b.id)).map((b) => {
-      const p = before.get(b.id)!;
-      kept[b.id] = [p.x, p.y];
-      return { ...b, x: p.x, y: p.y };
-    });
-    let bottom = Math.max(...boxes.map((b) => b.y + b.h));
-    const gap = 40;
-    for (const b of elkBoxes) {
-      if (before.has(b.id)) continue;
-      const hits = boxes.some((o) => b.x < o.x + o.w + gap && o.x < b.x + b.w + gap && b.y < o.y + o.h + gap && o.y < b.y + b.h + gap);
-      const place = hits ? { x: 30, y: bottom + gap + 20 } : { x: b.x, y: b.y };
-      kept[b.id] = [place.x, place.y];
-      boxes.push({ ...b, ...place });
-      bottom = Math.max(bottom, place.y + b.h);
+  const now = new Map<string, { at: Point; extent: string }>();
+  const sig = (b: CompBox): string => JSON.stringify(b.extent);
+  // (a first drawing with components the user placed: the others go where they have room too)
+  if ((before && elkBoxes.some((b) => before.has(b.id))) || Object.keys(pinned).length) {
+    const taken: Rect[] = [];
+    const room = (b: CompBox, x: number, y: number): boolean => {
+      const r = grow({ x: x + b.extent.x, y: y + b.extent.y, w: b.extent.w, h: b.extent.h }, COMP_GAP / 2);
+      return !taken.some((t) => overlaps(t, r));
+    };
+    const take = (b: CompBox, x: number, y: number): void => {
+      kept[b.id] = [x, y];
+      taken.push(grow({ x: x + b.extent.x, y: y + b.extent.y, w: b.extent.w, h: b.extent.h }, COMP_GAP / 2));
+    };
+    for (const b of elkBoxes) if (pinned[b.id]) take(b, pinned[b.id][0], pinned[b.id][1]);
+    const unchanged = (b: CompBox): boolean => before?.get(b.id)?.extent === sig(b);
+    // the components that look as before keep their places first; one that grew (a new port's
+    // label) keeps its place if it still has room there
+    const order = [...elkBoxes.filter((b) => unchanged(b)), ...elkBoxes.filter((b) => !unchanged(b))];
+    const later: CompBox[] = [];
+    for (const b of order) {
+      if (pinned[b.id]) continue;
+      const p = before?.get(b.id)?.at;
+      if (p && room(b, p.x, p.y)) take(b, p.x, p.y);
+      else later.push(b);
+    }
+    for (const b of later) {
+      if (room(b, b.x, b.y)) {
+        take(b, b.x, b.y);
+        continue;
+      }
+      const bottom = Math.max(0, ...taken.map((t) => t.y + t.h));
+      take(b, 30 - b.extent.x, bottom + COMP_GAP / 2 - b.extent.y);
     }
   }
   for (const b of elkBoxes) {
-    const k = kept[b.id];
-    now.set(b.id, k ? { x: k[0], y: k[1] } : { x: b.x, y: b.y });
+    const k = kept[b.id] ?? pinned[b.id];
+    now.set(b.id, { at: k ? { x: k[0], y: k[1] } : { x: b.x, y: b.y }, extent: sig(b) });
   }
   lastPlaces.set(modelName, now);
   return kept;
+}
+
+/** How far a link keeps from the components it passes (px). */
+const LINK_CLEARANCE = 12;
+
+/**
+ * A link routed around the components (and their ports' labels) from its source port's outer
+ * side to its target port's: the drawing once components keep places ELK did not give them.
+ */
+function routeLink(id: string, from: PortGeom, to: PortGeom, components: ComponentGeom[], orch: Rect, avoid: Point[][]): LinkGeom {
+  const end = (p: PortGeom): { at: Point; dir: Dir } => p.side === "EAST"
+    ? { at: { x: p.x + p.w, y: p.y + p.h / 2 }, dir: "E" } : { at: { x: p.x, y: p.y + p.h / 2 }, dir: "W" };
+  const a = end(from);
+  const b = end(to);
+  const keepOut: Rect[] = [grow(orch, LINK_CLEARANCE)];
+  for (const c of components) {
+    keepOut.push(grow({ x: c.x, y: c.y, w: c.w, h: c.h }, LINK_CLEARANCE));
+    for (const p of c.ports) {
+      const label = portLabelBox(p);
+      if (p === from || p === to) {
+        // its own port's label is under the line where it leaves: the line may not turn down through it
+        const top = Math.max(label.y, p.y + p.h / 2 + 1);
+        keepOut.push({ ...label, y: top, h: Math.max(0, label.y + label.h - top) });
+      } else keepOut.push(grow(label, 3));
+    }
+  }
+  const points = route(a.at, a.dir, b.at, b.dir, keepOut, { lead: LINK_CLEARANCE + 4, avoid, bounds: { x: 0, y: 0, w: 1e6, h: 1e6 } })
+    ?? [a.at, { x: (a.at.x + b.at.x) / 2, y: a.at.y }, { x: (a.at.x + b.at.x) / 2, y: b.at.y }, b.at];
+  const mid = middle(points);
+  const w = textWidth(id, SMALL_PX);
+  return mid.horizontal
+    ? { id, points, label: id, labelX: mid.x - w / 2, labelY: mid.y - 4 }
+    : { id, points, label: id, labelX: mid.x + 4, labelY: mid.y + 4 };
+}
+
+/** The box a port's label takes (its text's baseline is labelY). */
+export function portLabelBox(p: PortGeom): Rect {
+  return { x: p.labelX, y: p.labelY - 11, w: textWidth(`${p.name} → ${p.feature}`, SMALL_PX), h: 14 };
 }
 
 async function layoutComponentsNow(model: ModelView, userPositions: Positions): Promise<ComponentLayout> {
@@ -616,9 +755,31 @@ async function layoutComponentsNow(model: ModelView, userPositions: Positions): 
     edges,
   };
   const out = await engine().layout(graph);
-  const elkBoxes = (out.children ?? []).map((c) => ({ id: c.id, x: c.x ?? 0, y: c.y ?? 0, w: c.width ?? 200, h: c.height ?? 100 }));
-  // the places kept from the last drawing, then the ones the user chose (the layout file)
-  const positions: Positions = { ...stickyPlaces(model.name, elkBoxes), ...userPositions };
+  const elkBoxes: CompBox[] = (out.children ?? []).map((c) => {
+    const x = c.x ?? 0;
+    const y = c.y ?? 0;
+    const w = c.width ?? 200;
+    const h = c.height ?? 100;
+    // the box with its ports and their labels (ELK's coordinates are the root's)
+    let x0 = x;
+    let y0 = y;
+    let x1 = x + w;
+    let y1 = y + h;
+    for (const p of c.ports ?? []) {
+      const l = p.labels?.[0];
+      for (const r of [{ x: p.x ?? x, y: p.y ?? y, w: p.width ?? 0, h: p.height ?? 0 },
+        ...(l ? [{ x: l.x ?? x, y: l.y ?? y, w: l.width ?? 0, h: l.height ?? 0 }] : [])]) {
+        x0 = Math.min(x0, r.x);
+        y0 = Math.min(y0, r.y);
+        x1 = Math.max(x1, r.x + r.w);
+        y1 = Math.max(y1, r.y + r.h);
+      }
+    }
+    return { id: c.id, x, y, w, h, extent: { x: x0 - x, y: y0 - y, w: x1 - x0, h: y1 - y0 } };
+  });
+  // the places the user chose (the layout file), and those kept from the last drawing
+  const mine: Positions = Object.fromEntries(Object.entries(userPositions).filter(([id]) => elkBoxes.some((b) => b.id === id)));
+  const positions: Positions = { ...stickyPlaces(model.name, elkBoxes, mine), ...mine };
   for (const [id, p] of Object.entries(positions)) {
     const b = elkBoxes.find((x) => x.id === id);
     if (b && Math.abs(b.x - p[0]) < 0.5 && Math.abs(b.y - p[1]) < 0.5) delete positions[id]; // where ELK put it
@@ -649,17 +810,18 @@ async function layoutComponentsNow(model: ModelView, userPositions: Positions): 
   }
   const portAt = new Map<string, PortGeom>();
   for (const c of components) for (const p of c.ports) portAt.set(`${c.name}.${p.name}`, p);
+  const orch = { x: 30, y: 24, w: orchW, h: orchH };
+  // ELK's routes fit ELK's places: once a component is elsewhere, every link is routed anew
+  const elsewhere = Object.keys(positions).length > 0;
+  const drawn: Point[][] = [];
   const links: LinkGeom[] = (out.edges ?? []).map((e) => {
     const link = model.links.find((l) => l.id === e.id);
     const from = link ? portAt.get(`${link.source.component}.${link.source.port}`) : undefined;
     const to = link ? portAt.get(`${link.target.component}.${link.target.port}`) : undefined;
-    if (link && from && to && (positions[link.source.component] || positions[link.target.component])) {
-      // a moved component: a plain orthogonal route between the two ports
-      const a = { x: from.x + from.w, y: from.y + from.h / 2 };
-      const b = { x: to.x, y: to.y + to.h / 2 };
-      const mx = (a.x + b.x) / 2;
-      const points = [a, { x: mx, y: a.y }, { x: mx, y: b.y }, b];
-      return { id: e.id, points, label: e.id, labelX: mx + 4, labelY: (a.y + b.y) / 2 };
+    if (elsewhere && from && to) {
+      const routed = routeLink(e.id, from, to, components, orch, drawn);
+      drawn.push(routed.points);
+      return routed;
     }
     const points: Point[] = [];
     for (const s of e.sections ?? []) points.push(s.startPoint, ...(s.bendPoints ?? []), s.endPoint);
@@ -675,26 +837,49 @@ async function layoutComponentsNow(model: ModelView, userPositions: Positions): 
     width = Math.max(width, c.x + c.w + 200);
     height = Math.max(height, c.y + c.h + 30);
   }
+  for (const l of links) {
+    for (const p of l.points) {
+      width = Math.max(width, p.x + 30);
+      height = Math.max(height, p.y + 30);
+    }
+  }
   return {
     kind: "components",
     width,
     height,
     components, links,
-    orch: { x: 30, y: 24, w: orchW, h: orchH },
+    orch,
   };
 }
 
 export type Layout = ActivityLayout | ComponentLayout;
 
-/** An edge drawn again as a plain right-angle line between its nodes' new boxes (as a dragged node's). */
-function rerouted(e: EdgeGeom, box: Map<string, NodeBox>): EdgeGeom {
+/** An edge drawn again between its nodes' new boxes, around the lane's other nodes and beside the
+ * flows drawn already (`routeEdge`). */
+function rerouted(e: EdgeGeom, box: Map<string, NodeBox>, nodes: NodeBox[], avoid: Point[][]): EdgeGeom {
   const a = box.get(e.source);
   const b = box.get(e.target);
   if (!a || !b) return e;
-  const points = routeEdge(a, b);
-  const mid = points[Math.floor((points.length - 1) / 2)];
-  const labelBox = e.labelBox ? { ...e.labelBox, x: mid.x + 4, y: mid.y - 8 } : null;
+  const points = routeEdge(a, b, nodes, avoid);
+  const mid = middle(points);
+  const labelBox = e.labelBox ? { ...e.labelBox, x: mid.x - e.labelBox.w / 2, y: mid.y - e.labelBox.h / 2 } : null;
   return { ...e, points, labelBox };
+}
+
+/**
+ * `edges` with those that must be drawn again (`again`: their nodes moved, or they would run
+ * through another node) routed anew one by one, each beside the flows drawn before it.
+ */
+function rerouteAll(edges: EdgeGeom[], again: (e: EdgeGeom) => boolean, box: Map<string, NodeBox>, nodes: NodeBox[]): EdgeGeom[] {
+  const redo = edges.map((e) => again(e) || nodes.some((nb) => nb.node.id !== e.source && nb.node.id !== e.target
+    && pathCrosses(grow({ x: nb.x, y: nb.y, w: nb.w, h: nb.h }, -1), e.points)));
+  const out = edges.slice();
+  for (let i = 0; i < out.length; i++) {
+    if (!redo[i]) continue;
+    const avoid = out.filter((_, k) => k !== i && (!redo[k] || k < i)).map((x) => x.points);
+    out[i] = rerouted(out[i], box, nodes, avoid);
+  }
+  return out;
 }
 
 /** `lane` with `nodes` and `edges`, at least as big as `size` and big enough for every node. */
@@ -704,6 +889,12 @@ function grown(lane: LaneGeom, size: LaneGeom, nodes: NodeBox[], edges: EdgeGeom
   for (const nb of nodes) {
     w = Math.max(w, nb.x + nb.w + (nb.statsInside ? 24 : STATS2_W() + 24));
     h = Math.max(h, nb.y + nb.h + 24);
+  }
+  for (const e of edges) {
+    for (const p of e.points) {
+      w = Math.max(w, p.x + 16);
+      h = Math.max(h, p.y + 16);
+    }
   }
   return { ...lane, w, h: h + lane.headerH, nodes, edges };
 }

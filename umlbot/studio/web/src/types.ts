@@ -1,7 +1,7 @@
 // Wire types of the page/server contract (docs/studio.md: "The page's data", "Editing requests").
 
-export type NodeKind =
-  | "start" | "end" | "action" | "datastore" | "decision" | "fork" | "join" | "send" | "accept";
+/** A node kind: the compiler's (`node_kinds` of GET /api/library), never listed in the page. */
+export type NodeKind = string;
 
 export interface ModelNode {
   id: string;
@@ -159,6 +159,8 @@ export interface EditInfo {
   model?: ModelView | null; // the model as written (also while it has errors)
   compiled?: boolean;
   diagnostics?: Diagnostic[];
+  /** the files a swimlane can be added to (a block list of `lanes:`) */
+  lane_files?: string[];
   run?: RunInfo;
   /** unsaved edits a previous studio kept when it quit */
   recovery?: { time: string | null; files: string[]; layout: boolean } | null;
@@ -206,6 +208,7 @@ export interface EditAnswer {
   model: ModelView | null;
   compiled?: boolean;
   diagnostics: Diagnostic[];
+  lane_files?: string[];
   changed?: string[];
   dirty: boolean;
   layout?: { positions?: LayoutMap } | null;
@@ -225,6 +228,7 @@ export interface FilesMsg {
   changed: string[];
   model: ModelView | null;
   diagnostics: Diagnostic[];
+  lane_files?: string[];
   version: number;
   dirty?: boolean;
   layout?: { positions?: LayoutMap } | null;
