@@ -125,16 +125,18 @@ def _viewport(page: Page) -> str:
 
 
 def _pan_by_hand(page: Page, dx: float, dy: float) -> None:
-    """Drag the diagram by (dx, dy) from a point of the canvas where no node is (a pan)."""
-    start = page.evaluate("""() => {
+    """Drag the diagram by (dx, dy) from a point of the canvas where no node is (a pan), on the
+    side the drag leaves from (a drag to the left starts on the right)."""
+    start = page.evaluate("""leftwards => {
         const c = document.querySelector('#canvas').getBoundingClientRect();
         for (let y = c.top + 60; y < c.bottom - 60; y += 20)
-            for (let x = c.left + 20; x < c.right - 20; x += 20) {
+            for (let i = 20; i < c.width - 20; i += 20) {
+                const x = leftwards ? c.right - i : c.left + i;
                 const hit = document.elementFromPoint(x, y);
                 if (hit && (hit.matches('svg.diagram') || hit.matches('.lane-bg'))) return [x, y];
             }
         return null;
-    }""")
+    }""", dx < 0)
     assert start is not None, "no empty place on the canvas to drag from"
     page.mouse.move(start[0], start[1])
     page.mouse.down()
@@ -171,8 +173,9 @@ def test_the_view_follows_the_running_robot_until_panned_by_hand(
         page.wait_for_function(INSIDE_CANVAS, arg=active)
         shot(page, "studio-follow.png")
 
-        _pan_by_hand(page, 150, -250)
+        _pan_by_hand(page, -700, 0)  # the lane (the diagram's only one) goes off to the left
         expect(follow).to_have_attribute("aria-pressed", "false")
+        assert not page.evaluate(INSIDE_CANVAS, active)
         pans, where = page.evaluate("window.__studio.followPans"), _viewport(page)
         applied = page.evaluate("window.__studio.applied")
         page.wait_for_timeout(1500)  # the robot runs on; the view stays where the user put it

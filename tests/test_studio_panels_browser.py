@@ -347,7 +347,9 @@ def test_a_page_opened_while_a_conflict_stands_shows_the_conflict_not_the_end_of
         expect(page.locator("#stop")).to_be_enabled()
         page.locator("#stop").click()
         expect(page.locator('#notice[data-kind="run-ended"]')).to_be_visible()
-        # an unsaved edit, and the same file changed on disk: a conflict stands
+        # an unsaved edit, and the same file changed on disk: a conflict stands (the view followed
+        # the run down its lane: the node is brought back into view, as a person would pan to it)
+        page.evaluate("window.__studio.reveal('RaspberryPI', 'set_speed')")
         page.locator(node("RaspberryPI", "set_speed")).click()
         value = page.locator('#props input[name="value"]')
         value.fill("55")
