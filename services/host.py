@@ -173,7 +173,7 @@ class ServiceHost:
             service = service_cls(name, comp.implementation, driver, comp.settings)
             self.services[name] = service
             server = ComponentServer(self.settings, self.robot, name, comp.implementation.id,
-                                     service.features())
+                                     service.features(), driver=self.chosen_drivers[name])
             service.publish_state = server.publish_state
             # Re-publish the retained state after a reconnect (the broker may have restarted).
             server.connection.add_on_connect(service.changed)

@@ -119,6 +119,8 @@ def test_every_malformed_envelope_gets_an_error_reply(
                           "payload_too_large"),
         "bad-envelope": ("echo", b'{"id": "bad-envelope", "reply_to": "raw/replies", "args": [1], "x": 2}',
                          "bad_request"),
+        "bad-timeout": ("echo", b'{"id": "bad-timeout", "reply_to": "raw/replies", "args": [1], '
+                                b'"timeout_s": -1}', "bad_request"),
     }
     with structlog.testing.capture_logs() as logs:
         raw.publish(TOPICS.call("Motor", "dutycycle"), b"[" * 300_000)  # oversize, no reply asked
@@ -137,7 +139,7 @@ def test_every_malformed_envelope_gets_an_error_reply(
     assert server.connection.counters.handler_errors == 0
     assert calls == []
     with BusClient(BrokerSettings.from_url(broker.url), ROBOT) as good:
-        assert good.call("Motor", "add", 1, 2) == 3
+        assert good.call("Motor", "add", 1, 2) == 3  # (its request says its time-out, `timeout_s`)
     rejected = [e for e in logs if e["event"] == "call_rejected"]
     assert len(rejected) == len(cases) + 1  # one warning line per bad request
     assert all(e["log_level"] == "warning" for e in rejected)

@@ -78,6 +78,47 @@ def test_availability_events_only_on_change() -> None:
     assert state.availability[("car", "LeftActuator")].state == "offline"
 
 
+def test_a_request_that_says_its_time_out_is_reported_after_it() -> None:
+    """The caller's own time-out (`timeout_s`, the orchestrator's fail-safe stop calls: 1 s) wins
+    over the one the orchestrator's status announces (its run's 2 s) and `--call-timeout`."""
+    for state in (MonitorState(), MonitorState(call_timeout_s=0.5)):
+        state.observe("umlbot/car/orchestrator/status", j({"state": "stopping", "call_timeout_s": 2.0}), 99.0)
+        stop = {"id": "s1", "reply_to": "umlbot/car/_reply/o", "args": [False], "timeout_s": 1.0}
+        state.observe("umlbot/car/LeftActuator/call/enabled", j(stop), 100.0)
+        state.observe("umlbot/car/Sensor/call/angle",
+                      j({"id": "s2", "reply_to": "umlbot/car/_reply/o", "args": [90]}), 100.0)
+        early = state.expire(100.9)
+        assert "enabled" not in {e.feature for e in early}  # not before its own 1 s
+        by_feature = {e.feature: e.error for e in early + state.expire(101.1) + state.expire(102.1)}
+        assert by_feature == {"enabled": "no reply within 1 s",
+                              "angle": "no reply within 2 s" if state.call_timeout_s is None
+                              else "no reply within 0.5 s"}
+    [bad] = MonitorState().observe("umlbot/car/Sensor/call/angle",
+                                   j({"id": "s3", "reply_to": "r/t", "args": [90], "timeout_s": "soon"}), 1.0)
+    assert bad.ok is False and bad.error == "bad_request: not a valid request envelope"
+
+
+def test_the_driver_a_status_says_is_an_event_and_a_column() -> None:
+    """A status that names its driver (`auto` resolved by the service) says it in the availability
+    event and the table; a status without one (another client's service) is still a status."""
+    state = MonitorState()
+    topic = "umlbot/car/LeftActuator/status"
+    [first] = state.observe(topic, j({"state": "online", "impl": "l298n", "driver": "mock"}), 1.0)
+    assert (first.state, first.driver) == ("online", "mock")
+    assert '"driver":"mock"' in first.line()
+    assert state.observe(topic, j({"state": "online", "impl": "l298n", "driver": "mock"}), 2.0) == []
+    [other] = state.observe(topic, j({"state": "online", "impl": "l298n", "driver": "pigpio"}), 3.0)
+    assert other.driver == "pigpio"  # the same state, another driver: said
+    out = io.StringIO()
+    Console(file=out, width=160).print(render(state, now=4.0))
+    assert "driver" in out.getvalue()
+    assert "pigpio" in next(line for line in out.getvalue().splitlines() if "LeftActuator" in line)
+    [gone] = state.observe(topic, j({"state": "offline"}), 5.0)
+    assert gone.driver is None and "driver" not in gone.line()
+    [plain] = state.observe("umlbot/car/Sensor/status", j({"state": "online", "impl": "servo"}), 6.0)
+    assert plain.driver is None and state.availability[("car", "Sensor")].state == "online"
+
+
 def test_the_time_in_a_state_counts_from_the_since_the_status_gives() -> None:
     """A service online since 1000 s is shown online for 500 s at 1500 s, though the monitor saw
     its (retained) status only at 1490 s; a status without a usable `since` counts from when it

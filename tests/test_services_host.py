@@ -353,6 +353,27 @@ def _statuses(url: str, *components: str) -> dict[str, dict[str, Any]]:
     return {m.topic.split("/")[-2]: json.loads(m.payload) for m in found}
 
 
+def test_the_status_says_the_driver_that_runs_with_auto_resolved(
+    mosquitto_broker: BrokerProcess, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """`--driver mock` over a deployment that says `auto` says "mock"; `auto` alone says what it
+    chose on this machine (here the fake pigpio the environment asks for), never "auto"."""
+    from services import autodetect
+
+    with running("motor", deployment("auto"), mosquitto_broker.url, "mock"):
+        status = _statuses(mosquitto_broker.url, "LeftActuator", "RightActuator")
+        assert {s["driver"] for s in status.values()} == {"mock"}
+    assert "driver" not in _statuses(mosquitto_broker.url, "LeftActuator")["LeftActuator"]  # offline
+    monkeypatch.setenv("UMLBOT_FAKE_PIGPIO", "1")
+    autodetect.forget()
+    try:
+        with running("motor", deployment("auto"), mosquitto_broker.url) as host:
+            assert host.chosen_drivers["LeftActuator"] == "pigpio"
+            assert _statuses(mosquitto_broker.url, "LeftActuator")["LeftActuator"]["driver"] == "pigpio"
+    finally:
+        autodetect.forget()
+
+
 @pytest.mark.parametrize("kind", ["amqtt", "mosquitto"])
 def test_a_second_service_for_a_served_component_refuses_and_leaves_the_first_online(
     kind: str, request: pytest.FixtureRequest

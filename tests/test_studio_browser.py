@@ -61,6 +61,11 @@ def test_a_live_run_is_highlighted_with_counts_timings_calls_and_availability(
         for name in ("LeftActuator", "RightActuator", "Sensor", "DistanceRead", "RaspberryPI"):
             expect(page.locator(f'g.component[data-component="{name}"]')).to_have_attribute(
                 "data-state", "online")
+            # the deployment says `auto`; the services run --driver mock, and their status says so
+            expect(page.locator(f'g.component[data-component="{name}"]')).to_have_attribute(
+                "data-driver", "mock")
+        expect(page.locator('g.component[data-component="LeftActuator"] text.impl')).to_have_text(
+            "l298n · motor · auto → mock")
         made.append(Proc("run", umlbot_argv("run", str(compiled), "--robot", ROBOT), tmp_path,
                          mosquitto_broker.url))
         expect(page.locator("#orchestrator-status")).to_have_attribute("data-state", "running")
@@ -97,9 +102,90 @@ def test_a_live_run_is_highlighted_with_counts_timings_calls_and_availability(
         left = page.locator('g.component[data-component="LeftActuator"]')
         expect(left).to_have_attribute("data-state", "offline")
         expect(left).to_have_class(_has("offline"))
+        expect(left).not_to_have_attribute("data-driver", "mock")  # nothing runs it now
+        expect(left.locator("text.impl")).to_have_text("l298n · motor · auto")
         expect(page.locator("#orchestrator-status")).to_have_attribute("data-state", "failed")
         expect(page.locator("#orchestrator-status")).to_contain_text("LeftActuator")
         shot(page, "studio-offline.png")
+        page.close()
+
+
+#: JS: the box of what `selector` finds lies inside the canvas (the part of the page the diagram shows)
+INSIDE_CANVAS = """selector => {
+    const el = document.querySelector(selector);
+    if (!el) return false;
+    const c = document.querySelector('#canvas').getBoundingClientRect();
+    const b = el.getBoundingClientRect();
+    return b.width > 0 && b.left >= c.left && b.right <= c.right && b.top >= c.top && b.bottom <= c.bottom;
+}"""
+
+
+def _viewport(page: Page) -> str:
+    return page.locator('svg[data-diagram="activity-main"] g.viewport').get_attribute("transform") or ""
+
+
+def _pan_by_hand(page: Page, dx: float, dy: float) -> None:
+    """Drag the diagram by (dx, dy) from a point of the canvas where no node is (a pan), on the
+    side the drag leaves from (a drag to the left starts on the right)."""
+    start = page.evaluate("""leftwards => {
+        const c = document.querySelector('#canvas').getBoundingClientRect();
+        for (let y = c.top + 60; y < c.bottom - 60; y += 20)
+            for (let i = 20; i < c.width - 20; i += 20) {
+                const x = leftwards ? c.right - i : c.left + i;
+                const hit = document.elementFromPoint(x, y);
+                if (hit && (hit.matches('svg.diagram') || hit.matches('.lane-bg'))) return [x, y];
+            }
+        return null;
+    }""", dx < 0)
+    assert start is not None, "no empty place on the canvas to drag from"
+    page.mouse.move(start[0], start[1])
+    page.mouse.down()
+    page.mouse.move(start[0] + dx, start[1] + dy, steps=6)
+    page.mouse.up()
+
+
+def test_the_view_follows_the_running_robot_until_panned_by_hand(
+    browser: Browser, mosquitto_broker: BrokerProcess, tmp_path: Path
+) -> None:
+    """The car's main opens at its start (the start-up datastores); the loop the robot runs is
+    further down. Follow (on by default) pans the view to the node that ran last, the lane keeps
+    its name on screen, a pan by hand turns following off (the view stays put), `l` turns it on."""
+    compiled = compile_car(tmp_path)
+    with processes() as made, studio(["studio", str(CAR_MODEL), "--port", "0", "--robot", ROBOT], tmp_path,
+                                     mosquitto_broker.url) as proc:
+        start_services(made, tmp_path, lambda kind: mosquitto_broker.url, robot=ROBOT)
+        page = open_page(browser, proc.url + "#diagram=activity-main")
+        follow = page.locator("#follow")
+        expect(follow).to_have_attribute("aria-pressed", "true")
+        opening = _viewport(page)
+        made.append(Proc("run", umlbot_argv("run", str(compiled), "--robot", ROBOT), tmp_path,
+                         mosquitto_broker.url))
+        expect(page.locator("#orchestrator-status")).to_have_attribute("data-state", "running")
+        active = 'svg[data-diagram="activity-main"] g.node.active[data-lane="RaspberryPI"]'
+        page.wait_for_function("() => window.__studio.followPans > 0")
+        page.wait_for_function(INSIDE_CANVAS, arg=active)
+        assert _viewport(page) != opening  # it panned to get there (never zoomed: the same scale)
+        assert _viewport(page).split("scale")[1] == opening.split("scale")[1]
+        # the lane's name stays on screen although its header is far above
+        title = 'svg[data-diagram="activity-main"] g.lane[data-lane="RaspberryPI"] .lane-title'
+        page.wait_for_function(INSIDE_CANVAS, arg=title)
+        page.wait_for_timeout(2500)  # into the loop the robot runs: the picture of docs/studio.md
+        page.wait_for_function(INSIDE_CANVAS, arg=active)
+        shot(page, "studio-follow.png")
+
+        _pan_by_hand(page, -700, 0)  # the lane (the diagram's only one) goes off to the left
+        expect(follow).to_have_attribute("aria-pressed", "false")
+        assert not page.evaluate(INSIDE_CANVAS, active)
+        pans, where = page.evaluate("window.__studio.followPans"), _viewport(page)
+        applied = page.evaluate("window.__studio.applied")
+        page.wait_for_timeout(1500)  # the robot runs on; the view stays where the user put it
+        assert page.evaluate("window.__studio.applied") > applied
+        assert (page.evaluate("window.__studio.followPans"), _viewport(page)) == (pans, where)
+
+        page.keyboard.press("l")  # follow again
+        expect(follow).to_have_attribute("aria-pressed", "true")
+        page.wait_for_function("p => window.__studio.followPans > p", arg=pans)
+        page.wait_for_function(INSIDE_CANVAS, arg=active)
         page.close()
 
 

@@ -182,7 +182,17 @@ def test_a_laptop_window_shows_the_whole_toolbar_and_the_calls(browser: Browser,
         page.locator("#run-speed").select_option("1")
         page.locator("#run").click()
         page.wait_for_function("document.querySelectorAll('#calls tbody tr').length >= 6")
-        page.locator('svg.diagram g.node[data-lane="RaspberryPI"]').first.click()  # a node's properties too
+        # a node's properties too: one the view shows (it follows the run: not the start node)
+        shown = page.evaluate("""() => {
+          const c = document.querySelector('#canvas').getBoundingClientRect();
+          return [...document.querySelectorAll('svg.diagram g.node[data-lane="RaspberryPI"]')].map((g) => {
+            const r = g.getBoundingClientRect();
+            const inside = r.left > c.left && r.right < c.right && r.top > c.top + 60 && r.bottom < c.bottom;
+            return r.width > 0 && inside ? g.dataset.node : null;
+          }).find((n) => n) ?? null;
+        }""")
+        assert shown is not None
+        page.locator(f'svg.diagram g.node[data-lane="RaspberryPI"][data-node="{shown}"]').click()
         page.wait_for_timeout(500)
         shot(page, "studio-laptop-run.png")
         # every control of the toolbar is inside the window, its text whole; only the source path
@@ -337,7 +347,9 @@ def test_a_page_opened_while_a_conflict_stands_shows_the_conflict_not_the_end_of
         expect(page.locator("#stop")).to_be_enabled()
         page.locator("#stop").click()
         expect(page.locator('#notice[data-kind="run-ended"]')).to_be_visible()
-        # an unsaved edit, and the same file changed on disk: a conflict stands
+        # an unsaved edit, and the same file changed on disk: a conflict stands (the view followed
+        # the run down its lane: the node is brought back into view, as a person would pan to it)
+        page.evaluate("window.__studio.reveal('RaspberryPI', 'set_speed')")
         page.locator(node("RaspberryPI", "set_speed")).click()
         value = page.locator('#props input[name="value"]')
         value.fill("55")

@@ -15,7 +15,7 @@ from typing import Any
 import aiohttp
 import pytest
 from conftest import BrokerProcess
-from robot_run import CAR_MODEL, umlbot_argv
+from robot_run import CAR_MODEL, Proc, compile_car, processes, umlbot_argv
 from studio_support import BROKEN_MODEL, events_of, read_frames, studio
 
 from compiler.api import check_model
@@ -353,6 +353,39 @@ def test_the_page_says_the_broker_is_connected_and_calls_time_out_after_the_mode
     assert "latency_ms" not in call
     assert sent - 0.5 <= call["time"] <= sent + 0.5, (sent, call["time"])  # the request's time
     assert seen - sent < 4.5  # reported after about 2 s (checked once a second), not 5
+
+
+def test_unanswered_calls_are_reported_after_the_time_out_their_caller_used(
+    mosquitto_broker: BrokerProcess, raw_client: Any, tmp_path: Path
+) -> None:
+    """Components that say they are online but never answer: the orchestrator's start-up stop
+    calls time out after the run's call time-out (1.5 s), its fail-safe stop calls on the way out
+    after 1 s — and the page is told each one's own time-out, not the run's for all."""
+    compiled = compile_car(tmp_path)
+    raw = raw_client(mosquitto_broker)
+    for name in ("LeftActuator", "RightActuator", "Sensor", "DistanceRead", "RaspberryPI"):
+        raw.publish(f"umlbot/{ROBOT}/{name}/status", json.dumps({"state": "online"}), retain=True)
+    with processes() as made, studio(["studio", str(CAR_MODEL), "--port", "0", "--robot", ROBOT], tmp_path,
+                                     mosquitto_broker.url) as proc:
+        read_frames(proc.url, lambda f: any(e["connected"] for e in events_of(f, "broker")))
+        run = Proc("run", umlbot_argv("run", str(compiled), "--robot", ROBOT, "--call-timeout", "1.5"),
+                   tmp_path, mosquitto_broker.url)
+        made.append(run)
+        assert run.popen.wait(30) == 1  # it could not stop the actuators at start-up: a fault
+
+        def both(frames: list[dict[str, Any]]) -> bool:
+            return {e.get("error") for e in events_of(frames, "call")} >= {"no reply within 1.5 s",
+                                                                            "no reply within 1 s"}
+
+        frames = read_frames(proc.url, both, timeout=15.0)
+    calls = events_of(frames, "call")
+    at_start = [e for e in calls if e["error"] == "no reply within 1.5 s"]
+    on_the_way_out = [e for e in calls if e["error"] == "no reply within 1 s"]
+    assert len(at_start) + len(on_the_way_out) == len(calls), calls
+    assert {(e["component"], e["feature"]) for e in on_the_way_out} == {
+        (e["component"], e["feature"]) for e in at_start}  # the same stop calls, twice
+    assert min(e["time"] for e in on_the_way_out) > max(e["time"] for e in at_start) + 1.0
+    assert "within 1 s" in run.log_text()  # what the orchestrator itself said about them
 
 
 def test_a_ping_is_drawn_to_the_wall_point_its_echo_came_from() -> None:

@@ -19,7 +19,7 @@ from concurrent.futures import TimeoutError as FutureTimeout
 from typing import Any
 
 from services.bus.connection import BusConnection, Handler, Message
-from services.bus.envelopes import dumps, parse_json
+from services.bus.envelopes import dumps, is_timeout, parse_json
 from services.bus.settings import BrokerSettings
 from services.bus.topics import Topics
 from umlbot.errors import CallTimeout, NotConnected, RemoteError
@@ -80,7 +80,8 @@ class BusClient:
     # -- calls ----------------------------------------------------------------------------------
 
     def _request(
-        self, component: str, feature: str, args: tuple[Any, ...], ack_wait_s: float | None = None
+        self, component: str, feature: str, args: tuple[Any, ...], timeout_s: float,
+        ack_wait_s: float | None = None,
     ) -> tuple[str, Future[dict[str, Any]]]:
         if not self.connection.connected:
             raise NotConnected(
@@ -91,7 +92,11 @@ class BusClient:
         future: Future[dict[str, Any]] = Future()
         with self._pending_lock:
             self._pending[request_id] = future
-        payload = dumps({"id": request_id, "reply_to": self.reply_topic, "args": args}).encode("utf-8")
+        # the time-out goes with the request: a monitor reports it unanswered when this caller gives up
+        request: dict[str, Any] = {"id": request_id, "reply_to": self.reply_topic, "args": args}
+        if is_timeout(timeout_s):
+            request["timeout_s"] = timeout_s
+        payload = dumps(request).encode("utf-8")
         try:
             if ack_wait_s is None:
                 self.connection.publish(self.topics.call(component, feature), payload, qos=0)
@@ -114,7 +119,8 @@ class BusClient:
         instead of ending as a time-out; it costs a round trip, so the orchestrator does not.
         """
         started = time.monotonic()
-        request_id, future = self._request(component, feature, args, timeout if acknowledged else None)
+        request_id, future = self._request(component, feature, args, timeout,
+                                           timeout if acknowledged else None)
         try:
             reply = future.result(max(0.0, timeout - (time.monotonic() - started)))
         except FutureTimeout:
@@ -128,7 +134,7 @@ class BusClient:
         """The asyncio form of `call`: awaits the reply without blocking the event loop."""
         import asyncio  # here: a hardware service never calls it, and asyncio costs it ~2 MB
 
-        request_id, future = self._request(component, feature, args)
+        request_id, future = self._request(component, feature, args, timeout)
         try:
             reply = await asyncio.wait_for(asyncio.wrap_future(future), timeout)
         except TimeoutError:

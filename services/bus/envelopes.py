@@ -37,13 +37,15 @@ ERROR_CODES: Final[tuple[str, ...]] = (
 )
 
 #: Keys that make a JSON object a request envelope rather than a bare argument.
-ENVELOPE_KEYS: Final[frozenset[str]] = frozenset({"id", "reply_to", "args"})
+ENVELOPE_KEYS: Final[frozenset[str]] = frozenset({"id", "reply_to", "args", "timeout_s"})
 
 
 class CallRequest(BaseModel):
-    """A call envelope: `{"id": "...", "reply_to": "<topic>", "args": [...]}`.
+    """A call envelope: `{"id": "...", "reply_to": "<topic>", "args": [...], "timeout_s": 2.0}`.
 
     Without `reply_to` (and without an MQTT 5 Response Topic) the call is fire-and-forget.
+    `timeout_s` (optional) says how long the caller waits for the reply: the service ignores it,
+    a monitor reports the call as unanswered after it (the caller's own time-out, not a guess).
     """
 
     model_config = ConfigDict(extra="forbid")
@@ -51,6 +53,13 @@ class CallRequest(BaseModel):
     id: str | int | None = None
     reply_to: str | None = Field(default=None, min_length=1)
     args: list[Any] = Field(default_factory=list)
+    timeout_s: float | None = Field(default=None, gt=0, allow_inf_nan=False)
+
+
+def is_timeout(value: Any) -> bool:
+    """Whether `value` is a valid `timeout_s` of a request: a finite number of seconds > 0."""
+    return (isinstance(value, int | float) and not isinstance(value, bool)
+            and 0 < value < float("inf"))
 
 
 class ErrorBody(BaseModel):
@@ -97,6 +106,9 @@ class Status(BaseModel):
     features: list[str] = Field(default_factory=list)
     client_id: str | None = None
     since: float | None = None  # unix time the service came online
+    #: the driver the service runs the component with (`auto` resolved, e.g. "mock"); optional:
+    #: a status without it (another client's service) is still a status.
+    driver: str | None = None
 
 
 class TraceEvent(BaseModel):

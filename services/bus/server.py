@@ -22,7 +22,7 @@ from typing import Any, Final
 from pydantic import ValidationError
 
 from services.bus.connection import BusConnection, Message, Will
-from services.bus.envelopes import ENVELOPE_KEYS, CallRequest, Reply, Status, dumps, parse_json
+from services.bus.envelopes import ENVELOPE_KEYS, CallRequest, Reply, Status, dumps, is_timeout, parse_json
 from services.bus.settings import BrokerSettings
 from services.bus.topics import Topics, check_name, is_valid_publish_topic
 from umlbot.errors import BusError, DriverError, NotConnected, UmlbotError
@@ -183,6 +183,7 @@ def parse_request(payload: bytes, response_topic: str | None = None) -> _Parsed:
             and isinstance(args, list)
             and (request_id is None or _is_id(request_id))
             and (reply_to is None or (isinstance(reply_to, str) and is_valid_publish_topic(reply_to)))
+            and ("timeout_s" not in data or is_timeout(data["timeout_s"]))
         ):
             return _Parsed(request_id, reply_to, args)
         # find where to answer before validating, so a bad envelope still gets its error reply
@@ -225,10 +226,13 @@ class ComponentServer:
         *,
         client_id: str | None = None,
         max_request_bytes: int = MAX_REQUEST_BYTES,
+        driver: str | None = None,
     ) -> None:
         self.topics = Topics(robot)
         self.component = check_name("component", component)
         self.impl_id = impl_id
+        #: the driver the component runs with, said in its status (None: not said)
+        self.driver = driver
         self.features = {f.name: f for f in features}
         self.max_request_bytes = max_request_bytes
         self.calls_served = 0
@@ -354,6 +358,7 @@ class ComponentServer:
             features=sorted(self.features),
             client_id=self.connection.client_id,
             since=self._since,
+            driver=self.driver,
         )
 
     def publish_state(self, state: dict[str, Any]) -> None:

@@ -54,6 +54,7 @@ class MonitorEvent(BaseModel):
     feature: str | None = None
     state: str | None = None  # availability ("online"/"offline") or the orchestrator's state
     impl: str | None = None
+    driver: str | None = None  # availability: the driver the service runs (its status says it)
     args: list[Any] | None = None
     id: str | None = None
     ok: bool | None = None
@@ -116,6 +117,7 @@ class Availability:
     state: str
     impl: str | None
     since: float
+    driver: str | None = None  # the driver the status says the service runs (`auto` resolved)
 
 
 @dataclass
@@ -137,6 +139,7 @@ class _Pending:
     args: list[Any]
     at: float
     topic: str
+    timeout_s: float | None = None  # the caller's own time-out, when its request says it
 
 
 def split_topic(topic: str) -> tuple[str, list[str]] | None:
@@ -238,20 +241,23 @@ class MonitorState:
         )
 
     def call_timeout(self, robot: str) -> float:
-        """Seconds after which a call of `robot` without a reply is reported as unanswered: the
-        time-out given, else the one its orchestrator announced, else the fallback."""
+        """Seconds after which a call of `robot` without a reply is reported as unanswered, unless
+        its request says its own (`timeout_s`): the time-out given, else the one its orchestrator
+        announced, else the fallback."""
         if self.call_timeout_s is not None:
             return self.call_timeout_s
         return self.robot_call_timeouts.get(robot, self.fallback_call_timeout_s)
 
     def expire(self, now: float) -> list[MonitorEvent]:
-        """Report the calls that got no reply within the time-out as failed (`error` says so).
+        """Report the calls that got no reply within their time-out as failed (`error` says so):
+        the caller's own when the request says it (the orchestrator's fail-safe stop calls wait
+        1 s, its other calls the run's `call_timeout_s`), else `call_timeout(robot)`.
 
         The event keeps the request's time (it is listed where the call was made, not when the
         monitor gave up on it) and has no latency.
         """
         late = [(key, timeout) for key, p in self._pending.items()
-                if now - p.at > (timeout := self.call_timeout(p.robot))]
+                if now - p.at > (timeout := p.timeout_s or self.call_timeout(p.robot))]
         events = []
         for key, timeout in late:
             pending = self._take(key)
@@ -288,7 +294,8 @@ class MonitorState:
                 key = (request.reply_to, str(request.id))
                 self._take(key)  # a repeated id replaces the older request
                 self._reply_topics[request.reply_to] += 1
-                self._pending[key] = _Pending(robot, component, feature, request.args, at, topic)
+                self._pending[key] = _Pending(robot, component, feature, request.args, at, topic,
+                                              request.timeout_s)
                 return []
             args: list[Any] = request.args
         else:
@@ -359,15 +366,17 @@ class MonitorState:
         state = (_text(data.get("state")) if isinstance(data, dict) else None) or "unknown"
         impl = _text(data.get("impl")) if isinstance(data, dict) else None
         since = _since(data.get("since")) if isinstance(data, dict) else None
+        driver = _text(data.get("driver")) if isinstance(data, dict) and state == "online" else None
         previous = self.availability.get((robot, component))
-        if previous is not None and previous.state == state:
+        if previous is not None and previous.state == state and driver in (None, previous.driver):
             previous.impl = impl or previous.impl
             if since is not None:  # e.g. a service that restarted and is online again
                 previous.since = since
             return []
-        self.availability[(robot, component)] = Availability(state, impl, at if since is None else since)
+        self.availability[(robot, component)] = Availability(state, impl, at if since is None else since,
+                                                             driver)
         return [MonitorEvent(type="availability", time=at, robot=robot, topic=topic, component=component,
-                             state=state, impl=impl)]
+                             state=state, impl=impl, driver=driver)]
 
     def _on_orchestrator(self, robot: str, leaf: str, topic: str, payload: bytes,
                          at: float) -> list[MonitorEvent]:

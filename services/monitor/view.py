@@ -77,12 +77,12 @@ def render(state: MonitorState, now: float | None = None, title: str = "umlbot m
     )
 
     components = Table(title="Components", title_justify="left", expand=True)
-    for column in ("component", "state", "impl", "for"):
+    for column in ("component", "state", "impl", "driver", "for"):
         components.add_column(column)
     for (robot, name), avail in sorted(state.availability.items()):
         style = "green" if avail.state == "online" else "red"
         components.add_row(_name(robot, name, many), Text(avail.state, style=style), Text(avail.impl or ""),
-                           _age(avail.since, now))
+                           Text(avail.driver or ""), _age(avail.since, now))
 
     lanes = Table(title="Lanes (last node executed)", title_justify="left", expand=True)
     for column in ("lane", "node", "kind", "detail", "ago"):

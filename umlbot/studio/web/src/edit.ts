@@ -39,9 +39,14 @@ export interface EditHooks {
   version: number; busy: boolean; dirty: boolean; requests: number; errors: string[];
   /** the version whose model the shown diagram draws (tests wait for it after an edit) */
   drawn: number;
+  /** per answered edit (the last 200), performance.now() ms: when its request left the page, when
+   * the answer came, when the frame that drew it with its diagnostics ended (bench/studio.py) */
+  timings: EditTiming[];
   /** send operations as the page does (dev checks) */
   send?: (ops: Op[]) => Promise<boolean>;
 }
+
+export interface EditTiming { version: number; sent: number; answered: number; shown?: number }
 
 /** Field types (the server's library) that are flows: edited by connecting nodes, never as text. */
 const FLOW_TYPES = new Set(["node", "nodes", "branches"]);
@@ -321,8 +326,14 @@ export class Editor {
     this.hooks.busy = true;
     while (this.queue.length) {
       const { ops, resolve, form } = this.queue[0];
+      const sent = performance.now();
       const a = await this.request<EditAnswer>("/api/edit", { version: this.hooks.version, ops }, false, form);
-      if (a) this.apply(a, !ops.every((o) => o.op === "set_layout"));
+      if (a) {
+        const timings = this.hooks.timings;
+        timings.push({ version: a.version, sent, answered: performance.now() });
+        if (timings.length > 200) timings.shift();
+        this.apply(a, !ops.every((o) => o.op === "set_layout"));
+      }
       this.queue.shift();
       resolve(!!a);
     }

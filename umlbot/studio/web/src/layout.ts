@@ -212,7 +212,7 @@ async function layoutLane(lane: ModelLane, hints?: Hints): Promise<LaneGeom> {
       if (e.label) {
         const text = shortGuard(e.label);
         edge.labels = [{
-          id: `${e.id}#label`, text, width: textWidth(text + "  ×8888", SMALL_PX) + 8, height: 16,
+          id: `${e.id}#label`, text, width: guardWidth(e.label), height: 16,
           layoutOptions: { "elk.edgeLabels.inline": "true", "elk.edgeLabels.placement": "CENTER" },
         }];
       }
@@ -281,20 +281,68 @@ const laneCache = new Map<string, Promise<LaneGeom>>();
 // nodes' places there as hints. Kept for the page's life (a reload lays the diagram out afresh).
 const lastLane = new Map<string, Promise<LaneGeom>>();
 
+// Each lane's text, made once per lane object (an answer's lanes are new objects; a 2 000-node
+// diagram's text takes milliseconds to make, and the caches below look it up three times).
+const laneTexts = new WeakMap<ModelLane, string>();
+function laneText(lane: ModelLane): string {
+  let text = laneTexts.get(lane);
+  if (text === undefined) {
+    text = JSON.stringify(lane);
+    laneTexts.set(lane, text);
+  }
+  return text;
+}
+
 function laneLayout(diagram: string, lane: ModelLane, index: number, before: ModelDiagram | undefined): Promise<LaneGeom> {
-  const key = JSON.stringify(lane);
+  const key = laneText(lane);
   let p = laneCache.get(key);
   if (!p) {
     if (laneCache.size > 4096) laneCache.clear();
     // a renamed lane is found at its index in the diagram as drawn before
     const was = lastLane.get(`${diagram}/${lane.name}`) ?? (before && before.lanes[index] && !before.lanes.some((l) => l.name === lane.name)
       ? lastLane.get(`${diagram}/${before.lanes[index].name}`) : undefined);
-    p = was ? was.then((g) => relayoutLane(lane, g), () => layoutLane(lane)) : layoutLane(lane);
+    p = was ? was.then((g) => sameShape(g, lane) ?? relayoutLane(lane, g), () => layoutLane(lane)) : layoutLane(lane);
     laneCache.set(key, p);
     p.catch(() => laneCache.delete(key));
   }
   lastLane.set(`${diagram}/${lane.name}`, p);
   return p;
+}
+
+/** The width ELK reserves for a flow's guard label. */
+const guardWidth = (label: string): number => textWidth(shortGuard(label) + "  ×8888", SMALL_PX) + 8;
+
+/**
+ * The last drawing of a lane when the edit left its shape alone — the same nodes and flows, each
+ * node as big as before, each guard fitting its box (a value, a call or a guard changed): that geometry with
+ * the new texts, without asking ELK again (~100 ms in its worker for a lane of 100 nodes, the
+ * most of an edit's drawing); null when anything moved or grew.
+ */
+function sameShape(g: LaneGeom, lane: ModelLane): LaneGeom | null {
+  const known = new Set(lane.nodes.map((n) => n.id));
+  const flows = lane.edges.filter((e) => known.has(e.source) && known.has(e.target));
+  if (g.lane.name !== lane.name || g.nodes.length !== lane.nodes.length || g.edges.length !== flows.length) return null;
+  const byId = new Map(lane.nodes.map((n) => [n.id, n]));
+  const nodes: NodeBox[] = [];
+  for (const nb of g.nodes) {
+    const n = byId.get(nb.node.id);
+    if (!n || n.kind !== nb.node.kind) return null;
+    if (n.label !== nb.node.label) {
+      const size = nodeSize(n);
+      if (size.w !== nb.w || size.h !== nb.h) return null;
+    }
+    nodes.push({ ...nb, node: n });
+  }
+  const flowById = new Map(flows.map((e) => [e.id, e]));
+  const edges: EdgeGeom[] = [];
+  for (const e of g.edges) {
+    const f = flowById.get(e.id);
+    if (!f || f.source !== e.source || f.target !== e.target || !f.label !== !e.label) return null;
+    // a guard as wide or narrower fits the box ELK reserved for the old one (centred in it)
+    if (f.label !== e.label && (!e.labelBox || guardWidth(f.label) > e.labelBox.w)) return null;
+    edges.push({ ...e, label: f.label });
+  }
+  return { ...g, lane, nodes, edges };
 }
 
 /** How far (px) ELK may move a node drawn before when it lays out an edited lane again. */
@@ -393,10 +441,11 @@ export function layoutActivity(d: ModelDiagram, positions: Positions = {}): Prom
   const mine = Object.entries(positions).filter(([k]) => d.lanes.some((l) => k.startsWith(`${l.name}/`)));
   const before = lastDiagram.get(d.id);
   lastDiagram.set(d.id, d);
-  const out = cached("a" + JSON.stringify([d, mine]), () => layoutActivityNow(d, positions, before));
+  const key = "a" + JSON.stringify([{ ...d, lanes: d.lanes.length }, mine]) + d.lanes.map(laneText).join("\n");
+  const out = cached(key, () => layoutActivityNow(d, positions, before));
   // drawn from the cache (an undo): its lanes are the last drawings now
   for (const l of d.lanes) {
-    const p = laneCache.get(JSON.stringify(l));
+    const p = laneCache.get(laneText(l));
     if (p) lastLane.set(`${d.id}/${l.name}`, p);
   }
   return out;
@@ -660,7 +709,7 @@ async function layoutComponentsNow(model: ModelView, userPositions: Positions): 
   const children: ElkNode[] = model.components.map((c) => {
     const lines = [
       textWidth(c.name, 15, "600") + 40,
-      textWidth(`${c.impl} · ${c.service} · ${c.driver}`, SMALL_PX) + 24,
+      textWidth(`${c.impl} · ${c.service} · ${c.driver} → pigpio`, SMALL_PX) + 24, // (+ the driver it runs)
       textWidth(`features: ${c.features.join(", ")}`, SMALL_PX) + 24,
       240,
     ];

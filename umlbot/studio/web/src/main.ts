@@ -13,6 +13,8 @@ import type { Diagnostic, HelloMsg, ModelView, MonitorEvent, ServerMsg } from ".
 
 interface StudioHooks {
   latencies: number[]; frames: number[]; ready: boolean; applied: number; edit: EditHooks | null;
+  follow: boolean; // the view follows the running robot (docs/studio.md, "Follow")
+  followPans: number; // pans follow made (tests)
   durationCounters: () => number; // counters the nodes' duration histograms hold (memory; tests)
   reveal: (lane: string, node: string) => void; // centre a node (tests and docs screenshots)
 }
@@ -20,7 +22,7 @@ declare global {
   interface Window { __studio: StudioHooks }
 }
 const hooks: StudioHooks = {
-  latencies: [], frames: [], ready: false, applied: 0, edit: null,
+  latencies: [], frames: [], ready: false, applied: 0, edit: null, follow: false, followPans: 0,
   durationCounters: () => {
     let n = 0;
     for (const s of state.nodes.values()) n += s.durs.buckets;
@@ -56,6 +58,22 @@ const messageEl = $<HTMLElement>("#canvas-message");
 const bannerEl = $<HTMLElement>("#canvas-banner");
 const sim = new SimPanel($<HTMLElement>("#sim"));
 
+// The canvas's size, kept up to date by a ResizeObserver: reading clientWidth after the drawing
+// changed would force the browser to lay out the whole diagram there and then.
+let canvasW = 0;
+let canvasH = 0;
+new ResizeObserver(() => {
+  canvasW = canvas.clientWidth;
+  canvasH = canvas.clientHeight;
+}).observe(canvas);
+function canvasSize(): { W: number; H: number } {
+  if (!canvasW) {
+    canvasW = canvas.clientWidth;
+    canvasH = canvas.clientHeight;
+  }
+  return { W: canvasW || 800, H: canvasH || 600 };
+}
+
 const renderer = new Renderer();
 let model: ModelView | null = null;
 let index = new ModelIndex(null);
@@ -77,7 +95,8 @@ function diagramIds(m: ModelView | null): string[] {
   return m ? ["components", ...m.diagrams.map((d) => d.id)] : [];
 }
 
-function setModel(m: ModelView | null, diagnostics: Diagnostic[]): void {
+/** Show model `m`; `fromEditor`: the editor's own answer (it draws its panels itself after). */
+function setModel(m: ModelView | null, diagnostics: Diagnostic[], fromEditor = false): void {
   drawnVersion = hooks.edit?.version ?? -1;
   generation += 1;
   const gen = generation;
@@ -136,8 +155,9 @@ function setModel(m: ModelView | null, diagnostics: Diagnostic[]): void {
   const wanted = hashDiagram();
   const ids = diagramIds(m);
   const first = wanted && ids.includes(wanted) ? wanted : current && ids.includes(current) ? current : (m.diagrams[0]?.id ?? "components");
+  const was = current;
   current = "";
-  select(first);
+  select(first, !(fromEditor && first === was));
   void layoutAll(m, first, gen);
 }
 
@@ -174,6 +194,7 @@ async function layoutAll(m: ModelView, first: string, gen: number): Promise<void
         if (editor) keepInView(view);
         applyView(view);
       } else if (id === current) fit(view);
+      if (id === current) followDue = true; // drawn: where is the robot?
       renderer.adoptFresh(state);
       const sel = editor?.highlightSelection();
       if (sel && id === current) showElement(view, sel);
@@ -192,15 +213,16 @@ async function layoutAll(m: ModelView, first: string, gen: number): Promise<void
   }
 }
 
-function select(id: string): void {
+function select(id: string, tellEditor = true): void {
   if (!diagramIds(model).includes(id)) return;
   current = id;
   for (const li of listEl.querySelectorAll<HTMLLIElement>("li")) li.classList.toggle("selected", li.dataset.diagram === id);
   for (const [vid, v] of views) v.svg.style.display = vid === id ? "" : "none";
   for (const [vid, v] of replaced) v.svg.style.display = vid === id ? "" : "none";
-  editor?.diagramShown(id);
+  if (tellEditor) editor?.diagramShown(id);
   const v = views.get(id);
   if (v && !v.view) fit(v);
+  followDue = true; // another diagram: its node that ran last, at once
   if (hashDiagram() !== id) history.replaceState(null, "", `#diagram=${encodeURIComponent(id)}`);
 }
 
@@ -217,6 +239,7 @@ let diagnostics: Diagnostic[] = [];
 function setDiagnostics(list: Diagnostic[]): void {
   diagnostics = list;
   diagEl.replaceChildren();
+  const before = new Map(renderer.marks);
   renderer.marks.clear();
   for (const d of list) {
     const li = document.createElement("li");
@@ -255,7 +278,12 @@ function setDiagnostics(list: Diagnostic[]): void {
     badge.title = `${mine.length} problem${mine.length === 1 ? "" : "s"} in this diagram`;
     li.querySelector("small")?.before(badge);
   }
-  state.markAllDirty();
+  // only the nodes whose mark came, went or changed are drawn again (not every node)
+  for (const [key, mark] of renderer.marks) {
+    const old = before.get(key);
+    if (!old || old.level !== mark.level || old.message !== mark.message) state.dirtyNodes.add(key);
+  }
+  for (const key of before.keys()) if (!renderer.marks.has(key)) state.dirtyNodes.add(key);
 }
 
 /** The diagram of a node the server named (null when it is not drawn). */
@@ -284,35 +312,104 @@ function nodeAtLine(file: string, line: number): { diagram: string; lane: string
 
 // ---------------------------------------------------------------- pan / zoom
 
-function applyView(v: DiagramView): void {
+/** Show `v` at its view; `newLanes`: how many lanes not drawn so far it may draw now (the
+ * others on the next frames: `cullPending`). */
+function applyView(v: DiagramView, newLanes = Infinity): void {
   if (!v.view) return;
   v.viewport.setAttribute("transform", `translate(${v.view.x},${v.view.y}) scale(${v.view.k})`);
   // Level of detail: text too small to read is not drawn (keeps big diagrams fast).
   const k = v.view.k;
   v.svg.classList.toggle("lod-mid", k < LOD_MID);
   v.svg.classList.toggle("lod-far", k < LOD_FAR);
-  cullLanes(v);
+  cullPending = cullLanes(v, newLanes) ? v : null;
+  stickLaneHeads(v);
 }
+/** A view whose lanes are still to be drawn, one a frame (after a follow jump). */
+let cullPending: DiagramView | null = null;
 
 // Swimlanes wholly outside the canvas are not drawn (display: none): at a readable zoom a big
 // diagram shows a few lanes, and the live updates of the others then cost no layout or paint.
-const laneSpan = new WeakMap<Element, { t: string; x: number; w: number }>();
-function cullLanes(v: DiagramView): void {
-  if (!v.view) return;
-  const W = canvas.clientWidth || 800;
+const laneSpan = new WeakMap<Element, LaneSpan>();
+interface LaneSpan {
+  t: string; x: number; y: number; w: number; bodyY: number;
+  bg: Element | null; head: Element | null; texts: Element[]; tw: number; headH: number;
+}
+/** A lane's place (diagram units) from its attributes: no layout. */
+function spanOf(g: Element): LaneSpan {
+  const t = g.getAttribute("transform") ?? "";
+  let span = laneSpan.get(g);
+  if (!span || span.t !== t) {
+    const m = /translate\(([-\d.e]+)[ ,]+([-\d.e]+)/.exec(t);
+    const body = /translate\([-\d.e]+[ ,]+([-\d.e]+)/.exec(g.querySelector(".lane-body")?.getAttribute("transform") ?? "");
+    const bg = g.querySelector(".lane-bg");
+    const head = g.querySelector(".lane-head");
+    span = {
+      t, x: m ? Number(m[1]) : 0, y: m ? Number(m[2]) : 0,
+      w: Number(bg?.getAttribute("width") ?? 0), bodyY: body ? Number(body[1]) : 0,
+      bg, head, texts: head ? [...head.querySelectorAll("text")] : [],
+      tw: Number(head?.getAttribute("data-tw") ?? 0), headH: Number(head?.getAttribute("data-h") ?? 0),
+    };
+    laneSpan.set(g, span);
+  }
+  return span;
+}
+
+/** A node's box in diagram units, from its data attributes and its lane's (no layout); null for
+ * anything else. */
+function nodeBox(el: Element): { x: number; y: number; w: number; h: number } | null {
+  const lane = el.matches("g.node") ? el.closest("g.lane") : null;
+  if (!lane) return null;
+  const span = spanOf(lane);
+  const num = (a: string): number => Number(el.getAttribute(a) ?? 0);
+  return { x: span.x + num("data-x"), y: span.y + span.bodyY + num("data-y"), w: num("data-w"), h: num("data-h") };
+}
+function cullLanes(v: DiagramView, newLanes = Infinity): boolean {
+  if (!v.view) return false;
+  const { W } = canvasSize();
   const margin = 200;
+  const show: { g: Element; off: number }[] = [];
   for (const g of v.viewport.children) {
     if (!g.classList.contains("lane")) continue;
-    const t = g.getAttribute("transform") ?? "";
-    let span = laneSpan.get(g);
-    if (!span || span.t !== t) {
-      const m = /translate\(([-\d.e]+)/.exec(t);
-      span = { t, x: m ? Number(m[1]) : 0, w: Number(g.querySelector(".lane-bg")?.getAttribute("width") ?? 0) };
-      laneSpan.set(g, span);
-    }
+    const span = spanOf(g);
     const left = v.view.x + span.x * v.view.k;
     const right = left + span.w * v.view.k;
-    g.classList.toggle("culled", right < -margin || left > W + margin);
+    const out = right < -margin || left > W + margin;
+    if (out) g.classList.add("culled");
+    else if (g.classList.contains("culled")) show.push({ g, off: Math.abs((left + right) / 2 - W / 2) });
+  }
+  // a lane drawn again is laid out anew (all its nodes): the one nearest the middle first
+  if (show.length > newLanes) show.sort((a, b) => a.off - b.off);
+  show.slice(0, newLanes).forEach(({ g }) => g.classList.remove("culled"));
+  return show.length > newLanes;
+}
+
+// Each lane's header stays on the lane's visible part: at the top of the canvas while the lane goes
+// on below it, its name centred on the part of the lane the canvas shows (a lane wider than the
+// canvas, or partly off it, still says its name). From attributes only: no layout.
+const headAt = new WeakMap<Element, string>();
+function stickLaneHeads(v: DiagramView): void {
+  if (!v.view) return;
+  const { W } = canvasSize();
+  const { x: vx, y: vy, k } = v.view;
+  for (const g of v.viewport.children) {
+    if (!g.classList.contains("lane") || g.classList.contains("culled")) continue;
+    const span = spanOf(g);
+    const head = span.head;
+    if (!head) continue;
+    const left = Math.max(span.x, -vx / k);
+    const right = Math.min(span.x + span.w, (W - vx) / k);
+    if (right <= left) continue;
+    const half = span.tw / 2 + 10;
+    let cx = (left + right) / 2 - span.x;
+    cx = span.w <= 2 * half ? span.w / 2 : Math.min(Math.max(cx, half), span.w - half);
+    const laneH = Number(span.bg?.getAttribute("height") ?? 0);
+    const dy = Math.max(0, Math.min(-vy / k - span.y, laneH - span.headH));
+    const at = `${cx.toFixed(1)},${dy.toFixed(1)}`;
+    if (headAt.get(head) === at) continue;
+    headAt.set(head, at);
+    if (dy > 0) head.setAttribute("transform", `translate(0,${dy.toFixed(1)})`);
+    else head.removeAttribute("transform");
+    for (const t of span.texts) t.setAttribute("x", cx.toFixed(1));
   }
 }
 
@@ -326,6 +423,7 @@ function reveal(lane: string, node: string): void {
   const v = views.get(current);
   const g = canvas.querySelector<SVGGElement>(`g.node[data-lane="${CSS.escape(lane)}"][data-node="${CSS.escape(node)}"]`);
   if (!v || !v.view || !g) return;
+  setFollow(false); // the user asked to see this node: following would take the view away
   uncull(g);
   if (v.view.k < 0.8) {
     const r = canvas.getBoundingClientRect();
@@ -348,8 +446,7 @@ function reveal(lane: string, node: string): void {
 /** After an edit: a diagram that fits the canvas (at its zoom, or zoomed out to >= 0.6) is shown whole. */
 function keepInView(v: DiagramView): void {
   if (!v.view) return;
-  const W = canvas.clientWidth || 800;
-  const H = canvas.clientHeight || 600;
+  const { W, H } = canvasSize();
   const pad = 16;
   const kFit = Math.min((W - 2 * pad) / v.width, (H - 2 * pad) / v.height);
   if (kFit < v.view.k && kFit >= 0.6) {
@@ -368,8 +465,19 @@ function keepInView(v: DiagramView): void {
 function showElement(v: DiagramView, el: Element): void {
   if (!v.view) return;
   uncull(el);
-  const c = canvas.getBoundingClientRect();
-  const b = el.getBoundingClientRect();
+  const box = nodeBox(el);
+  let c: { left: number; top: number; right: number; bottom: number };
+  let b: { left: number; top: number; right: number; bottom: number };
+  if (box) {
+    // a node: where it is from its attributes (measuring it would lay the diagram out now)
+    const { W, H } = canvasSize();
+    const k = v.view.k;
+    c = { left: 0, top: 0, right: W, bottom: H };
+    b = { left: v.view.x + box.x * k, top: v.view.y + box.y * k, right: v.view.x + (box.x + box.w) * k, bottom: v.view.y + (box.y + box.h) * k };
+  } else {
+    c = canvas.getBoundingClientRect();
+    b = el.getBoundingClientRect();
+  }
   const pad = 24;
   let dx = 0;
   let dy = 0;
@@ -393,8 +501,7 @@ const OPEN_K = 0.8;
 
 /** Show the whole diagram; `readable`: when that is too small to read, a readable part from the top. */
 function fit(v: DiagramView, readable = true): void {
-  const W = canvas.clientWidth || 800;
-  const H = canvas.clientHeight || 600;
+  const { W, H } = canvasSize();
   const pad = 16;
   let k = Math.min((W - 2 * pad) / v.width, (H - 2 * pad) / v.height, 1.25);
   let y = (H - v.height * k) / 2;
@@ -431,6 +538,7 @@ canvas.addEventListener("wheel", (ev) => {
   const py = ev.clientY - r.top;
   const f = Math.exp(-ev.deltaY * (ev.deltaMode === 1 ? 0.05 : 0.0015));
   const k = Math.min(8, Math.max(0.02, v.view.k * f));
+  setFollow(false); // zoomed by hand: the view stays where the user put it
   v.view.x = px - ((px - v.view.x) * k) / v.view.k;
   v.view.y = py - ((py - v.view.y) * k) / v.view.k;
   v.view.k = k;
@@ -439,7 +547,10 @@ canvas.addEventListener("wheel", (ev) => {
 
 let drag: { x: number; y: number; vx: number; vy: number; moved: boolean; id: number } | null = null;
 canvas.addEventListener("pointerdown", (ev) => {
-  if (editor?.pointerDown(ev)) return;
+  if (editor?.pointerDown(ev)) {
+    setFollow(false); // working on the diagram: it must not move away under the pointer
+    return;
+  }
   const v = views.get(current);
   if (!v || !v.view || ev.button !== 0) return;
   drag = { x: ev.clientX, y: ev.clientY, vx: v.view.x, vy: v.view.y, moved: false, id: ev.pointerId };
@@ -451,6 +562,7 @@ canvas.addEventListener("pointermove", (ev) => {
   const dy = ev.clientY - drag.y;
   if (!drag.moved && Math.hypot(dx, dy) > 3) {
     drag.moved = true;
+    setFollow(false); // panned by hand: the view stays where the user put it
     canvas.setPointerCapture(ev.pointerId);
     canvas.classList.add("dragging");
   }
@@ -474,6 +586,111 @@ const endDrag = (ev: PointerEvent): void => {
 };
 canvas.addEventListener("pointerup", endDrag);
 canvas.addEventListener("pointercancel", endDrag);
+
+// ---------------------------------------------------------------- follow the running robot
+
+// As a map app follows its user: the view pans (never zooms) to keep the node of the shown diagram
+// that ran last in view when it leaves the canvas — checked at most every FOLLOW_EVERY_MS, a short
+// pan eased over FOLLOW_PAN_MS, a long one at once. On by default (live and replay); a pan or
+// zoom by hand, or taking hold of the diagram in the editor, turns it off; the toolbar's Follow
+// button or the `l` key on again.
+const FOLLOW_EVERY_MS = 250;
+const FOLLOW_PAN_MS = 300;
+const FOLLOW_MARGIN = 32; // px the node keeps from the canvas's edges
+// A pan to a lane not drawn now (off the canvas: culled) draws it, a layout of its every node:
+// at most one such pan a second (under thousands of events/s the last node jumps between lanes).
+const FOLLOW_NEW_LANE_MS = 1000;
+let followLaneAt = 0;
+const followBtn = $<HTMLButtonElement>("#follow");
+let followDue = false; // nodes ran (or the view changed) since the last check
+let followAt = 0;
+let followPan: { v: DiagramView; x0: number; y0: number; x1: number; y1: number; t0: number } | null = null;
+
+function setFollow(on: boolean): void {
+  hooks.follow = on;
+  followBtn.setAttribute("aria-pressed", String(on));
+  followBtn.title = on
+    ? "Following the running robot: the view pans to the node that ran last (a pan or zoom by hand stops it; l)"
+    : "Follow the running robot: pan to the node that ran last whenever it leaves the view (l)";
+  followPan = null;
+  if (on) {
+    followDue = true;
+    followAt = 0;
+    schedule();
+  }
+}
+followBtn.addEventListener("click", () => setFollow(!hooks.follow));
+
+/** The node of diagram `id` that ran last (the latest of its lanes' current nodes), or null. */
+function lastRan(id: string): string | null {
+  let best: string | null = null;
+  let bestIdx = -1;
+  for (const lane of model?.diagrams.find((d) => d.id === id)?.lanes ?? []) {
+    const now = state.trails.get(lane.name)?.[0];
+    if (now === undefined) continue;
+    const key = nodeKey(lane.name, now);
+    const idx = state.nodes.get(key)?.lastIdx ?? -1;
+    if (idx > bestIdx) {
+      bestIdx = idx;
+      best = key;
+    }
+  }
+  return best;
+}
+
+/** One step of following, in the frame loop: the eased pan under way, else (at most every
+ * FOLLOW_EVERY_MS) a look whether the node that ran last is still in view. */
+function followStep(now: number): void {
+  if (cullPending) {
+    const v = cullPending;
+    cullPending = views.get(current) === v && cullLanes(v, 1) ? v : null;
+    stickLaneHeads(v);
+    return;
+  }
+  if (followPan) {
+    const p = followPan;
+    const t = Math.min(1, (now - p.t0) / FOLLOW_PAN_MS);
+    const e = t * t * (3 - 2 * t);
+    if (p.v.view && views.get(current) === p.v) {
+      p.v.view.x = p.x0 + (p.x1 - p.x0) * e;
+      p.v.view.y = p.y0 + (p.y1 - p.y0) * e;
+      applyView(p.v);
+    }
+    if (t >= 1 || views.get(current) !== p.v) followPan = null;
+    return;
+  }
+  if (!hooks.follow || !followDue || now - followAt < FOLLOW_EVERY_MS) return;
+  followDue = false;
+  followAt = now;
+  const v = views.get(current);
+  const key = v?.view ? lastRan(current) : null;
+  const g = key ? renderer.nodeEls.get(key)?.g : null;
+  const box = g ? nodeBox(g) : null;
+  if (!v?.view || !box) return;
+  const { W, H } = canvasSize();
+  const { x, y, k } = v.view;
+  const left = x + box.x * k;
+  const top = y + box.y * k;
+  if (left >= FOLLOW_MARGIN && top >= FOLLOW_MARGIN && left + box.w * k <= W - FOLLOW_MARGIN
+    && top + box.h * k <= H - FOLLOW_MARGIN) return;
+  if (g!.closest("g.lane")?.classList.contains("culled")) {
+    if (now - followLaneAt < FOLLOW_NEW_LANE_MS) {
+      followDue = true; // looked at again later
+      return;
+    }
+    followLaneAt = now;
+  }
+  // centred on it (a node near an edge would leave again at once); eased when it is near, at once
+  // when it is far (gliding over lanes in between would draw each of them on the way)
+  const x1 = W / 2 - (box.x + box.w / 2) * k;
+  const y1 = H / 2 - (box.y + box.h / 2) * k;
+  hooks.followPans += 1;
+  if (Math.hypot(x1 - x, y1 - y) > 0.75 * Math.max(W, H)) {
+    v.view.x = x1;
+    v.view.y = y1;
+    applyView(v, 1);
+  } else followPan = { v, x0: x, y0: y, x1, y1, t0: now };
+}
 
 // ---------------------------------------------------------------- calls and status panels
 
@@ -637,6 +854,16 @@ function render(budgetMs = 0): void {
   state.clearDirty();
 }
 
+/** The last edit is shown once the diagram draws its version and every node change (its
+ * diagnostics among them) is drawn: the end of this frame (`window.__studio.edit.timings`). */
+function noteEditShown(): void {
+  const timings = hooks.edit?.timings ?? [];
+  const last = timings[timings.length - 1];
+  if (last && last.shown === undefined && hooks.edit!.drawn >= last.version && !state.dirtyNodes.size) {
+    last.shown = performance.now();
+  }
+}
+
 let skippedDraw = false;
 // node end times (unix s) of the live trace events applied but not drawn yet: each one's latency
 // (node end -> drawn) is recorded when the frame that shows it is drawn
@@ -657,6 +884,7 @@ function tick(ts: number): void {
       if (e.type === "trace") {
         hooks.applied += 1;
         unshownEnds.push(e.time);
+        followDue = true;
       }
       if ((qpos & 255) === 0 && performance.now() - t0 > BUDGET_MS) break;
     }
@@ -674,6 +902,8 @@ function tick(ts: number): void {
   } else {
     skippedDraw = false;
     render(RENDER_BUDGET_MS);
+    noteEditShown();
+    followStep(performance.now());
     sim.flush();
     if (unshownEnds.length) {
       const now = Date.now();
@@ -682,7 +912,8 @@ function tick(ts: number): void {
     }
   }
 
-  if (qpos < queue.length || flowing || skippedDraw || state.dirtyNodes.size || (replay && replay.playing)) schedule();
+  const following = followPan !== null || cullPending !== null || (hooks.follow && followDue);
+  if (qpos < queue.length || flowing || skippedDraw || state.dirtyNodes.size || (replay && replay.playing) || following) schedule();
   else lastTs = 0;
 }
 
@@ -833,6 +1064,7 @@ function seek(t: number): void {
     if (e.type === "trace") {
       hooks.applied += 1;
       r.pendingTrace = e;
+      followDue = true;
     }
   }
   if (document.activeElement !== timeInput || r.playing) timeInput.value = r.time.toFixed(3);
@@ -906,7 +1138,7 @@ const editorHost = {
       bannerEl.hidden = false;
     } else {
       bannerEl.hidden = true;
-      setModel(m, d);
+      setModel(m, d, true);
     }
     schedule();
   },
@@ -955,7 +1187,7 @@ function resetSession(hello: HelloMsg): void {
   if (hello.edit) {
     if (editor) editor.setInfo(hello.edit);
     else {
-      hooks.edit = { version: hello.edit.version, busy: false, dirty: hello.edit.dirty, requests: 0, errors: [], drawn: -1 };
+      hooks.edit = { version: hello.edit.version, busy: false, dirty: hello.edit.dirty, requests: 0, errors: [], drawn: -1, timings: [] };
       editor = new Editor(editorHost, hello.edit, hooks.edit);
     }
   }
@@ -1077,11 +1309,14 @@ window.addEventListener("keydown", (ev) => {
   } else if (ev.key === "f") {
     const v = views.get(current);
     if (v) fit(v, false);
+  } else if (ev.key === "l") {
+    setFollow(!hooks.follow);
   }
 });
 
 connEl.dataset.state = "closed";
 connEl.textContent = "○ connecting…";
+setFollow(true); // live and replay both start following
 updateGaps();
 warmUp();
 connect();

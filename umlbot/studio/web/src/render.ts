@@ -3,10 +3,10 @@
 
 import { percentiles } from "./durations";
 import type { ActivityLayout, ComponentLayout, NodeBox, Point } from "./layout";
-import { COMP_STATE_LINES, shortGuard } from "./layout";
+import { COMP_STATE_LINES, SMALL_PX, shortGuard, textWidth } from "./layout";
 import type { Level, NodeStats, StudioState, ComponentState } from "./state";
 import { TRAIL, edgeKey, nextNodes, nodeKey } from "./state";
-import type { ModelView } from "./types";
+import type { ModelComponent, ModelView } from "./types";
 
 const SVGNS = "http://www.w3.org/2000/svg";
 
@@ -51,7 +51,10 @@ interface NodeEl {
   valueText: string;
 }
 interface EdgeEl { g: SVGGElement; label: SVGTextElement | null; guard: string; count: number }
-interface CompEl { g: SVGGElement; state: SVGTextElement; box: SVGRectElement; flashedAt: number }
+interface CompEl {
+  g: SVGGElement; state: SVGTextElement; box: SVGRectElement; flashedAt: number;
+  implText: Text; implTitle: SVGTitleElement; model: ModelComponent; driver: string;
+}
 
 export interface DiagramView {
   id: string;
@@ -172,15 +175,15 @@ export class Renderer {
         if (old.g.getAttribute("transform") !== at) old.g.setAttribute("transform", at);
         const bg = old.g.querySelector(".lane-bg");
         if (bg && bg.getAttribute("height") !== String(lg.h)) bg.setAttribute("height", String(lg.h));
+        // (looked at again, not rewritten: its elements still show what they showed, and a
+        // rewrite of thousands of nodes after each edit costs a style and layout pass of them all)
         for (const [k, ne] of old.nodes) {
           this.nodeEls.set(k, ne);
           this.freshNodes.push(k);
-          ne.count = -2;
         }
         for (const [k, ee] of old.edges) {
           this.edgeEls.set(k, ee);
           this.freshEdges.push(k);
-          ee.count = -1;
         }
         this.freshLanes.add(lane.name);
         this.built.set(lane.name, old);
@@ -193,12 +196,6 @@ export class Renderer {
       this.built.set(lane.name, { key, g, nodes: laneNodes, edges: laneEdges });
       mine.add(g);
       svgEl("rect", { class: "lane-bg", x: 0, y: 0, width: lg.w, height: lg.h }, g);
-      svgEl("rect", { class: "lane-header", x: 0, y: 0, width: lg.w, height: lg.headerH }, g);
-      // a virtual lane is a called activity; a component's lane runs on that component: the
-      // stereotype on its own line above the name (UML's way; side by side they overlapped)
-      const sub = lane.virtual ? "«activity»" : lane.component ? "«component»" : "";
-      if (sub) svgEl("text", { class: "lane-sub", x: lg.w / 2, y: 15 }, g, sub);
-      svgEl("text", { class: "lane-title", x: lg.w / 2, y: sub ? 34 : 28 }, g, lane.name);
       const body = svgEl("g", { class: "lane-body", transform: `translate(0,${lg.headerH})` }, g);
       const edgesG = svgEl("g", { class: "edges" }, body);
       const nodesG = svgEl("g", { class: "nodes" }, body);
@@ -224,6 +221,16 @@ export class Renderer {
         const k = this.buildNode(nodesG, lane.name, nb);
         laneNodes.set(k, this.nodeEls.get(k)!);
       }
+      // The header, after the body: the page keeps it on the lane's visible part (main.ts,
+      // stickLaneHeads), over the nodes it passes. `data-tw`: its widest text's width.
+      const head = svgEl("g", { class: "lane-head", "data-h": lg.headerH }, g);
+      svgEl("rect", { class: "lane-header", x: 0, y: 0, width: lg.w, height: lg.headerH }, head);
+      // a virtual lane is a called activity; a component's lane runs on that component: the
+      // stereotype on its own line above the name (UML's way; side by side they overlapped)
+      const sub = lane.virtual ? "«activity»" : lane.component ? "«component»" : "";
+      if (sub) svgEl("text", { class: "lane-sub", x: lg.w / 2, y: 15 }, head, sub);
+      svgEl("text", { class: "lane-title", x: lg.w / 2, y: sub ? 34 : 28 }, head, lane.name);
+      head.setAttribute("data-tw", String(Math.max(textWidth(lane.name, 15, "600"), sub ? textWidth(sub, SMALL_PX) : 0)));
       this.freshLanes.add(lane.name);
       // swap it in whole (its old drawing, if any, goes below)
       const was = old && old.g.parentNode === v.viewport ? old.g : null;
@@ -346,7 +353,9 @@ export class Renderer {
       svgEl("text", { class: "stereo", x: 12, y: 18 }, inner, `«${m.kind}»`);
       svgEl("text", { class: "name", x: 12, y: 37 }, inner, c.name);
       svgEl("circle", { class: "dot", cx: c.w - 42, cy: 16, r: 6 }, inner);
-      svgEl("text", { class: "impl", x: 12, y: 54 }, inner, `${m.impl} · ${m.service} · ${m.driver}`);
+      const implLine = svgEl("g", { class: "impl-line" }, inner); // (its tooltip is not in the text)
+      const implTitle = svgEl("title", {}, implLine);
+      const implText = svgEl("text", { class: "impl", x: 12, y: 54 }, implLine).appendChild(document.createTextNode(""));
       svgEl("text", { class: "features", x: 12, y: 69 }, inner, `features: ${m.features.join(", ")}`);
       svgEl("line", { class: "sep", x1: 0, x2: c.w, y1: 77, y2: 77 }, inner);
       const state = svgEl("text", { class: "state", x: 12, y: 92 }, inner);
@@ -354,7 +363,7 @@ export class Renderer {
         svgEl("rect", { class: "port", x: p.x - c.x, y: p.y - c.y, width: p.w, height: p.h }, inner);
         svgEl("text", { class: "port-label", x: p.labelX - c.x, y: p.labelY - c.y }, inner, `${p.name} → ${p.feature}`);
       }
-      this.compEls.set(c.name, { g, state, box, flashedAt: -1e9 });
+      this.compEls.set(c.name, { g, state, box, flashedAt: -1e9, implText, implTitle, model: m, driver: "?" });
       this.freshComps.push(c.name);
     }
     return v;
@@ -510,6 +519,19 @@ export class Renderer {
     g.classList.toggle("online", avail === "online");
     g.classList.toggle("offline", avail === "offline");
     g.classList.toggle("unknown", avail === "unknown");
+    const driver = cs?.driver ?? "";
+    if (driver !== ce.driver) {
+      // the driver the service runs (its status says it, `auto` resolved), else the deployment's
+      ce.driver = driver;
+      const m = ce.model;
+      const shown = driver && driver !== m.driver ? `${m.driver} → ${driver}` : m.driver;
+      ce.implText.data = `${m.impl} · ${m.service} · ${shown}`;
+      if (driver) g.setAttribute("data-driver", driver);
+      else g.removeAttribute("data-driver");
+      ce.implTitle.textContent = driver
+        ? `implementation ${m.impl}, ${m.service} service, running driver ${driver} (the deployment says ${m.driver})`
+        : `implementation ${m.impl}, ${m.service} service, driver ${m.driver} (as the deployment says; the service has not said which it runs)`;
+    }
     while (ce.state.firstChild) ce.state.firstChild.remove();
     if (cs && cs.hasRetained) {
       g.setAttribute("data-retained", json(cs.retained));

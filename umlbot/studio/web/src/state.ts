@@ -23,6 +23,7 @@ export interface NodeStats {
 export interface ComponentState {
   avail: "online" | "offline" | "unknown";
   impl: string;
+  driver: string; // the driver its online status says the service runs ("" when not said)
   hasRetained: boolean;
   retained: unknown;
 }
@@ -142,6 +143,7 @@ export class StudioState {
         this.components.set(name, {
           avail,
           impl: e.impl ?? old?.impl ?? "",
+          driver: avail === "online" ? (e.driver ?? old?.driver ?? "") : "",
           hasRetained: old?.hasRetained ?? false,
           retained: old?.retained,
         });
@@ -154,6 +156,7 @@ export class StudioState {
         this.components.set(name, {
           avail: old?.avail ?? "unknown",
           impl: old?.impl ?? "",
+          driver: old?.driver ?? "",
           hasRetained: true,
           retained: e.payload,
         });

@@ -97,6 +97,8 @@ export interface MonitorEvent {
   feature?: string;
   state?: string;
   impl?: string;
+  /** an availability event: the driver the service runs (`auto` resolved), when its status says */
+  driver?: string;
   args?: unknown;
   id?: string;
   ok?: boolean;

@@ -70,17 +70,19 @@ test("a node's colour follows its last run", () => {
 
 test("components, orchestrator, calls (a reply updates its call, newest first)", () => {
   const s = new StudioState(new ModelIndex(model));
-  s.apply({ type: "availability", time: 1, component: "M", state: "online", impl: "l298n" });
+  s.apply({ type: "availability", time: 1, component: "M", state: "online", impl: "l298n", driver: "mock" });
   s.apply({ type: "state", time: 2, component: "M", payload: { enabled: true } });
   s.apply({ type: "orchestrator", time: 3, state: "failed", detail: "M went offline" });
   s.apply({ type: "call", time: 4, component: "M", feature: "enabled", args: [true], id: "c1" });
   s.apply({ type: "call", time: 5, component: "M", feature: "dutycycle", args: [50], id: "c2", ok: true, latency_ms: 3 });
   s.apply({ type: "call", time: 6, component: "M", feature: "enabled", args: [true], id: "c1", ok: true, latency_ms: 2 });
-  assert.deepEqual(s.components.get("M"), { avail: "online", impl: "l298n", hasRetained: true, retained: { enabled: true } });
+  assert.deepEqual(s.components.get("M"), { avail: "online", impl: "l298n", driver: "mock", hasRetained: true, retained: { enabled: true } });
   assert.deepEqual(s.orch, { state: "failed", detail: "M went offline" });
   const calls = s.newestCalls();
   assert.deepEqual(calls.map((c) => [c.feature, c.ok]), [["dutycycle", true], ["enabled", true]]);
   assert.equal(calls[1].time, 4); // listed when it was sent
+  s.apply({ type: "availability", time: 7, component: "M", state: "offline" });
+  assert.equal(s.components.get("M")!.driver, ""); // nothing runs it now: no driver said
 });
 
 test("restoring a snapshot and re-applying gives the same state (replay scrubbing)", () => {
