@@ -22,7 +22,7 @@ def test_check_ok() -> None:
     result = CliRunner().invoke(cli, ["check", str(ROBOT_CAR)])
     assert result.exit_code == 0, result.output
     assert result.stdout == ""
-    assert result.stderr == f"{ROBOT_CAR}: ok: 5 components, 8 swimlanes, 145 nodes, 0 warning(s)\n"
+    assert result.stderr == f"{ROBOT_CAR}: ok: 5 components, 8 swimlanes, 152 nodes, 0 warning(s)\n"
 
 
 def test_check_prints_every_problem_and_fails(tmp_path: Path) -> None:

@@ -73,25 +73,26 @@ def test_a_live_run_is_highlighted_with_counts_timings_calls_and_availability(
         show(page, "activity-main")
         # the main lane's current node is highlighted, and nodes it ran show counts and timings
         expect(page.locator('g.node.active[data-lane="RaspberryPI"]')).to_have_count(1)
-        # (the sonar's value is read once a loop: a datastore set from a call, with its timings)
-        selector = 'g.node[data-lane="RaspberryPI"][data-node="ping_ahead"]'
-        ping = page.locator(selector)
+        # (a step forward is taken once a loop: an action calling the MoveForward lane, with its
+        # timings; the mock sonar's 100 cm ahead keeps the car going straight)
+        selector = 'g.node[data-lane="RaspberryPI"][data-node="forward"]'
+        step = page.locator(selector)
         page.wait_for_function(
             "s => Number(document.querySelector(s)?.getAttribute('data-count') || 0) >= 2", arg=selector)
-        assert float(ping.get_attribute("data-p50-ms") or "nan") > 0
-        expect(ping.locator("text.stats")).to_contain_text("ms")
+        assert float(step.get_attribute("data-p50-ms") or "nan") > 0
+        expect(step.locator("text.stats")).to_contain_text("ms")
         # the tuning datastore shows its value; the decision shows which branch it took
         speed = page.locator('g.node[data-lane="RaspberryPI"][data-node="set_speed"]')
         expect(speed.locator("text.value")).to_have_text("70")
         taken = page.locator('g.edge[data-lane="RaspberryPI"][data-source="running"]'
-                             '[data-target="ping_ahead"]')
+                             '[data-target="choose"]')
         expect(taken).not_to_have_attribute("data-count", "0")
         # calls, with boolean arguments shown as they are
         enabled = page.locator('#calls tbody tr[data-component="LeftActuator"][data-feature="enabled"]')
         expect(enabled.first).to_be_visible()
         args_seen = set(enabled.locator("td.args").all_text_contents())
         assert args_seen and args_seen <= {"[true]", "[false]"}, args_seen
-        page.evaluate("window.__studio.reveal('RaspberryPI', 'ping_ahead')")  # the loop, not the set-up
+        page.evaluate("window.__studio.reveal('RaspberryPI', 'forward')")  # the loop, not the set-up
         page.wait_for_timeout(1500)  # a few loops more, then the picture of docs/studio.md
         shot(page, "studio-live.png")
 
@@ -428,7 +429,7 @@ def test_sim_studio_draws_the_track_the_car_and_its_pings(browser: Browser, tmp_
             "t => document.querySelector('#sim .car').getAttribute('transform') !== t", arg=start)
         show(page, "activity-main")
         expect(page.locator('g.node.active[data-lane="RaspberryPI"]')).to_have_count(1)
-        page.evaluate("window.__studio.reveal('RaspberryPI', 'ping_ahead')")  # the loop, not the set-up
+        page.evaluate("window.__studio.reveal('RaspberryPI', 'forward')")  # the loop, not the set-up
         page.wait_for_timeout(3000)  # the car drives on a little: the picture of docs/studio.md
         shot(page, "studio-sim.png")
         page.close()

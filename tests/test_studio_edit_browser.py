@@ -704,7 +704,7 @@ def test_a_node_and_a_lane_renamed_in_the_page_are_renamed_in_the_drawing_and_th
         assert ("{id: left_motor_off, kind: action, call: LeftActuator.enabled(false), next: stopped}"
                 in motion)
         main = (folder / "activities" / "main.yaml").read_text(encoding="utf-8")
-        assert "call: Stop" not in main and "{id: halt, kind: action, call: Halt, next: running}" in main
+        assert "call: Stop" not in main and "{id: halt, kind: action, call: Halt, next: ping_ahead}" in main
         assert check_lines(folder, tmp_path) == (0, [])
         assert errors == [], errors
         page.close()
