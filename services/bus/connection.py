@@ -111,11 +111,24 @@ class _PahoClient(mqtt.Client):
     Our own thread runs paho's network loop (not `loop_start`), so paho writes a packet directly
     from the thread that publishes it instead of waking the network thread first: a reply leaves
     the dispatcher thread at once. The lock keeps writes from several threads from interleaving.
+
+    `on_acknowledged(mid, reason)` replaces paho's `on_publish`: it runs only when the broker
+    acknowledges a QoS 1 or 2 publish. paho calls `on_publish` also for every QoS 0 packet
+    written, and for it makes a reason code and a properties object (about 12 µs) on the
+    publishing thread, twice in every call's round trip (docs/performance.md, RPC).
     """
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
         self._write_lock = threading.RLock()
+        self.on_acknowledged: Callable[[int, Any], None] | None = None
+
+    def _do_on_publish(self, mid: int, reason_code: Any, properties: Any) -> MQTTErrorCode:
+        # before paho marks the message published, so that whoever waits for it sees the reason
+        if self.on_acknowledged is not None:
+            self.on_acknowledged(mid, reason_code)
+        rc: MQTTErrorCode = super()._do_on_publish(mid, reason_code, properties)
+        return rc
 
     def _packet_write(self) -> MQTTErrorCode:
         with self._write_lock:
@@ -238,7 +251,7 @@ class BusConnection:
         client.on_message = self._handle_message
         client.on_socket_open = self._handle_socket_open
         client.on_subscribe = self._handle_subscribe
-        client.on_publish = self._handle_publish
+        client.on_acknowledged = self._handle_acknowledged
         return client
 
     # -- public API -----------------------------------------------------------------------------
@@ -378,7 +391,7 @@ class BusConnection:
         if wait_s is not None and qos > 0:
             with contextlib.suppress(RuntimeError, ValueError):
                 info.wait_for_publish(wait_s)
-            # paho runs on_publish (which notes a refusal) before it marks the message published
+            # on_acknowledged (which notes a refusal) runs before paho marks the message published
             refused = self._refused_publishes.pop(info.mid, None) if info.is_published() else None
             if refused is not None:
                 raise BrokerRefused(f"the publish to {topic}", refused)
@@ -501,9 +514,7 @@ class BusConnection:
             else:
                 self.refused_subscriptions.pop(topic_filter, None)
 
-    def _handle_publish(
-        self, client: mqtt.Client, userdata: Any, mid: int, reason: Any, properties: Any = None
-    ) -> None:
+    def _handle_acknowledged(self, mid: int, reason: Any) -> None:
         if getattr(reason, "is_failure", False):  # only MQTT 5 acknowledgements carry a reason
             if len(self._refused_publishes) >= 256:  # nobody waited for these: forget the oldest
                 self._refused_publishes.pop(next(iter(self._refused_publishes)))
