@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import json
+import os
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -327,6 +329,36 @@ def test_handlers_run_off_the_network_thread(broker: BrokerProcess) -> None:
         bus.call("Threads", "where")
     assert threads and threads[0].startswith("bus-dispatch")
     assert wait_until(lambda: not srv.connected, 2.0)
+
+
+def _unix_sockets() -> set[str]:
+    """The inodes of this process's open Unix sockets (Linux)."""
+    links = set()
+    for fd in os.listdir("/proc/self/fd"):
+        with contextlib.suppress(OSError):  # the descriptor listdir itself used is gone
+            links.add(os.readlink(f"/proc/self/fd/{fd}"))
+    with open("/proc/net/unix") as table:
+        unix = {line.split()[6] for line in list(table)[1:]}
+    return {link[8:-1] for link in links if link.startswith("socket:[")} & unix
+
+
+def test_a_burst_is_handled_in_order_and_close_leaves_no_socket_open(broker: BrokerProcess,
+                                                                     probe: Probe) -> None:
+    # the dispatcher's mailbox wakes it with a byte on a Unix socket pair, closed with the connection
+    before = _unix_sockets()
+    srv = ComponentServer(BrokerSettings.from_url(broker.url), ROBOT, "Motor", "l298n", probe.features())
+    srv.start(5.0)
+    bus = BusClient(BrokerSettings.from_url(broker.url), ROBOT, role="burst")
+    bus.start(5.0)
+    assert len(_unix_sockets() - before) == 4  # two pairs
+    percents = [*range(101), *range(99, -1, -1)]  # up and down again
+    for percent in percents:
+        bus.send("Motor", "dutycycle", percent)
+    assert wait_until(lambda: len(probe.calls) == len(percents), 5.0), len(probe.calls)
+    assert [args[0] for _, args in probe.calls] == percents
+    bus.close()
+    srv.stop()
+    assert wait_until(lambda: not _unix_sockets() - before, 2.0), _unix_sockets() - before
 
 
 def test_start_returns_once_the_subscriptions_are_confirmed(

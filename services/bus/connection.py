@@ -8,9 +8,9 @@ handlers run on a dispatcher thread, in arrival order, never on paho's network t
 
 from __future__ import annotations
 
+import collections
 import contextlib
 import math
-import queue
 import random
 import socket
 import threading
@@ -111,11 +111,24 @@ class _PahoClient(mqtt.Client):
     Our own thread runs paho's network loop (not `loop_start`), so paho writes a packet directly
     from the thread that publishes it instead of waking the network thread first: a reply leaves
     the dispatcher thread at once. The lock keeps writes from several threads from interleaving.
+
+    `on_acknowledged(mid, reason)` replaces paho's `on_publish`: it runs only when the broker
+    acknowledges a QoS 1 or 2 publish. paho calls `on_publish` also for every QoS 0 packet
+    written, and for it makes a reason code and a properties object (about 12 µs) on the
+    publishing thread, twice in every call's round trip (docs/performance.md, RPC).
     """
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
         self._write_lock = threading.RLock()
+        self.on_acknowledged: Callable[[int, Any], None] | None = None
+
+    def _do_on_publish(self, mid: int, reason_code: Any, properties: Any) -> MQTTErrorCode:
+        # before paho marks the message published, so that whoever waits for it sees the reason
+        if self.on_acknowledged is not None:
+            self.on_acknowledged(mid, reason_code)
+        rc: MQTTErrorCode = super()._do_on_publish(mid, reason_code, properties)
+        return rc
 
     def _packet_write(self) -> MQTTErrorCode:
         with self._write_lock:
@@ -140,6 +153,61 @@ class _PahoClient(mqtt.Client):
             with contextlib.suppress(BlockingIOError, OSError):
                 wake.send(b"0")
         return MQTTErrorCode.MQTT_ERR_SUCCESS
+
+
+#: a piece of work for the dispatcher thread: a function and its arguments.
+_Work = tuple[Callable[..., None], tuple[Any, ...]]
+
+
+class _Mailbox:
+    """The dispatcher thread's queue of work: first in, first out; `put` never blocks.
+
+    The dispatcher is woken by a byte on a socket pair, not by a lock: paho's network thread sends
+    it in a system call made without the GIL, so the dispatcher takes the GIL and runs the handler
+    at once. Woken by a lock, it would wake while the network thread still holds the GIL, sleep
+    again, and run only once that thread has finished its loop and waits in `select`: about 25 µs
+    of every request on a 2-core machine (docs/performance.md, RPC).
+    """
+
+    def __init__(self) -> None:
+        self._items: collections.deque[_Work | None] = collections.deque()
+        self._wake_r: socket.socket | None = None
+        self._wake_w: socket.socket | None = None
+
+    def open(self) -> None:
+        """Make the wake-up socket pair; before the dispatcher thread starts."""
+        self._wake_r, self._wake_w = socket.socketpair()
+        self._wake_w.setblocking(False)
+
+    def put(self, item: _Work | None) -> None:
+        self._items.append(item)
+        wake = self._wake_w
+        if wake is not None:
+            # a full buffer holds wake-ups enough already; a closed pair has nobody left to wake
+            with contextlib.suppress(OSError):
+                wake.send(b"\0")
+
+    def get(self) -> _Work | None:
+        """The next item, waiting for it; None also when the mailbox was closed."""
+        while True:
+            try:
+                return self._items.popleft()
+            except IndexError:
+                pass
+            if self._wake_r is None:
+                return None
+            try:
+                # an item put since the popleft above is followed by its byte: recv returns
+                if not self._wake_r.recv(4096):
+                    return None
+            except OSError:
+                return None
+
+    def close(self) -> None:
+        """Close the socket pair; safe to call twice."""
+        for sock in (self._wake_r, self._wake_w):
+            if sock is not None:
+                sock.close()
 
 
 class BusConnection:
@@ -184,9 +252,7 @@ class BusConnection:
         self._lost = threading.Event()
         self._closing = threading.Event()
         self._supervisor: threading.Thread | None = None
-        self._dispatch_queue: queue.SimpleQueue[tuple[Callable[..., None], tuple[Any, ...]] | None] = (
-            queue.SimpleQueue()
-        )
+        self._dispatch_queue = _Mailbox()
         self._dispatcher: threading.Thread | None = None
         self._closed = False
         self._last_error: str | None = None
@@ -238,7 +304,7 @@ class BusConnection:
         client.on_message = self._handle_message
         client.on_socket_open = self._handle_socket_open
         client.on_subscribe = self._handle_subscribe
-        client.on_publish = self._handle_publish
+        client.on_acknowledged = self._handle_acknowledged
         return client
 
     # -- public API -----------------------------------------------------------------------------
@@ -264,6 +330,7 @@ class BusConnection:
             raise BusError("this connection was closed; make a new one")
         if self._supervisor is not None:
             return
+        self._dispatch_queue.open()
         self._dispatcher = threading.Thread(
             target=self._dispatch_loop, name=f"bus-dispatch-{self.role}", daemon=True
         )
@@ -335,6 +402,8 @@ class BusConnection:
         if self._dispatcher is not None and self._dispatcher.is_alive() \
                 and self._dispatcher is not threading.current_thread():
             self._dispatcher.join(timeout)
+        if self._dispatcher is None or not self._dispatcher.is_alive():
+            self._dispatch_queue.close()  # else the dispatcher closes it when it ends
         self._connected.clear()
 
     def __enter__(self) -> BusConnection:
@@ -378,7 +447,7 @@ class BusConnection:
         if wait_s is not None and qos > 0:
             with contextlib.suppress(RuntimeError, ValueError):
                 info.wait_for_publish(wait_s)
-            # paho runs on_publish (which notes a refusal) before it marks the message published
+            # on_acknowledged (which notes a refusal) runs before paho marks the message published
             refused = self._refused_publishes.pop(info.mid, None) if info.is_published() else None
             if refused is not None:
                 raise BrokerRefused(f"the publish to {topic}", refused)
@@ -501,9 +570,7 @@ class BusConnection:
             else:
                 self.refused_subscriptions.pop(topic_filter, None)
 
-    def _handle_publish(
-        self, client: mqtt.Client, userdata: Any, mid: int, reason: Any, properties: Any = None
-    ) -> None:
+    def _handle_acknowledged(self, mid: int, reason: Any) -> None:
         if getattr(reason, "is_failure", False):  # only MQTT 5 acknowledgements carry a reason
             if len(self._refused_publishes) >= 256:  # nobody waited for these: forget the oldest
                 self._refused_publishes.pop(next(iter(self._refused_publishes)))
@@ -573,17 +640,20 @@ class BusConnection:
     # -- threads --------------------------------------------------------------------------------
 
     def _dispatch_loop(self) -> None:
-        while True:
-            item = self._dispatch_queue.get()
-            if item is None:
-                return
-            function, args = item
-            try:
-                function(*args)
-            except Exception:
-                self.counters.handler_errors += 1
-                log.exception("bus_handler_failed", client_id=self.client_id,
-                              handler=getattr(function, "__qualname__", repr(function)))
+        try:
+            while True:
+                item = self._dispatch_queue.get()
+                if item is None:
+                    return
+                function, args = item
+                try:
+                    function(*args)
+                except Exception:
+                    self.counters.handler_errors += 1
+                    log.exception("bus_handler_failed", client_id=self.client_id,
+                                  handler=getattr(function, "__qualname__", repr(function)))
+        finally:
+            self._dispatch_queue.close()
 
     def _network_loop(self) -> None:
         """paho's network loop on this thread until the connection is lost or closed."""
