@@ -20,9 +20,9 @@ from services.bus import (
     resolve_broker_url,
     to_payload,
 )
-from services.bus.server import _BadInput, check_args, parse_request
-from umlbot.errors import ConfigError
-from umlbot.library import FeatureSpec, Param
+from services.bus.server import _BadInput, parse_request
+from umlbot.errors import ArgumentError, ConfigError
+from umlbot.library import FeatureSpec, Param, check_args
 
 
 def test_resolve_broker_url_prefers_cli_then_env(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -197,6 +197,6 @@ def test_check_args_converts_and_accepts() -> None:
     ],
 )
 def test_check_args_rejects(args: list[object], code: str) -> None:
-    with pytest.raises(_BadInput) as info:
+    with pytest.raises(ArgumentError) as info:
         check_args(SPEC, args)
     assert info.value.code == code

@@ -70,10 +70,9 @@ from services.bus.envelopes import (
     Status,
     TraceEvent,
 )
-from services.bus.server import check_args
 from umlbot.cli import COMMANDS, cli
 from umlbot.errors import ModelError
-from umlbot.library import BUILTIN, FeatureSpec, resolve_implementation
+from umlbot.library import BUILTIN, FeatureSpec, check_args, resolve_implementation
 from umlbot.sim.track import load_track, parse_track
 
 #: umlbot's own implementations and kinds (the docs' tables list these; plugins document theirs).

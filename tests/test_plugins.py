@@ -116,10 +116,10 @@ def test_a_spec_with_wrong_types_is_named_and_skipped(tmp_path: Path) -> None:
         "kind lamp: feature bright returns 'list', not one of int, float, bool, str, none; "
         "service kind 'lampsvc': stop_when_orchestrator_offline must be true or false")
     assert problems["badstop"] == (
-        "implementation 'bad_stop': safe_stop enabled('abc'): on must be a bool, got 'abc'; "
-        "implementation 'bad_stop': safe_stop dutycycle(150): percent must be 0..100, got 150; "
-        "implementation 'bad_stop': safe_stop enabled(): enabled takes 1 argument(s), got 0; "
-        "implementation 'bad_stop': safe_stop dutycycle(True): percent must be an int, got True")
+        "implementation 'bad_stop': safe_stop enabled('abc'): on must be true or false, got \"abc\"; "
+        "implementation 'bad_stop': safe_stop dutycycle(150): percent=150 is outside 0..100 %; "
+        "implementation 'bad_stop': safe_stop enabled(): enabled takes 1 argument(s) (on), got 0; "
+        "implementation 'bad_stop': safe_stop dutycycle(True): percent must be an integer, got true")
 
 
 def test_a_plugin_that_exits_at_import_is_named_and_skipped(tmp_path: Path) -> None:

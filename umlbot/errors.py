@@ -87,6 +87,16 @@ class RemoteError(BusError):
         self.feature = feature
 
 
+class ArgumentError(UmlbotError, ValueError):
+    """An argument a feature does not take: `code` is the wire's error code (`bad_args`,
+    `out_of_range`), `message` says which argument and why."""
+
+    def __init__(self, code: str, message: str) -> None:
+        super().__init__(f"{code}: {message}")
+        self.code = code
+        self.message = message
+
+
 class DriverError(UmlbotError, RuntimeError):
     """A hardware driver failed (pigpio daemon unreachable, pin refused, no echo)."""
 

@@ -15,8 +15,12 @@ never in `BUILTIN` directly, so that plugins are seen exactly like built-ins.
 
 from __future__ import annotations
 
+import json
+import math
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Literal
+from typing import TYPE_CHECKING, Any, Literal
+
+from umlbot.errors import ArgumentError
 
 if TYPE_CHECKING:
     from umlbot.plugins import Catalog
@@ -58,6 +62,71 @@ class FeatureSpec:
             for p in self.params
         )
         return FeatureSpec(self.name, params, self.returns, self.doc)
+
+
+def _describe(value: Any) -> str:
+    """A short JSON rendering of a bad argument for an error message (any value, any depth)."""
+    try:
+        text = json.dumps(value)
+    except (ValueError, OverflowError, RecursionError):  # too deep: say what it is
+        text = type(value).__name__
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
+def check_arg(param: Param, value: Any) -> Any:
+    """The argument converted to the parameter's type; raises `ArgumentError` (`bad_args`,
+    `out_of_range`). The one check of a feature's argument: the services apply it to every
+    request, the plugin loader to a safe stop's arguments."""
+    converted: Any
+    if param.type == "bool":
+        if isinstance(value, bool):
+            converted = value
+        elif isinstance(value, int) and value in (0, 1):
+            converted = bool(value)
+        else:
+            raise ArgumentError("bad_args", f"{param.name} must be true or false, got {_describe(value)}")
+    elif param.type == "int":
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise ArgumentError("bad_args", f"{param.name} must be an integer, got {_describe(value)}")
+        if isinstance(value, float):
+            if not math.isfinite(value) or value != int(value):
+                raise ArgumentError("bad_args", f"{param.name} must be an integer, got {_describe(value)}")
+            value = int(value)
+        converted = value
+    elif param.type == "float":
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise ArgumentError("bad_args", f"{param.name} must be a number, got {_describe(value)}")
+        try:
+            converted = float(value)  # an integer of 400 digits does not fit
+        except OverflowError:
+            converted = math.inf
+        if not math.isfinite(converted):
+            raise ArgumentError("bad_args", f"{param.name} must be a finite number")
+    else:
+        if not isinstance(value, str):
+            raise ArgumentError("bad_args", f"{param.name} must be a string, got {_describe(value)}")
+        converted = value
+    if param.type in ("int", "float") and (
+        (param.minimum is not None and converted < param.minimum)
+        or (param.maximum is not None and converted > param.maximum)
+    ):
+        low = "-inf" if param.minimum is None else f"{param.minimum:g}"
+        high = "inf" if param.maximum is None else f"{param.maximum:g}"
+        unit = f" {param.unit}" if param.unit else ""
+        raise ArgumentError("out_of_range",
+                        f"{param.name}={_describe(converted)} is outside {low}..{high}{unit}")
+    return converted
+
+
+def check_args(spec: FeatureSpec, args: list[Any]) -> list[Any]:
+    """A call's arguments checked against its feature spec and converted; raises `ArgumentError`."""
+    if len(args) != len(spec.params):
+        names = ", ".join(p.name for p in spec.params)
+        raise ArgumentError(
+            "bad_args",
+            f"{spec.name} takes {len(spec.params)} argument(s) ({names}), got {len(args)}",
+        )
+    return [check_arg(param, value) for param, value in zip(spec.params, args, strict=True)]
 
 
 @dataclass(frozen=True)

@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 from importlib.metadata import EntryPoint, entry_points
 from typing import Any, get_args
 
+from umlbot.errors import ArgumentError
 from umlbot.library import (
     ArgType,
     ComponentPlugin,
@@ -36,6 +37,7 @@ from umlbot.library import (
     Param,
     ServiceSpec,
     ValueType,
+    check_args,
 )
 from umlbot.logs import get_logger
 
@@ -182,21 +184,6 @@ def _check_feature(where: str, spec: Any, of_kind: FeatureSpec | None = None) ->
     return problems
 
 
-def _arg_problem(param: Param, value: Any) -> str | None:
-    """Why `value` cannot be passed for `param` (a safe stop's argument), or None."""
-    fits = {"bool": isinstance(value, bool), "int": isinstance(value, int) and not isinstance(value, bool),
-            "float": _is_number(value), "str": isinstance(value, str)}
-    if not fits[param.type]:
-        return f"{param.name} must be a{'n' if param.type == 'int' else ''} {param.type}, got {value!r}"
-    if param.type in ("int", "float") and (
-            (param.minimum is not None and value < param.minimum)
-            or (param.maximum is not None and value > param.maximum)):
-        low = "" if param.minimum is None else f"{param.minimum:g}"
-        high = "" if param.maximum is None else f"{param.maximum:g}"
-        return f"{param.name} must be {low}..{high}, got {value!r}"
-    return None
-
-
 def _check_safe_stop(where: str, impl: Implementation) -> list[str]:
     """Each safe-stop call names a feature the implementation offers, with arguments that fit it."""
     calls: Any = impl.safe_stop
@@ -215,12 +202,11 @@ def _check_safe_stop(where: str, impl: Implementation) -> list[str]:
             problems.append(f"{where}: safe_stop calls {feature!r}, which it does not offer")
         elif not isinstance(spec, FeatureSpec):
             continue  # reported with the features
-        elif len(args) != len(spec.params):
-            problems.append(f"{where}: {shown}: {feature} takes {len(spec.params)} argument(s), "
-                            f"got {len(args)}")
         else:
-            problems += [f"{where}: {shown}: {problem}" for param, arg in zip(spec.params, args, strict=True)
-                         if (problem := _arg_problem(param, arg)) is not None]
+            try:  # the check every request gets from its service: a stop it would refuse is wrong
+                check_args(spec, list(args))
+            except ArgumentError as exc:
+                problems.append(f"{where}: {shown}: {exc.message}")
     return problems
 
 

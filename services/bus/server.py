@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import contextlib
 import json
-import math
 import re
 import threading
 import time
@@ -25,8 +24,8 @@ from services.bus.connection import BusConnection, Message, Will
 from services.bus.envelopes import ENVELOPE_KEYS, CallRequest, Reply, Status, dumps, is_timeout, parse_json
 from services.bus.settings import BrokerSettings
 from services.bus.topics import Topics, check_name, is_valid_publish_topic
-from umlbot.errors import BusError, DriverError, NotConnected, UmlbotError
-from umlbot.library import FeatureSpec, Param
+from umlbot.errors import ArgumentError, BusError, DriverError, NotConnected, UmlbotError
+from umlbot.library import FeatureSpec, check_args
 from umlbot.logs import get_logger
 
 log = get_logger(__name__)
@@ -92,69 +91,6 @@ class _BadInput(Exception):
         self.message = message
         self.request_id = request_id
         self.reply_to = reply_to
-
-
-def _describe(value: Any) -> str:
-    """A short JSON rendering of a bad argument for an error message (any value, any depth)."""
-    try:
-        text = json.dumps(value)
-    except (ValueError, OverflowError, RecursionError):  # too deep: say what it is
-        text = type(value).__name__
-    return text if len(text) <= 40 else text[:37] + "..."
-
-
-def check_arg(param: Param, value: Any) -> Any:
-    """The argument converted to the parameter's type; raises _BadInput (bad_args, out_of_range)."""
-    converted: Any
-    if param.type == "bool":
-        if isinstance(value, bool):
-            converted = value
-        elif isinstance(value, int) and value in (0, 1):
-            converted = bool(value)
-        else:
-            raise _BadInput("bad_args", f"{param.name} must be true or false, got {_describe(value)}")
-    elif param.type == "int":
-        if isinstance(value, bool) or not isinstance(value, int | float):
-            raise _BadInput("bad_args", f"{param.name} must be an integer, got {_describe(value)}")
-        if isinstance(value, float):
-            if not math.isfinite(value) or value != int(value):
-                raise _BadInput("bad_args", f"{param.name} must be an integer, got {_describe(value)}")
-            value = int(value)
-        converted = value
-    elif param.type == "float":
-        if isinstance(value, bool) or not isinstance(value, int | float):
-            raise _BadInput("bad_args", f"{param.name} must be a number, got {_describe(value)}")
-        try:
-            converted = float(value)  # an integer of 400 digits does not fit
-        except OverflowError:
-            converted = math.inf
-        if not math.isfinite(converted):
-            raise _BadInput("bad_args", f"{param.name} must be a finite number")
-    else:
-        if not isinstance(value, str):
-            raise _BadInput("bad_args", f"{param.name} must be a string, got {_describe(value)}")
-        converted = value
-    if param.type in ("int", "float") and (
-        (param.minimum is not None and converted < param.minimum)
-        or (param.maximum is not None and converted > param.maximum)
-    ):
-        low = "-inf" if param.minimum is None else f"{param.minimum:g}"
-        high = "inf" if param.maximum is None else f"{param.maximum:g}"
-        unit = f" {param.unit}" if param.unit else ""
-        raise _BadInput("out_of_range",
-                        f"{param.name}={_describe(converted)} is outside {low}..{high}{unit}")
-    return converted
-
-
-def check_args(spec: FeatureSpec, args: list[Any]) -> list[Any]:
-    """Validate a call's arguments against its feature spec; raises _BadInput."""
-    if len(args) != len(spec.params):
-        names = ", ".join(p.name for p in spec.params)
-        raise _BadInput(
-            "bad_args",
-            f"{spec.name} takes {len(spec.params)} argument(s) ({names}), got {len(args)}",
-        )
-    return [check_arg(param, value) for param, value in zip(spec.params, args, strict=True)]
 
 
 def _is_id(value: Any) -> bool:
@@ -419,6 +355,9 @@ class ComponentServer:
         except RecursionError:  # a value nested deeper than the checks can walk (the decoder could)
             self._fail(feature_name, request_id, reply_to, response_topic, correlation, "bad_args",
                        "arguments nested too deeply")
+            return
+        except ArgumentError as bad:
+            self._fail(feature_name, request_id, reply_to, response_topic, correlation, bad.code, bad.message)
             return
         except _BadInput as bad:
             if bad.request_id is not None:
