@@ -207,8 +207,7 @@ class ServiceHost:
         return lost
 
     def _watch_orchestrator(self) -> None:
-        spec = service_spec(self.kind)
-        if spec is None or not spec.stop_when_orchestrator_offline or not self.servers:
+        if not _stops_first(self.kind) or not self.servers:
             return
         first = next(iter(self.servers.values()))
         first.connection.subscribe(self.topics.orchestrator_status, self._on_orchestrator_status)
@@ -301,8 +300,9 @@ class ServiceHost:
 
 
 def _stops_first(kind: ServiceKind) -> bool:
-    """Whether a kind's parts must not run on without the orchestrator (motors): they start and
-    stop first in a `ServiceGroup`."""
+    """Whether a kind's parts must not run on without the orchestrator (motors; its spec's
+    `stop_when_orchestrator_offline`): its host watches the orchestrator's status, and it starts
+    and stops first in a `ServiceGroup`."""
     spec = service_spec(kind)
     return spec is not None and spec.stop_when_orchestrator_offline
 
