@@ -15,7 +15,7 @@ from typing import Any, Literal, cast
 from compiler.compiled import CompiledModel
 from compiler.diagnostics import Diagnostics, Location
 from compiler.expr_parser import RawExpr, RBinary, RCall, RConst, RName, RUnary, SourceText, parse_expression
-from compiler.source import Damage, SourceDeployment, SourceLane, SourceModel, SourceNode, locate
+from compiler.source import Damage, Part, SourceDeployment, SourceLane, SourceModel, SourceNode, locate
 from compiler.yamlsrc import YMap, YScalar, YSeq
 from umlbot.errors import ConfigError, ModelError
 from umlbot.library import (
@@ -206,27 +206,23 @@ class _Scope:
     damage: Damage = field(default_factory=Damage)
     #: components whose kind is unknown (a damaged entry, an unknown kind): their own error says so.
     unknown_components: set[str] = field(default_factory=set)
+    #: any name may be a component (`Damage.components_unknown`); then which swimlanes are virtual
+    #: is unknown too.
+    components_unknown: bool = False
+    #: any name may be a swimlane (`Damage.lanes_unknown`).
+    lanes_unknown: bool = False
+    #: the deployment file could not be read: feature calls are checked by their component's kind.
+    deployment_unread: bool = False
 
     def may_be_component(self, name: str) -> bool:
         """Whether `name` may be a component whose entry could not be read whole."""
-        return self.damage.all_components or name in self.unknown_components
+        return self.components_unknown or name in self.unknown_components
 
     def feature_spec(self, component: str, feature: str) -> FeatureSpec | None:
         impl = self.impls.get(component)
         if impl is not None and feature in impl.features:
             return impl.features[feature]
         return kind_features(self.kinds[component]).get(feature)
-
-
-class _Unknown(ModelError):
-    """A name that may have been in a part of the model that could not be read: not an error of
-    its own (that part's error is reported). With `lane`: a swimlane called in vain while an
-    activity file is empty, collected for the empty file's one error."""
-
-    def __init__(self, lane: str | None = None, loc: Location | None = None) -> None:
-        super().__init__("unknown: a part of the model could not be read")
-        self.lane = lane
-        self.loc = loc
 
 
 #: how many swimlanes defined nowhere an empty activity file's error names.
@@ -250,19 +246,31 @@ class _ExprChecker:
         self.lane_calls: list[_LaneCall] = []
         #: whether a datastore was read (type inference needs another pass only then)
         self.read_datastore = False
+        #: the checks left out (`unknown`), each with the parts of the model it depends on.
+        self.left_out: list[tuple[Part, ...]] = []
+        #: swimlanes named but defined nowhere while an activity file is empty, and where.
+        self.missing: list[tuple[str, Location]] = []
 
     def fail(self, message: str, offset: int) -> ModelError:
         return self.src.error(message, offset)
 
-    def unknown_lane(self, name: str, offset: int, message: str) -> ModelError:
-        """The error for a swimlane that is not there, unless it may be in what could not be
-        read, or in an empty activity file."""
-        damage = self.scope.damage
-        if damage.all_lanes:
-            return _Unknown()
-        if damage.empty_files:
-            return _Unknown(name, self.src.location(offset))
-        return self.fail(message, offset)
+    def unknown(self, *parts: Part, call: bool = False, args: list[Data] | None = None) -> tuple[Data, Type]:
+        """A name that may be in what could not be read (`parts` of the model, none for a section
+        of the wrong shape): not an error of its own (that part's error is reported), and the
+        check is left out. The expression goes on with a value of any type, a call's (`call`) or a
+        datastore's, so that its other names are still checked without follow-ons."""
+        self.left_out.append(parts)
+        return (_call({"kind": "unknown"}, args) if call else _const(None)), "any"
+
+    def unknown_lane(self, name: str, offset: int, message: str, call: bool) -> tuple[Data, Type]:
+        """A name of a swimlane that is not there: left out when it may be in what could not be
+        read or in an empty activity file (collected for its one error), else an error."""
+        if self.scope.lanes_unknown:
+            return self.unknown("lanes", call=call)
+        if self.scope.damage.empty_files:
+            self.missing.append((name, self.src.location(offset)))
+            return self.unknown(call=call)
+        raise self.fail(message, offset)
 
     def resolve(self, raw: RawExpr, action: bool = False) -> tuple[Data, Type]:
         if isinstance(raw, RConst):
@@ -335,9 +343,9 @@ class _ExprChecker:
                 raise self.fail(f"'{name}' is a component; call one of its features: "
                                 f"{name}.<feature>(...)", raw.offset)
             if action:
-                raise self.unknown_lane(name, raw.offset, f"unknown swimlane or builtin '{name}'")
+                return self.unknown_lane(name, raw.offset, f"unknown swimlane or builtin '{name}'", True)
             if self.lane in scope.damage.lanes:
-                raise _Unknown()
+                return self.unknown()
             raise self.fail(f"unknown datastore '{name}' in swimlane '{self.lane}'", raw.offset)
         owner, name = raw.parts
         if owner == "Application":
@@ -351,19 +359,26 @@ class _ExprChecker:
                 self.read_datastore = True
                 return {"op": "ref", "lane": owner, "name": name}, t
             if owner in scope.damage.lanes:
-                raise _Unknown()
+                return self.unknown()
+            if owner not in scope.lanes and scope.lanes_unknown:
+                return self.unknown("lanes")  # the component's swimlane may be in what is unread
             hint = ""
             if owner in scope.kinds and name in kind_features(scope.kinds[owner]):
                 hint = f"; to call the feature, write {owner}.{name}()"
             raise self.fail(f"unknown datastore '{name}' in swimlane '{owner}'{hint}", raw.offsets[1])
+        if scope.lanes_unknown:
+            return self.unknown("lanes")  # a datastore of a swimlane that may be in what is unread
         if scope.may_be_component(owner):
-            raise _Unknown()
-        raise self.unknown_lane(owner, raw.offset, f"unknown swimlane or component '{owner}'")
+            return self.unknown()
+        return self.unknown_lane(owner, raw.offset, f"unknown swimlane or component '{owner}'", False)
 
     def lane_call(self, name: str, offset: int, action: bool) -> tuple[Data, Type]:
         if not action:
             raise self.fail(f"a call of swimlane '{name}' is an action of its own; it gives no value",
                             offset)
+        if self.scope.components_unknown:
+            # whether it is a virtual swimlane or a component's is the component diagram's to say
+            self.unknown("components")
         self.lane_calls.append(_LaneCall(self.lane, name, self.src.location(offset)))
         return _call({"kind": "lane", "lane": name}), "none"
 
@@ -396,7 +411,7 @@ class _ExprChecker:
             if name in scope.kinds:
                 raise self.fail(f"'{name}' is a component; call one of its features: "
                                 f"{name}.<feature>(...)", raw.offset)
-            raise self.unknown_lane(name, raw.offset, f"unknown swimlane or builtin '{name}'")
+            return self.unknown_lane(name, raw.offset, f"unknown swimlane or builtin '{name}'", True)
         owner, feature = parts
         if owner == "Application":
             if feature == "exit" and not raw.args:
@@ -407,13 +422,17 @@ class _ExprChecker:
                             raw.name.offsets[1])
         if owner not in scope.kinds:
             if scope.may_be_component(owner):
-                raise _Unknown()
+                # its arguments are checked all the same: they do not depend on the component
+                return self.unknown(*(("components",) if scope.components_unknown else ()), call=True,
+                                    args=[self.resolve(arg)[0] for arg in raw.args])
             if owner in scope.lanes:
                 raise self.fail(f"'{owner}' is a virtual swimlane, not a component; call it as "
                                 f"{owner}()", raw.offset)
             raise self.fail(f"unknown component '{owner}'", raw.offset)
         kind = scope.kinds[owner]
         impl = scope.impls.get(owner)
+        if impl is None and scope.deployment_unread:
+            self.unknown("deployment")  # the implementation's features and ranges; its kind's are checked
         if feature not in kind_features(kind):
             # the features this component offers: its implementation's, else its kind's
             known = ", ".join(impl.features if impl is not None else kind_features(kind))
@@ -451,14 +470,39 @@ class _Checker:
     def __init__(self, source: SourceModel, diagnostics: Diagnostics) -> None:
         self.source = source
         self.d = diagnostics
-        self.scope = _Scope(damage=source.damage)
+        damage = source.damage
+        self.scope = _Scope(damage=damage, components_unknown=damage.components_unknown,
+                            lanes_unknown=damage.lanes_unknown)
         self.lanes: list[_Lane] = []
+        #: how many checks each file that could not be read left out (`leave_out`), by position
+        #: in `damage.unread`.
+        self.left_out = [0] * len(damage.unread)
         #: swimlanes called but defined nowhere while an activity file is empty -> first call.
         self.missing_lanes: dict[str, Location] = {}
         self.lane_calls: list[_LaneCall] = []
         self.signals: set[str] = set()
+        #: the implementation of each component the deployment names, when it is known and of the
+        #: component's kind (or the component's kind is unknown): its driver and settings are checked.
+        self.deployed: dict[str, Implementation] = {}
         self.parsed: dict[int, tuple[RawExpr, SourceText]] = {}
         self.trees: dict[str, RawExpr] = {}
+
+    def leave_out(self, *parts: Part) -> None:
+        """Count a check left out because it depends on `parts` of the model, for each file that
+        could not be read and may hold one of them (a section of the wrong shape counts nowhere:
+        its error says what is unknown)."""
+        for index, each in enumerate(self.source.damage.unread):
+            if not each.parts.isdisjoint(parts):
+                self.left_out[index] += 1
+
+    def report_left_out(self) -> None:
+        """Say in the error of each file that could not be read how many checks were left out
+        because of it."""
+        for each, count in zip(self.source.damage.unread, self.left_out, strict=True):
+            if count:
+                checks = "1 check that depends on this file was" if count == 1 else \
+                    f"{count} checks that depend on this file were"
+                self.d.add_note(each.error, f"{checks} left out until it can be read")
 
     # --- components and deployment -----------------------------------------------------------------
 
@@ -497,20 +541,30 @@ class _Checker:
     def check_deployment(self) -> None:
         dep = self.source.deployment
         if dep is None:
-            self.d.error("the model has no deployment (deployment.yaml or deployment.txt beside "
-                         "model.yaml, or a 'deployment' section)", self.source.loc)
+            # unless model.yaml, which may have a `deployment`, could not be read
+            if not self.source.damage.unread_holds("deployment"):
+                self.d.error("the model has no deployment (deployment.yaml or deployment.txt beside "
+                             "model.yaml, or a 'deployment' section)", self.source.loc)
             return
         if dep.deployment is None:
-            return  # its problems were reported while reading it
+            # its problems were reported while reading it; when it could not be read, the
+            # activities are checked by the components' kinds instead of their implementations
+            if not dep.read:
+                self.scope.deployment_unread = True
+                for _ in self.scope.kinds:
+                    self.leave_out("deployment")  # its implementation, of its kind, offering its ports
+            return
         self.check_robot_id(dep)
         for name, entry in dep.deployment.components.items():
             where = dep.entries.get(name)
             loc = where.loc if where else dep.loc
             impl_loc = where.impl_loc if where else dep.loc
-            if name not in self.source.components:
-                if not self.scope.may_be_component(name):
-                    self.d.error(f"deployment names unknown component '{name}'", loc)
+            declared = name in self.source.components
+            if not declared and not self.scope.may_be_component(name):
+                self.d.error(f"deployment names unknown component '{name}'", loc)
                 continue
+            # a component whose entry could not be read: its implementation, driver and settings
+            # are checked all the same (they do not depend on it), not its kind
             impl = resolve_implementation(entry.impl)
             if impl is None:
                 self.d.error(f"unknown implementation id '{entry.impl}' for component '{name}'"
@@ -518,16 +572,19 @@ class _Checker:
                 continue
             kind = self.scope.kinds.get(name)
             if kind is None:
-                continue
-            if impl.kind != kind:
+                if not declared:
+                    self.leave_out("components")  # whether it is a component, of the implementation's kind
+            elif impl.kind != kind:
                 self.d.error(f"component '{name}' is {_a(kind)} but implementation '{impl.id}' is "
                              f"{_a(impl.kind)}", impl_loc)
                 continue
-            self.scope.impls[name] = impl
-            for port, (feature, port_loc) in self.source.components[name].ports.items():
-                if feature in kind_features(kind) and feature not in impl.features:
-                    self.d.error(f"implementation '{impl.id}' of '{name}' does not offer feature "
-                                 f"'{feature}' (port '{port}')", port_loc)
+            else:
+                self.scope.impls[name] = impl
+                for port, (feature, port_loc) in self.source.components[name].ports.items():
+                    if feature in kind_features(kind) and feature not in impl.features:
+                        self.d.error(f"implementation '{impl.id}' of '{name}' does not offer feature "
+                                     f"'{feature}' (port '{port}')", port_loc)
+            self.deployed[name] = impl
             if self.check_driver(name, impl, dep):
                 self.check_settings(name, impl, dep)
         self.check_default_driver(dep)
@@ -550,6 +607,8 @@ class _Checker:
 
         assert dep.deployment is not None
         robot = dep.deployment.robot
+        if robot is None and self.source.damage.unread_holds("name"):
+            return  # the robot id is the model's name, in model.yaml, which could not be read
         try:
             check_name("robot id" if robot is not None else "the model's name", robot or self.source.name)
         except ConfigError as exc:
@@ -584,7 +643,7 @@ class _Checker:
         default = dep.deployment.driver
         by_service: dict[str, list[str]] = {}
         for name, entry in dep.deployment.components.items():
-            impl = self.scope.impls.get(name)
+            impl = self.deployed.get(name)
             if impl is not None and entry.driver is None:
                 by_service.setdefault(impl.service, []).append(name)
         known = {service: known_drivers(service) for service in by_service}
@@ -636,7 +695,7 @@ class _Checker:
         assert dep.deployment is not None
         for shared in shared_pins(dep.deployment):
             name = shared.component
-            if name in self.scope.impls and shared.first in self.scope.impls:  # else its entry's own error
+            if name in self.deployed and shared.first in self.deployed:  # else its entry's own error
                 self.d.error(shared.message(),
                              self._deployment_loc(dep, "components", name, "settings", *shared.path))
 
@@ -857,16 +916,21 @@ class _Checker:
     def expression(self, lane: _Lane, scalar: YScalar, action: bool = False) -> tuple[Data, Type] | None:
         try:
             raw, text = self.parse(scalar)
-            checker = _ExprChecker(self.scope, lane.name, text)
-            result = checker.resolve(raw, action=action)
-        except _Unknown as exc:
-            if exc.lane is not None and exc.loc is not None:
-                self.missing_lanes.setdefault(exc.lane, exc.loc)
-            return None
         except ModelError as exc:
             self.d.add_model_error(exc)
             return None
-        self.lane_calls.extend(checker.lane_calls)
+        checker = _ExprChecker(self.scope, lane.name, text)
+        try:
+            result: tuple[Data, Type] | None = checker.resolve(raw, action=action)
+        except ModelError as exc:
+            self.d.add_model_error(exc)
+            result = None
+        for parts in checker.left_out:
+            self.leave_out(*parts)
+        for name, loc in checker.missing:
+            self.missing_lanes.setdefault(name, loc)
+        if result is not None:
+            self.lane_calls.extend(checker.lane_calls)
         return result
 
     def check_expressions(self) -> None:
@@ -1087,12 +1151,15 @@ class _Checker:
                     elif call.callee not in visited:
                         visited.add(call.callee)
                         stack.append((call.callee, [*path, call]))
-        if self.source.damage.calls_unknown or self.missing_lanes:
-            return  # a call may have been in what could not be read, or in the emptied file
+        # a call may have been in what could not be read, or in the emptied file
+        unknown = self.source.damage.calls_unknown or bool(self.missing_lanes)
         called = {call.callee for call in self.lane_calls}
         for each in self.lanes:
             if each.virtual and each.name not in called:
-                self.d.warning(f"virtual swimlane '{each.name}' is never called", each.src.loc)
+                if unknown:
+                    self.leave_out("lanes", "components")
+                else:
+                    self.d.warning(f"virtual swimlane '{each.name}' is never called", each.src.loc)
 
     # --- the compiled model ------------------------------------------------------------------------
 
@@ -1176,14 +1243,12 @@ def _where(loc: Location) -> str:
 
 
 def check_source(source: SourceModel, diagnostics: Diagnostics) -> CompiledModel | None:
-    """Run every check; the compiled model when there is no error, else None."""
-    if not source.complete:
-        # A model file could not be read (its error is reported): every check against what it
-        # holds would only report follow-on errors ("unknown component", "unknown swimlane",
-        # "never called").
-        for loc in source.damage.empty_files:
-            diagnostics.warning("empty activity file", loc)
-        return None
+    """Run every check; the compiled model when there is no error, else None.
+
+    A file that could not be read (its error is reported) leaves out only the checks that depend
+    on what it may hold ("unknown component", "unknown swimlane", "never called" would be
+    follow-ons of it); its error says how many.
+    """
     checker = _Checker(source, diagnostics)
     checker.check_components()
     checker.check_deployment()
@@ -1195,6 +1260,7 @@ def check_source(source: SourceModel, diagnostics: Diagnostics) -> CompiledModel
         if lane.name not in source.damage.lanes:  # an edge to an unread node is no error of its own
             checker.check_graph(lane)
     checker.check_recursion()
+    checker.report_left_out()
     if diagnostics.has_errors:
         return None
     return checker.build()

@@ -6,7 +6,7 @@ The loader and the checker collect every problem of a model in one run into `Dia
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Literal, NamedTuple
 
 from umlbot.errors import ModelError
@@ -48,8 +48,15 @@ class Diagnostics:
     def warning(self, message: str, location: Location) -> None:
         self.items.append(Diagnostic("warning", message, location))
 
-    def add_model_error(self, exc: ModelError) -> None:
+    def add_model_error(self, exc: ModelError) -> Diagnostic:
+        """Report `exc` as an error; the `Diagnostic` made of it."""
         self.error(exc.message, Location(exc.file, exc.line, exc.column))
+        return self.items[-1]
+
+    def add_note(self, diagnostic: Diagnostic, note: str) -> None:
+        """Say `note` in parentheses after the message of a problem reported before."""
+        index = self.items.index(diagnostic)
+        self.items[index] = replace(diagnostic, message=f"{diagnostic.message} ({note})")
 
     @property
     def errors(self) -> list[Diagnostic]:

@@ -13,10 +13,11 @@ import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Literal
 
 from pydantic import ValidationError
 
-from compiler.diagnostics import Diagnostics, Location
+from compiler.diagnostics import Diagnostic, Diagnostics, Location
 from compiler.yamlsrc import YMap, YNode, YScalar, YSeq, parse_yaml, to_python
 from umlbot.deployment import Deployment, is_plain_format
 from umlbot.errors import ModelError
@@ -31,6 +32,13 @@ DEPLOYMENT_FILES = ("deployment.yaml", "deployment.yml", "deployment.txt")
 
 MODEL_KEYS = ("name", "call_timeout_s", "components", "links", "lanes", "deployment")
 LANE_KEYS = ("lane", "nodes")
+#: the parts of a model a file holds: what a file that could not be read leaves unknown.
+Part = Literal["components", "lanes", "deployment", "name"]
+#: model.yaml holds the component diagram (components and links), the model's name and may hold
+#: swimlanes and the deployment; an activity file holds swimlanes; a deployment file, the deployment.
+MODEL_FILE_PARTS: frozenset[Part] = frozenset(("components", "lanes", "deployment", "name"))
+ACTIVITY_FILE_PARTS: frozenset[Part] = frozenset(("lanes",))
+DEPLOYMENT_FILE_PARTS: frozenset[Part] = frozenset(("deployment",))
 NODE_KINDS = ("start", "end", "action", "datastore", "decision", "fork", "join", "send", "accept")
 #: the keys each node kind takes besides `id` and `kind`.
 NODE_FIELDS: dict[str, tuple[str, ...]] = {
@@ -113,11 +121,24 @@ class SourceDeployment:
     #: the rich format's mapping as written, to place a problem of a driver or its settings
     #: (None in the plain format, which has neither).
     root: YNode | None = None
+    #: False when the file could not be read (its error is reported): what it deploys is unknown.
+    read: bool = True
+
+
+@dataclass(frozen=True)
+class UnreadFile:
+    """A model file that could not be read: its one error (reported) and the parts of a model it
+    may have held. The checker leaves out every check that depends on those parts and says in
+    that error how many it left out."""
+
+    error: Diagnostic
+    parts: frozenset[Part]
 
 
 @dataclass
 class Damage:
-    """The parts of a model that were there but of the wrong shape (see `SourceModel.damage`)."""
+    """The parts of a model that were there but could not be read, or were of the wrong shape
+    (see `SourceModel.damage`)."""
 
     #: the `components` section is not a mapping: any name may have been a component.
     all_components: bool = False
@@ -134,12 +155,29 @@ class Damage:
     lanes: set[str] = field(default_factory=set)
     #: where the empty activity files are: their swimlanes may be what the model calls in vain.
     empty_files: list[Location] = field(default_factory=list)
+    #: the files that could not be read (model.yaml, an activity file, the deployment file).
+    unread: list[UnreadFile] = field(default_factory=list)
+
+    def unread_holds(self, part: Part) -> bool:
+        """Whether a file that could not be read may have held `part`."""
+        return any(part in each.parts for each in self.unread)
+
+    @property
+    def components_unknown(self) -> bool:
+        """Whether any name may have been a component (its `components` unread or not a mapping)."""
+        return self.all_components or self.unread_holds("components")
+
+    @property
+    def lanes_unknown(self) -> bool:
+        """Whether any name may have been a swimlane (a file that may hold swimlanes unread, or
+        a swimlane's part of the wrong shape)."""
+        return self.all_lanes or self.unread_holds("lanes")
 
     @property
     def calls_unknown(self) -> bool:
         """Whether a call of a virtual swimlane may have been in what could not be read (or which
         swimlanes are virtual is unknown): no "never called" warning then."""
-        return self.all_components or self.all_lanes or bool(self.lanes)
+        return self.components_unknown or self.lanes_unknown or bool(self.lanes)
 
 
 @dataclass
@@ -154,13 +192,11 @@ class SourceModel:
     lanes: list[SourceLane] = field(default_factory=list)
     deployment: SourceDeployment | None = None
     source_hash: str = ""
-    #: False when one of the model's files (model.yaml or an activity file) could not be read: its
-    #: error is reported and the checks, which would only report what is missing, are skipped.
-    complete: bool = True
-    #: What a section of the wrong shape leaves unknown (its shape error is reported, with its
-    #: position). Its names are unknown rather than absent: the checker does not report a
-    #: reference to one as missing, nor a virtual swimlane as never called when a call of it may
-    #: have been in what could not be read. See docs/model-format.md, "Read errors".
+    #: What a file that could not be read or a section of the wrong shape leaves unknown (its
+    #: error is reported, with its position). Its names are unknown rather than absent: the
+    #: checker does not report a reference to one as missing, nor a virtual swimlane as never
+    #: called when a call of it may have been in what could not be read; everything else is
+    #: checked. See docs/model-format.md, "A file that cannot be read".
     damage: Damage = field(default_factory=Damage)
 
 
@@ -168,7 +204,7 @@ class SourceModel:
 class Unreadable:
     """A model file that is there but could not be read, in place of its bytes in `files`, and why
     (one line: "cannot read: Permission denied", "file too large (...)"). The reader reports it as
-    it reports the file on disk: one error at `file:1:1`, and no follow-ons."""
+    it reports the file on disk: one error at `file:1:1`, and no follow-ons (`UnreadFile`)."""
 
     problem: str
 
@@ -225,6 +261,13 @@ class _Reader:
         self.diagnostics = diagnostics
         self.files = files
         self.contents: dict[str, bytes] = {}
+        #: the files that could not be read, in the order read.
+        self.unread: list[UnreadFile] = []
+
+    def could_not_read(self, exc: ModelError, parts: frozenset[Part]) -> None:
+        """Report a file that could not be read (`exc` says why and where) and remember what it
+        may have held."""
+        self.unread.append(UnreadFile(self.diagnostics.add_model_error(exc), parts))
 
     def is_file(self, path: Path) -> bool:
         """Whether the model has a file at `path`: anything under that name (a folder named
@@ -310,6 +353,7 @@ def load_source(path: str | Path, diagnostics: Diagnostics,
     if deployment_path is not None:
         model.deployment = _read_deployment_file(reader, Path(deployment_path))
     model.source_hash = reader.source_hash()
+    model.damage.unread = reader.unread
     return model
 
 
@@ -318,8 +362,8 @@ def _read_model_file_safe(reader: _Reader, path: Path, default_name: str) -> Sou
     try:
         return _read_model_file(reader, path, default_name)
     except ModelError as exc:
-        reader.diagnostics.add_model_error(exc)
-        return SourceModel(name=default_name, loc=Location(reader.display(path), 1, 1), complete=False)
+        reader.could_not_read(exc, MODEL_FILE_PARTS)
+        return SourceModel(name=default_name, loc=Location(reader.display(path), 1, 1))
 
 
 def _parse(reader: _Reader, path: Path) -> tuple[YNode | None, str]:
@@ -375,8 +419,7 @@ def _read_lane_file(reader: _Reader, path: Path, model: SourceModel) -> None:
         root, shown = _parse(reader, path)
     except ModelError as exc:
         # Its swimlanes are unknown: every call of them would be a follow-on "unknown swimlane".
-        reader.diagnostics.add_model_error(exc)
-        model.complete = False
+        reader.could_not_read(exc, ACTIVITY_FILE_PARTS)
         return
     if root is None:
         # a warning, unless the model calls swimlanes defined nowhere: then the checker makes it
@@ -531,22 +574,17 @@ def _read_deployment_file(reader: _Reader, path: Path) -> SourceDeployment:
     shown = reader.display(path)
     # An unreadable or empty deployment file is its one error: a deployment without content (not
     # None, which the checker would report as a follow-on "the model has no deployment").
-    unreadable = SourceDeployment(None, shown, Location(shown, 1, 1))
     try:
         text = reader.read_text(path)
-    except ModelError as exc:
-        reader.diagnostics.add_model_error(exc)
-        return unreadable
-    if is_plain_format(text):
-        return _deployment_from_plain(text, shown, reader.diagnostics)
-    try:
+        if is_plain_format(text):
+            return _deployment_from_plain(text, shown, reader.diagnostics)
         root = parse_yaml(text, shown, reader.diagnostics)
     except ModelError as exc:
-        reader.diagnostics.add_model_error(exc)
-        return unreadable
+        reader.could_not_read(exc, DEPLOYMENT_FILE_PARTS)
+        return SourceDeployment(None, shown, Location(shown, 1, 1), read=False)
     if root is None:
         reader.diagnostics.error("empty deployment", Location(shown, 1, 1))
-        return unreadable
+        return SourceDeployment(None, shown, Location(shown, 1, 1))
     return _deployment_from_yaml(root, shown, reader.diagnostics)
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 from compiler.api import CheckResult, check_model
@@ -34,6 +35,17 @@ MAIN = """\
       - {id: go, kind: action, call: Motor.enabled(true)}
       - {id: end, kind: end}
 """
+
+
+#: what the error of a file that cannot be read ends with when checks of the other files that
+#: depend on it were left out.
+LEFT_OUT = (r" \((?:1 check that depends|[0-9]+ checks that depend) on this file (?:was|were) left out "
+            r"until it can be read\)")
+
+
+def with_left_out(line: str) -> re.Pattern[str]:
+    """`line` (an error of a file that cannot be read) followed by the left-out note."""
+    return re.compile(re.escape(line) + LEFT_OUT)
 
 
 def check_text(tmp_path: Path, text: str, name: str = "model.yaml") -> CheckResult:

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 from click.testing import CliRunner
-from compiler_support import HEADER, MAIN, at, check_text, errors_of, position
+from compiler_support import HEADER, MAIN, at, check_text, errors_of, position, with_left_out
 
 from compiler import expr_parser, yamlsrc
 from compiler.api import check_model
@@ -51,8 +51,9 @@ def test_a_bad_byte_in_an_activity_file(tmp_path: Path) -> None:
     line, column = position(text.decode("utf-8"), "TurnLeft")
     activity.write_bytes(text.replace(b"TurnLeft", b"Turn\xe9Left", 1))
     errors = [e for e in errors_of(check_model(model)) if e.location.file == str(activity)]
-    assert [(e.message, at(e)) for e in errors] == [
-        ("not UTF-8 text: byte 0xe9: invalid continuation byte", (line, column + 4))]
+    assert [at(e) for e in errors] == [(line, column + 4)]
+    # main.yaml calls its swimlanes: those checks wait for it
+    assert with_left_out("not UTF-8 text: byte 0xe9: invalid continuation byte").fullmatch(errors[0].message)
 
 
 # --- an unreadable model.yaml is one error -----------------------------------------------------------
@@ -128,7 +129,9 @@ def test_an_activity_path_that_cannot_be_read_is_the_only_problem(tmp_path: Path
     activity.unlink()
     activity.mkdir()  # read even by root: not a file
     result = CliRunner().invoke(cli, ["check", str(model)])
-    assert result.stdout.splitlines() == [f"{activity}:1:1: error: cannot read: Is a directory"]
+    lines = result.stdout.splitlines()
+    expected = with_left_out(f"{activity}:1:1: error: cannot read: Is a directory")
+    assert len(lines) == 1 and expected.fullmatch(lines[0])
 
 
 @pytest.mark.parametrize("name", ["model.yaml", "deployment.yaml"])
@@ -139,13 +142,14 @@ def test_a_folder_under_a_model_file_name_is_unreadable_not_missing(tmp_path: Pa
     shutil.copytree(ROBOT_CAR, model)
     (model / name).unlink()
     (model / name).mkdir()
-    expected = [f"{model / name}:1:1: error: cannot read: Is a directory"]
+    expected = with_left_out(f"{model / name}:1:1: error: cannot read: Is a directory")
     result = CliRunner().invoke(cli, ["check", str(model)])
-    assert (result.exit_code, result.stdout.splitlines()) == (1, expected)
+    lines = result.stdout.splitlines()
+    assert result.exit_code == 1 and len(lines) == 1 and expected.fullmatch(lines[0])
     # the studio's way: the folder's files read first, then checked from memory
     read = read_model_folder(model)
     assert read[name] == Unreadable("cannot read: Is a directory")
-    assert [str(d) for d in check_model(model, files=read).diagnostics] == expected
+    assert [str(d) for d in check_model(model, files=read).diagnostics] == lines
 
 
 def test_a_fifo_in_place_of_an_activity_file_is_refused_without_waiting(tmp_path: Path) -> None:
@@ -156,7 +160,9 @@ def test_a_fifo_in_place_of_an_activity_file_is_refused_without_waiting(tmp_path
     os.mkfifo(activity)  # opening it to read would wait for a writer for ever
     argv = [sys.executable, "-c", "from umlbot.cli import main; main()", "check", str(model)]
     result = subprocess.run(argv, capture_output=True, text=True, timeout=60, check=False)
-    assert result.stdout.splitlines() == [f"{activity}:1:1: error: not a regular file (a FIFO)"]
+    lines = result.stdout.splitlines()
+    expected = with_left_out(f"{activity}:1:1: error: not a regular file (a FIFO)")
+    assert len(lines) == 1 and expected.fullmatch(lines[0])
     assert result.returncode == 1
 
 

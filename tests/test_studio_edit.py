@@ -23,6 +23,7 @@ from urllib.parse import urlsplit
 import aiohttp
 import pytest
 from click.testing import CliRunner
+from compiler_support import position, with_left_out
 from conftest import BrokerProcess
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
@@ -644,8 +645,33 @@ def test_the_studio_shows_umlbot_checks_lines_for_a_file_it_cannot_read(tmp_path
     if problem is None:  # run as root: the file is read, and the car is fine
         assert shown == [] and check.exit_code == 0 and workspace.result is not None
         assert workspace.result.model is not None
-    else:
-        assert shown == [f"{measure}{problem}"] and check.exit_code == 1
+    else:  # with how many checks of main.yaml wait for it to be read
+        assert len(shown) == 1 and with_left_out(f"{measure}{problem}").fullmatch(shown[0])
+        assert check.exit_code == 1
+
+
+@pytest.mark.parametrize("case", UNREADABLE_CASES)
+def test_the_studio_shows_the_other_files_defects_beside_a_file_it_cannot_read(tmp_path: Path,
+                                                                            case: str) -> None:
+    # before, the unreadable file was the only problem shown: a typo in motion.yaml (which does
+    # not depend on measure.yaml) showed only once it was fixed
+    root = tmp_path / "car"
+    shutil.copytree(CAR_MODEL, root)
+    motion = root / "activities" / "motion.yaml"
+    text = motion.read_text(encoding="utf-8")
+    line, column = position(text, "direction(true)")
+    motion.write_text(text.replace("direction(true)", "direktion(true)", 1), encoding="utf-8")
+    typo = (f"{motion}:{line}:{column}: error: unknown feature 'direktion' of actuator component "
+            "'LeftActuator' (known: enabled, direction, dutycycle)")
+    measure = root / "activities" / "measure.yaml"
+    problem = _make_unreadable(measure, case)
+    check = CliRunner().invoke(cli, ["check", str(root)])
+    shown = [d["text"] for d in Workspace(root).check()["diagnostics"]]
+    assert shown == check.stdout.splitlines() and check.exit_code == 1
+    if problem is None:  # run as root: the file is read
+        assert shown == [typo]
+    else:  # no "unknown swimlane" for main.yaml's calls of Measure and Glance
+        assert shown[1:] == [typo] and with_left_out(f"{measure}{problem}").fullmatch(shown[0])
 
 
 def test_no_operation_writes_over_a_file_that_cannot_be_read() -> None:
