@@ -5,12 +5,18 @@ how flat the processes' memory stays over time is measured by `bench/chaos.py --
 
 from __future__ import annotations
 
+import io
+import json
+import tracemalloc
 from typing import Any
 
 import pytest
+from rich.console import Console
 
 from services.mock_support import DEFAULT_RECORD
+from services.monitor import MonitorState, Stats, render
 from services.registry import SettingsError, create_driver
+from umlbot.bounded import MAX_ROWS
 
 MOCK_CALLS: dict[str, tuple[str, dict[str, Any], str]] = {
     # kind: (method, settings, what the call records)
@@ -60,3 +66,75 @@ def test_the_mock_record_bound_is_a_setting() -> None:
     assert driver.recorded == 5
     with pytest.raises(SettingsError, match="mock_record: Input should be greater than or equal to 1"):
         create_driver("motor", "mock", "Left", {"mock_record": 0})
+
+
+# --- the monitor (also the studio's source of calls and statistics) --------------------------
+
+
+def _trace(lane: str, node: str, duration_ms: float) -> bytes:
+    return json.dumps({"lane": lane, "node": node, "kind": "action", "start": 0.0, "end": 1.0,
+                       "duration_ms": duration_ms, "detail": f"{node}()"}).encode()
+
+
+def test_the_monitor_tables_keep_at_most_max_rows_and_the_busy_ones() -> None:
+    state = MonitorState()
+    flood = 3 * MAX_ROWS
+    for i in range(flood):
+        # the car's real rows are updated all along; a flood of one-off names goes past them
+        state.observe("umlbot/car/orchestrator/trace", _trace("Left", "drive", 2.0), 1.0)
+        state.observe("umlbot/car/LeftActuator/call/dutycycle", b"[60]", 1.0)
+        state.observe("umlbot/car/LeftActuator/status", b'{"state": "online"}', 1.0)
+        state.observe("umlbot/car/orchestrator/status", b'{"state": "running"}', 1.0)
+        state.observe("umlbot/car/orchestrator/trace", _trace(f"lane{i}", f"node{i}", 1.0), 1.0)
+        state.observe(f"umlbot/car/Junk{i}/call/f{i}", b"[1]", 1.0)
+        state.observe(f"umlbot/car/Junk{i}/status", b'{"state": "online"}', 1.0)
+        state.observe(f"umlbot/robot{i}/orchestrator/status",
+                      b'{"state": "running", "call_timeout_s": 2}', 1.0)
+    for table in (state.actions, state.features, state.lanes, state.availability, state.orchestrator,
+                  state.robot_call_timeouts):
+        assert len(table) == MAX_ROWS
+    # five tables hold a car's row and the flood, one only the flood; the car's rows never went
+    assert state.dropped_rows == 5 * (flood + 1 - MAX_ROWS) + (flood - MAX_ROWS)
+    assert state.actions[("car", "Left", "drive")].count == flood
+    assert state.features[("car", "LeftActuator", "dutycycle")].count == flood
+    assert state.availability[("car", "LeftActuator")].state == "online"
+    assert state.orchestrator["car"] == "running"
+    assert ("car", f"lane{flood - 1}", f"node{flood - 1}") in state.actions  # the newest stays
+    assert ("car", "lane0", "node0") not in state.actions
+    assert f"{state.dropped_rows} rows dropped" in _text(state)
+
+
+def _text(state: MonitorState) -> str:
+    console = Console(file=io.StringIO(), width=200, record=True)
+    console.print(render(state, now=2.0))
+    return console.export_text()
+
+
+def _held_bytes(build: Any) -> int:
+    tracemalloc.start()
+    try:
+        before = tracemalloc.get_traced_memory()[0]
+        kept = build()
+        held = tracemalloc.get_traced_memory()[0] - before
+    finally:
+        tracemalloc.stop()
+    assert kept is not None
+    return held
+
+
+def test_a_monitor_row_holds_percentiles_of_the_whole_run_in_a_few_kilobytes() -> None:
+    def feed(n: int) -> Stats:
+        stats = Stats("drive")
+        for i in range(n):  # 1 µs to 10 s: the widest spread a row sees
+            stats.add(0.001 * 10 ** (7 * ((i * 7919) % n) / n))
+        return stats
+
+    small, large = _held_bytes(lambda: feed(1000)), _held_bytes(lambda: feed(100_000))
+    assert large < 64_000 and large < small + 32_000, (small, large)
+    # the whole run counts, not a window of the newest: 10 000 fast calls, then 2500 slow ones
+    stats = Stats("call")
+    for _ in range(10_000):
+        stats.add(1.0)
+    for _ in range(2500):
+        stats.add(100.0)
+    assert stats.p50 == pytest.approx(1.0, rel=0.01) and stats.p99 == pytest.approx(100.0, rel=0.01)
