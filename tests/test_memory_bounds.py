@@ -17,6 +17,7 @@ from services.mock_support import DEFAULT_RECORD
 from services.monitor import MonitorState, Stats, render
 from services.registry import SettingsError, create_driver
 from umlbot.bounded import MAX_ROWS
+from umlbot.studio.hub import KEEP_CALLS, Hub
 
 MOCK_CALLS: dict[str, tuple[str, dict[str, Any], str]] = {
     # kind: (method, settings, what the call records)
@@ -138,3 +139,31 @@ def test_a_monitor_row_holds_percentiles_of_the_whole_run_in_a_few_kilobytes() -
     for _ in range(2500):
         stats.add(100.0)
     assert stats.p50 == pytest.approx(1.0, rel=0.01) and stats.p99 == pytest.approx(100.0, rel=0.01)
+
+
+# --- the studio's hub (the snapshot a page opening later gets) ----------------------------------
+
+
+def test_the_studio_hub_keeps_the_state_of_at_most_max_rows_components() -> None:
+    hub = Hub(keep_trace=50)
+    flood = 3 * MAX_ROWS
+    for i in range(flood):
+        hub.push({"type": "availability", "robot": "car", "component": "LeftActuator", "state": "online",
+                  "time": float(i)})
+        hub.push({"type": "state", "robot": "car", "component": "LeftActuator", "payload": {"n": i},
+                  "time": float(i)})
+        hub.push({"type": "availability", "robot": "car", "component": f"Junk{i}", "state": "online",
+                  "time": float(i)})
+        hub.push({"type": "state", "robot": "car", "component": f"Junk{i}", "payload": {}, "time": float(i)})
+        hub.push({"type": "trace", "robot": "car", "lane": "L", "node": f"n{i}", "time": float(i)})
+        hub.push({"type": "call", "robot": "car", "component": "LeftActuator", "feature": "dutycycle",
+                  "time": float(i)})
+        if i % 100 == 0:
+            hub.flush()
+    hub.flush()
+    assert len(hub.availability) == len(hub.retained) == MAX_ROWS
+    assert hub.retained["car/LeftActuator"]["payload"] == {"n": flood - 1}
+    assert "car/Junk0" not in hub.availability and f"car/Junk{flood - 1}" in hub.availability
+    assert len(hub.trace) == 50 and hub.trace[-1]["node"] == f"n{flood - 1}"
+    assert len(hub.calls) == KEEP_CALLS
+    assert len(hub.snapshot()) == 2 * MAX_ROWS + 50 + KEEP_CALLS
