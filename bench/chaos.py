@@ -26,7 +26,8 @@ Scenarios (each on every broker of `--brokers`, the kill scenario on the first o
   servo and sonar calls as fast as they come back (trace on), `umlbot monitor` (its live view),
   `umlbot studio` with a page reading its WebSocket, and the broker — with the RSS of each
   sampled from /proc every `--soak-sample-s`; per process its RSS at the start, after the warm-up
-  (`--soak-warmup-s`, default 120), at the end, its peak, growth after the warm-up and slope. A
+  (`--soak-warmup-s`, default 300: the bounded records fill meanwhile, such as the studio's last
+  100 000 trace events, about 60 MB, and the orchestrator's last 100 000 call latencies), at the end, its peak, growth after the warm-up and slope. A
   process that grows more than `--soak-max-growth-mb` (default 3) after the warm-up, or exits,
   fails the run (exit status 1).
 
@@ -34,13 +35,14 @@ The last output line is one JSON object: {"restart": [...], "kill": [...], "fuzz
 
     python bench/chaos.py [--trials 10] [--fuzz 10000] [--brokers mosquitto,amqtt]
                           [--kinds motor,sonar,servo,gpio] [--scenarios restart,kill,fuzz,soak]
-                          [--soak-s 600] [--soak-warmup-s 120] [--soak-sample-s 5]
+                          [--soak-s 600] [--soak-warmup-s 300] [--soak-sample-s 5]
                           [--soak-max-growth-mb 3]
 """
 
 from __future__ import annotations
 
 import argparse
+import collections
 import contextlib
 import json
 import math
@@ -296,11 +298,17 @@ class Fleet:
         self.services[kind] = self._spawn(kind, umlbot("service", kind, "--deploy", deployment,
                                                        "--driver", "mock", "--robot", ROBOT))
 
-    def start_run(self) -> None:
+    def start_run(self, trace_on_bus: bool = False) -> None:
+        """The orchestrator, its trace in a file (`self.trace`), or with `trace_on_bus` published
+        on MQTT as it is by default (what the monitor and the studio follow)."""
         extra = ["--call-timeout", str(self.call_timeout_s)] if self.call_timeout_s else []
-        self.trace = self.workdir / f"{self.broker.kind}-trace-{self.counter + 1}.jsonl"
-        self.run = self._spawn("run", umlbot("run", str(self.compiled), "--robot", ROBOT, "--no-trace",
-                                             "--trace", str(self.trace), "--startup-timeout", "30", *extra))
+        if trace_on_bus:
+            self.trace = None
+        else:
+            self.trace = self.workdir / f"{self.broker.kind}-trace-{self.counter + 1}.jsonl"
+            extra += ["--no-trace", "--trace", str(self.trace)]
+        self.run = self._spawn("run", umlbot("run", str(self.compiled), "--robot", ROBOT,
+                                             "--startup-timeout", "30", *extra))
 
     def all_processes(self) -> list[Proc]:
         return [*self.services.values(), *([self.run] if self.run else []), *self.others]
@@ -756,6 +764,8 @@ class PageReader:
         self.url = f"http://127.0.0.1:{port}/ws"
         self.frames = 0
         self.bytes = 0
+        #: events received by type (`trace`, `call`, …)
+        self.events: collections.Counter[str] = collections.Counter()
         self.error: str | None = None
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="soak-page", daemon=True)
@@ -782,6 +792,9 @@ class PageReader:
                     return
                 self.frames += 1
                 self.bytes += len(message.data)
+                frame = json.loads(message.data)
+                if frame.get("type") == "events":
+                    self.events.update(str(event.get("type")) for event in frame["events"])
 
     def close(self) -> None:
         self._stop.set()
@@ -825,7 +838,7 @@ def soak(broker: Broker, fleet: Fleet, observer: Observer, model_dir: Path, dura
     if not wait_until(lambda: port_accepts(studio_port), 60.0):
         raise RuntimeError(f"the studio did not start: {studio.log.read_text()[-2000:]}")
     page = PageReader(studio_port)
-    fleet.start_run()
+    fleet.start_run(trace_on_bus=True)
     run = fleet.run
     assert run is not None and broker.proc is not None
     if not observer.wait(lambda o: o.orchestrator_state() == "running", 40.0):
@@ -863,6 +876,7 @@ def soak(broker: Broker, fleet: Fleet, observer: Observer, model_dir: Path, dura
         "process_exits": sum(1 for ok in alive.values() if not ok),
         "tracebacks": count_tracebacks([p.log for p in fleet.all_processes()], offsets),
         "page_frames": page.frames,
+        "page_events": dict(page.events),
         "page_mb": round(page.bytes / 1e6, 1),
         "page_error": page.error,
         "max_growth_mb": worst,
@@ -902,8 +916,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--outage", type=float, default=1.0, help="seconds the broker stays down")
     parser.add_argument("--seed", type=int, default=1, help="seed of the fuzzed payloads")
     parser.add_argument("--soak-s", type=float, default=600.0, help="seconds the soak runs (per broker)")
-    parser.add_argument("--soak-warmup-s", type=float, default=120.0,
-                        help="seconds of the soak before its memory must stay flat")
+    parser.add_argument("--soak-warmup-s", type=float, default=300.0,
+                        help="seconds of the soak before its memory must stay flat (the bounded "
+                             "records fill: the studio's 100 000 trace events, ...)")
     parser.add_argument("--soak-sample-s", type=float, default=5.0, help="seconds between two RSS samples")
     parser.add_argument("--soak-max-growth-mb", type=float, default=3.0,
                         help="RSS growth after the warm-up that fails the soak (any process)")
