@@ -27,11 +27,12 @@ Scenarios (each on every broker of `--brokers`, the kill scenario on the first o
   `umlbot studio` with a page reading its WebSocket, and the broker — with the RSS of each
   sampled from /proc every `--soak-sample-s`; per process its RSS at the start, after the warm-up
   (`--soak-warmup-s`, default 300: the bounded records fill meanwhile, such as the studio's last
-  100 000 trace events, about 60 MB, and the orchestrator's last 100 000 call latencies), at the end, its peak, growth after the warm-up and slope. A
-  process that grows more than `--soak-max-growth-mb` (default 3) after the warm-up, or exits,
-  fails the run (exit status 1).
+  100 000 trace events, about 60 MB, and the orchestrator's last 100 000 call latencies), at the
+  end, its peak, growth after the warm-up and slope. A process that grows more than
+  `--soak-max-growth-mb` (default 3) after the warm-up, or exits, fails the run (exit status 1).
 
-The last output line is one JSON object: {"restart": [...], "kill": [...], "fuzz": [...], "soak": [...]}.
+The last output line is one JSON object:
+{"restart": [...], "kill": [...], "fuzz": [...], "soak": [...]}.
 
     python bench/chaos.py [--trials 10] [--fuzz 10000] [--brokers mosquitto,amqtt]
                           [--kinds motor,sonar,servo,gpio] [--scenarios restart,kill,fuzz,soak]
