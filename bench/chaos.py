@@ -21,16 +21,29 @@ Scenarios (each on every broker of `--brokers`, the kill scenario on the first o
   orchestrator's signal and exit topics, with the car running (call time-out 10 s, so that load
   on the machine is not mistaken for a fault): process exits, tracebacks in any log, error
   replies against requests that named a reply topic, RSS growth, and a good call afterwards.
+- `soak` (not in the default scenarios): every long-running process for `--soak-s` seconds
+  (default 600) — `umlbot service all --driver mock`, `umlbot run` on a model that loops motor,
+  servo and sonar calls as fast as they come back (trace on), `umlbot monitor` (its live view),
+  `umlbot studio` with a page reading its WebSocket, and the broker — with the RSS of each
+  sampled from /proc every `--soak-sample-s`; per process its RSS at the start, after the warm-up
+  (`--soak-warmup-s`, default 300: the bounded records fill meanwhile, such as the studio's last
+  100 000 trace events, about 60 MB, and the orchestrator's last 100 000 call latencies), at the
+  end, its peak, growth after the warm-up and slope. A process that grows more than
+  `--soak-max-growth-mb` (default 3) after the warm-up, or exits, fails the run (exit status 1).
 
-The last output line is one JSON object: {"restart": [...], "kill": [...], "fuzz": [...]}.
+The last output line is one JSON object:
+{"restart": [...], "kill": [...], "fuzz": [...], "soak": [...]}.
 
     python bench/chaos.py [--trials 10] [--fuzz 10000] [--brokers mosquitto,amqtt]
-                          [--kinds motor,sonar,servo,gpio] [--scenarios restart,kill,fuzz]
+                          [--kinds motor,sonar,servo,gpio] [--scenarios restart,kill,fuzz,soak]
+                          [--soak-s 600] [--soak-warmup-s 300] [--soak-sample-s 5]
+                          [--soak-max-growth-mb 3]
 """
 
 from __future__ import annotations
 
 import argparse
+import collections
 import contextlib
 import json
 import math
@@ -258,6 +271,8 @@ class Fleet:
         self.call_timeout_s = call_timeout_s
         self.services: dict[str, Proc] = {}
         self.run: Proc | None = None
+        #: other long-running processes (the soak's `service all`, monitor and studio)
+        self.others: list[Proc] = []
         self.counter = 0
         # MQTT 5 where the broker speaks it, so that Response Topics name a reply topic too
         url = broker.url + ("?protocol=5" if broker.kind == "mosquitto" else "")
@@ -265,29 +280,42 @@ class Fleet:
                     **unit_environment(), "UMLBOT_BROKER": url, "UMLBOT_LOG_LEVEL": "INFO"}
         self.trace: Path | None = None
 
-    def _spawn(self, name: str, argv: list[str]) -> Proc:
+    def _spawn(self, name: str, argv: list[str], quiet_stdout: bool = False) -> Proc:
+        """Start one process, its log (stderr, and stdout unless `quiet_stdout`) in the workdir."""
         self.counter += 1
         log = self.workdir / f"{self.broker.kind}-{name}-{self.counter}.log"
         with log.open("wb") as out:
-            popen = subprocess.Popen(argv, stdout=out, stderr=subprocess.STDOUT, env=self.env)
+            popen = subprocess.Popen(argv, stdout=subprocess.DEVNULL if quiet_stdout else out,
+                                     stderr=out if quiet_stdout else subprocess.STDOUT, env=self.env)
         return Proc(name, popen, log)
+
+    def start_other(self, name: str, argv: list[str], quiet_stdout: bool = False) -> Proc:
+        proc = self._spawn(name, argv, quiet_stdout)
+        self.others.append(proc)
+        return proc
 
     def start_service(self, kind: str) -> None:
         deployment = str(MODEL / "deployment.yaml")
         self.services[kind] = self._spawn(kind, umlbot("service", kind, "--deploy", deployment,
                                                        "--driver", "mock", "--robot", ROBOT))
 
-    def start_run(self) -> None:
+    def start_run(self, trace_on_bus: bool = False) -> None:
+        """The orchestrator, its trace in a file (`self.trace`), or with `trace_on_bus` published
+        on MQTT as it is by default (what the monitor and the studio follow)."""
         extra = ["--call-timeout", str(self.call_timeout_s)] if self.call_timeout_s else []
-        self.trace = self.workdir / f"{self.broker.kind}-trace-{self.counter + 1}.jsonl"
-        self.run = self._spawn("run", umlbot("run", str(self.compiled), "--robot", ROBOT, "--no-trace",
-                                             "--trace", str(self.trace), "--startup-timeout", "30", *extra))
+        if trace_on_bus:
+            self.trace = None
+        else:
+            self.trace = self.workdir / f"{self.broker.kind}-trace-{self.counter + 1}.jsonl"
+            extra += ["--no-trace", "--trace", str(self.trace)]
+        self.run = self._spawn("run", umlbot("run", str(self.compiled), "--robot", ROBOT,
+                                             "--startup-timeout", "30", *extra))
 
     def all_processes(self) -> list[Proc]:
-        return [*self.services.values(), *([self.run] if self.run else [])]
+        return [*self.services.values(), *([self.run] if self.run else []), *self.others]
 
     def stop(self) -> None:
-        for proc in [*([self.run] if self.run else []), *self.services.values()]:
+        for proc in [*([self.run] if self.run else []), *self.services.values(), *self.others]:
             if proc.popen.poll() is None:
                 with contextlib.suppress(ProcessLookupError):
                     os.kill(proc.popen.pid, signal.SIGCONT)
@@ -696,6 +724,170 @@ def good_calls(broker: Broker) -> bool:
             return False
 
 
+# --- scenario: soak -----------------------------------------------------------------------------
+
+#: the soak's model: the car's components, one lane calling both motors, the servo and the sonar in
+#: a loop as fast as the calls come back (the mock sonar always reads 100 cm)
+SOAK_LANE = """\
+lane: RaspberryPI
+nodes:
+  - {id: start, kind: start}
+  - {id: left_on, kind: action, call: LeftActuator.enabled(true)}
+  - {id: left_power, kind: action, call: LeftActuator.dutycycle(40)}
+  - {id: right_on, kind: action, call: RightActuator.enabled(true)}
+  - {id: right_power, kind: action, call: RightActuator.dutycycle(60)}
+  - {id: look_left, kind: action, call: Sensor.angle(135)}
+  - {id: left, kind: datastore, name: left, value: DistanceRead.value()}
+  - {id: look_right, kind: action, call: Sensor.angle(45)}
+  - {id: again, kind: decision, branches: [{if: left >= 0, then: left_on}, {else: end}]}
+  - {id: end, kind: end}
+"""
+
+
+def soak_model(workdir: Path) -> tuple[Path, Path]:
+    """The soak's model folder (the car's components and deployment, `SOAK_LANE`) and its compiled file."""
+    folder = workdir / "soak"
+    (folder / "activities").mkdir(parents=True, exist_ok=True)
+    car = (MODEL / "model.yaml").read_text(encoding="utf-8")
+    (folder / "model.yaml").write_text(car.replace("\nname: car\n", "\nname: soak\n"), encoding="utf-8")
+    shutil.copy(MODEL / "deployment.yaml", folder / "deployment.yaml")
+    (folder / "activities" / "main.yaml").write_text(SOAK_LANE, encoding="utf-8")
+    out = workdir / "soak.json"
+    subprocess.run(umlbot("compile", str(folder), "-o", str(out)), check=True, capture_output=True,
+                   timeout=120)
+    return folder, out
+
+
+class PageReader:
+    """A studio page as the browser opens it: a WebSocket on `/ws` read as fast as frames come."""
+
+    def __init__(self, port: int) -> None:
+        self.url = f"http://127.0.0.1:{port}/ws"
+        self.frames = 0
+        self.bytes = 0
+        #: events received by type (`trace`, `call`, …)
+        self.events: collections.Counter[str] = collections.Counter()
+        self.error: str | None = None
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="soak-page", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        import asyncio
+
+        try:
+            asyncio.run(self._read())
+        except Exception as exc:  # the figure says so; the soak goes on
+            self.error = repr(exc)
+
+    async def _read(self) -> None:
+        import aiohttp
+
+        async with aiohttp.ClientSession() as session, session.ws_connect(self.url, max_msg_size=0) as ws:
+            while not self._stop.is_set():
+                try:
+                    message = await ws.receive(timeout=0.5)
+                except TimeoutError:
+                    continue
+                if message.type != aiohttp.WSMsgType.TEXT:
+                    return
+                self.frames += 1
+                self.bytes += len(message.data)
+                frame = json.loads(message.data)
+                if frame.get("type") == "events":
+                    self.events.update(str(event.get("type")) for event in frame["events"])
+
+    def close(self) -> None:
+        self._stop.set()
+        self._thread.join(5)
+
+
+def memory_trend(samples: list[tuple[float, float]], warmup_s: float) -> dict[str, Any]:
+    """RSS figures of one process from `(seconds since the start, MB)` samples: at the start, at
+    the end of the warm-up, at the end and their peak; `growth_mb`, the median of the last three
+    samples less that of the first three after the warm-up; `slope_mb_per_min`, the least-squares
+    slope after the warm-up."""
+    after = [(t, mb) for t, mb in samples if t >= warmup_s] or samples[-1:]
+    head = statistics.median(mb for _, mb in after[:3])
+    tail = statistics.median(mb for _, mb in after[-3:])
+    slope = (statistics.linear_regression([t for t, _ in after], [mb for _, mb in after]).slope * 60
+             if len(after) >= 2 and len({t for t, _ in after}) >= 2 else 0.0)
+    return {
+        "first_mb": round(samples[0][1], 1),
+        "start_mb": round(after[0][1], 1),
+        "end_mb": round(samples[-1][1], 1),
+        "peak_mb": round(max(mb for _, mb in samples), 1),
+        "growth_mb": round(tail - head, 2),
+        "slope_mb_per_min": round(slope, 3),
+    }
+
+
+def soak(broker: Broker, fleet: Fleet, observer: Observer, model_dir: Path, duration_s: float,
+         warmup_s: float, sample_s: float, max_growth_mb: float) -> dict[str, Any]:
+    """Every long-running process for `duration_s`: the model loops calls as fast as it can with
+    the trace on, a monitor and a studio (a page attached) follow; RSS of each sampled."""
+    deployment = str(model_dir / "deployment.yaml")
+    services = fleet.start_other("services", umlbot("service", "all", "--deploy", deployment,
+                                                    "--driver", "mock", "--robot", ROBOT))
+    if not observer.wait(lambda o: o.online() >= ALL_COMPONENTS, 40.0):
+        raise RuntimeError(f"components not online: {sorted(ALL_COMPONENTS - observer.online())}; "
+                           f"services log: {services.log.read_text()[-2000:]}")
+    monitor = fleet.start_other("monitor", umlbot("monitor", "--robot", ROBOT), quiet_stdout=True)
+    studio_port = free_port()
+    studio = fleet.start_other("studio", umlbot("studio", str(model_dir), "--robot", ROBOT,
+                                                "--port", str(studio_port), "--log-level", "WARNING"))
+    if not wait_until(lambda: port_accepts(studio_port), 60.0):
+        raise RuntimeError(f"the studio did not start: {studio.log.read_text()[-2000:]}")
+    page = PageReader(studio_port)
+    fleet.start_run(trace_on_bus=True)
+    run = fleet.run
+    assert run is not None and broker.proc is not None
+    if not observer.wait(lambda o: o.orchestrator_state() == "running", 40.0):
+        raise RuntimeError(f"the soak model did not start: {run.log.read_text()[-2000:]}")
+    processes = {"broker": broker.proc.pid, "services": services.popen.pid, "orchestrator": run.popen.pid,
+                 "monitor": monitor.popen.pid, "studio": studio.popen.pid}
+    offsets = {p.log: p.log.stat().st_size for p in fleet.all_processes()}
+    samples: dict[str, list[tuple[float, float]]] = {name: [] for name in processes}
+    began = time.monotonic()
+    while True:
+        now = time.monotonic() - began
+        for name, pid in processes.items():
+            with contextlib.suppress(OSError):
+                samples[name].append((now, rss_mb(pid)))
+        if now >= duration_s or any(p.popen.poll() is not None for p in fleet.all_processes()):
+            break
+        time.sleep(min(sample_s, max(0.0, duration_s - now)))
+    elapsed = time.monotonic() - began
+    alive = {p.name: p.popen.poll() is None for p in fleet.all_processes()}
+    state = observer.orchestrator_state()
+    page.close()
+    fleet.stop()
+    finished = log_events(run.log, "orchestrator_finished")
+    actions = int(finished[-1].get("actions", 0)) if finished else 0
+    trends = {name: memory_trend(points, warmup_s) for name, points in samples.items() if points}
+    worst = max(trends.values(), key=lambda t: t["growth_mb"])["growth_mb"] if trends else math.nan
+    return {
+        "broker": broker.kind,
+        "duration_s": round(elapsed, 1),
+        "warmup_s": warmup_s,
+        "sample_s": sample_s,
+        "actions": actions,
+        "actions_per_s": round(actions / elapsed, 1) if elapsed else None,
+        "orchestrator_state": state,
+        "process_exits": sum(1 for ok in alive.values() if not ok),
+        "tracebacks": count_tracebacks([p.log for p in fleet.all_processes()], offsets),
+        "page_frames": page.frames,
+        "page_events": dict(page.events),
+        "page_mb": round(page.bytes / 1e6, 1),
+        "page_error": page.error,
+        "max_growth_mb": worst,
+        "limit_mb": max_growth_mb,
+        "flat": len(trends) == len(processes) and all(t["growth_mb"] <= max_growth_mb
+                                                     for t in trends.values()),
+        "processes": trends,
+    }
+
+
 # --- main ---------------------------------------------------------------------------------------
 
 
@@ -720,21 +912,29 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--fuzz", type=int, default=10_000, help="malformed payloads per fuzz run")
     parser.add_argument("--brokers", default="mosquitto,amqtt", help="brokers, e.g. mosquitto,amqtt")
     parser.add_argument("--kinds", default=",".join(KINDS), help="service kinds to SIGKILL and SIGSTOP")
-    parser.add_argument("--scenarios", default="restart,kill,fuzz", help="which of restart, kill, fuzz")
+    parser.add_argument("--scenarios", default="restart,kill,fuzz",
+                        help="which of restart, kill, fuzz, soak (not in the default: 10 min a broker)")
     parser.add_argument("--outage", type=float, default=1.0, help="seconds the broker stays down")
     parser.add_argument("--seed", type=int, default=1, help="seed of the fuzzed payloads")
+    parser.add_argument("--soak-s", type=float, default=600.0, help="seconds the soak runs (per broker)")
+    parser.add_argument("--soak-warmup-s", type=float, default=300.0,
+                        help="seconds of the soak before its memory must stay flat (the bounded "
+                             "records fill: the studio's 100 000 trace events, ...)")
+    parser.add_argument("--soak-sample-s", type=float, default=5.0, help="seconds between two RSS samples")
+    parser.add_argument("--soak-max-growth-mb", type=float, default=3.0,
+                        help="RSS growth after the warm-up that fails the soak (any process)")
     args = parser.parse_args(argv)
     brokers = [b for b in args.brokers.split(",") if b]
     kinds = [k for k in args.kinds.split(",") if k]
     scenarios = {s for s in args.scenarios.split(",") if s}
     if set(brokers) - {"mosquitto", "amqtt"} or set(kinds) - set(KINDS) or \
-            scenarios - {"restart", "kill", "fuzz"}:
+            scenarios - {"restart", "kill", "fuzz", "soak"}:
         parser.error("unknown broker, kind or scenario")
 
     from umlbot.logs import configure_logging
 
     configure_logging("WARNING")
-    out: dict[str, Any] = {"restart": [], "kill": [], "fuzz": []}
+    out: dict[str, Any] = {"restart": [], "kill": [], "fuzz": [], "soak": []}
     with tempfile.TemporaryDirectory(prefix="umlbot-chaos-") as tmp:
         workdir = Path(tmp)
         compiled = compile_car(workdir)
@@ -749,8 +949,15 @@ def main(argv: list[str] | None = None) -> int:
                 with robot(kind, workdir, compiled, call_timeout_s=10.0) as (broker, fleet, observer):
                     out["fuzz"].append(fuzz(broker, fleet, observer, args.fuzz, args.seed))
                     print(json.dumps(out["fuzz"][-1]), file=sys.stderr, flush=True)
+            if "soak" in scenarios:
+                model_dir, soak_compiled = soak_model(workdir)
+                with robot(kind, workdir, soak_compiled) as (broker, fleet, observer):
+                    out["soak"].append(soak(broker, fleet, observer, model_dir, args.soak_s,
+                                            args.soak_warmup_s, args.soak_sample_s, args.soak_max_growth_mb))
+                    print(json.dumps(out["soak"][-1]), file=sys.stderr, flush=True)
     print(json.dumps(out))
-    return 0
+    # the soak fails the run: a process whose memory grows, or that died
+    return 1 if any(not row["flat"] or row["process_exits"] for row in out["soak"]) else 0
 
 
 if __name__ == "__main__":

@@ -57,3 +57,20 @@ def test_fuzzed_payloads_get_error_replies_and_break_nothing(broker: str) -> Non
     assert fuzz["replies"] == fuzz["error_replies"] == fuzz["requests_naming_a_reply_topic"]
     assert fuzz["rss_growth_max_mb"] <= 5.0, fuzz["rss_growth_mb"]
     assert fuzz["good_calls_after"] and fuzz["run_still_going"]
+
+
+def test_a_short_soak_samples_every_long_running_process() -> None:
+    # the full soak is the benchmark (10 minutes a broker, after a 5-minute warm-up in which the
+    # studio's trace history fills: docs/performance.md); this one checks that every process runs
+    # and is measured, that calls, trace and page frames flow, and that the mock services, which
+    # grew with every call (~8.5 MB a minute at this pace), no longer do
+    [soak] = chaos("--scenarios", "soak", "--brokers", "mosquitto", "--soak-s", "30", "--soak-warmup-s", "10",
+                   "--soak-sample-s", "2", "--soak-max-growth-mb", "200")["soak"]
+    assert set(soak["processes"]) == {"broker", "services", "orchestrator", "monitor", "studio"}
+    assert soak["process_exits"] == 0 and soak["tracebacks"] == 0, soak
+    assert soak["orchestrator_state"] == "running" and soak["actions"] > 1000, soak
+    assert soak["page_error"] is None and soak["page_events"]["trace"] > 1000, soak
+    assert soak["page_events"]["call"] > 1000, soak
+    for name, trend in soak["processes"].items():
+        assert 0 < trend["first_mb"] <= trend["peak_mb"], (name, trend)
+    assert soak["processes"]["services"]["growth_mb"] < 1.0, soak["processes"]

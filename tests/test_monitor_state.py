@@ -13,7 +13,7 @@ import pytest
 from rich.console import Console
 
 from services.bus.envelopes import TraceEvent
-from services.monitor import MonitorEvent, MonitorState, percentile, read_trace, render, replay
+from services.monitor import MonitorEvent, MonitorState, Stats, read_trace, render, replay
 from umlbot.errors import ConfigError
 
 
@@ -167,15 +167,23 @@ def test_trace_events_drive_lanes_and_action_percentiles() -> None:
     assert (lane.node, lane.kind) == ("d1", "decision")
     stats = state.actions[("car", "LeftActuator", "a1")]
     assert stats.count == 100 and stats.label == "LeftActuator.dutycycle(60)"
-    assert stats.p50 == 50.0 and stats.p99 == 99.0
+    assert stats.p50 == pytest.approx(50.0, rel=0.01) and stats.p99 == pytest.approx(99.0, rel=0.01)
     assert ("car", "LeftActuator", "d1") not in state.actions  # decisions are not timed
 
 
-def test_percentile_nearest_rank() -> None:
-    assert math.isnan(percentile([], 0.5))
-    assert percentile([3.0], 0.99) == 3.0
-    assert percentile([1.0, 2.0, 3.0, 4.0], 0.5) == 2.0
-    assert percentile([float(i) for i in range(1, 1001)], 0.99) == 990.0
+def test_percentiles_within_one_percent_of_the_nearest_rank() -> None:
+    empty = Stats("a")
+    assert math.isnan(empty.p50) and math.isnan(empty.p99)
+    one = Stats("b")
+    one.add(3.0)
+    assert one.p50 == pytest.approx(3.0, rel=0.01) and one.p99 == pytest.approx(3.0, rel=0.01)
+    many = Stats("c")
+    for i in range(1, 1001):
+        many.add(float(i))
+    many.add(math.nan)  # not a duration: counted, not sampled
+    many.add(None, failed=True)
+    assert (many.count, many.errors) == (1002, 1)
+    assert many.p50 == pytest.approx(500.0, rel=0.01) and many.p99 == pytest.approx(990.0, rel=0.01)
 
 
 def test_replay_reads_a_trace_file_at_the_recorded_pace(tmp_path: Path) -> None:

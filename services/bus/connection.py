@@ -16,7 +16,7 @@ import socket
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from paho.mqtt.enums import CallbackAPIVersion, MQTTErrorCode, MQTTProtocolVersion
@@ -102,7 +102,6 @@ class _Counters:
     connects: int = 0
     disconnects: int = 0
     handler_errors: int = 0
-    dropped: list[str] = field(default_factory=list)
 
 
 class _PahoClient(mqtt.Client):

@@ -57,7 +57,7 @@ class MockGpio(MockDriver):
 
     def close(self) -> None:
         with self._cond:
-            self.commands.append(("close", ()))
+            self._record("close")
             self.closed = True
             self._changed()
 

@@ -6,7 +6,7 @@
 
 from services.monitor.live import LiveMonitor, topic_filter
 from services.monitor.replay import read_trace, replay
-from services.monitor.state import MonitorEvent, MonitorState, Stats, percentile
+from services.monitor.state import MonitorEvent, MonitorState, Stats
 from services.monitor.view import render
 
 __all__ = [
@@ -14,7 +14,6 @@ __all__ = [
     "MonitorEvent",
     "MonitorState",
     "Stats",
-    "percentile",
     "read_trace",
     "render",
     "replay",

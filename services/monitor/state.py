@@ -6,6 +6,12 @@ the last calls with their latency (a request on `…/call/<feature>` paired by `
 with its reply), the node each lane executes, and per-action counts with p50/p99 durations.
 Nothing here touches the network; the same state is fed live from the bus or from a trace file.
 
+Memory is bounded whatever the run's length and whatever names come over the wire: each table
+keeps at most `MAX_ROWS` rows (`umlbot.bounded.RecentDict`: the row untouched for longest goes
+first, counted in `dropped_rows`), the pending calls at most `MAX_PENDING_CALLS`, and a row's
+durations are a DDSketch (`ddsketch`, relative accuracy 1 %, at most `SKETCH_BINS` bins: a few
+kilobytes, 29 kB for durations spread from 1 µs to 10 s) instead of the samples.
+
 Wire input is untrusted: a payload that is not JSON where JSON is needed, nested deeper than
 `pydantic_core.from_json` allows (about 200 levels), not UTF-8 or of the wrong shape is skipped and
 counted in `malformed`; the first one logs one warning, the rest are only counted.
@@ -18,10 +24,12 @@ from collections import Counter, deque
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
+from ddsketch import LogCollapsingLowestDenseDDSketch
 from pydantic import BaseModel, ConfigDict, ValidationError
 from pydantic_core import from_json
 
 from services.bus.envelopes import ENVELOPE_KEYS, CallRequest, Reply, TraceEvent, dumps
+from umlbot.bounded import MAX_ROWS, RecentDict
 from umlbot.logs import get_logger
 
 log = get_logger(__name__)
@@ -34,8 +42,10 @@ TIMED_KINDS = frozenset({"action", "send", "accept"})
 #: a request without a reply for this long is reported as unanswered, unless the orchestrator's
 #: retained status says its own time-out (`call_timeout_s`) or the monitor was given one.
 DEFAULT_CALL_TIMEOUT_S = 5.0
-#: samples kept per action or feature for the percentiles.
-SAMPLE_WINDOW = 2000
+#: relative accuracy of the percentiles (the page's are as accurate: studio/web/src/durations.ts)
+RELATIVE_ACCURACY = 0.01
+#: bins of one row's sketch at most (the lowest collapse beyond): 1 µs to 24 h at 1 % takes 1270
+SKETCH_BINS = 2048
 MAX_PENDING_CALLS = 10_000
 #: how `pydantic_core.from_json` says that JSON is nested too deeply (then it is malformed, not text).
 TOO_DEEP = "recursion limit exceeded"
@@ -75,37 +85,36 @@ class MonitorEvent(BaseModel):
         return self.model_dump_json(exclude_none=True)
 
 
-def percentile(sorted_values: list[float], fraction: float) -> float:
-    """Nearest-rank percentile of an ascending list (fraction 0.5 = median); NaN when empty."""
-    if not sorted_values:
-        return math.nan
-    rank = max(1, math.ceil(fraction * len(sorted_values)))
-    return sorted_values[min(rank, len(sorted_values)) - 1]
-
-
 @dataclass
 class Stats:
-    """Count, errors and a window of durations (ms) of one action or feature."""
+    """Count, errors and the durations (ms) of one action or feature, in bounded memory: p50 and
+    p99 over every sample, within 1 % (NaN before the first)."""
 
     label: str
     count: int = 0
     errors: int = 0
-    samples: deque[float] = field(default_factory=lambda: deque(maxlen=SAMPLE_WINDOW))
+    durations: LogCollapsingLowestDenseDDSketch = field(
+        default_factory=lambda: LogCollapsingLowestDenseDDSketch(RELATIVE_ACCURACY, SKETCH_BINS))
 
     def add(self, duration_ms: float | None, failed: bool = False) -> None:
         self.count += 1
         if failed:
             self.errors += 1
         if duration_ms is not None and math.isfinite(duration_ms):
-            self.samples.append(duration_ms)
+            self.durations.add(max(0.0, duration_ms))
+
+    def quantile(self, fraction: float) -> float:
+        """The duration (ms) below which `fraction` of the samples lie, within 1 %; NaN when none."""
+        value = self.durations.get_quantile_value(fraction)
+        return math.nan if value is None else float(value)
 
     @property
     def p50(self) -> float:
-        return percentile(sorted(self.samples), 0.50)
+        return self.quantile(0.50)
 
     @property
     def p99(self) -> float:
-        return percentile(sorted(self.samples), 0.99)
+        return self.quantile(0.99)
 
 
 @dataclass
@@ -161,12 +170,12 @@ class MonitorState:
         self.call_timeout_s = call_timeout_s
         self.fallback_call_timeout_s = fallback_call_timeout_s
         #: the time-out each robot's orchestrator says it uses (its retained status).
-        self.robot_call_timeouts: dict[str, float] = {}
-        self.availability: dict[tuple[str, str], Availability] = {}
-        self.orchestrator: dict[str, str] = {}
-        self.lanes: dict[tuple[str, str], LaneNow] = {}
-        self.actions: dict[tuple[str, str, str], Stats] = {}
-        self.features: dict[tuple[str, str, str], Stats] = {}
+        self.robot_call_timeouts: RecentDict[str, float] = RecentDict(MAX_ROWS)
+        self.availability: RecentDict[tuple[str, str], Availability] = RecentDict(MAX_ROWS)
+        self.orchestrator: RecentDict[str, str] = RecentDict(MAX_ROWS)
+        self.lanes: RecentDict[tuple[str, str], LaneNow] = RecentDict(MAX_ROWS)
+        self.actions: RecentDict[tuple[str, str, str], Stats] = RecentDict(MAX_ROWS)
+        self.features: RecentDict[tuple[str, str, str], Stats] = RecentDict(MAX_ROWS)
         self.recent_calls: deque[MonitorEvent] = deque(maxlen=recent)
         self.recent_events: deque[MonitorEvent] = deque(maxlen=recent)
         self.messages = 0
@@ -229,10 +238,8 @@ class MonitorState:
         now = LaneNow(trace.node, trace.kind, trace.detail, trace.end, trace.error)
         self.lanes[(robot, trace.lane)] = now
         if trace.kind in TIMED_KINDS or (trace.kind == "datastore" and "(" in (trace.detail or "")):
-            key = (robot, trace.lane, trace.node)
-            stats = self.actions.get(key)
-            if stats is None:
-                stats = self.actions[key] = Stats(trace.detail or trace.node)
+            label = trace.detail or trace.node
+            stats = self.actions.touch((robot, trace.lane, trace.node), lambda: Stats(label))
             stats.add(trace.duration_ms, failed=trace.error is not None)
         return MonitorEvent(
             type="trace", time=trace.end, robot=robot, topic=topic, lane=trace.lane, node=trace.node,
@@ -265,6 +272,12 @@ class MonitorState:
             events.append(self._finish(pending, key[1], at=pending.at, ok=False, value=None,
                                        error=f"no reply within {timeout:g} s", latency_ms=None))
         return events
+
+    @property
+    def dropped_rows(self) -> int:
+        """Rows the tables dropped to stay within `MAX_ROWS` (names enough for a thousand robots)."""
+        return sum(table.dropped for table in (self.robot_call_timeouts, self.availability, self.orchestrator,
+                                               self.lanes, self.actions, self.features))
 
     @property
     def pending_calls(self) -> int:
@@ -337,10 +350,8 @@ class MonitorState:
 
     def _record_call(self, event: MonitorEvent) -> MonitorEvent:
         assert event.component is not None and event.feature is not None
-        key = (event.robot, event.component, event.feature)
-        stats = self.features.get(key)
-        if stats is None:
-            stats = self.features[key] = Stats(f"{event.component}.{event.feature}")
+        label = f"{event.component}.{event.feature}"
+        stats = self.features.touch((event.robot, event.component, event.feature), lambda: Stats(label))
         stats.add(event.latency_ms, failed=event.ok is False)
         recent = self.recent_calls
         if recent and recent[-1].time > event.time:  # an expired call: listed at its request's time
@@ -368,6 +379,8 @@ class MonitorState:
         since = _since(data.get("since")) if isinstance(data, dict) else None
         driver = _text(data.get("driver")) if isinstance(data, dict) and state == "online" else None
         previous = self.availability.get((robot, component))
+        if previous is not None:
+            self.availability.move_to_end((robot, component))  # still there: not the oldest row
         if previous is not None and previous.state == state and driver in (None, previous.driver):
             previous.impl = impl or previous.impl
             if since is not None:  # e.g. a service that restarted and is online again

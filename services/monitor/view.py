@@ -73,7 +73,8 @@ def render(state: MonitorState, now: float | None = None, title: str = "umlbot m
     header = Text.assemble(
         (title, "bold"), f"  robot: {', '.join(sorted(robots)) or '-'}  orchestrator: {orchestrator}  ",
         (f"{state.messages} messages, {state.pending_calls} calls pending"
-         + (f", {state.malformed} malformed skipped" if state.malformed else ""), "dim"),
+         + (f", {state.malformed} malformed skipped" if state.malformed else "")
+         + (f", {state.dropped_rows} rows dropped" if state.dropped_rows else ""), "dim"),
     )
 
     components = Table(title="Components", title_justify="left", expand=True)

@@ -52,7 +52,7 @@ class MockMotorChannel(MockDriver):
     def stop(self) -> None:
         # A safety stop never fails and never waits: no latency, no faults.
         with self._cond:
-            self.commands.append(("stop", ()))
+            self._record("stop")
             self.enabled = False
             self.duty_cycle_percent = 0.0
             self.stops += 1
@@ -63,7 +63,7 @@ class MockMotorChannel(MockDriver):
             if self.closed:
                 return
             self.stop()
-            self.commands.append(("close", ()))
+            self._record("close")
             self.closed = True
             self._changed()
 

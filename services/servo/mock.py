@@ -36,7 +36,7 @@ class MockServo(MockDriver):
 
     def stop(self) -> None:
         with self._cond:
-            self.commands.append(("stop", ()))
+            self._record("stop")
             self.pulsing = False
             self._changed()
 
@@ -45,7 +45,7 @@ class MockServo(MockDriver):
             if self.closed:
                 return
             self.stop()
-            self.commands.append(("close", ()))
+            self._record("close")
             self.closed = True
             self._changed()
 

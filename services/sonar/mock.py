@@ -69,7 +69,7 @@ class MockDistanceSensor(MockDriver):
 
     def close(self) -> None:
         with self._cond:
-            self.commands.append(("close", ()))
+            self._record("close")
             self.closed = True
             self._changed()
 

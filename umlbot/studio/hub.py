@@ -8,8 +8,9 @@ and a busy robot makes at most one frame per `FLUSH_S`). A flush keeps what a pa
 needs (the snapshot: the latest availability, retained state, broker and orchestrator status, the trace
 history, the last calls, and with a simulated world its latest state and the pings of its last
 second) and sends one `events` frame to each connected page. Nothing is dropped on the way; the
-history is bounded (`keep_trace`): a page that opens after more than that many trace events sees
-the newest ones.
+snapshot is bounded: the trace history (`keep_trace`: a page that opens after more than that many
+trace events sees the newest ones), the last calls, and the availability and retained state of at
+most `MAX_ROWS` components (names come from the wire; the one updated longest ago goes first).
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ import time
 from collections.abc import Callable
 from typing import Any
 
+from umlbot.bounded import MAX_ROWS, RecentDict
 from umlbot.logs import get_logger
 
 log = get_logger(__name__)
@@ -96,8 +98,8 @@ class Hub:
         self._new_robot: str | None = None
         self.pages: set[Page] = set()
         # the snapshot
-        self.availability: dict[str, dict[str, Any]] = {}
-        self.retained: dict[str, dict[str, Any]] = {}
+        self.availability: RecentDict[str, dict[str, Any]] = RecentDict(MAX_ROWS)
+        self.retained: RecentDict[str, dict[str, Any]] = RecentDict(MAX_ROWS)
         self.orchestrator: dict[str, Any] | None = None
         #: the connection to the broker (the latest `broker` event of the broker source).
         self.broker: dict[str, Any] | None = None

@@ -21,7 +21,7 @@ class MockBuzzer(MockDriver):
 
     def silence(self) -> None:
         with self._cond:  # a safety stop never fails
-            self.commands.append(("silence", ()))
+            self._record("silence")
             self.playing_hz = None
             self._changed()
 
@@ -30,7 +30,7 @@ class MockBuzzer(MockDriver):
             if self.closed:
                 return
             self.silence()
-            self.commands.append(("close", ()))
+            self._record("close")
             self.closed = True
 
 
