@@ -122,15 +122,28 @@ def read_layout(root: Path) -> tuple[dict[str, Any], str | None]:
     return data, None
 
 
+def shown(text: str, limit: int = 80) -> str:
+    """`text` quoted for a message, cut to `limit` characters (a 5 000-character name sent by a
+    client is not worth repeating whole)."""
+    return repr(text) if len(text) <= limit else repr(text[:limit]) + f"… ({len(text)} characters)"
+
+
 def safe_path(root: Path, rel: str) -> Path:
-    """`root / rel`, refused (ValueError) unless it stays inside `root`, symlinks resolved."""
+    """`root / rel`, refused (ValueError) unless it stays inside `root`, symlinks resolved; a name
+    the system refuses (too long, a NUL byte) is refused the same way."""
+    if not isinstance(rel, str):
+        raise ValueError(f"a path inside the model folder is a string, not {type(rel).__name__}")
     pure = PurePosixPath(rel)
     if pure.is_absolute() or ".." in pure.parts or not pure.parts or "\\" in rel:
-        raise ValueError(f"{rel!r} is not a path inside the model folder")
-    real_root = root.resolve()
-    target = (root / pure).resolve()
+        raise ValueError(f"{shown(rel)} is not a path inside the model folder")
+    try:
+        real_root = root.resolve()
+        target = (root / pure).resolve()
+    except (OSError, ValueError) as exc:
+        why = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
+        raise ValueError(f"{shown(rel)} is not a path inside the model folder ({why})") from None
     if not target.is_relative_to(real_root) or target == real_root:
-        raise ValueError(f"{rel!r} is not a path inside the model folder")
+        raise ValueError(f"{shown(rel)} is not a path inside the model folder")
     return target
 
 
@@ -544,8 +557,9 @@ class Workspace:
         if not self.empty:
             raise Conflict({"error": "the folder holds a model already", "version": self.version})
         model_name = name or self.root.resolve().name
-        if not re.fullmatch(r"[A-Za-z0-9_][A-Za-z0-9_-]*", model_name):
-            raise EditError(f"a model's name is a plain name (letters, digits, _ and -), not {model_name!r}",
+        if not isinstance(model_name, str) or not re.fullmatch(r"[A-Za-z0-9_][A-Za-z0-9_-]*", model_name):
+            shown_name = shown(model_name) if isinstance(model_name, str) else type(model_name).__name__
+            raise EditError(f"a model's name is a plain name (letters, digits, _ and -), not {shown_name}",
                             fields={"name": "must be a plain name (letters, digits, _ and -; no spaces)"})
         self.root.mkdir(exist_ok=True)
         self.files = {rel: text.replace("{name}", model_name).encode("utf-8")
