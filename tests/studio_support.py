@@ -64,14 +64,14 @@ class StudioProc:
     """`umlbot studio ARGS` (or `umlbot sim … --studio`) as a child process; `url` once it listens."""
 
     def __init__(self, args: list[str], workdir: Path, broker_url: str | None = None,
-                 timeout: float = 60.0) -> None:
+                 timeout: float = 60.0, prefix: list[str] | None = None) -> None:
         env = {k: v for k, v in os.environ.items() if k not in ("UMLBOT_ROBOT", "UMLBOT_BROKER")}
         if broker_url is not None:
             env["UMLBOT_BROKER"] = broker_url
         self.stderr_path = workdir / f"studio-{time.monotonic_ns()}.log"
         with self.stderr_path.open("wb") as err:
-            self.popen = subprocess.Popen(umlbot_argv(*args), stdout=subprocess.PIPE, stderr=err,
-                                          cwd=workdir, env=env, text=True)
+            self.popen = subprocess.Popen([*(prefix or []), *umlbot_argv(*args)], stdout=subprocess.PIPE,
+                                          stderr=err, cwd=workdir, env=env, text=True)
         self.lines: list[str] = []
         self.url = self._wait_url(timeout)
 
@@ -114,8 +114,10 @@ class StudioProc:
 
 
 @contextmanager
-def studio(args: list[str], workdir: Path, broker_url: str | None = None) -> Iterator[StudioProc]:
-    proc = StudioProc(args, workdir, broker_url)
+def studio(args: list[str], workdir: Path, broker_url: str | None = None,
+           prefix: list[str] | None = None) -> Iterator[StudioProc]:
+    """`umlbot studio ARGS` as a child process (run by the command `prefix` when given)."""
+    proc = StudioProc(args, workdir, broker_url, prefix=prefix)
     try:
         yield proc
     finally:

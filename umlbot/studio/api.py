@@ -23,7 +23,7 @@ from umlbot.studio.hub import dumps
 from umlbot.studio.run import RUN_SPEED, StudioRun, resolve_track
 from umlbot.studio.server import MAX_BODY
 from umlbot.studio.textedit import EditError
-from umlbot.studio.workspace import Conflict, Workspace
+from umlbot.studio.workspace import Conflict, SaveFailed, Workspace
 
 if TYPE_CHECKING:
     from umlbot.studio.server import StudioServer
@@ -182,6 +182,8 @@ class EditApi:
                     answer = await loop.run_in_executor(None, self._locked, handler, body)
                 except Conflict as exc:
                     return _json(exc.body, 409)
+                except SaveFailed as exc:
+                    return _json(exc.body, exc.status)
                 except EditError as exc:
                     return _json(exc.answer(), 400)
                 except ValueError as exc:
