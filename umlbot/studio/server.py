@@ -29,7 +29,7 @@ from aiohttp import WSMsgType, web
 
 from umlbot.errors import ConfigError
 from umlbot.logs import get_logger
-from umlbot.studio.hub import Hub, Page, dumps
+from umlbot.studio.hub import CLOSE_TOO_SLOW, MAX_PAGE_CHARS, Hub, Page, dumps
 
 if TYPE_CHECKING:
     from umlbot.studio.api import EditApi
@@ -43,6 +43,8 @@ DEFAULT_PORT = 8080
 EXPIRE_EVERY_S = 1.0
 #: the largest request body accepted (an edit batch, a completion request).
 MAX_BODY = 1 << 20
+#: seconds a dropped page has to take its close frame before its connection is aborted.
+CLOSE_WAIT_S = 2.0
 
 
 def static_dir() -> Path:
@@ -130,6 +132,10 @@ class StudioServer:
     api: EditApi | None = None
     #: the command's option that sets `port` (named when the port is taken).
     port_option: str = "--port"
+    #: characters of JSON one page may have waiting before it is dropped (`Page`).
+    page_limit: int = MAX_PAGE_CHARS
+    #: seconds between pings to each page; a page that does not answer one is closed.
+    heartbeat_s: float = 20.0
     _runner: web.AppRunner | None = None
     _tasks: list[asyncio.Task[None]] = field(default_factory=list)
 
@@ -211,23 +217,45 @@ class StudioServer:
         return web.FileResponse(index, headers={"Cache-Control": "no-store"})
 
     async def _socket(self, request: web.Request) -> web.StreamResponse:
+        """One page's socket: every frame goes through its `Page` (the hello, the snapshot, the
+        live frames), so what waits for a page that does not read is bounded; a page dropped for
+        falling behind is closed with `CLOSE_TOO_SLOW` and the reason, and its connection is
+        aborted (nothing it did not read is kept)."""
         self.check_origin(request)
-        ws = web.WebSocketResponse(heartbeat=20.0, max_msg_size=1 << 16)
+        ws = web.WebSocketResponse(heartbeat=self.heartbeat_s, max_msg_size=1 << 16)
         await ws.prepare(request)
-        page = Page(ws.send_str)
-        await ws.send_str(dumps(self.data.hello()))
+        transport = request.transport
+        page = Page(ws.send_str, self.page_limit)
+        page.greet(dumps(self.data.hello()))
         self.hub.attach(page)
         pump = asyncio.create_task(page.pump(), name="studio-page")
+        reader = asyncio.create_task(self._read(ws), name="studio-page-reader")
+        gone = asyncio.create_task(page.gone.wait(), name="studio-page-gone")
         try:
-            async for message in ws:  # the page sends nothing yet; read to see it close
-                if message.type == WSMsgType.ERROR:
-                    break
+            await asyncio.wait({pump, reader, gone}, return_when=asyncio.FIRST_COMPLETED)
         finally:
             self.hub.detach(page)
-            with contextlib.suppress(Exception):
-                await asyncio.wait_for(pump, timeout=1.0)
-            pump.cancel()
+            for task in (pump, gone):  # a pump stuck in a send to a page that does not read, too
+                task.cancel()
+                with contextlib.suppress(asyncio.CancelledError, Exception):
+                    await task
+            if page.dropped is not None:
+                with contextlib.suppress(asyncio.TimeoutError, asyncio.CancelledError, Exception):
+                    await asyncio.wait_for(ws.close(code=CLOSE_TOO_SLOW, message=page.dropped.encode()[:120]),
+                                           CLOSE_WAIT_S)
+            reader.cancel()
+            with contextlib.suppress(asyncio.CancelledError, Exception):
+                await reader
+            if transport is not None and (page.dropped is not None or transport.get_write_buffer_size()):
+                transport.abort()  # a peer that does not read would keep the buffer for ever
         return ws
+
+    @staticmethod
+    async def _read(ws: web.WebSocketResponse) -> None:
+        """Read the page's socket to see it close (the page sends nothing)."""
+        async for message in ws:
+            if message.type == WSMsgType.ERROR:
+                break
 
     def check_origin(self, request: web.Request) -> None:
         """Refuse a request from a page of another origin (and, on loopback, a foreign Host)."""
