@@ -132,3 +132,18 @@ def test_any_json_body_on_any_route_is_answered_without_a_500(car: tuple[Path, E
         assert isinstance(answer.get("error"), str) and answer["error"], answer
     if not with_token:
         assert status in (400, 403), (route, status, text[:200])
+
+
+def test_a_studio_that_edits_refuses_to_listen_beyond_loopback(tmp_path: Path) -> None:
+    """Editing needs the Host check, which only a loopback bind can make: a server given a
+    workspace and a non-loopback host does not start (the command never builds one)."""
+    from umlbot.errors import ConfigError
+    from umlbot.studio.api import EditApi
+    from umlbot.studio.server import StudioData, StudioServer
+    from umlbot.studio.workspace import Workspace
+
+    data = StudioData(mode="live", robot="car", source="x", model=None, diagnostics=[])
+    server = StudioServer(data, host="0.0.0.0", port=0, allow_remote=True)
+    server.api = EditApi(Workspace(tmp_path / "new"))
+    with pytest.raises(ConfigError, match=r"edits a model only on a loopback --host, not 0\.0\.0\.0"):
+        asyncio.run(server.start())
