@@ -156,18 +156,12 @@ def events_of(frames: list[dict[str, Any]], kind: str | None = None) -> list[dic
     return [e for e in out if kind is None or e["type"] == kind]
 
 
-class Editor:
-    """A studio editing `root`, served on a free port, and a client for its requests."""
+class StudioClient:
+    """A client for the editing requests of the studio at `url`, with its write token."""
 
-    def __init__(self, root: Path) -> None:
-        self.workspace = Workspace(root)
-        data = StudioData(mode="live", robot="car", source=str(root), model=None, diagnostics=[])
-        self.server = StudioServer(data, port=0)
-        self.server.api = EditApi(self.workspace)
-        data.edit = self.server.api.hello
-        self.thread = StudioThread(self.server)
-        self.url = self.thread.start()
-        self.token = self.workspace.token
+    def __init__(self, url: str, token: str) -> None:
+        self.url = url
+        self.token = token
 
     def post(self, name: str, body: dict[str, Any], headers: dict[str, str] | None = None,
              token: str | None = None) -> tuple[int, dict[str, Any]]:
@@ -188,6 +182,19 @@ class Editor:
                 return result
 
         return asyncio.run(go())
+
+
+class Editor(StudioClient):
+    """A studio editing `root`, served on a free port in this process, and a client for it."""
+
+    def __init__(self, root: Path) -> None:
+        self.workspace = Workspace(root)
+        data = StudioData(mode="live", robot="car", source=str(root), model=None, diagnostics=[])
+        self.server = StudioServer(data, port=0)
+        self.server.api = EditApi(self.workspace)
+        data.edit = self.server.api.hello
+        self.thread = StudioThread(self.server)
+        super().__init__(self.thread.start(), self.workspace.token)
 
 
 def snapshot(root: Path) -> dict[str, bytes]:

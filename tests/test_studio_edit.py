@@ -15,7 +15,6 @@ import shutil
 import subprocess
 import sys
 import time
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 from urllib.parse import urlsplit
@@ -314,17 +313,6 @@ def test_paths_outside_the_model_folder_are_refused(tmp_path: Path) -> None:
 
 
 # --- the server ------------------------------------------------------------------------------------
-
-
-@pytest.fixture
-def car(tmp_path: Path) -> Iterator[tuple[Path, Editor]]:
-    root = tmp_path / "car"
-    shutil.copytree(CAR_MODEL, root)
-    editor = Editor(root)
-    try:
-        yield root, editor
-    finally:
-        editor.thread.stop()
 
 
 def test_open_then_save_without_edits_writes_nothing(car: tuple[Path, Editor]) -> None:

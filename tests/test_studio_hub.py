@@ -110,9 +110,21 @@ def read_until_close(sock: socket.socket, timeout: float) -> tuple[int, str] | N
         return None
 
 
-def trace_event(i: int) -> dict[str, Any]:
+def trace_event(i: int, detail_chars: int = 400) -> dict[str, Any]:
     return {"type": "trace", "time": 1000.0 + i, "robot": ROBOT, "lane": "RaspberryPI", "node": f"n{i % 50}",
-            "kind": "action", "duration_ms": 1.0, "level": "info", "detail": "x" * 400, "seq": i + 1}
+            "kind": "action", "duration_ms": 1.0, "level": "info", "detail": "x" * detail_chars, "seq": i + 1}
+
+
+def push_until_dropped(hub: Hub, thread: StudioThread, detail_chars: int = 400) -> int:
+    """Push trace events until the hub drops a page (at most 300 000); how many were pushed."""
+    pushed = 0
+    while on_loop(thread, lambda: hub.dropped_pages) == 0:
+        for _ in range(300):
+            hub.push(trace_event(pushed, detail_chars))
+            pushed += 1
+        time.sleep(0.02)
+        assert pushed < 300_000, "no page was dropped"
+    return pushed
 
 
 def test_large_retained_messages_are_cut_and_pages_that_do_not_read_are_dropped_and_forgotten(
@@ -187,13 +199,7 @@ def test_a_dropped_page_gets_the_close_code_and_the_reason() -> None:
     with served(hub, page_limit=limit) as thread:
         sock = never_reading(thread.url)
         assert wait_until(lambda: on_loop(thread, lambda: len(hub.pages)) == 1, 10.0)
-        i = 0
-        while on_loop(thread, lambda: hub.dropped_pages) == 0:
-            for _ in range(200):
-                hub.push(trace_event(i))
-                i += 1
-            time.sleep(0.02)
-            assert i < 200_000, "the page was never dropped"
+        push_until_dropped(hub, thread)
         closed = read_until_close(sock, 5.0)  # it reads again at once: the close frame is there
         assert ended(sock)
         sock.close()

@@ -6,8 +6,6 @@ from __future__ import annotations
 
 import asyncio
 import json
-import shutil
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -15,7 +13,6 @@ import aiohttp
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from robot_run import CAR_MODEL
 from studio_support import Editor, snapshot
 
 POSTS = ["edit", "undo", "redo", "save", "reload", "new", "recover", "complete", "run", "stop"]
@@ -26,17 +23,6 @@ OPS = ["add_component", "remove_component", "set_deployment", "add_port", "remov
 OP_KEYS = ["name", "kind", "impl", "settings", "component", "port", "feature", "from", "to", "id", "lane",
            "file", "node", "fields", "source", "target", "guard", "new_id", "new_name", "diagram",
            "positions"]
-
-
-@pytest.fixture
-def car(tmp_path: Path) -> Iterator[tuple[Path, Editor]]:
-    root = tmp_path / "car"
-    shutil.copytree(CAR_MODEL, root)
-    editor = Editor(root)
-    try:
-        yield root, editor
-    finally:
-        editor.thread.stop()
 
 
 def _raw(url: str, data: bytes | str, headers: dict[str, str], method: str = "POST") -> tuple[int, str]:

@@ -10,6 +10,7 @@ import os
 import re
 import shutil
 from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -17,7 +18,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from robot_run import CAR_MODEL
-from studio_support import Editor, read_frames, snapshot, studio
+from studio_support import Editor, StudioClient, read_frames, snapshot, studio
 
 from umlbot.studio.workspace import Conflict, SaveFailed, Workspace, model_files
 
@@ -29,17 +30,6 @@ SPEED: dict[str, Any] = {"op": "set_node", "lane": "RaspberryPI", "id": "set_spe
 LONG_CALL = "LeftActuator.direction(" + " or ".join(["true"] * 4000) + ")"  # ~32 KB
 BACKWARD: dict[str, Any] = {"op": "set_node", "lane": "MoveForward", "id": "left_forward",
                             "fields": {"call": LONG_CALL}}
-
-
-@pytest.fixture
-def car(tmp_path: Path) -> Iterator[tuple[Path, Editor]]:
-    root = tmp_path / "car"
-    shutil.copytree(CAR_MODEL, root)
-    editor = Editor(root)
-    try:
-        yield root, editor
-    finally:
-        editor.thread.stop()
 
 
 def _model_snapshot(root: Path) -> dict[str, bytes]:
@@ -109,65 +99,48 @@ ON_TMPFS = ('mount -t tmpfs -o "size=$1" tmpfs "$2" && cp -R "$3"/. "$2"/ '
             '&& if [ "$4" = ro ]; then mount -o remount,ro "$2"; fi && shift 4 && exec "$@"')
 
 
-def _on_tmpfs(folder: Path, size: str, mode: str) -> list[str]:
+@contextmanager
+def studio_on_tmpfs(tmp_path: Path, size: str, mode: str) -> Iterator[tuple[Path, StudioClient, int]]:
+    """`umlbot studio` on a tmpfs of `size` holding a copy of the car (read-only with mode `ro`):
+    the folder as the test sees it, a client for the studio's requests, and the version."""
+    folder = tmp_path / "car"
     folder.mkdir()
-    return ["unshare", "--user", "--map-root-user", "--mount", "sh", "-c", ON_TMPFS, "sh", size,
-            str(folder), str(CAR_MODEL), mode]
-
-
-def _post(url: str, name: str, token: str, body: dict[str, Any]) -> tuple[int, dict[str, Any]]:
-    import asyncio
-
-    import aiohttp
-
-    async def go() -> tuple[int, dict[str, Any]]:
-        async with aiohttp.ClientSession() as client, client.post(f"{url}api/{name}",
-                                                                  json={"token": token, **body}) as resp:
-            result: dict[str, Any] = await resp.json()
-            return resp.status, result
-
-    return asyncio.run(go())
+    prefix = ["unshare", "--user", "--map-root-user", "--mount", "sh", "-c", ON_TMPFS, "sh", size,
+              str(folder), str(CAR_MODEL), mode]
+    with studio(["studio", str(folder), "--port", "0"], tmp_path, prefix=prefix) as proc:
+        hello = read_frames(proc.url, lambda f: len(f) >= 1)[0]
+        yield (Path(f"/proc/{proc.popen.pid}/root{folder}"), StudioClient(proc.url, hello["edit"]["token"]),
+               hello["edit"]["version"])
 
 
 def test_a_full_disk_saves_nothing_says_so_and_the_retry_saves_all(tmp_path: Path) -> None:
-    folder = tmp_path / "car"
-    with studio(["studio", str(folder), "--port", "0"], tmp_path,
-                prefix=_on_tmpfs(folder, "256k", "rw")) as proc:
-        disk = Path(f"/proc/{proc.popen.pid}/root{folder}")
-        hello = read_frames(proc.url, lambda f: len(f) >= 1)[0]
-        token = hello["edit"]["token"]
+    with studio_on_tmpfs(tmp_path, "256k", "rw") as (disk, client, version):
         before = snapshot(disk)
         assert before == snapshot(CAR_MODEL)
-        status, answer = _post(proc.url, "edit", token, {"version": hello["edit"]["version"],
-                                                         "ops": [SPEED, BACKWARD]})
+        status, answer = client.post("edit", {"version": version, "ops": [SPEED, BACKWARD]})
         assert status == 200 and answer["changed"] == [MAIN, MOTION], answer
         # fill the disk but for room for main.yaml's new text and a page: not for motion.yaml's
         page = os.statvfs(disk).f_frsize
         room = (math.ceil(len(before[MAIN]) / page) + 1) * page
         assert len(before[MOTION]) + len(LONG_CALL) > room + page
         (disk / "filler.bin").write_bytes(b"\0" * (os.statvfs(disk).f_bavail * page - room))
-        status, failed = _post(proc.url, "save", token, {"version": answer["version"]})
+        status, failed = client.post("save", {"version": answer["version"]})
         assert status == 507, failed
         assert failed["error"] == (f"cannot save {MOTION}: the disk is full. Nothing was saved: the files "
                                    "on disk are as they were, your edits are kept"), failed
         assert _model_snapshot(disk) == before  # main.yaml too, and no temporary file is left
         (disk / "filler.bin").unlink()
-        status, saved = _post(proc.url, "save", token, {"version": answer["version"]})
+        status, saved = client.post("save", {"version": answer["version"]})
         assert status == 200 and saved["saved"] == [MAIN, MOTION] and not saved["dirty"], saved
         assert LONG_CALL in (disk / MOTION).read_text("utf-8")
         assert "value: 55}" in (disk / MAIN).read_text("utf-8")
 
 
 def test_a_read_only_folder_saves_nothing_and_says_so(tmp_path: Path) -> None:
-    folder = tmp_path / "car"
-    with studio(["studio", str(folder), "--port", "0"], tmp_path,
-                prefix=_on_tmpfs(folder, "1m", "ro")) as proc:
-        disk = Path(f"/proc/{proc.popen.pid}/root{folder}")
-        hello = read_frames(proc.url, lambda f: len(f) >= 1)[0]
-        token = hello["edit"]["token"]
-        status, answer = _post(proc.url, "edit", token, {"version": hello["edit"]["version"], "ops": [SPEED]})
+    with studio_on_tmpfs(tmp_path, "1m", "ro") as (disk, client, version):
+        status, answer = client.post("edit", {"version": version, "ops": [SPEED]})
         assert status == 200, answer
-        status, failed = _post(proc.url, "save", token, {"version": answer["version"]})
+        status, failed = client.post("save", {"version": answer["version"]})
         assert status == 403, failed
         assert failed["error"] == (f"cannot save {MAIN}: the folder activities is read-only (read-only "
                                    "file system). Nothing was saved: the files on disk are as they were, "
