@@ -92,6 +92,18 @@ def test_a_file_that_cannot_be_put_back_is_named_and_a_retry_takes_it_as_the_stu
     assert model_files(root)[MAIN] == ws.files[MAIN] and model_files(root)[MOTION] == ws.files[MOTION]
 
 
+def test_a_file_written_on_disk_as_the_page_shows_it_is_no_conflict(tmp_path: Path) -> None:
+    root = tmp_path / "car"
+    shutil.copytree(CAR_MODEL, root)
+    ws = Workspace(root)
+    ws.edit(ws.version, [SPEED])
+    mine = ws.files[MAIN]
+    assert isinstance(mine, bytes)
+    (root / MAIN).write_bytes(mine)  # e.g. the same edit made in another editor, not looked at yet
+    assert ws.save(ws.version)["saved"] == [MAIN] and not ws.dirty
+    assert ws.poll() == [] and (root / MAIN).read_bytes() == mine
+
+
 # The studio runs in its own user and mount namespaces (`unshare`, no privileges needed) on a
 # small tmpfs holding a copy of the car: a real full disk, a real read-only file system. The test
 # sees that folder through /proc/<pid>/root.

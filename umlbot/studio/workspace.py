@@ -434,7 +434,8 @@ class Workspace:
         self._expect(version)
         changed = self.changed_files()
         on_disk = model_files(self.root)
-        moved = {rel for rel in changed if on_disk.get(rel) != self.disk.get(rel)}  # since the last look
+        # changed on disk since the last look, into something else than what the page shows
+        moved = {rel for rel in changed if on_disk.get(rel) not in (self.disk.get(rel), self.files.get(rel))}
         conflicts = sorted(moved | set(self.live_conflicts()))
         if conflicts and not force:
             raise Conflict({"error": "changed on disk since it was loaded: " + ", ".join(conflicts),
