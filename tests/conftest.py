@@ -385,3 +385,19 @@ def server_process(broker: BrokerProcess) -> Iterator[Callable[[str, str], subpr
         if proc.poll() is None:
             proc.kill()
             proc.wait(5)
+
+
+@pytest.fixture
+def car(tmp_path: Path) -> Iterator[tuple[Path, Any]]:
+    """A copy of the reference car in `tmp_path`, edited by a studio in this process
+    (`studio_support.Editor`)."""
+    from robot_run import CAR_MODEL
+    from studio_support import Editor
+
+    root = tmp_path / "car"
+    shutil.copytree(CAR_MODEL, root)
+    editor = Editor(root)
+    try:
+        yield root, editor
+    finally:
+        editor.thread.stop()

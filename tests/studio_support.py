@@ -1,4 +1,5 @@
-"""Test helpers for umlbot studio: a `umlbot studio` child process and a WebSocket reader."""
+"""Test helpers for umlbot studio: a `umlbot studio` child process, a WebSocket reader, and a studio
+editing a folder in this process (`Editor`) with a client for its requests."""
 
 from __future__ import annotations
 
@@ -16,6 +17,10 @@ from typing import Any
 import aiohttp
 from playwright.sync_api import Browser, Page, sync_playwright
 from robot_run import umlbot_argv
+
+from umlbot.studio.api import EditApi
+from umlbot.studio.server import StudioData, StudioServer, StudioThread
+from umlbot.studio.workspace import Workspace
 
 URL_LINE = re.compile(r"umlbot studio: (http://\S+)")
 REPO = Path(__file__).resolve().parent.parent
@@ -59,14 +64,14 @@ class StudioProc:
     """`umlbot studio ARGS` (or `umlbot sim … --studio`) as a child process; `url` once it listens."""
 
     def __init__(self, args: list[str], workdir: Path, broker_url: str | None = None,
-                 timeout: float = 60.0) -> None:
+                 timeout: float = 60.0, prefix: list[str] | None = None) -> None:
         env = {k: v for k, v in os.environ.items() if k not in ("UMLBOT_ROBOT", "UMLBOT_BROKER")}
         if broker_url is not None:
             env["UMLBOT_BROKER"] = broker_url
         self.stderr_path = workdir / f"studio-{time.monotonic_ns()}.log"
         with self.stderr_path.open("wb") as err:
-            self.popen = subprocess.Popen(umlbot_argv(*args), stdout=subprocess.PIPE, stderr=err,
-                                          cwd=workdir, env=env, text=True)
+            self.popen = subprocess.Popen([*(prefix or []), *umlbot_argv(*args)], stdout=subprocess.PIPE,
+                                          stderr=err, cwd=workdir, env=env, text=True)
         self.lines: list[str] = []
         self.url = self._wait_url(timeout)
 
@@ -109,8 +114,10 @@ class StudioProc:
 
 
 @contextmanager
-def studio(args: list[str], workdir: Path, broker_url: str | None = None) -> Iterator[StudioProc]:
-    proc = StudioProc(args, workdir, broker_url)
+def studio(args: list[str], workdir: Path, broker_url: str | None = None,
+           prefix: list[str] | None = None) -> Iterator[StudioProc]:
+    """`umlbot studio ARGS` as a child process (run by the command `prefix` when given)."""
+    proc = StudioProc(args, workdir, broker_url, prefix=prefix)
     try:
         yield proc
     finally:
@@ -147,3 +154,49 @@ def events_of(frames: list[dict[str, Any]], kind: str | None = None) -> list[dic
     """Every event of the `events` frames (of one type when `kind` is given), in order."""
     out = [e for f in frames if f["type"] == "events" for e in f["events"]]
     return [e for e in out if kind is None or e["type"] == kind]
+
+
+class StudioClient:
+    """A client for the editing requests of the studio at `url`, with its write token."""
+
+    def __init__(self, url: str, token: str) -> None:
+        self.url = url
+        self.token = token
+
+    def post(self, name: str, body: dict[str, Any], headers: dict[str, str] | None = None,
+             token: str | None = None) -> tuple[int, dict[str, Any]]:
+        async def go() -> tuple[int, dict[str, Any]]:
+            async with aiohttp.ClientSession() as client, client.post(
+                    f"{self.url}api/{name}", json={"token": token or self.token, **body},
+                    headers=headers) as resp:
+                text = await resp.text()
+                return resp.status, json.loads(text) if text.startswith("{") else {"text": text}
+
+        return asyncio.run(go())
+
+    def get(self, name: str) -> dict[str, Any]:
+        async def go() -> dict[str, Any]:
+            async with aiohttp.ClientSession() as client, client.get(f"{self.url}api/{name}") as resp:
+                assert resp.status == 200
+                result: dict[str, Any] = await resp.json()
+                return result
+
+        return asyncio.run(go())
+
+
+class Editor(StudioClient):
+    """A studio editing `root`, served on a free port in this process, and a client for it."""
+
+    def __init__(self, root: Path) -> None:
+        self.workspace = Workspace(root)
+        data = StudioData(mode="live", robot="car", source=str(root), model=None, diagnostics=[])
+        self.server = StudioServer(data, port=0)
+        self.server.api = EditApi(self.workspace)
+        data.edit = self.server.api.hello
+        self.thread = StudioThread(self.server)
+        super().__init__(self.thread.start(), self.workspace.token)
+
+
+def snapshot(root: Path) -> dict[str, bytes]:
+    """Every file under `root` (relative path -> bytes)."""
+    return {p.relative_to(root).as_posix(): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}

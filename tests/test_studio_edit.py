@@ -15,7 +15,6 @@ import shutil
 import subprocess
 import sys
 import time
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 from urllib.parse import urlsplit
@@ -28,16 +27,14 @@ from conftest import BrokerProcess
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from robot_run import CAR_MODEL, umlbot_argv
-from studio_support import events_of, read_frames, studio
+from studio_support import Editor, events_of, read_frames, snapshot, studio
 
 from compiler.api import check_model
 from compiler.compiled import dump_compiled
 from umlbot import files as user_files
 from umlbot.cli import cli
-from umlbot.studio.api import EditApi
 from umlbot.studio.edit import EditError, apply_ops, parse_ops
 from umlbot.studio.model_view import model_view, source_view
-from umlbot.studio.server import StudioData, StudioServer, StudioThread
 from umlbot.studio.workspace import LAYOUT_FILE, Workspace, model_files, read_layout, safe_path
 
 REPO = Path(__file__).resolve().parent.parent
@@ -319,64 +316,15 @@ def test_paths_outside_the_model_folder_are_refused(tmp_path: Path) -> None:
 # --- the server ------------------------------------------------------------------------------------
 
 
-class Editor:
-    """A studio editing `root`, served on a free port, and a client for its requests."""
-
-    def __init__(self, root: Path) -> None:
-        self.workspace = Workspace(root)
-        data = StudioData(mode="live", robot="car", source=str(root), model=None, diagnostics=[])
-        self.server = StudioServer(data, port=0)
-        self.server.api = EditApi(self.workspace)
-        data.edit = self.server.api.hello
-        self.thread = StudioThread(self.server)
-        self.url = self.thread.start()
-        self.token = self.workspace.token
-
-    def post(self, name: str, body: dict[str, Any], headers: dict[str, str] | None = None,
-             token: str | None = None) -> tuple[int, dict[str, Any]]:
-        async def go() -> tuple[int, dict[str, Any]]:
-            async with aiohttp.ClientSession() as client, client.post(
-                    f"{self.url}api/{name}", json={"token": token or self.token, **body},
-                    headers=headers) as resp:
-                text = await resp.text()
-                return resp.status, json.loads(text) if text.startswith("{") else {"text": text}
-
-        return asyncio.run(go())
-
-    def get(self, name: str) -> dict[str, Any]:
-        async def go() -> dict[str, Any]:
-            async with aiohttp.ClientSession() as client, client.get(f"{self.url}api/{name}") as resp:
-                assert resp.status == 200
-                result: dict[str, Any] = await resp.json()
-                return result
-
-        return asyncio.run(go())
-
-
-@pytest.fixture
-def car(tmp_path: Path) -> Iterator[tuple[Path, Editor]]:
-    root = tmp_path / "car"
-    shutil.copytree(CAR_MODEL, root)
-    editor = Editor(root)
-    try:
-        yield root, editor
-    finally:
-        editor.thread.stop()
-
-
-def _snapshot(root: Path) -> dict[str, bytes]:
-    return {p.relative_to(root).as_posix(): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
-
-
 def test_open_then_save_without_edits_writes_nothing(car: tuple[Path, Editor]) -> None:
     root, editor = car
-    before = _snapshot(root)
+    before = snapshot(root)
     mtimes = {p: p.stat().st_mtime_ns for p in root.rglob("*") if p.is_file()}
     hello = read_frames(editor.url, lambda f: len(f) >= 1)[0]
     assert hello["edit"]["token"] == editor.token and hello["edit"]["dirty"] is False
     status, answer = editor.post("save", {"version": hello["edit"]["version"]})
     assert status == 200 and answer["saved"] == []
-    assert _snapshot(root) == before
+    assert snapshot(root) == before
     assert {p: p.stat().st_mtime_ns for p in root.rglob("*") if p.is_file()} == mtimes
 
 
@@ -407,7 +355,7 @@ def test_an_edit_of_a_file_linked_from_outside_the_folder_is_refused_at_once(tmp
 
 def test_generated_model_round_trip_and_undo_is_byte_identical(tmp_path: Path) -> None:
     root = _bench_compile().generate(tmp_path / "gen", 500)
-    before = _snapshot(root)
+    before = snapshot(root)
     editor = Editor(root)
     try:
         status, answer = editor.post("edit", {"version": 0, "ops": [
@@ -420,7 +368,7 @@ def test_generated_model_round_trip_and_undo_is_byte_identical(tmp_path: Path) -
         assert status == 200 and answer["saved"] == []
     finally:
         editor.thread.stop()
-    assert _snapshot(root) == before
+    assert snapshot(root) == before
 
 
 def test_an_edit_answers_with_umlbot_checks_messages_on_the_node(car: tuple[Path, Editor]) -> None:
@@ -469,7 +417,7 @@ def test_a_refused_edit_names_the_field_in_words_for_the_page(car: tuple[Path, E
 
 def test_writes_need_the_token_the_origin_and_the_current_version(car: tuple[Path, Editor]) -> None:
     root, editor = car
-    before = _snapshot(root)
+    before = snapshot(root)
     op = {"version": 0, "ops": [{"op": "remove_lane", "lane": "Stop"}]}
     assert editor.post("edit", op, token="guess")[0] == 403
     assert editor.post("edit", op, headers={"Origin": "http://evil.example"})[0] == 403
@@ -479,7 +427,7 @@ def test_writes_need_the_token_the_origin_and_the_current_version(car: tuple[Pat
     assert status == 400 and "no swimlane 'Nope'" in answer["error"]
     status, answer = editor.post("edit", op, headers={"Origin": editor.url.rstrip("/")})
     assert status == 200 and answer["version"] == 1
-    assert _snapshot(root) == before  # nothing written before a save
+    assert snapshot(root) == before  # nothing written before a save
 
 
 def test_a_file_changed_on_disk_is_taken_in_or_reported_as_a_conflict(car: tuple[Path, Editor]) -> None:
@@ -527,14 +475,14 @@ def test_a_file_changed_on_disk_is_taken_in_or_reported_as_a_conflict(car: tuple
 
 def test_reload_discards_my_edits(car: tuple[Path, Editor]) -> None:
     root, editor = car
-    before = _snapshot(root)
+    before = snapshot(root)
     status, answer = editor.post("edit", {"version": 0, "ops": [{"op": "remove_lane", "lane": "Measure"}]})
     assert status == 200 and answer["changed"] == ["activities/measure.yaml"]
     assert "lane: Measure" not in editor.get("files")["files"]["activities/measure.yaml"]
     status, answer = editor.post("reload", {})
     assert status == 200 and not answer["dirty"] and answer["compiled"]
     assert editor.post("undo", {})[0] == 409  # nothing to undo after a reload
-    assert _snapshot(root) == before
+    assert snapshot(root) == before
 
 
 def test_layout_is_kept_in_its_own_file(car: tuple[Path, Editor]) -> None:
@@ -1142,7 +1090,7 @@ def test_unsaved_edits_are_kept_when_the_studio_quits_and_offered_at_the_next_st
 
     folder = tmp_path / "car"
     shutil.copytree(CAR_MODEL, folder)
-    before = _snapshot(folder)
+    before = snapshot(folder)
     with studio(["studio", str(folder), "--port", "0"], tmp_path) as proc:
         hello = read_frames(proc.url, lambda f: len(f) >= 1)[0]
         edit = hello["edit"]
@@ -1156,7 +1104,7 @@ def test_unsaved_edits_are_kept_when_the_studio_quits_and_offered_at_the_next_st
         assert proc.popen.wait(20) == 0
         log = proc.log_text()
     # the model's files are as they were; the edit is in the recovery file, and stderr says so
-    assert {k: v for k, v in _snapshot(folder).items() if k != ".umlbot-studio-recovery.json"} == before
+    assert {k: v for k, v in snapshot(folder).items() if k != ".umlbot-studio-recovery.json"} == before
     kept = [line for line in log.splitlines() if "unsaved edits" in line]
     assert len(kept) == 1, log
     assert "activities/motion.yaml" in kept[0] and ".umlbot-studio-recovery.json" in kept[0], log
@@ -1170,7 +1118,7 @@ def test_unsaved_edits_are_kept_when_the_studio_quits_and_offered_at_the_next_st
         status, answer = _post(proc.url, "recover", {"token": edit["token"], "action": "restore"})
         assert status == 200 and answer["dirty"] and answer["changed"] == ["activities/motion.yaml"], answer
         assert not (folder / ".umlbot-studio-recovery.json").exists()
-        assert _snapshot(folder) == before  # restored into the page, not yet saved
+        assert snapshot(folder) == before  # restored into the page, not yet saved
         status, answer = _post(proc.url, "save", {"token": edit["token"], "version": answer["version"]})
         assert status == 200 and answer["saved"] == ["activities/motion.yaml"], answer
         motion = (folder / "activities" / "motion.yaml").read_text(encoding="utf-8")
@@ -1183,7 +1131,7 @@ def test_unsaved_edits_are_kept_when_the_studio_quits_and_offered_at_the_next_st
 def test_kept_edits_can_be_discarded(tmp_path: Path) -> None:
     folder = tmp_path / "car"
     shutil.copytree(CAR_MODEL, folder)
-    before = _snapshot(folder)
+    before = snapshot(folder)
     (folder / ".umlbot-studio-recovery.json").write_text(json.dumps(
         {"time": "2026-01-02 03:04:05", "files": {"activities/motion.yaml": "lanes: []\n"}, "layout": None}))
     workspace = Workspace(folder)
@@ -1192,7 +1140,7 @@ def test_kept_edits_can_be_discarded(tmp_path: Path) -> None:
     answer = workspace.recover("discard")
     assert not answer["dirty"] and answer["changed"] == []
     assert workspace.hello()["recovery"] is None
-    assert _snapshot(folder) == {k: v for k, v in before.items() if k != ".umlbot-studio-recovery.json"}
+    assert snapshot(folder) == {k: v for k, v in before.items() if k != ".umlbot-studio-recovery.json"}
     assert not (folder / ".umlbot-studio-recovery.json").exists()
 
 
@@ -1225,7 +1173,7 @@ def test_renames_in_the_car_change_only_the_renamed_words_and_compile_to_the_sam
         tmp_path: Path) -> None:
     root = tmp_path / "car"
     shutil.copytree(CAR_MODEL, root)
-    before = _snapshot(root)
+    before = snapshot(root)
     files = _texts(root)
     out = _apply(files, CAR_RENAMES)
     renamed = {rel: _only_tokens_renamed(files[rel], out[rel], CAR_NAMES) for rel in files}

@@ -247,6 +247,49 @@ def test_foreign_origins_and_rebound_host_names_are_refused(tmp_path: Path) -> N
                                           "Host": f"localhost:{port}"})) == 101
 
 
+def test_a_rebinding_page_cannot_write_with_allow_remote_on_loopback(tmp_path: Path) -> None:
+    """--allow-remote on the default 127.0.0.1 leaves the page editable, so the Host check must
+    hold: a page of evil.example whose name was rebound to 127.0.0.1 gets neither the socket's
+    hello (with the write token) nor any write, even with the token."""
+    folder = tmp_path / "car"
+    shutil.copytree(CAR_MODEL, folder)
+    before = {p: p.read_bytes() for p in folder.rglob("*") if p.is_file()}
+    with studio(["studio", str(folder), "--allow-remote", "--port", "0"], tmp_path) as proc:
+        port = proc.url.rstrip("/").rsplit(":", 1)[1]
+        base = f"http://127.0.0.1:{port}"
+        evil = {"Host": f"evil.example:{port}", "Origin": f"http://evil.example:{port}"}
+        token = read_frames(base, lambda f: len(f) >= 1)[0]["edit"]["token"]  # the real page's
+
+        async def attack() -> dict[str, int]:
+            statuses: dict[str, int] = {}
+            async with aiohttp.ClientSession() as client:
+                try:
+                    async with client.ws_connect(f"{base}/ws", headers=evil):
+                        statuses["ws"] = 101
+                except aiohttp.WSServerHandshakeError as exc:
+                    statuses["ws"] = exc.status
+                async with client.get(f"{base}/", headers=evil) as response:
+                    statuses["page"] = response.status
+                async with client.get(f"{base}/api/files", headers=evil) as response:
+                    statuses["files"] = response.status
+                for name, body in (("edit", {"version": 0, "ops": [{"op": "remove_lane", "lane": "Stop"}]}),
+                                   ("save", {"version": 1}), ("run", {"track": "s_bend"})):
+                    async with client.post(f"{base}/api/{name}", json={"token": token, **body},
+                                           headers=evil) as response:
+                        statuses[name] = response.status
+                        if response.status != 200:
+                            assert "evil.example" in (await response.json())["error"]
+            return statuses
+
+        statuses = asyncio.run(attack())
+        assert statuses == {"ws": 403, "page": 403, "files": 403, "edit": 403, "save": 403, "run": 403}
+        # the names of this machine's loopback still work (the page opened as the docs say)
+        for host in (f"127.0.0.1:{port}", f"localhost:{port}", "127.0.0.1"):
+            hello = read_frames(base, lambda f: len(f) >= 1, headers={"Host": host})[0]
+            assert hello["edit"]["token"], host
+    assert {p: p.read_bytes() for p in folder.rglob("*") if p.is_file()} == before
+
+
 def test_the_port_in_use_is_one_clear_error(tmp_path: Path) -> None:
     with studio(["studio", str(CAR_MODEL), "--port", "0"], tmp_path) as proc:
         port = proc.url.rstrip("/").rsplit(":", 1)[1]

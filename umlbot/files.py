@@ -15,6 +15,7 @@ import errno
 import json
 import math
 import os
+import secrets
 import stat
 import sys
 import tempfile
@@ -46,33 +47,189 @@ def file_problem(status: os.stat_result) -> str | None:
     return too_large(status.st_size)
 
 
+class WriteError(UmlbotError, OSError):
+    """Writing a set of files failed at `path` (`cause`, in words by `problem`): none of them
+    changed, except those in `left`, which could not be put back as they were."""
+
+    def __init__(self, path: Path, cause: OSError, left: Sequence[Path] = ()) -> None:
+        super().__init__(cause.errno, os_problem(cause, f"the folder {path.parent}"), str(path))
+        self.path = path
+        self.cause = cause
+        self.left = list(left)
+
+    def __str__(self) -> str:
+        text = f"cannot write {self.path}: {self.strerror}"
+        if self.left:
+            text += f"; {', '.join(map(str, self.left))} could not be put back as they were"
+        return text
+
+
+def os_problem(exc: OSError, folder: str = "the folder") -> str:
+    """Why a write into `folder` (its name in the message) failed, in words: "the disk is full",
+    "the folder F is read-only (…)", else the system's own words."""
+    if exc.errno in (errno.ENOSPC, errno.EDQUOT):
+        return "the disk is full"
+    if exc.errno == errno.EROFS:
+        return f"{folder} is read-only (read-only file system)"
+    if exc.errno in (errno.EACCES, errno.EPERM):
+        return f"{folder} is read-only (permission denied)"
+    return exc.strerror or str(exc)
+
+
 def write_atomically(path: Path, data: bytes) -> None:
-    """Write `data` to `path` through a temporary file in the same folder and a rename, so that a
-    reader never sees half a file and a failed write keeps the previous one. Missing folders are
-    made; a file in their place is `NotADirectoryError`. The file keeps the mode of the one it
-    replaces, else gets an ordinary file's (0666 less the umask; mkstemp's is 0600)."""
-    for folder in (path.parent, *path.parent.parents):
-        if folder.exists() and not folder.is_dir():
-            raise NotADirectoryError(errno.ENOTDIR, f"{folder} is not a folder")
-    path.parent.mkdir(parents=True, exist_ok=True)
+    """Write `data` to `path` so that a reader never sees half a file and a failed write keeps
+    the previous one (`write_files_atomically` of one file)."""
+    write_files_atomically({path: data})
+
+
+def write_files_atomically(changes: Mapping[Path, bytes | None]) -> None:
+    """Write (bytes) or remove (None) every file of `changes`, all or none: each new content goes
+    to a temporary file in its own folder first (written and fsynced), and only when all are there
+    are they renamed into place, each old file kept under a hard link beside it until all are in
+    place. A failure before the renames (a full disk, a read-only folder) changes nothing; a
+    failure among them puts back the files already replaced. Raises `WriteError` naming the file
+    and the problem in words; its `left` names any file that could not be put back.
+
+    Missing folders are made (and removed again on failure); a file in their place is
+    `NotADirectoryError`. A file keeps the mode of the one it replaces, else gets an ordinary
+    file's (0666 less the umask; mkstemp's is 0600)."""
+    staged: list[tuple[Path, str | None]] = []  # (target, its temporary file; None: a removal)
+    made: list[Path] = []  # folders made for the new files
+    path = Path()
+    try:
+        for path, data in changes.items():
+            if data is not None:
+                made += _make_folders(path.parent)
+                staged.append((path, _stage(path, data)))
+            else:
+                staged.append((path, None))
+    except OSError as exc:
+        _discard([tmp for _, tmp in staged], made)
+        raise WriteError(path, exc) from exc
+    done: list[tuple[Path, _Kept]] = []
+    try:
+        for index, (path, tmp) in enumerate(staged):
+            kept = _keep(path)
+            try:
+                if tmp is not None:
+                    os.replace(tmp, path)
+                    staged[index] = (path, None)
+                elif kept.link is not None or kept.data is not None:
+                    os.unlink(path)
+            except OSError:
+                _forget(kept)
+                raise
+            done.append((path, kept))
+    except OSError as exc:
+        left = _put_back(done)
+        _discard([tmp for _, tmp in staged], made)
+        raise WriteError(path, exc, left) from exc
+    for _, kept in done:
+        _forget(kept)
+    for folder in {p.parent for p in changes}:
+        _fsync_folder(folder)
+
+
+class _Kept:
+    """The file a write replaces, kept until every file of the set is in place: a hard link beside
+    it (`link`), else its bytes (a file system without hard links); neither when there was none."""
+
+    def __init__(self, link: str | None = None, data: bytes | None = None, mode: int | None = None) -> None:
+        self.link = link
+        self.data = data
+        self.mode = mode
+
+
+def _keep(path: Path) -> _Kept:
+    if not os.path.lexists(path):
+        return _Kept()
+    link = str(path.with_name(f".{path.name}.{secrets.token_hex(4)}.old"))
+    try:
+        os.link(path, link, follow_symlinks=False)
+        return _Kept(link=link)
+    except OSError:  # no hard links here: keep the bytes
+        return _Kept(data=path.read_bytes(), mode=path.stat().st_mode & 0o777)
+
+
+def _forget(kept: _Kept) -> None:
+    if kept.link is not None:
+        with contextlib.suppress(OSError):
+            os.unlink(kept.link)
+
+
+def _put_back(done: list[tuple[Path, _Kept]]) -> list[Path]:
+    """Undo the renames made so far (newest first); the files that could not be put back."""
+    left: list[Path] = []
+    for path, kept in reversed(done):
+        try:
+            if kept.link is not None:
+                os.replace(kept.link, path)
+            elif kept.data is not None:
+                tmp = _stage(path, kept.data, kept.mode)
+                os.replace(tmp, path)
+            else:
+                with contextlib.suppress(FileNotFoundError):
+                    os.unlink(path)
+        except OSError:
+            left.append(path)
+    return left
+
+
+def _make_folders(folder: Path) -> list[Path]:
+    """Make `folder` and its missing parents; the ones made, outermost first."""
+    missing: list[Path] = []
+    for parent in (folder, *folder.parents):
+        if parent.exists():
+            if not parent.is_dir():
+                raise NotADirectoryError(errno.ENOTDIR, f"{parent} is not a folder")
+            break
+        missing.append(parent)
+    for parent in reversed(missing):
+        parent.mkdir()
+    return list(reversed(missing))
+
+
+def _stage(path: Path, data: bytes, mode: int | None = None) -> str:
+    """`data` in a new temporary file beside `path`, written and fsynced; its name."""
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     try:
-        try:
-            mode = path.stat().st_mode & 0o777
-        except OSError:
-            umask = os.umask(0)
-            os.umask(umask)
-            mode = 0o666 & ~umask
+        if mode is None:
+            try:
+                mode = path.stat().st_mode & 0o777
+            except OSError:
+                umask = os.umask(0)
+                os.umask(umask)
+                mode = 0o666 & ~umask
         os.fchmod(fd, mode)
         with os.fdopen(fd, "wb") as handle:
             handle.write(data)
             handle.flush()
             os.fsync(handle.fileno())
-        os.replace(tmp, path)
     except BaseException:
         with contextlib.suppress(OSError):
             os.unlink(tmp)
         raise
+    return tmp
+
+
+def _discard(temporary: list[str | None], made: list[Path]) -> None:
+    for tmp in temporary:
+        if tmp is not None:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
+    for folder in reversed(made):  # innermost first; only if still empty
+        with contextlib.suppress(OSError):
+            folder.rmdir()
+
+
+def _fsync_folder(folder: Path) -> None:
+    """Make the renames in `folder` durable (best effort: not every file system allows it)."""
+    with contextlib.suppress(OSError):
+        fd = os.open(folder, os.O_RDONLY)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
 
 
 def byte_position(data: bytes, offset: int) -> tuple[int, int]:

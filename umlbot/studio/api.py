@@ -10,19 +10,20 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import json
 import secrets
 from collections.abc import Awaitable, Callable
 from typing import TYPE_CHECKING, Any
 
 from aiohttp import web
 
+from umlbot.files import loads_json
 from umlbot.logs import get_logger
 from umlbot.sim.track import bundled_tracks
 from umlbot.studio.hub import dumps
 from umlbot.studio.run import RUN_SPEED, StudioRun, resolve_track
+from umlbot.studio.server import MAX_BODY
 from umlbot.studio.textedit import EditError
-from umlbot.studio.workspace import Conflict, Workspace
+from umlbot.studio.workspace import Conflict, SaveFailed, Workspace
 
 if TYPE_CHECKING:
     from umlbot.studio.server import StudioServer
@@ -31,8 +32,6 @@ log = get_logger(__name__)
 
 #: seconds between two looks at the model's files on disk.
 WATCH_EVERY_S = 0.5
-#: the largest request body accepted (an edit batch, a completion request).
-MAX_BODY = 1 << 20
 
 Handler = Callable[[dict[str, Any]], Any]
 
@@ -172,14 +171,7 @@ class EditApi:
     def _post(self, handler: Handler) -> Callable[[web.Request], Awaitable[web.StreamResponse]]:
         async def handle(request: web.Request) -> web.StreamResponse:
             self._guard(request)
-            if request.content_length is not None and request.content_length > MAX_BODY:
-                return _json({"error": f"request too large (at most {MAX_BODY} bytes)"}, 413)
-            try:
-                body = json.loads(await request.text())
-            except ValueError:
-                return _json({"error": "the request body is not JSON"}, 400)
-            if not isinstance(body, dict):
-                return _json({"error": "the request body is a JSON object"}, 400)
+            body = await _body(request)
             token = body.get("token")
             if not isinstance(token, str) or not secrets.compare_digest(token, self.workspace.token):
                 log.warning("studio write refused: bad token", path=request.path)
@@ -190,10 +182,12 @@ class EditApi:
                     answer = await loop.run_in_executor(None, self._locked, handler, body)
                 except Conflict as exc:
                     return _json(exc.body, 409)
+                except SaveFailed as exc:
+                    return _json(exc.body, exc.status)
                 except EditError as exc:
                     return _json(exc.answer(), 400)
                 except ValueError as exc:
-                    return _json({"error": str(exc), "message": str(exc)}, 400)
+                    return _refuse(400, str(exc))
             return _json(answer)
 
         return handle
@@ -218,6 +212,35 @@ class EditApi:
             if self.server is not None:
                 for frame in frames:
                     self.server.hub.broadcast(frame)
+
+
+def _refuse(status: int, text: str) -> web.Response:
+    return _json({"error": text, "message": text}, status)
+
+
+async def _body(request: web.Request) -> dict[str, Any]:
+    """The request's body: a JSON object in UTF-8 (RFC 8259), at most `MAX_BODY` bytes; anything
+    else is refused with a 4xx answer that says what is wrong (raised as an HTTP error)."""
+    if request.content_length is not None and request.content_length > MAX_BODY:
+        raise web.HTTPRequestEntityTooLarge(MAX_BODY, request.content_length,
+                                            text=f"request too large (at most {MAX_BODY} bytes)")
+    try:
+        charset = request.charset
+    except ValueError:  # a Content-Type header that does not parse
+        charset = "?"
+    if charset is not None and charset.lower().replace("-", "").replace("_", "") != "utf8":
+        raise web.HTTPUnsupportedMediaType(
+            text=f"the request body is JSON in UTF-8, not charset={charset[:40]}")
+    data = await request.read()  # more than client_max_size (MAX_BODY): 413
+    try:
+        body = loads_json(data.decode("utf-8"), finite=True)
+    except UnicodeDecodeError as exc:
+        raise web.HTTPBadRequest(text=f"the request body is not UTF-8 (byte {exc.start})") from None
+    except ValueError as exc:  # a syntax error, nested too deeply, an integer too long
+        raise web.HTTPBadRequest(text=f"the request body is not JSON: {str(exc)[:200]}") from None
+    if not isinstance(body, dict):
+        raise web.HTTPBadRequest(text="the request body is a JSON object")
+    return body
 
 
 def _json(data: Any, status: int = 200) -> web.Response:

@@ -7,10 +7,19 @@ nothing is scheduled yet). The event loop flushes at once when the last flush is
 and a busy robot makes at most one frame per `FLUSH_S`). A flush keeps what a page opened later
 needs (the snapshot: the latest availability, retained state, broker and orchestrator status, the trace
 history, the last calls, and with a simulated world its latest state and the pings of its last
-second) and sends one `events` frame to each connected page. Nothing is dropped on the way; the
-snapshot is bounded: the trace history (`keep_trace`: a page that opens after more than that many
-trace events sees the newest ones), the last calls, and the availability and retained state of at
-most `MAX_ROWS` components (names come from the wire; the one updated longest ago goes first).
+second) and sends one `events` frame to each connected page. The history is bounded
+(`keep_trace`): a page that opens after more than that many trace events sees the newest ones;
+so are the last calls, and the availability and retained state of at most `MAX_ROWS` components
+(names come from the wire; the one updated longest ago goes first).
+
+What one page can hold is bounded too. A value larger than `MAX_VALUE_CHARS` of JSON (a retained
+state, a payload, a call's arguments or result, a datastore's value) is replaced when it arrives by
+a text saying so (`cut_value`). Each page has its own queue, counted in characters of JSON
+(`Page.queued`); the snapshot a page opens with is not copied into it but serialized in frames of
+about `SNAPSHOT_FRAME_CHARS` as the page takes them. A page whose queue would exceed
+`MAX_PAGE_CHARS` (it stopped reading, or reads slower than the robot talks) is dropped: its queue
+goes, and the server closes its socket with `CLOSE_TOO_SLOW` and the reason; the page reconnects
+and starts again from a fresh hello and snapshot. A page that closes keeps nothing.
 """
 
 from __future__ import annotations
@@ -35,8 +44,18 @@ FLUSH_S = 0.010
 DEFAULT_KEEP_TRACE = 100_000
 #: feature calls kept for pages that open later.
 KEEP_CALLS = 200
-#: events in one frame at most (a large snapshot is split into several frames).
+#: events in one frame at most (a large burst is split into several frames).
 MAX_FRAME_EVENTS = 20_000
+#: characters of JSON in one frame of the snapshot, about (the snapshot goes out in such frames).
+SNAPSHOT_FRAME_CHARS = 256 * 1024
+#: characters of JSON one page may have waiting to be sent; a page further behind is dropped.
+MAX_PAGE_CHARS = 8 * 1024 * 1024
+#: the largest value an event carries to a page, in characters of JSON (a retained state, ...).
+MAX_VALUE_CHARS = 64 * 1024
+#: the keys of an event that hold values from the robot (what `cut_value` bounds).
+VALUE_KEYS = ("payload", "value", "args")
+#: WebSocket close code of a page dropped for falling behind (an application code, 4000-4999).
+CLOSE_TOO_SLOW = 4000
 #: sim seconds of sonar pings a page opening later gets (the page draws the last second's).
 KEEP_PINGS_S = 1.0
 #: sonar pings kept for pages that open later, at most (the page draws at most 400).
@@ -63,27 +82,126 @@ def _finite(value: Any) -> Any:
     return value
 
 
-class Page:
-    """One connected page: its own frame sequence and an outgoing queue drained by its own task."""
+def cut_value(event: dict[str, Any], limit: int = MAX_VALUE_CHARS) -> dict[str, Any]:
+    """`event` with each value (`VALUE_KEYS`) over `limit` characters of JSON replaced by a text
+    that says it was cut and how large it was (the same event when none is). A short text or a
+    number is not measured: the common event costs a few type checks."""
+    cut: dict[str, Any] | None = None
+    for key in VALUE_KEYS:
+        value = event.get(key)
+        if value is None or isinstance(value, bool | int | float):
+            continue
+        if isinstance(value, str) and len(value) * 6 + 2 <= limit:  # even if every char is escaped
+            continue
+        size = len(dumps(value))
+        if size > limit:
+            cut = cut if cut is not None else dict(event)
+            cut[key] = f"(cut by the studio: {size:,} characters of JSON, more than the {limit:,} it shows)"
+    return cut if cut is not None else event
 
-    def __init__(self, send: Send) -> None:
+
+class Page:
+    """One connected page: its frame sequence, its snapshot still to send and its queue (counted
+    in characters), drained by its own task (`pump`); dropped when the queue would pass `limit`."""
+
+    def __init__(self, send: Send, limit: int = MAX_PAGE_CHARS) -> None:
         self.seq = 0
-        self.queue: asyncio.Queue[str | None] = asyncio.Queue()
+        self.limit = limit
+        #: characters of JSON waiting in the queue.
+        self.queued = 0
+        #: why the page was dropped (None: it was not).
+        self.dropped: str | None = None
+        self.closed = False
+        self._queue: collections.deque[tuple[str, int, bool]] = collections.deque()  # text, size, events?
+        self._first: str | None = None  # the hello
+        self._snapshot: list[dict[str, Any]] | None = None  # None: sent (or none to send)
+        self._snapshot_at = 0
+        self._wake = asyncio.Event()
+        #: set when the page is closed or dropped (its socket's handler waits for it).
+        self.gone = asyncio.Event()
         self._send = send
 
-    def frame(self, events: list[dict[str, Any]]) -> None:
-        for first in range(0, max(len(events), 1), MAX_FRAME_EVENTS):
-            self.seq += 1
-            chunk = events[first:first + MAX_FRAME_EVENTS]
-            self.queue.put_nowait(dumps({"type": "events", "seq": self.seq, "events": chunk}))
+    def put(self, text: str, events: bool = False) -> bool:
+        """Queue one frame (`events`: the JSON array of an `events` frame, numbered when it is
+        sent); False when the page is closed or is dropped now for falling behind. A frame
+        larger than the limit is taken when nothing else waits (a page is not dropped for one
+        large model)."""
+        if self.closed:
+            return False
+        size = len(text)
+        if self.queued and self.queued + size > self.limit:
+            self.drop(f"the page fell behind: more than {self.limit:,} characters of frames waiting")
+            return False
+        self._queue.append((text, size, events))
+        self.queued += size
+        self._wake.set()
+        return True
+
+    def greet(self, hello: str) -> None:
+        """The first frame of all (the socket's hello), before the snapshot."""
+        self._first = hello
+        self._wake.set()
+
+    def start(self, snapshot: list[dict[str, Any]]) -> None:
+        """The events a page opening now gets after the hello and before anything queued: at least
+        one `events` frame (with no events when there are none), numbered from 1."""
+        self._snapshot, self._snapshot_at = snapshot, 0
+        self._wake.set()
+
+    def drop(self, reason: str) -> None:
+        """Give up on this page: forget what waits for it (the server closes its socket)."""
+        if not self.closed:
+            self.dropped = reason
+        self.close()
+
+    def close(self) -> None:
+        """Nothing more for this page; what waits is forgotten and the pump ends."""
+        self.closed = True
+        self._queue.clear()
+        self._first = self._snapshot = None
+        self.queued = 0
+        self._wake.set()
+        self.gone.set()
+
+    def _next(self) -> str | None:
+        """The next frame to send: the hello, the snapshot's frames, then the queue's."""
+        if self._first is not None:
+            text, self._first = self._first, None
+            return text
+        snapshot = self._snapshot
+        if snapshot is not None:
+            parts: list[str] = []
+            size = 0
+            while self._snapshot_at < len(snapshot) and size < SNAPSHOT_FRAME_CHARS \
+                    and len(parts) < MAX_FRAME_EVENTS:
+                part = dumps(snapshot[self._snapshot_at])
+                self._snapshot_at += 1
+                parts.append(part)
+                size += len(part) + 1
+            if self._snapshot_at >= len(snapshot):
+                self._snapshot = None
+            return self._events("[" + ",".join(parts) + "]")
+        if self._queue:
+            text, size, events = self._queue.popleft()
+            self.queued -= size
+            return self._events(text) if events else text
+        return None
+
+    def _events(self, array: str) -> str:
+        self.seq += 1
+        return f'{{"type":"events","seq":{self.seq},"events":{array}}}'
 
     async def pump(self) -> None:
-        """Send queued frames in order until `None` is queued or the socket fails."""
-        while True:
-            text = await self.queue.get()
+        """Send the frames in order until the page is closed (or the socket fails). A send is
+        shielded: cancelling the pump must not cancel the socket's drain, which aiohttp shares
+        with the close frame that follows (a cancelled drain would fail that close at once)."""
+        while not self.closed:
+            text = self._next()
             if text is None:
-                return
-            await self._send(text)
+                self._wake.clear()
+                await self._wake.wait()
+                continue
+            await asyncio.shield(self._send(text))
 
 
 class Hub:
@@ -113,11 +231,17 @@ class Hub:
         self._loop: asyncio.AbstractEventLoop | None = None
         self._scheduled = False
         self._last_flush = 0.0
+        #: pages dropped for falling behind, since the start, and the most characters of JSON
+        #: one page ever had waiting.
+        self.dropped_pages = 0
+        self.peak_queued = 0
 
     # --- any thread ------------------------------------------------------------------------------
 
     def push(self, event: dict[str, Any]) -> None:
-        """Queue one event for the pages (thread-safe, never blocks)."""
+        """Queue one event for the pages (thread-safe, never blocks); a value too large for a
+        page is cut here (`cut_value`), so the snapshot never keeps it either."""
+        event = cut_value(event)
         with self._lock:
             self._incoming.append(event)
             wake = not self._scheduled and self._loop is not None
@@ -189,15 +313,30 @@ class Hub:
             pending = self._scheduled
         if pending:  # what came in since the last flush (the run's last world) is in the snapshot
             self._safe_flush()
-        page.frame(self.snapshot())
+        page.start(self.snapshot())
         world = self.world_snapshot()
         if world is not None:
-            page.queue.put_nowait(dumps(world))
+            page.put(dumps(world))
         self.pages.add(page)
 
     def detach(self, page: Page) -> None:
+        """The page closed: it keeps nothing."""
         self.pages.discard(page)
-        page.queue.put_nowait(None)
+        page.close()
+
+    def queued(self) -> int:
+        """Characters of JSON waiting for all pages together."""
+        return sum(page.queued for page in self.pages)
+
+    def _send(self, text: str, events: bool = False) -> None:
+        """Queue one frame for every page; a page that falls too far behind is dropped."""
+        for page in list(self.pages):
+            if page.put(text, events):
+                self.peak_queued = max(self.peak_queued, page.queued)
+            elif page.dropped is not None:
+                self.pages.discard(page)
+                self.dropped_pages += 1
+                log.warning("studio page dropped", reason=page.dropped, pages=len(self.pages))
 
     def flush(self) -> None:
         """Move queued events into the snapshot and send them to every page as one frame."""
@@ -219,19 +358,15 @@ class Hub:
             self.broadcast({"type": "robot", "robot": robot})
         for event in events:
             self._remember(event)
-        if events:
-            for page in self.pages:
-                page.frame(events)
-        if world is not None:
-            text = dumps({**world, "type": "world", "pings": pings})
-            for page in self.pages:
-                page.queue.put_nowait(text)
+        if self.pages:
+            for first in range(0, len(events), MAX_FRAME_EVENTS):  # one text for every page
+                self._send(dumps(events[first:first + MAX_FRAME_EVENTS]), events=True)
+            if world is not None:
+                self._send(dumps({**world, "type": "world", "pings": pings}))
 
     def broadcast(self, frame: dict[str, Any]) -> None:
         """Send one frame to every page now (on the event loop; e.g. a file changed on disk)."""
-        text = dumps(frame)
-        for page in self.pages:
-            page.queue.put_nowait(text)
+        self._send(dumps(frame))
 
     def _remember_world(self, world: dict[str, Any], pings: list[dict[str, Any]]) -> None:
         """Keep the latest world state and the pings of its last `KEEP_PINGS_S` (under `_lock`)."""

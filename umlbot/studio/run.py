@@ -33,7 +33,7 @@ RUN_SPEED = 2.0
 def resolve_track(track: Any, model_root: Path) -> Path:
     """A bundled track's name, or a track file inside the model folder (nothing else)."""
     from umlbot.sim.track import bundled_tracks
-    from umlbot.studio.workspace import safe_path
+    from umlbot.studio.workspace import safe_path, shown
 
     if not isinstance(track, str) or not track:
         raise ValueError("'track' names a bundled track (see /api/tracks) or a file in the model folder")
@@ -41,8 +41,12 @@ def resolve_track(track: Any, model_root: Path) -> Path:
     if track in bundled:
         return bundled[track]
     path = safe_path(model_root, track)
-    if not path.is_file():
-        raise ValueError(f"no track {track!r} (bundled: {', '.join(bundled)})")
+    try:
+        is_file = path.is_file()
+    except OSError as exc:  # e.g. a name too long for the system
+        raise ValueError(f"no track {shown(track)} ({exc.strerror or exc})") from None
+    if not is_file:
+        raise ValueError(f"no track {shown(track)} (bundled: {', '.join(bundled)})")
     return path
 
 

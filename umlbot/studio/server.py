@@ -2,10 +2,12 @@
 
 The socket carries the model and the robot's traffic from the server to the page. With a
 `Workspace` (a model folder) the page also edits the model through `/api/*` requests (see
-`umlbot.studio.api`); the server is the only writer of files. The socket and every write check
-`Origin` (a page of another site in the same browser may neither read nor write) and, on a loopback
-bind, `Host` (no DNS rebinding); a write also needs the per-run token the socket's hello carries.
-docs/studio.md describes the frames and requests; `umlbot/studio/web/` holds the page's sources.
+`umlbot.studio.api`); the server is the only writer of files, and only on a loopback bind. The
+socket and every write check `Origin` (a page of another site in the same browser may neither read
+nor write) and, on a loopback bind, `Host` (no DNS rebinding), whatever `--allow-remote` says; a
+write also needs the per-run token the socket's hello carries. A refusal or a bad request is
+answered with a JSON `{"error": …}` (`_json_errors`), never a traceback. docs/studio.md describes
+the frames and requests; `umlbot/studio/web/` holds the page's sources.
 """
 
 from __future__ import annotations
@@ -27,7 +29,7 @@ from aiohttp import WSMsgType, web
 
 from umlbot.errors import ConfigError
 from umlbot.logs import get_logger
-from umlbot.studio.hub import Hub, Page, dumps
+from umlbot.studio.hub import CLOSE_TOO_SLOW, MAX_PAGE_CHARS, Hub, Page, dumps
 
 if TYPE_CHECKING:
     from umlbot.studio.api import EditApi
@@ -39,6 +41,10 @@ DEFAULT_HOST = "127.0.0.1"
 DEFAULT_PORT = 8080
 #: seconds between two checks for calls that stayed unanswered.
 EXPIRE_EVERY_S = 1.0
+#: the largest request body accepted (an edit batch, a completion request).
+MAX_BODY = 1 << 20
+#: seconds a dropped page has to take its close frame before its connection is aborted.
+CLOSE_WAIT_S = 2.0
 
 
 def static_dir() -> Path:
@@ -126,13 +132,17 @@ class StudioServer:
     api: EditApi | None = None
     #: the command's option that sets `port` (named when the port is taken).
     port_option: str = "--port"
+    #: characters of JSON one page may have waiting before it is dropped (`Page`).
+    page_limit: int = MAX_PAGE_CHARS
+    #: seconds between pings to each page; a page that does not answer one is closed.
+    heartbeat_s: float = 20.0
     _runner: web.AppRunner | None = None
     _tasks: list[asyncio.Task[None]] = field(default_factory=list)
 
     # --- life cycle ------------------------------------------------------------------------------
 
     def app(self) -> web.Application:
-        app = web.Application()
+        app = web.Application(middlewares=[_json_errors], client_max_size=MAX_BODY)
         app.router.add_get("/", self._index)
         app.router.add_get("/ws", self._socket)
         app.router.add_static("/static/", static_dir(), follow_symlinks=False)
@@ -143,6 +153,9 @@ class StudioServer:
     async def start(self) -> str:
         """Bind and serve; returns the page's URL. Raises ConfigError when the port is taken."""
         check_bind(self.host, self.allow_remote)
+        if self.api is not None and not is_loopback(self.host):
+            raise ConfigError(f"the studio edits a model only on a loopback --host, not {self.host} "
+                              "(see docs/studio.md, Security)")
         self._runner = web.AppRunner(self.app(), access_log=None, handle_signals=False)
         await self._runner.setup()
         site = web.TCPSite(self._runner, self.host, self.port, reuse_address=True)
@@ -204,39 +217,105 @@ class StudioServer:
         return web.FileResponse(index, headers={"Cache-Control": "no-store"})
 
     async def _socket(self, request: web.Request) -> web.StreamResponse:
+        """One page's socket: every frame goes through its `Page` (the hello, the snapshot, the
+        live frames), so what waits for a page that does not read is bounded; a page dropped for
+        falling behind is closed with `CLOSE_TOO_SLOW` and the reason, and its connection is
+        aborted (nothing it did not read is kept)."""
         self.check_origin(request)
-        ws = web.WebSocketResponse(heartbeat=20.0, max_msg_size=1 << 16)
+        ws = web.WebSocketResponse(heartbeat=self.heartbeat_s, max_msg_size=1 << 16)
         await ws.prepare(request)
-        page = Page(ws.send_str)
-        await ws.send_str(dumps(self.data.hello()))
+        transport = request.transport
+        page = Page(ws.send_str, self.page_limit)
+        page.greet(dumps(self.data.hello()))
         self.hub.attach(page)
         pump = asyncio.create_task(page.pump(), name="studio-page")
+        reader = asyncio.create_task(self._read(ws), name="studio-page-reader")
+        gone = asyncio.create_task(page.gone.wait(), name="studio-page-gone")
         try:
-            async for message in ws:  # the page sends nothing yet; read to see it close
-                if message.type == WSMsgType.ERROR:
-                    break
+            await asyncio.wait({pump, reader, gone}, return_when=asyncio.FIRST_COMPLETED)
         finally:
             self.hub.detach(page)
-            with contextlib.suppress(Exception):
-                await asyncio.wait_for(pump, timeout=1.0)
-            pump.cancel()
+            for task in (pump, gone):  # a pump stuck in a send to a page that does not read, too
+                task.cancel()
+                with contextlib.suppress(asyncio.CancelledError, Exception):
+                    await task
+            if page.dropped is not None:
+                with contextlib.suppress(asyncio.TimeoutError, asyncio.CancelledError, Exception):
+                    await asyncio.wait_for(ws.close(code=CLOSE_TOO_SLOW, message=page.dropped.encode()[:120]),
+                                           CLOSE_WAIT_S)
+            reader.cancel()
+            with contextlib.suppress(asyncio.CancelledError, Exception):
+                await reader
+            if transport is not None and (page.dropped is not None or transport.get_write_buffer_size()):
+                transport.abort()  # a peer that does not read would keep the buffer for ever
         return ws
+
+    @staticmethod
+    async def _read(ws: web.WebSocketResponse) -> None:
+        """Read the page's socket to see it close (the page sends nothing)."""
+        async for message in ws:
+            if message.type == WSMsgType.ERROR:
+                break
 
     def check_origin(self, request: web.Request) -> None:
         """Refuse a request from a page of another origin (and, on loopback, a foreign Host)."""
         self._check_host(request)
         origin = request.headers.get("Origin")
-        if origin is not None and urlsplit(origin).netloc != request.host:
-            log.warning("studio request refused: foreign origin", origin=origin, path=request.path)
-            raise web.HTTPForbidden(text="foreign origin")
+        if origin is not None and _netloc(origin) != request.host:
+            log.warning("studio request refused: foreign origin", origin=origin[:200], path=request.path)
+            raise web.HTTPForbidden(text=f"foreign origin {origin[:200]}: only the studio's own page "
+                                         "may use it")
 
     def _check_host(self, request: web.Request) -> None:
-        """On a loopback bind, only loopback host names (a rebinding DNS name is refused)."""
-        if self.allow_remote:
+        """On a loopback bind — the only one where the page can write — the Host must name this
+        machine's loopback (`localhost`, 127.0.0.0/8, `::1`) or be the `--host` given, whatever
+        `--allow-remote` says: a DNS-rebinding page (`evil.example` resolved to 127.0.0.1) is
+        refused. The port is not compared: an SSH tunnel may forward another one, and a rebinding
+        page chooses the name, not the port. A non-loopback bind is read-only and reached by names
+        the studio cannot know: no check there (docs/security.md says so)."""
+        if not (is_loopback(self.host) or self.api is not None):
             return
-        host = urlsplit(f"//{request.host}").hostname or ""
-        if not is_loopback(host):
-            raise web.HTTPForbidden(text=f"host {request.host} is not this studio")
+        try:
+            host = urlsplit(f"//{request.host}").hostname or ""
+        except ValueError:
+            host = ""
+        if not (is_loopback(host) or host == self.host.strip("[]").lower()):
+            log.warning("studio request refused: foreign Host", host=request.host[:200], path=request.path)
+            raise web.HTTPForbidden(text=f"host {request.host[:200]} is not this studio (open it as "
+                                         "http://127.0.0.1 or http://localhost)")
+
+
+def _netloc(url: str) -> str | None:
+    """The `host:port` of a URL (None when it is not one: a malformed `[` IPv6 address)."""
+    try:
+        return urlsplit(url).netloc
+    except ValueError:
+        return None
+
+
+@web.middleware
+async def _json_errors(request: web.Request, handler: Any) -> web.StreamResponse:
+    """Every refusal and bad request is answered with `{"error": "…"}` in words (what the page
+    shows), and anything unforeseen with a 500 that says so in one line: the client never gets a
+    traceback; the log gets the error (with its traceback only for an unforeseen one, a bug)."""
+    try:
+        response: web.StreamResponse = await handler(request)
+        return response
+    except web.HTTPException as exc:
+        if exc.status < 400:
+            raise
+        text = exc.text or exc.reason
+        if text.startswith(f"{exc.status}: "):  # aiohttp's own, e.g. "404: Not Found"
+            text = text.removeprefix(f"{exc.status}: ")
+        return web.Response(text=dumps({"error": text, "message": text}), status=exc.status,
+                            content_type="application/json", headers={"Cache-Control": "no-store"})
+    except (asyncio.CancelledError, ConnectionResetError):
+        raise
+    except Exception as exc:
+        log.exception("studio request failed", path=request.path[:200], error=str(exc)[:500])
+        text = f"the studio failed on this request ({type(exc).__name__}); see its log"
+        return web.Response(text=dumps({"error": text, "message": text}), status=500,
+                            content_type="application/json", headers={"Cache-Control": "no-store"})
 
 
 class StudioThread:

@@ -4,16 +4,21 @@ The working copy is the model's files (relative path -> bytes) as the page has e
 compiler checks it in memory (`check_model(root, files=…)`), so its messages are `umlbot check`'s,
 naming the files as on disk; a model file that cannot be read (no permission, not a file, too
 large) is in it as `Unreadable`, reported as `umlbot check` reports it, never edited and never
-written. Saving writes only the files that differ, each atomically (a temp file in the same
-folder, then `os.replace`), and only inside the model folder. A file changed on
-disk is taken in when the working copy has not changed it; otherwise it is a conflict the user
-resolves (reload, or save with force). Positions the page chose live in `.umlbot-studio.json`,
-which the compiler never reads.
+written. Saving writes only the files that differ, all or none (`write_files_atomically`: temp
+files in their folders, then renames, the old files kept until all are in place), and only inside
+the model folder; a failed save says why in words and leaves the files as they were.
+
+`disk` is what the studio last saw on disk (read, or written by itself), so the invariant the page
+relies on is: every file of the working copy equals the disk's or is unsaved (`dirty`). A file
+changed on disk is taken in when the working copy has not changed it; otherwise it is a conflict
+the user resolves (reload, or save with force, which writes what the page shows). Positions the
+page chose live in `.umlbot-studio.json`, which the compiler never reads.
 """
 
 from __future__ import annotations
 
 import contextlib
+import errno
 import json
 import os
 import re
@@ -27,7 +32,14 @@ from typing import Any
 from compiler.api import CheckResult, check_model
 from compiler.source import ACTIVITIES_DIR, MODEL_FILE, Unreadable, read_model_folder
 from umlbot.errors import ModelError
-from umlbot.files import decode_utf8, file_problem, loads_json, write_atomically
+from umlbot.files import (
+    WriteError,
+    decode_utf8,
+    file_problem,
+    loads_json,
+    os_problem,
+    write_files_atomically,
+)
 from umlbot.studio.edit import (
     EditError,
     Rename,
@@ -51,6 +63,24 @@ class Conflict(Exception):
     def __init__(self, body: dict[str, Any]) -> None:
         super().__init__(body.get("error", "conflict"))
         self.body = body
+
+
+class SaveFailed(Exception):
+    """A save that could not write its files (HTTP `status`: 507 for a full disk, 403 for a
+    read-only folder, else 500); `body` is the answer, its `error` in words."""
+
+    def __init__(self, status: int, body: dict[str, Any]) -> None:
+        super().__init__(body["error"])
+        self.status = status
+        self.body = body
+
+    @staticmethod
+    def status_of(exc: OSError) -> int:
+        if exc.errno in (errno.ENOSPC, errno.EDQUOT):
+            return 507
+        if exc.errno in (errno.EACCES, errno.EPERM, errno.EROFS):
+            return 403
+        return 500
 
 
 STARTER: dict[str, str] = {
@@ -122,25 +152,36 @@ def read_layout(root: Path) -> tuple[dict[str, Any], str | None]:
     return data, None
 
 
+def shown(text: str, limit: int = 80) -> str:
+    """`text` quoted for a message, cut to `limit` characters (a 5 000-character name sent by a
+    client is not worth repeating whole)."""
+    return repr(text) if len(text) <= limit else repr(text[:limit]) + f"… ({len(text)} characters)"
+
+
 def safe_path(root: Path, rel: str) -> Path:
-    """`root / rel`, refused (ValueError) unless it stays inside `root`, symlinks resolved."""
+    """`root / rel`, refused (ValueError) unless it stays inside `root`, symlinks resolved; a name
+    the system refuses (too long, a NUL byte) is refused the same way."""
+    if not isinstance(rel, str):
+        raise ValueError(f"a path inside the model folder is a string, not {type(rel).__name__}")
     pure = PurePosixPath(rel)
     if pure.is_absolute() or ".." in pure.parts or not pure.parts or "\\" in rel:
-        raise ValueError(f"{rel!r} is not a path inside the model folder")
-    real_root = root.resolve()
-    target = (root / pure).resolve()
+        raise ValueError(f"{shown(rel)} is not a path inside the model folder")
+    try:
+        real_root = root.resolve()
+        target = (root / pure).resolve()
+    except (OSError, ValueError) as exc:
+        why = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
+        raise ValueError(f"{shown(rel)} is not a path inside the model folder ({why})") from None
     if not target.is_relative_to(real_root) or target == real_root:
-        raise ValueError(f"{rel!r} is not a path inside the model folder")
+        raise ValueError(f"{shown(rel)} is not a path inside the model folder")
     return target
 
 
-def write_atomic(root: Path, rel: str, data: bytes) -> None:
-    """Write `data` to `rel` inside `root` (`umlbot.files.write_atomically`), refused unless the
-    path and the folders made for it stay inside `root`."""
-    target = safe_path(root, rel)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    safe_path(root, rel)  # the folder just made must not lead outside either
-    write_atomically(target, data)
+def write_inside(root: Path, files: dict[str, bytes | None]) -> None:
+    """Write (bytes) or remove (None) the files `files` (relative paths) inside `root`, all or
+    none (`umlbot.files.write_files_atomically`), refused (ValueError) unless every path stays
+    inside `root`. Raises `WriteError` when the disk refuses."""
+    write_files_atomically({safe_path(root, rel): data for rel, data in files.items()})
 
 
 def _differ(a: dict[str, Content], b: dict[str, Content]) -> list[str]:
@@ -170,14 +211,14 @@ class Workspace:
     def __post_init__(self) -> None:
         #: why the layout file could not be read (None when it was, or there is none).
         self.layout_problem: str | None = None
-        self.disk = model_files(self.root)  # the files as last read from or written to disk
+        self.disk = model_files(self.root)  # the files as the studio last saw them on disk
         self.files = dict(self.disk)
         self.layout_disk = self._read_layout()
         self.layout: dict[str, Any] = json.loads(json.dumps(self.layout_disk))
         self.undo_stack: list[State] = []
         self.redo_stack: list[State] = []
+        #: files changed on disk while the working copy had changed them too (the user decides)
         self.conflicts: set[str] = set()
-        self._seen_disk = dict(self.disk)
         self.result: CheckResult | None = None
         self.answer_cache: dict[str, Any] = {}
         self._lanes_memo: dict[str, tuple[bytes, bool]] = {}
@@ -202,7 +243,7 @@ class Workspace:
     def hello(self) -> dict[str, Any]:
         """The `edit` part of the socket's hello."""
         return {"token": self.token, "root": str(self.root), "empty": self.empty, "dirty": self.dirty,
-                "version": self.version, "layout": self.layout, "conflict": sorted(self.conflicts),
+                "version": self.version, "layout": self.layout, "conflict": self.live_conflicts(),
                 "recovery": self.recovery_view(), **self.answer_cache}
 
     def texts(self) -> dict[str, str]:
@@ -377,40 +418,85 @@ class Workspace:
     # --- files on disk -------------------------------------------------------------------------------
 
     def changed_files(self) -> list[str]:
+        """The files the working copy has changed: unsaved (they differ from the disk's)."""
         return _differ(self.files, self.disk)
 
+    def live_conflicts(self) -> list[str]:
+        """The conflicts that still stand: a file the working copy no longer changes (an undo or
+        an edit made it what the disk holds) is one no more."""
+        self.conflicts &= set(self.changed_files())
+        return sorted(self.conflicts)
+
     def save(self, version: Any, force: bool = False) -> dict[str, Any]:
-        """Write every changed file (atomically, inside the folder); 409 on a conflict."""
+        """Write every changed file, all or none (inside the folder); 409 on a conflict, unless
+        `force`: then the disk gets what the page shows. A failed write raises `SaveFailed` with
+        the reason in words; the files on disk are then as they were."""
         self._expect(version)
         changed = self.changed_files()
         on_disk = model_files(self.root)
-        conflicts = sorted(rel for rel in changed if on_disk.get(rel) != self.disk.get(rel))
+        # changed on disk since the last look, into something else than what the page shows
+        moved = {rel for rel in changed if on_disk.get(rel) not in (self.disk.get(rel), self.files.get(rel))}
+        conflicts = sorted(moved | set(self.live_conflicts()))
         if conflicts and not force:
             raise Conflict({"error": "changed on disk since it was loaded: " + ", ".join(conflicts),
                             "conflict": conflicts, "version": self.version})
+        writes: dict[str, bytes | None] = {}
         for rel in changed:
             data = self.files.get(rel)
-            if data is None:
-                path = safe_path(self.root, rel)
-                with contextlib.suppress(FileNotFoundError):
-                    path.unlink()
-            elif isinstance(data, bytes):  # an unreadable file is never written over
-                write_atomic(self.root, rel, data)
-        saved = list(changed)
+            if not isinstance(data, Unreadable):  # an unreadable file is never written over
+                writes[rel] = data
+        layout = None
         if self.layout != self.layout_disk:
-            write_atomic(self.root, LAYOUT_FILE,
-                         (json.dumps(self.layout, indent=1, sort_keys=True) + "\n").encode("utf-8"))
-            self.layout_disk = json.loads(json.dumps(self.layout))
-            saved.append(LAYOUT_FILE)
-        self.disk = dict(self.files)
-        self._seen_disk = model_files(self.root)
+            layout = json.loads(json.dumps(self.layout))
+            writes[LAYOUT_FILE] = (json.dumps(self.layout, indent=1, sort_keys=True) + "\n").encode("utf-8")
+        try:
+            write_inside(self.root, writes)
+        except WriteError as exc:
+            self._saw(model_files(self.root), changed)  # what is on disk now (all put back, or not)
+            raise self._failed(exc) from exc
+        for rel in changed:
+            if rel in writes:
+                self._seen(rel, writes[rel])
+        if layout is not None:
+            self.layout_disk = layout
         self.conflicts.clear()
-        return {"saved": saved, "dirty": self.dirty, "version": self.version}
+        return {"saved": list(writes), "dirty": self.dirty, "version": self.version}
+
+    def _failed(self, exc: WriteError) -> SaveFailed:
+        """A save refused by the disk, in words, with the file named relative to the folder."""
+        try:
+            rel = exc.path.relative_to(self.root.resolve()).as_posix()
+        except ValueError:
+            rel = str(exc.path)
+        folder = PurePosixPath(rel).parent
+        where = f"the folder {folder}" if str(folder) != "." else f"the model folder {self.root}"
+        text = f"cannot save {rel}: {os_problem(exc.cause, where)}. "
+        if exc.left:
+            left = ", ".join(p.name for p in exc.left)
+            text += f"{left} could not be put back as it was: look at it on disk before saving again"
+        else:
+            text += "Nothing was saved: the files on disk are as they were, your edits are kept"
+        return SaveFailed(SaveFailed.status_of(exc.cause), {"error": text, "message": text, "file": rel,
+                                                            "version": self.version, "dirty": self.dirty})
+
+    def _seen(self, rel: str, data: Content | None) -> None:
+        """The disk holds `data` at `rel` now (None: no file)."""
+        if data is None:
+            self.disk.pop(rel, None)
+        else:
+            self.disk[rel] = data
+
+    def _saw(self, current: dict[str, Content], rels: list[str]) -> None:
+        """Record what the disk holds now for `rels` where it is what the studio wrote (a file it
+        could not put back after a failed save): a retry must not take its own write for a change
+        by someone else."""
+        for rel in rels:
+            if current.get(rel) == self.files.get(rel):
+                self._seen(rel, current.get(rel))
 
     def reload(self) -> dict[str, Any]:
         """Discard the working copy's edits: take the files on disk."""
         self.disk = model_files(self.root)
-        self._seen_disk = dict(self.disk)
         changed = _differ(self.files, self.disk)
         self.files = dict(self.disk)
         self.layout_disk = self._read_layout()
@@ -425,27 +511,27 @@ class Workspace:
     def poll(self) -> list[dict[str, Any]]:
         """Look at the disk; the frames to push to the pages (none when nothing changed).
 
-        Files the working copy has not changed are taken in (`files` frame); files it changed too
-        are a conflict (`conflict` frame) until the user reloads or saves with force.
+        Files the working copy has not changed are taken in (`files` frame); files it changed
+        otherwise are a conflict (`conflict` frame) until the user reloads or saves with force;
+        a file it changed into what the disk holds now is simply saved. Either way `disk` is the
+        disk's now, so a file the page shows otherwise stays unsaved whatever is undone meanwhile.
         """
         current = model_files(self.root)
-        if current == self._seen_disk:
-            return []
-        self._seen_disk = current
         changed = _differ(current, self.disk)
         if not changed:
             return []
-        frames: list[dict[str, Any]] = []
         taken = [rel for rel in changed if self.files.get(rel) == self.disk.get(rel)]
-        clashes = [rel for rel in changed if rel not in taken]
+        clashes = [rel for rel in changed if rel not in taken and self.files.get(rel) != current.get(rel)]
+        for rel in changed:
+            self._seen(rel, current.get(rel))
+        frames: list[dict[str, Any]] = []
         if taken:
             for rel in taken:
                 data = current.get(rel)
                 if data is None:
                     self.files.pop(rel, None)
-                    self.disk.pop(rel, None)
                 else:
-                    self.files[rel] = self.disk[rel] = data
+                    self.files[rel] = data
             # an undo must not bring back what was replaced on disk
             self.undo_stack.clear()
             self.redo_stack.clear()
@@ -454,7 +540,8 @@ class Workspace:
             frames.append({"type": "files", "reason": "changed on disk", **self.answer(taken)})
         if clashes:
             self.conflicts.update(clashes)
-            frames.append({"type": "conflict", "changed": sorted(self.conflicts), "version": self.version})
+            frames.append({"type": "conflict", "changed": self.live_conflicts(), "version": self.version,
+                           "dirty": self.dirty})
         return frames
 
     # --- unsaved edits when the studio quits ------------------------------------------------------
@@ -504,8 +591,8 @@ class Workspace:
         if self.recovery is not None and path.exists():
             stamp = re.sub(r"\D", "", str(self.recovery.get("time") or "")) or str(int(time.time()))
             os.replace(path, self.root / f".umlbot-studio-recovery.{stamp}.json")
-        write_atomic(self.root, RECOVERY_FILE,
-                     (json.dumps(body, indent=1, sort_keys=True) + "\n").encode("utf-8"))
+        text = json.dumps(body, indent=1, sort_keys=True) + "\n"
+        write_inside(self.root, {RECOVERY_FILE: text.encode("utf-8")})
         return path
 
     def recover(self, action: Any) -> dict[str, Any]:
@@ -544,10 +631,16 @@ class Workspace:
         if not self.empty:
             raise Conflict({"error": "the folder holds a model already", "version": self.version})
         model_name = name or self.root.resolve().name
-        if not re.fullmatch(r"[A-Za-z0-9_][A-Za-z0-9_-]*", model_name):
-            raise EditError(f"a model's name is a plain name (letters, digits, _ and -), not {model_name!r}",
+        if not isinstance(model_name, str) or not re.fullmatch(r"[A-Za-z0-9_][A-Za-z0-9_-]*", model_name):
+            shown_name = shown(model_name) if isinstance(model_name, str) else type(model_name).__name__
+            raise EditError(f"a model's name is a plain name (letters, digits, _ and -), not {shown_name}",
                             fields={"name": "must be a plain name (letters, digits, _ and -; no spaces)"})
-        self.root.mkdir(exist_ok=True)
+        try:
+            self.root.mkdir(exist_ok=True)
+        except OSError as exc:
+            text = f"cannot make the folder {self.root}: {os_problem(exc, f'the folder {self.root.parent}')}"
+            raise SaveFailed(SaveFailed.status_of(exc), {"error": text, "message": text,
+                                                         "version": self.version}) from exc
         self.files = {rel: text.replace("{name}", model_name).encode("utf-8")
                       for rel, text in STARTER.items()}
         self.version += 1

@@ -15,6 +15,7 @@ interface StudioHooks {
   latencies: number[]; frames: number[]; ready: boolean; applied: number; edit: EditHooks | null;
   follow: boolean; // the view follows the running robot (docs/studio.md, "Follow")
   followPans: number; // pans follow made (tests)
+  hellos: number; // hellos received: the first, and one per reconnection (tests)
   durationCounters: () => number; // counters the nodes' duration histograms hold (memory; tests)
   reveal: (lane: string, node: string) => void; // centre a node (tests and docs screenshots)
 }
@@ -22,7 +23,7 @@ declare global {
   interface Window { __studio: StudioHooks }
 }
 const hooks: StudioHooks = {
-  latencies: [], frames: [], ready: false, applied: 0, edit: null, follow: false, followPans: 0,
+  latencies: [], frames: [], ready: false, applied: 0, edit: null, follow: false, followPans: 0, hellos: 0,
   durationCounters: () => {
     let n = 0;
     for (const s of state.nodes.values()) n += s.durs.buckets;
@@ -1150,10 +1151,13 @@ const editorHost = {
 // ---------------------------------------------------------------- connection
 
 let ws: WebSocket | null = null;
+/** The close code of a page the studio dropped for falling behind (umlbot/studio/hub.py). */
+const CLOSE_TOO_SLOW = 4000;
 let expectSeq = 0;
 let retry = 500;
 
 function resetSession(hello: HelloMsg): void {
+  hooks.hellos += 1;
   bannerEl.hidden = true;
   mode = hello.mode === "replay" ? "replay" : "live";
   queue.length = 0;
@@ -1290,10 +1294,15 @@ function connect(): void {
     }
     onMessage(msg);
   };
-  sock.onclose = () => {
+  sock.onclose = (ev) => {
     if (ws !== sock) return;
     connEl.dataset.state = "closed";
-    connEl.textContent = "○ disconnected — reconnecting…";
+    // the studio drops a page that fell behind (CLOSE_TOO_SLOW) and says why: the page starts
+    // again from a fresh hello and snapshot
+    const why = ev.code === CLOSE_TOO_SLOW && ev.reason ? ev.reason : "disconnected";
+    connEl.dataset.closeCode = String(ev.code);
+    connEl.textContent = `○ ${why} — reconnecting…`;
+    connEl.title = ev.reason || "";
     setTimeout(connect, retry);
     retry = Math.min(retry * 2, 5000);
   };
