@@ -356,10 +356,21 @@ class World:
                     break
                 if halted.is_set():
                     return
+                self._step_to_lease_end(boundary)
                 self.step(boundary - self._time)
+            self._step_to_lease_end(time_s)
             rest = time_s - self._time
             if rest > 1e-9 and not halted.is_set():
                 self.step(rest)
+
+    def _step_to_lease_end(self, before: float) -> None:
+        """When a driving side's lease ends before `before`, step to that moment first: the
+        deadman stops the motor at its exact time, not at the next step (only then is the grid
+        split; a run without a deadman stop integrates the same steps)."""
+        ends = [end for side, (_, end) in self._leases.items()
+                if self._motors[side].enabled and self._time + 1e-9 < end < before - 1e-9]
+        if ends:
+            self.step(min(ends) - self._time)
 
     def step(self, dt: float) -> None:
         """Advance the world by `dt` sim seconds: deadman, motors, servo, pose, collision, goal."""
@@ -416,7 +427,7 @@ class World:
         """Stop every enabled side whose lease ended by now (caller holds the lock)."""
         for side, (_, ends) in self._leases.items():
             channel = self._motors[side]
-            if channel.enabled and self._time >= ends:
+            if channel.enabled and self._time >= ends - 1e-9:
                 channel.enabled = False
                 channel.duty_percent = 0.0  # the deadman writes the pins low
                 self._fired.add(side)
