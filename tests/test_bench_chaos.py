@@ -16,9 +16,9 @@ pytestmark = [pytest.mark.network, pytest.mark.slow]
 REPO = Path(__file__).resolve().parent.parent
 
 
-def chaos(*args: str) -> dict[str, Any]:
+def chaos(*args: str, timeout: float = 110) -> dict[str, Any]:
     result = subprocess.run([sys.executable, str(REPO / "bench" / "chaos.py"), *args],
-                            capture_output=True, text=True, timeout=110, check=False)
+                            capture_output=True, text=True, timeout=timeout, check=False)
     assert result.returncode == 0, result.stderr[-4000:]
     summary: dict[str, Any] = json.loads(result.stdout.strip().splitlines()[-1])
     return summary
@@ -57,3 +57,14 @@ def test_fuzzed_payloads_get_error_replies_and_break_nothing(broker: str) -> Non
     assert fuzz["replies"] == fuzz["error_replies"] == fuzz["requests_naming_a_reply_topic"]
     assert fuzz["rss_growth_max_mb"] <= 5.0, fuzz["rss_growth_mb"]
     assert fuzz["good_calls_after"] and fuzz["run_still_going"]
+
+
+def test_a_frozen_or_killed_motor_service_no_longer_leaves_the_motors_running() -> None:
+    rows = chaos("--scenarios", "frozen-motor", "--brokers", "mosquitto", "--trials", "1",
+                 timeout=170)["frozen_motor"]
+    by = {(row["deadman"], row["signal"]): row for row in rows}
+    for signal in ("SIGSTOP", "SIGKILL"):
+        with_deadman, baseline = by[(True, signal)], by[(False, signal)]
+        assert with_deadman["within_watchdog"] and with_deadman["stop_max_s"] <= 2.01, with_deadman
+        assert baseline["ran_the_whole_pause"] == 1, baseline  # what a frozen service did before
+    assert by[(True, "SIGSTOP")]["stop_reasons_after_sigcont"] == ["deadman"]
