@@ -419,3 +419,43 @@ def test_sim_driver_calls_over_the_bus_drive_the_world(mosquitto_broker: BrokerP
         assert world.snapshot().distance_m > 0, "the car moves"
     left = world.motor("left")
     assert (left.enabled, left.duty_percent) == (False, 0), "stopping the service stops the side"
+
+
+def test_a_plugin_driver_without_a_deadman_still_gets_the_watchdog() -> None:
+    """A motor driver of a plugin written before `MotorChannel.renew`: the service warns once that
+    nothing outside it can stop the motor, and its safety round (the watchdog) still works."""
+    import structlog
+
+    from services.motor.service import MotorService
+    from umlbot.library import resolve_implementation
+
+    class OldDriver:
+        def __init__(self) -> None:
+            self.enabled = False
+
+        def set_enabled(self, enabled: bool) -> None:
+            self.enabled = enabled
+
+        def set_direction(self, clockwise: bool) -> None: ...
+
+        def set_duty_cycle(self, percent: float) -> None: ...
+
+        def stop(self) -> None:
+            self.enabled = False
+
+        def close(self) -> None:
+            self.stop()
+
+    impl = resolve_implementation("l298n")
+    assert impl is not None
+    driver = OldDriver()
+    with structlog.testing.capture_logs() as logs:
+        service = MotorService("LeftActuator", impl, driver, {"watchdog_s": 0.5})  # type: ignore[arg-type]
+    assert [e["event"] for e in logs if e["log_level"] == "warning"] == ["motor_driver_without_deadman"]
+    service.dutycycle(50)
+    service.enabled(True)
+    service.tick(time.monotonic())
+    assert driver.enabled, "renewed (nothing to renew) and within the watchdog"
+    service.tick(time.monotonic() + 1.0)
+    assert service.stop_reason == "watchdog"
+    assert not driver.enabled

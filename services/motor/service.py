@@ -79,6 +79,13 @@ class MotorService(ComponentService):
         # model's 3 s sleep with the motors on is 0.3 s of wall time, and stops them all the same
         own_clock = getattr(driver, "now_s", None)
         self._own_clock: Callable[[], float] | None = own_clock if callable(own_clock) else None
+        # a plugin's driver written before `renew` existed has no deadman: the service still runs
+        # its watchdogs, and says once that nothing outside it stops the motor
+        renew = getattr(driver, "renew", None)
+        self._renew: Callable[[], bool] = renew if callable(renew) else (lambda: True)
+        if not callable(renew):
+            self.log.warning("motor_driver_without_deadman", driver=type(driver).__name__,
+                             why="a frozen or killed service cannot stop this motor (MotorChannel.renew)")
         self.last_command = self._now()
         self.channel.stop()
 
@@ -159,7 +166,7 @@ class MotorService(ComponentService):
         with self.lock:
             if not self.is_enabled:
                 return
-            alive = self.channel.renew()
+            alive = self._renew()
         if not alive:  # the hardware stopped it while this process could not act (frozen)
             self.safe_stop("deadman")
             return
