@@ -33,8 +33,8 @@ class Rig:
     drive: Callable[[], float]  # signed percent the motor receives
 
 
-def _pigpio_rig(fake: FakePi, enable: int | None) -> Rig:
-    settings = L298NSettings(in1=22, in2=23, enable=enable)
+def _pigpio_rig(fake: FakePi, enable: int | None, watchdog_s: float = 2.0) -> Rig:
+    settings = L298NSettings(in1=22, in2=23, enable=enable, watchdog_s=watchdog_s)
     driver = PigpioL298NChannel("LeftActuator", settings, pi=fake)
 
     def drive() -> float:
@@ -46,8 +46,9 @@ def _pigpio_rig(fake: FakePi, enable: int | None) -> Rig:
     return Rig(driver, drive)
 
 
-def _lgpio_rig(fake: FakeLgpio, enable: int | None) -> Rig:
-    driver = LgpioL298NChannel("LeftActuator", L298NSettings(in1=22, in2=23, enable=enable), lg=fake)
+def _lgpio_rig(fake: FakeLgpio, enable: int | None, watchdog_s: float = 2.0) -> Rig:
+    settings = L298NSettings(in1=22, in2=23, enable=enable, watchdog_s=watchdog_s)
+    driver = LgpioL298NChannel("LeftActuator", settings, lg=fake)
 
     def drive() -> float:
         in1, in2 = fake.line(22), fake.line(23)
@@ -376,38 +377,16 @@ def deadman_rig(request: pytest.FixtureRequest) -> Iterator[Rig]:
         channel.close()
         return
     enable = 24 if request.param.endswith("enable") else None
-    full = L298NSettings(**settings, enable=enable)
     if request.param.startswith("lgpio"):
         lg = FakeLgpio()
-        channel = LgpioL298NChannel("LeftActuator", full, lg=lg)
-        yield Rig(channel, _lgpio_rig_drive(lg, enable))
-        channel.close()
+        rig = _lgpio_rig(lg, enable, DEADMAN_S)
+        yield rig
+        rig.driver.close()
         lg.shutdown()
         return
-    pi = FakePi()
-    pigpio_channel = PigpioL298NChannel("LeftActuator", full, pi=pi)
-    yield Rig(pigpio_channel, _pigpio_rig_drive(pi, enable))
-    pigpio_channel.close()
-
-
-def _pigpio_rig_drive(fake: FakePi, enable: int | None) -> Callable[[], float]:
-    def drive() -> float:
-        in1, in2 = fake.pin(22), fake.pin(23)
-        if enable is None:
-            return 100 * (in1.duty_fraction - in2.duty_fraction)
-        return 100 * fake.pin(enable).duty_fraction * (in1.level - in2.level)
-
-    return drive
-
-
-def _lgpio_rig_drive(fake: FakeLgpio, enable: int | None) -> Callable[[], float]:
-    def drive() -> float:
-        in1, in2 = fake.line(22), fake.line(23)
-        if enable is None:
-            return 100 * (in1.duty_fraction - in2.duty_fraction)
-        return 100 * fake.line(enable).duty_fraction * (in1.level - in2.level)
-
-    return drive
+    rig = _pigpio_rig(FakePi(), enable, DEADMAN_S)
+    yield rig
+    rig.driver.close()
 
 
 def _stops_after(rig: Rig, limit_s: float, started: float | None = None) -> float | None:
