@@ -7,7 +7,8 @@ and `umlbot run` on the compiled car, with the environment of the systemd units 
 script starts (Mosquitto and/or the embedded `umlbot broker`, each on a free port). An observer (a
 plain paho client) records what the bus says; the services' own logs say when a motor stopped.
 
-Scenarios (each on every broker of `--brokers`, the kill scenario on the first one):
+Scenarios (each on every broker of `--brokers`, the kill and frozen-motor scenarios on the first
+one):
 
 - `restart`: as the car starts moving, the broker is killed (SIGKILL: a crash, no wills) and
   comes back after `--outage` seconds; per trial: did both motors stop, how long after the
@@ -16,6 +17,11 @@ Scenarios (each on every broker of `--brokers`, the kill scenario on the first o
   what was lost.
 - `kill`: SIGKILL, then SIGSTOP, of each service kind mid-run; time from the signal to the
   orchestrator's retained status `failed`, max and p99; a SIGSTOPped service gets SIGCONT after.
+- `frozen-motor`: the motor service on the sim driver, its world in this script at real time (the
+  hardware's place: outside the service), SIGSTOPped for 5 s or SIGKILLed while both motors run:
+  how long until they stop, with the deadman (`watchdog_s: 2`) and without it (`watchdog_s: 0`,
+  the baseline: before the deadman a frozen service left them running for the whole pause); the
+  stop reason the service reports after SIGCONT.
 - `fuzz`: `--fuzz N` malformed payloads (random bytes, invalid, huge, deeply nested JSON,
   NaN/Infinity, wrong types, unknown features, oversize) at every component's call topics and the
   orchestrator's signal and exit topics, with the car running (call time-out 10 s, so that load
@@ -32,10 +38,11 @@ Scenarios (each on every broker of `--brokers`, the kill scenario on the first o
   `--soak-max-growth-mb` (default 3) after the warm-up, or exits, fails the run (exit status 1).
 
 The last output line is one JSON object:
-{"restart": [...], "kill": [...], "fuzz": [...], "soak": [...]}.
+{"restart": [...], "kill": [...], "fuzz": [...], "frozen_motor": [...], "soak": [...]}.
 
     python bench/chaos.py [--trials 10] [--fuzz 10000] [--brokers mosquitto,amqtt]
-                          [--kinds motor,sonar,servo,gpio] [--scenarios restart,kill,fuzz,soak]
+                          [--kinds motor,sonar,servo,gpio]
+                          [--scenarios restart,kill,fuzz,frozen-motor,soak]
                           [--soak-s 600] [--soak-warmup-s 300] [--soak-sample-s 5]
                           [--soak-max-growth-mb 3]
 """
@@ -888,6 +895,145 @@ def soak(broker: Broker, fleet: Fleet, observer: Observer, model_dir: Path, dura
     }
 
 
+# --- scenario: frozen motor service -------------------------------------------------------------
+
+#: how long a SIGSTOPped motor service stays frozen (the pause of the issue that found it)
+FREEZE_S = 5.0
+#: a deadman stops a motor `watchdog_s` after the last renewal it got; a renewal the service sent
+#: just before the signal may reach the world this long after it
+IN_FLIGHT_S = 0.01
+#: a 400 m x 400 m hall: the car drives straight for a whole trial and meets no wall
+HALL = """
+name: hall
+start: {x: 0.0, y: 0.0, heading_deg: 90}
+goal: {x_min: -1.0, x_max: 1.0, y_min: 190.0, y_max: 192.0}
+walls:
+  - [[-200.0, -200.0], [200.0, -200.0], [200.0, 200.0], [-200.0, 200.0], [-200.0, -200.0]]
+"""
+
+
+def frozen_motor(broker: Broker, observer: Observer, workdir: Path, trials: int) -> list[dict[str, Any]]:
+    """The motor service frozen (SIGSTOP for `FREEZE_S`, then SIGCONT) or killed (SIGKILL) while
+    both motors run: how long they keep running.
+
+    The motors are the simulated world's, kept in this process (where the hardware is: outside
+    the service), at real time (`Clock(1.0)`); the service is `umlbot service motor --driver sim`,
+    commanded by a direct caller that repeats `dutycycle` every 0.5 s (its command watchdog).
+    With the deadman (`watchdog_s: 2`) the world stops a motor whose driver stops renewing it;
+    the baseline (`watchdog_s: 0`, no deadman, the motors' state before the deadman existed) runs
+    on for the whole pause: a watchdog inside the frozen process cannot act.
+    """
+    from umlbot.deployment import load_deployment
+
+    rows = []
+    for watchdog_s in (WATCHDOG_S, 0.0):
+        deployment = load_deployment(MODEL / "deployment.yaml")
+        for name in MOTORS:
+            deployment.components[name].settings["watchdog_s"] = watchdog_s
+        deploy_file = workdir / f"frozen-motor-{watchdog_s:g}.json"
+        deploy_file.write_text(deployment.model_dump_json(), encoding="utf-8")
+        for signum in (signal.SIGSTOP, signal.SIGKILL):
+            stops: list[float] = []  # signal -> both motors stopped (world time)
+            reasons: set[str] = set()
+            for trial in range(trials):
+                log = workdir / f"frozen-motor-{watchdog_s:g}-{signal.Signals(signum).name}-{trial}.log"
+                stop_s, said = _freeze_trial(broker, observer, deploy_file, log, signum)
+                if stop_s is not None:
+                    stops.append(stop_s)
+                reasons |= said
+            row: dict[str, Any] = {
+                "broker": broker.kind,
+                "deadman": watchdog_s > 0,
+                "watchdog_s": watchdog_s,
+                "signal": signal.Signals(signum).name,
+                "trials": trials,
+                "pause_s": FREEZE_S,
+                "stopped": len(stops),
+                "ran_the_whole_pause": trials - len(stops),
+                "stop_max_s": _round(max(stops, default=None)),
+                "stop_p99_s": _round(p99(stops)),
+                "stop_median_s": _round(statistics.median(stops) if stops else None),
+                # from the signal: a renewal already on its way may land after it (a few ms)
+                "within_watchdog": len(stops) == trials and all(s <= WATCHDOG_S + IN_FLIGHT_S for s in stops),
+            }
+            if reasons:
+                row["stop_reasons_after_sigcont"] = sorted(reasons)
+            rows.append(row)
+            print(json.dumps({"frozen_motor": row}), file=sys.stderr, flush=True)
+    return rows
+
+
+def _freeze_trial(broker: Broker, observer: Observer, deploy_file: Path, log: Path,
+                  signum: int) -> tuple[float | None, set[str]]:
+    """One trial of `frozen_motor`: (seconds from the signal until both motors stopped, None when
+    they ran for the whole pause; the stop reasons the service gave after SIGCONT)."""
+    from services.bus import BrokerSettings, BusClient
+    from umlbot.clock import Clock
+    from umlbot.sim.sharing import WorldServer
+    from umlbot.sim.track import parse_track
+    from umlbot.sim.world import World, WorldLoop
+
+    clock = Clock(1.0)
+    world = World(parse_track(HALL), clock=clock)
+    loop = WorldLoop(world, clock)
+    server = WorldServer(world).start()
+    loop.start()
+    env = {**{k: v for k, v in os.environ.items() if not k.startswith("UMLBOT_")}, **unit_environment(),
+           "UMLBOT_BROKER": broker.url, "UMLBOT_LOG_LEVEL": "INFO", **server.env}
+    with log.open("wb") as out:
+        service = subprocess.Popen(umlbot("service", "motor", "--deploy", str(deploy_file), "--driver", "sim",
+                                          "--robot", ROBOT), stdout=out, stderr=subprocess.STDOUT, env=env)
+    keep = threading.Event()
+
+    def running() -> bool:
+        return any(world.motor(side).enabled for side in ("left", "right"))
+
+    def keeper(bus: BusClient) -> None:  # a direct caller: a command every 0.5 s
+        while not keep.wait(0.5):
+            for name in MOTORS:
+                with contextlib.suppress(Exception):  # frozen or dead: no reply
+                    bus.call(name, "dutycycle", 60, timeout=0.3)
+
+    stop_s: float | None = None
+    reasons: set[str] = set()
+    try:
+        if not observer.wait(lambda o: set(MOTORS) <= o.online(), 30.0):
+            raise RuntimeError(f"the motor service did not come online: {log.read_text()[-2000:]}")
+        with BusClient(BrokerSettings.from_url(broker.url), ROBOT, role="chaos-keeper") as bus:
+            for name in MOTORS:
+                bus.call(name, "dutycycle", 60, timeout=5.0)
+                bus.call(name, "enabled", True, timeout=5.0)
+            thread = threading.Thread(target=keeper, args=(bus,), daemon=True)
+            thread.start()
+            time.sleep(1.0)
+            os.kill(service.pid, signum)
+            sent = world.time_s()  # from now on it renews nothing (a renewal it sent before may land)
+            wait_until(lambda: not running(), FREEZE_S)
+            if not running():
+                stop_s = max(t for t, _ in world.deadman_stops) - sent
+            if signum == signal.SIGSTOP:
+                os.kill(service.pid, signal.SIGCONT)
+                observer.wait(lambda o: all(o.state.get(m, {}).get("running") is False for m in MOTORS), 5.0)
+                with observer.lock:
+                    reasons = {str(observer.state.get(m, {}).get("stop_reason")) for m in MOTORS}
+            keep.set()
+            thread.join(5)
+    finally:
+        keep.set()
+        if service.poll() is None:
+            os.kill(service.pid, signal.SIGCONT)
+            service.terminate()
+        with contextlib.suppress(subprocess.TimeoutExpired):
+            service.wait(15)
+        if service.poll() is None:
+            service.kill()
+            service.wait(5)
+        loop.stop()
+        server.stop()
+        observer.wait(lambda o: not set(MOTORS) & o.online(), 10.0)
+    return stop_s, reasons
+
+
 # --- main ---------------------------------------------------------------------------------------
 
 
@@ -912,8 +1058,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--fuzz", type=int, default=10_000, help="malformed payloads per fuzz run")
     parser.add_argument("--brokers", default="mosquitto,amqtt", help="brokers, e.g. mosquitto,amqtt")
     parser.add_argument("--kinds", default=",".join(KINDS), help="service kinds to SIGKILL and SIGSTOP")
-    parser.add_argument("--scenarios", default="restart,kill,fuzz",
-                        help="which of restart, kill, fuzz, soak (not in the default: 10 min a broker)")
+    parser.add_argument("--scenarios", default="restart,kill,fuzz,frozen-motor",
+                        help="which of restart, kill, fuzz, frozen-motor, soak (soak is not in the default: "
+                             "10 min a broker)")
     parser.add_argument("--outage", type=float, default=1.0, help="seconds the broker stays down")
     parser.add_argument("--seed", type=int, default=1, help="seed of the fuzzed payloads")
     parser.add_argument("--soak-s", type=float, default=600.0, help="seconds the soak runs (per broker)")
@@ -928,13 +1075,13 @@ def main(argv: list[str] | None = None) -> int:
     kinds = [k for k in args.kinds.split(",") if k]
     scenarios = {s for s in args.scenarios.split(",") if s}
     if set(brokers) - {"mosquitto", "amqtt"} or set(kinds) - set(KINDS) or \
-            scenarios - {"restart", "kill", "fuzz", "soak"}:
+            scenarios - {"restart", "kill", "fuzz", "frozen-motor", "soak"}:
         parser.error("unknown broker, kind or scenario")
 
     from umlbot.logs import configure_logging
 
     configure_logging("WARNING")
-    out: dict[str, Any] = {"restart": [], "kill": [], "fuzz": [], "soak": []}
+    out: dict[str, Any] = {"restart": [], "kill": [], "fuzz": [], "frozen_motor": [], "soak": []}
     with tempfile.TemporaryDirectory(prefix="umlbot-chaos-") as tmp:
         workdir = Path(tmp)
         compiled = compile_car(workdir)
@@ -945,6 +1092,9 @@ def main(argv: list[str] | None = None) -> int:
             if "kill" in scenarios and index == 0:
                 with robot(kind, workdir, compiled) as (broker, fleet, observer):
                     out["kill"] = kill_and_freeze(broker, fleet, observer, kinds, args.trials)
+            if "frozen-motor" in scenarios and index == 0:
+                with robot(kind, workdir, compiled) as (broker, _fleet, observer):
+                    out["frozen_motor"] = frozen_motor(broker, observer, workdir, args.trials)
             if "fuzz" in scenarios and args.fuzz > 0:
                 with robot(kind, workdir, compiled, call_timeout_s=10.0) as (broker, fleet, observer):
                     out["fuzz"].append(fuzz(broker, fleet, observer, args.fuzz, args.seed))

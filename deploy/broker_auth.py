@@ -64,7 +64,8 @@ def grants(components: dict[str, str], robot: str) -> dict[str, Grants]:
 
     A service serves `<Component>/call/#` and owns `<Component>/status` (its last will) and
     `<Component>/state`; it answers on the callers' reply topics under `_reply/`, and watches the
-    orchestrator's status (a motor stops when the orchestrator goes offline). The orchestrator
+    orchestrator's status (a motor stops when the orchestrator goes offline) and heartbeat (the
+    lease that keeps the motors it commanded running). The orchestrator
     calls the deployed components, reads their status and state, owns `orchestrator/#` and the
     signals. `all` (`umlbot service all`) has the rights of every service kind together.
     `monitor` reads everything and publishes nothing. `operator` (people, tools) publishes calls to
@@ -79,11 +80,12 @@ def grants(components: dict[str, str], robot: str) -> dict[str, Grants]:
     for kind in (k for k in service_kinds() if k in used):
         owned = [f"{base}/{name}/#" for name, k in sorted(components.items()) if k == kind]
         table[kind] = Grants(
-            read=[*owned, f"{base}/orchestrator/status"],
+            read=[*owned, f"{base}/orchestrator/status", f"{base}/orchestrator/heartbeat"],
             write=[*owned, f"{base}/_reply/#"],
         )
     table["all"] = Grants(  # `umlbot service all`: every kind in one process
-        read=[*(f"{base}/{name}/#" for name in sorted(components)), f"{base}/orchestrator/status"],
+        read=[*(f"{base}/{name}/#" for name in sorted(components)), f"{base}/orchestrator/status",
+              f"{base}/orchestrator/heartbeat"],
         write=[*(f"{base}/{name}/#" for name in sorted(components)), f"{base}/_reply/#"],
     )
     names = sorted(components)

@@ -82,6 +82,10 @@ class ComponentService:
     def tick(self, now: float) -> None:
         """Called periodically by the host with `time.monotonic()` (motors: the watchdog)."""
 
+    def orchestrator_heartbeat(self, reply_to: str) -> None:
+        """The orchestrator whose calls come with this reply topic is alive (its heartbeat; only
+        for the kinds that stop when it goes offline). Default: nothing to do."""
+
     def close(self) -> None:
         """Safe stop, then release the driver; idempotent and never raises."""
         with self.lock:

@@ -6,8 +6,15 @@ messages, e.g. ``'GPIO busy'``, and `str()` of it is the message's repr, as in l
 umlbot's lgpio drivers use: `gpiochip_open`/`gpiochip_close` (handles carry the chip number in
 bits 16+), line claims (`gpio_claim_input`, `gpio_claim_output`, `gpio_claim_alert`,
 `gpio_free`; a line claimed through another handle is ``GPIO busy``), `gpio_read`/`gpio_write`,
-software PWM (`tx_pwm`) and servo pulses (`tx_servo`), and alert `callback`s with nanosecond
-timestamps.
+software PWM (`tx_pwm`, with lgpio's queue: see below) and servo pulses (`tx_servo`), and alert
+`callback`s with nanosecond timestamps.
+
+PWM as lgpio's TX thread sends it: `tx_pwm(..., pulse_cycles=N)` sends N cycles and then writes
+the line low and ends (N = 0: for ever). A `tx_pwm` on a line whose PWM runs is queued (at most
+`TX_BUF` entries, then ``TX queue full``): it replaces an endless current entry at once (lgpio: at
+the end of the current cycle) and follows a finite one when its cycles are done; `tx_room` says
+how many entries are free, `tx_busy` whether PWM runs. Finite entries end in wall time, on a
+thread of the fake (lgpio's TX thread is a thread of the process too: it stops with it).
 
 It records every call in `calls` and can simulate HC-SR04 range finders: after
 `attach_hcsr04(trigger, echo, distance_cm)` every high-to-low write on `trigger` makes the echo
@@ -26,6 +33,7 @@ import json
 import os
 import queue
 import threading
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -61,6 +69,8 @@ BAD_SERVO_WIDTH = -101
 BAD_PWM_FREQ = -102
 BAD_PWM_DUTY = -103
 GPIO_NOT_AN_OUTPUT = -104
+TX_QUEUE_FULL = -96
+BAD_TX_TYPE = -10
 _ERROR_TEXT: dict[int, str] = {
     BAD_HANDLE: "unknown handle",
     BAD_GPIO_NUMBER: "bad GPIO number",
@@ -72,7 +82,11 @@ _ERROR_TEXT: dict[int, str] = {
     BAD_PWM_FREQ: "bad PWM frequency",
     BAD_PWM_DUTY: "bad PWM dutycycle",
     GPIO_NOT_AN_OUTPUT: "GPIO not set as an output",
+    TX_QUEUE_FULL: "TX queue full",
+    BAD_TX_TYPE: "bad tx type for GPIO and group",
 }
+#: entries of a line's PWM queue, the current one included (lgpio's LG_TX_BUF)
+TX_BUF = 10
 
 #: Lines of the Raspberry Pi 5's RP1 gpiochip (the header's GPIO 0..27 are its first lines).
 PI5_LINES = 54
@@ -110,6 +124,11 @@ class LineState:
     level: int = 0
     pwm_frequency: float = 0.0
     pwm_duty_percent: float = 0.0
+    #: cycles of the current PWM entry (0: endless) and when they are done (`time.monotonic()`)
+    pwm_cycles: int = 0
+    pwm_ends_at: float | None = None
+    #: queued PWM entries after the current one: (frequency, duty %, cycles; 0 = endless)
+    pwm_queue: list[tuple[float, float, int]] = field(default_factory=list)
     servo_pulse_us: int = 0
     servo_frequency: int = 0
 
@@ -122,12 +141,19 @@ class LineState:
 
     def stop_tx(self) -> None:
         self.pwm_frequency = self.pwm_duty_percent = 0.0
+        self.pwm_cycles, self.pwm_ends_at, self.pwm_queue = 0, None, []
         self.servo_pulse_us = self.servo_frequency = 0
+
+    def start_pwm(self, frequency: float, duty: float, cycles: int, at: float) -> None:
+        """Make (frequency, duty, cycles) the current PWM entry, its first cycle starting `at`."""
+        self.pwm_frequency, self.pwm_duty_percent, self.pwm_cycles = float(frequency), float(duty), cycles
+        self.pwm_ends_at = at + cycles / frequency if cycles else None
 
     def as_dict(self) -> dict[str, Any]:
         return {
             "claim": self.claim, "flags": self.flags, "level": self.level,
             "pwm_frequency": self.pwm_frequency, "pwm_duty_percent": self.pwm_duty_percent,
+            "pwm_cycles": self.pwm_cycles, "pwm_queued": len(self.pwm_queue),
             "servo_pulse_us": self.servo_pulse_us, "servo_frequency": self.servo_frequency,
             "duty_fraction": self.duty_fraction,
         }
@@ -195,6 +221,9 @@ class FakeLgpio:
         self._state_file = Path(state_file) if state_file else None
         self._deliveries: queue.Queue[_Delivery | None] = queue.Queue()
         self._worker: threading.Thread | None = None
+        self._tx_wake = threading.Condition(self._lock)
+        self._tx_thread: threading.Thread | None = None
+        self._closed = False
         self._write_state()
 
     # --- helpers for tests -------------------------------------------------------------------
@@ -247,13 +276,17 @@ class FakeLgpio:
         return done.wait(timeout)
 
     def shutdown(self) -> None:
-        """End the alert thread (lgpio's lives as long as the process; tests end theirs)."""
+        """End the alert and TX threads (lgpio's live as long as the process; tests end theirs)."""
         with self._lock:
             worker, self._worker = self._worker, None
+            tx, self._tx_thread = self._tx_thread, None
+            self._closed = True
+            self._tx_wake.notify_all()
         if worker is not None:
             self._deliveries.put(None)
-            if worker is not threading.current_thread():
-                worker.join(timeout=2.0)
+        for thread in (worker, tx):
+            if thread is not None and thread is not threading.current_thread():
+                thread.join(timeout=2.0)
 
     # --- lgpio API -----------------------------------------------------------------------------
 
@@ -350,7 +383,9 @@ class FakeLgpio:
 
     def tx_pwm(self, handle: int, gpio: int, pwm_frequency: float, pwm_duty_cycle: float,
                pulse_offset: int = 0, pulse_cycles: int = 0) -> int:
-        """Software PWM: frequency 0 (off) or 0.1..10000 Hz, duty 0..100 %; returns queue room."""
+        """Software PWM: frequency 0 (off) or 0.1..10000 Hz, duty 0..100 %, `pulse_cycles` cycles
+        (0: endless); queued behind a running entry (see the module docstring); returns the room
+        left in the line's queue."""
         self._record("tx_pwm", handle, gpio, pwm_frequency, pwm_duty_cycle, pulse_offset, pulse_cycles)
         with self._lock:
             line = self._output(handle, gpio)
@@ -358,11 +393,35 @@ class FakeLgpio:
                 raise _fail(BAD_PWM_FREQ)
             if not 0 <= pwm_duty_cycle <= 100:
                 raise _fail(BAD_PWM_DUTY)
-            line.stop_tx()
-            if pwm_frequency:
-                line.pwm_frequency, line.pwm_duty_percent = float(pwm_frequency), float(pwm_duty_cycle)
+            cycles = max(0, int(pulse_cycles))
+            if not pwm_frequency:  # off: the entry ends where it is, the level is not written
+                line.stop_tx()
+            elif not line.pwm_frequency:
+                line.servo_pulse_us = line.servo_frequency = 0
+                line.start_pwm(pwm_frequency, pwm_duty_cycle, cycles, time.monotonic())
+            else:
+                if line.pwm_queue and line.pwm_queue[-1][2] == 0:
+                    line.pwm_queue.pop()  # lgpio drops a pending endless entry
+                if 1 + len(line.pwm_queue) >= TX_BUF:
+                    raise _fail(TX_QUEUE_FULL)
+                line.pwm_queue.append((float(pwm_frequency), float(pwm_duty_cycle), cycles))
+                if not line.pwm_cycles:  # an endless current entry gives way (at its cycle's end)
+                    frequency, duty, next_cycles = line.pwm_queue.pop(0)
+                    line.start_pwm(frequency, duty, next_cycles, time.monotonic())
+            room = TX_BUF - (1 + len(line.pwm_queue)) if line.pwm_frequency else TX_BUF
+            self._tx_wake.notify_all()
+            self._ensure_tx_thread()
         self._write_state()
-        return 1
+        return room
+
+    def tx_room(self, handle: int, gpio: int, kind: int) -> int:
+        """Free entries in the line's PWM queue (`TX_BUF` when no PWM runs)."""
+        self._record("tx_room", handle, gpio, kind)
+        if kind not in (TX_PWM, TX_WAVE):
+            raise _fail(BAD_TX_TYPE)
+        with self._lock:
+            line = self._owned(handle, gpio)
+            return TX_BUF - (1 + len(line.pwm_queue)) if line.pwm_frequency else TX_BUF
 
     def tx_servo(self, handle: int, gpio: int, pulse_width: int, servo_frequency: int = 50,
                  pulse_offset: int = 0, pulse_cycles: int = 0) -> int:
@@ -381,7 +440,10 @@ class FakeLgpio:
         return 1
 
     def tx_busy(self, handle: int, gpio: int, kind: int) -> int:
+        """1 while PWM (`TX_PWM`) or servo pulses run on the line."""
         self._record("tx_busy", handle, gpio, kind)
+        if kind not in (TX_PWM, TX_WAVE):
+            raise _fail(BAD_TX_TYPE)
         with self._lock:
             line = self._output(handle, gpio)
             return int(bool(line.pwm_frequency or line.servo_pulse_us))
@@ -473,6 +535,34 @@ class FakeLgpio:
         edges = self._change(chip, sonar.echo, 1)
         self._ns += width_us * 1000
         return edges + self._change(chip, sonar.echo, 0)
+
+    def _ensure_tx_thread(self) -> None:
+        """Start the TX thread once (caller holds the lock)."""
+        if self._tx_thread is None and not self._closed:
+            self._tx_thread = threading.Thread(target=self._run_tx, name="fake-lgpio-tx", daemon=True)
+            self._tx_thread.start()
+
+    def _run_tx(self) -> None:
+        """End finite PWM entries when their cycles are done: the next queued one starts, or the
+        line is written low and PWM ends (lgpio's TX thread)."""
+        with self._lock:
+            while not self._closed:
+                now = time.monotonic()
+                changed = False
+                for line in self.lines.values():
+                    while line.pwm_ends_at is not None and line.pwm_ends_at <= now:
+                        ended = line.pwm_ends_at
+                        if line.pwm_queue:
+                            frequency, duty, cycles = line.pwm_queue.pop(0)
+                            line.start_pwm(frequency, duty, cycles, ended)
+                        else:
+                            line.stop_tx()
+                            line.level = 0  # the TX thread writes the line low after the last cycle
+                        changed = True
+                if changed:
+                    self._write_state()
+                ends = [line.pwm_ends_at for line in self.lines.values() if line.pwm_ends_at is not None]
+                self._tx_wake.wait(max(0.0, min(ends) - now) if ends else None)
 
     def _remove_callback(self, cb: FakeCallback) -> None:
         with self._lock, contextlib.suppress(ValueError):

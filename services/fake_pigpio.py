@@ -14,6 +14,13 @@ advance only by the simulated durations (trigger pulse, echo delay and pulse) an
 `state()` returns every pin's mode, level, PWM and servo settings; with `state_file` the same JSON
 is rewritten after every output change, so a test can read the final pin state of a service
 running in another process (see `services.pigpio_connection`).
+
+Scripts run as in the daemon (`store_script`, `run_script`, `update_script`, `script_status`,
+`stop_script`, `delete_script`): each on its own thread, with pigpio's parameters p0..p9 (which
+`update_script` changes while it runs), variables v0..v149, accumulator and flag, and the
+commands TAG, JMP, JZ, JNZ, JP, JM, LD, LDA, STA, ADD, SUB, CMP, DCR, INR, MILS (real
+milliseconds), W, PWM and HALT; any other command is refused as pigpio refuses an illegal one. A
+script outlives the client connection (`stop()`, `connected = False`), as it does in pigpiod.
 """
 
 from __future__ import annotations
@@ -47,6 +54,27 @@ PWM_FREQUENCIES: tuple[int, ...] = (
 DEFAULT_PWM_RANGE = 255
 DEFAULT_PWM_FREQUENCY = 800
 SPEED_OF_SOUND_US_PER_CM = 58.0  # round trip, as the HC-SR04 datasheet states
+
+
+# Script states and limits, with pigpio's values.
+PI_SCRIPT_INITING = 0
+PI_SCRIPT_HALTED = 1
+PI_SCRIPT_RUNNING = 2
+PI_SCRIPT_WAITING = 3
+PI_SCRIPT_FAILED = 4
+MAX_SCRIPTS = 32
+MAX_SCRIPT_PARAMS = 10
+MAX_SCRIPT_VARS = 150
+MAX_MILS_DELAY = 60000
+
+#: the script commands the fake runs -> their arguments: `val` (number, vN or pN), `reg` (vN or
+#: pN), `tag` (a number naming a TAG)
+SCRIPT_COMMANDS: dict[str, tuple[str, ...]] = {
+    "TAG": ("tag",), "JMP": ("tag",), "JZ": ("tag",), "JNZ": ("tag",), "JP": ("tag",),
+    "JM": ("tag",), "LD": ("reg", "val"), "LDA": ("val",), "STA": ("reg",), "ADD": ("val",),
+    "SUB": ("val",), "CMP": ("val",), "DCR": ("reg",), "INR": ("reg",), "MILS": ("val",),
+    "W": ("val", "val"), "PWM": ("val", "val"), "HALT": (),
+}
 
 
 class error(Exception):
@@ -158,6 +186,72 @@ class _Delivery:
     done: threading.Event | None = None
 
 
+Operand = tuple[str, int]  # ("num" | "var" | "par", value or register number)
+
+
+@dataclass
+class _Script:
+    """One stored script, as pigpiod keeps it."""
+
+    ident: int
+    instructions: list[tuple[str, tuple[Operand, ...]]]
+    tags: dict[int, int]
+    params: list[int] = field(default_factory=lambda: [0] * MAX_SCRIPT_PARAMS)
+    variables: list[int] = field(default_factory=lambda: [0] * MAX_SCRIPT_VARS)
+    run_state: int = PI_SCRIPT_INITING
+    request: str = "halt"  # run, halt
+    runs: int = 0  # run_script calls: each wakes a halted script once
+    dying: bool = False
+    cond: threading.Condition = field(default_factory=threading.Condition)
+    wake: threading.Event = field(default_factory=threading.Event)  # delete cuts a MILS short
+
+
+def parse_script(text: str) -> tuple[list[tuple[str, tuple[Operand, ...]]], dict[int, int]]:
+    """The instructions and tags of a script; `error` with pigpio's message when it is invalid."""
+    tokens = text.split()
+    instructions: list[tuple[str, tuple[Operand, ...]]] = []
+    tags: dict[int, int] = {}
+    i = 0
+    while i < len(tokens):
+        name = tokens[i].upper()
+        kinds = SCRIPT_COMMANDS.get(name)
+        if kinds is None:
+            raise error("illegal script command")
+        args = tokens[i + 1:i + 1 + len(kinds)]
+        if len(args) < len(kinds):
+            raise error("invalid script")
+        operands = tuple(_operand(token, kind) for token, kind in zip(args, kinds, strict=True))
+        if name == "TAG":
+            if operands[0][1] in tags:
+                raise error("script has duplicate tag")
+            tags[operands[0][1]] = len(instructions)
+        instructions.append((name, operands))
+        i += 1 + len(kinds)
+    for name, operands in instructions:
+        if SCRIPT_COMMANDS[name] == ("tag",) and name != "TAG" and operands[0][1] not in tags:
+            raise error("script has unresolved tag")
+    return instructions, tags
+
+
+def _operand(token: str, kind: str) -> Operand:
+    lower = token.lower()
+    if lower[:1] in ("v", "p") and lower[1:].isdigit():
+        if kind == "tag":
+            raise error("invalid script")
+        number, register = int(lower[1:]), ("var" if lower[0] == "v" else "par")
+        if register == "var" and number >= MAX_SCRIPT_VARS:
+            raise error("script variable id not 0-149")
+        if register == "par" and number >= MAX_SCRIPT_PARAMS:
+            raise error("script parameter id not 0-9")
+        return register, number
+    if kind == "reg":
+        raise error("invalid script")
+    try:
+        return "num", int(token, 0)
+    except ValueError:
+        raise error("invalid script") from None
+
+
 class FakePi:
     """Stands in for `pigpio.pi(host, port)`; see the module docstring for what it simulates."""
 
@@ -183,6 +277,7 @@ class FakePi:
         self._state_file = Path(state_file) if state_file else None
         self._deliveries: queue.Queue[_Delivery | None] = queue.Queue()
         self._worker: threading.Thread | None = None
+        self.scripts: dict[int, _Script] = {}
         self._write_state()
 
     # --- helpers for tests -------------------------------------------------------------------
@@ -432,6 +527,195 @@ class FakePi:
         with self._lock:
             self._callbacks.append(cb)
         return cb
+
+    # scripts ---------------------------------------------------------------------------------
+
+    def store_script(self, script: str | bytes) -> int:
+        """Store a script; returns its id. It is `PI_SCRIPT_INITING` until its thread runs."""
+        self._record("store_script", script)
+        text = script.decode("utf-8") if isinstance(script, bytes) else script
+        instructions, tags = parse_script(text)
+        with self._lock:
+            free = [i for i in range(MAX_SCRIPTS) if i not in self.scripts]
+            if not free:
+                raise error("no more room for scripts")
+            stored = self.scripts[free[0]] = _Script(free[0], instructions, tags)
+        threading.Thread(target=self._run_script_thread, args=(stored,),
+                         name=f"fake-pigpio-script-{stored.ident}", daemon=True).start()
+        return stored.ident
+
+    def run_script(self, script_id: int, params: list[int] | None = None) -> int:
+        """Run a halted script from its start with these parameters (p0..); a running one gets
+        the parameters only."""
+        self._record("run_script", script_id, params)
+        stored = self._script(script_id)
+        with stored.cond:
+            if stored.run_state == PI_SCRIPT_INITING:
+                raise error("script initialising")
+            self._set_params(stored, params)
+            stored.request = "run"
+            stored.runs += 1
+            stored.cond.notify_all()
+        return 0
+
+    def update_script(self, script_id: int, params: list[int] | None = None) -> int:
+        """Change the parameters of a script, running or not."""
+        self._record("update_script", script_id, params)
+        stored = self._script(script_id)
+        with stored.cond:
+            self._set_params(stored, params)
+        return 0
+
+    def script_status(self, script_id: int) -> tuple[int, tuple[int, ...]]:
+        """(run status, the 10 parameters) of a stored script."""
+        self._record("script_status", script_id)
+        stored = self._script(script_id)
+        with stored.cond:
+            return stored.run_state, tuple(stored.params)
+
+    def stop_script(self, script_id: int) -> int:
+        """Ask a script to halt: it does after the command it is in (a MILS runs to its end)."""
+        self._record("stop_script", script_id)
+        stored = self._script(script_id)
+        with stored.cond:
+            stored.request = "halt"
+            stored.cond.notify_all()
+        return 0
+
+    def delete_script(self, script_id: int) -> int:
+        """Halt and forget a script; its id is free again."""
+        self._record("delete_script", script_id)
+        stored = self._script(script_id)
+        with stored.cond:
+            stored.request, stored.dying = "halt", True
+            stored.wake.set()
+            stored.cond.notify_all()
+        with self._lock:
+            self.scripts.pop(script_id, None)
+        return 0
+
+    def _script(self, script_id: int) -> _Script:
+        with self._lock:
+            stored = self.scripts.get(script_id) if isinstance(script_id, int) else None
+        if stored is None:
+            raise error("unknown script id")
+        return stored
+
+    @staticmethod
+    def _set_params(stored: _Script, params: list[int] | None) -> None:
+        if params is None:
+            return
+        if len(params) > MAX_SCRIPT_PARAMS:
+            raise error("too many script parameters (> 10)")
+        for index, value in enumerate(params):
+            if not 0 <= int(value) < 1 << 32:  # pigpio packs them as unsigned 32-bit numbers
+                raise error(f"script parameter {value} is not an unsigned 32-bit number")
+            stored.params[index] = int(value) - (1 << 32) if value >= 1 << 31 else int(value)
+
+    def _run_script_thread(self, stored: _Script) -> None:
+        """pigpiod's script thread: halted until run, then the commands until halted or stopped."""
+        seen = 0
+        while True:
+            with stored.cond:
+                stored.run_state = PI_SCRIPT_HALTED
+                while stored.runs == seen and not stored.dying:
+                    stored.cond.wait()
+                if stored.dying:
+                    return
+                seen = stored.runs
+                stored.run_state = PI_SCRIPT_RUNNING
+            self._execute(stored)
+
+    def _execute(self, stored: _Script) -> None:
+        acc = flag = pc = 0
+        while True:
+            with stored.cond:
+                if stored.request != "run" or stored.run_state != PI_SCRIPT_RUNNING or stored.dying:
+                    if stored.request == "halt":
+                        stored.run_state = PI_SCRIPT_HALTED
+                    return
+                name, operands = stored.instructions[pc]
+                values = [self._value(stored, operand) for operand in operands]
+            if name == "MILS":
+                if not 0 <= values[0] <= MAX_MILS_DELAY:
+                    acc = flag = -64  # PI_BAD_MILS_DELAY
+                else:
+                    stored.wake.wait(values[0] / 1000)
+                pc += 1
+            elif name in ("W", "PWM"):
+                acc = flag = self._daemon_output(name, values[0], values[1])
+                pc += 1
+            else:
+                with stored.cond:
+                    acc, flag, pc = self._step(stored, name, operands, values, acc, flag, pc)
+            with stored.cond:
+                if pc >= len(stored.instructions):
+                    stored.run_state = PI_SCRIPT_HALTED
+
+    @staticmethod
+    def _value(stored: _Script, operand: Operand) -> int:
+        kind, number = operand
+        if kind == "var":
+            return stored.variables[number]
+        if kind == "par":
+            return stored.params[number]
+        return number
+
+    @staticmethod
+    def _step(stored: _Script, name: str, operands: tuple[Operand, ...], values: list[int],
+              acc: int, flag: int, pc: int) -> tuple[int, int, int]:
+        """One command without I/O (caller holds the script's lock): (A, F, PC) after it."""
+        if name in ("DCR", "INR", "STA", "LD"):
+            kind, number = operands[0]
+            registers = stored.variables if kind == "var" else stored.params
+            if name == "DCR":
+                registers[number] -= 1
+                flag = registers[number]
+            elif name == "INR":
+                registers[number] += 1
+                flag = registers[number]
+            elif name == "STA":
+                registers[number] = acc
+            else:
+                registers[number] = values[1]
+            return acc, flag, pc + 1
+        if name == "HALT":
+            stored.run_state = PI_SCRIPT_HALTED
+            return acc, flag, pc
+        jumps = {"JMP": True, "JZ": flag == 0, "JNZ": flag != 0, "JP": flag >= 0, "JM": flag < 0}
+        if name in jumps:
+            return acc, flag, stored.tags[operands[0][1]] if jumps[name] else pc + 1
+        if name == "LDA":
+            acc = values[0]
+        elif name == "ADD":
+            acc = flag = acc + values[0]
+        elif name == "SUB":
+            acc = flag = acc - values[0]
+        elif name == "CMP":
+            flag = acc - values[0]
+        return acc, flag, pc + 1  # TAG: nothing
+
+    def _daemon_output(self, name: str, gpio: int, value: int) -> int:
+        """A script's W or PWM: as the client calls, but inside the daemon (not recorded, and
+        whether a client is connected does not matter); pigpio's error number on a bad one."""
+        if not 0 <= gpio <= 31:
+            return -3  # PI_BAD_USER_GPIO
+        with self._lock:
+            pin = self._pin(gpio)
+            if name == "W":
+                if value not in (0, 1):
+                    return -5  # PI_BAD_LEVEL
+                pin.level = value
+                pin.pwm_dutycycle = 0
+            else:
+                if not 0 <= value <= pin.pwm_range:
+                    return -8  # PI_BAD_DUTYCYCLE
+                pin.pwm_dutycycle = value
+                pin.level = 1 if value >= pin.pwm_range else 0
+            pin.mode = OUTPUT
+            pin.servo_pulsewidth = 0
+        self._write_state()
+        return 0
 
     def get_current_tick(self) -> int:
         self._record("get_current_tick")

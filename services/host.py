@@ -10,7 +10,9 @@ the retained `state` after every change, and guarantees the safe stops:
   `umlbot service`) and when the broker connection is lost;
 - the components of a service kind whose spec says `stop_when_orchestrator_offline` (motor, and
   any plugin's kind that sets it) also when `umlbot/<robot>/orchestrator/status` says `offline`
-  (its last will), `stopped` or `failed`; motors also when their watchdog expires.
+  (its last will), `stopped` or `failed`; motors also when their watchdog expires. The same
+  kinds hear the orchestrator's heartbeat (`ComponentService.orchestrator_heartbeat`: a motor
+  it commanded runs on while it comes), and every component's `tick` runs every `TICK_S`.
 
 `host.drivers[component]` is the driver object, so tests can read a mock driver's commands.
 `ServiceGroup` runs several kinds in one process (`umlbot service all`, for small boards).
@@ -25,14 +27,15 @@ from collections.abc import Mapping
 from typing import Any
 
 from services.bus.connection import Message
-from services.bus.envelopes import parse_json
+from services.bus.envelopes import Heartbeat, parse_json
 from services.bus.server import STATUS_WAIT_S, ComponentServer
 from services.bus.settings import BrokerSettings
 from services.bus.topics import Topics
 from services.component_service import ComponentService
 from services.registry import SettingsError, create_driver, resolve_driver
+from umlbot import sdnotify
 from umlbot.deployment import Deployment, owned_pins, shared_pins
-from umlbot.errors import ConfigError, UnknownDriver
+from umlbot.errors import ConfigError, DriverError, UnknownDriver
 from umlbot.library import ServiceKind, service_kinds, service_spec
 from umlbot.logs import get_logger
 
@@ -116,6 +119,8 @@ class ServiceHost:
         self._serving = False  # start() succeeded
         self._stopped = False
         self._bad_status_warned = -BAD_STATUS_WARN_EVERY_S
+        #: `time.monotonic()` of the safety loop's last round (`alive`)
+        self.last_tick = time.monotonic()
 
     # -- lifecycle ----------------------------------------------------------------------------------
 
@@ -211,6 +216,18 @@ class ServiceHost:
             return
         first = next(iter(self.servers.values()))
         first.connection.subscribe(self.topics.orchestrator_status, self._on_orchestrator_status)
+        first.connection.subscribe(self.topics.orchestrator_heartbeat, self._on_heartbeat, qos=0)
+
+    def _on_heartbeat(self, message: Message) -> None:
+        if message.retain:  # a retained heartbeat is an old one: no sign of life
+            return
+        try:
+            beat = Heartbeat.model_validate_json(message.payload)
+        except ValueError:  # not a heartbeat: no renewal (whoever sent it, the motors stop in time)
+            log.debug("heartbeat_unreadable", size=len(message.payload))
+            return
+        for service in list(self.services.values()):
+            service.orchestrator_heartbeat(beat.reply_to)
 
     def _on_orchestrator_status(self, message: Message) -> None:
         state: Any
@@ -244,7 +261,7 @@ class ServiceHost:
 
     def _tick_loop(self) -> None:
         while not self._stop.wait(TICK_S):
-            now = time.monotonic()
+            now = self.last_tick = time.monotonic()
             for service in list(self.services.values()):
                 try:
                     service.tick(now)
@@ -288,10 +305,9 @@ class ServiceHost:
     def __exit__(self, *exc_info: object) -> None:
         self.stop()
 
-    def wait(self, stop: threading.Event) -> None:
-        """Block until `stop` is set (the CLI sets it from SIGTERM/SIGINT)."""
-        while not stop.wait(0.5):
-            pass
+    def alive(self, within_s: float) -> bool:
+        """The safety loop (watchdogs, renewals) went round within the last `within_s` seconds."""
+        return self._serving and time.monotonic() - self.last_tick <= within_s
 
     @property
     def components(self) -> Mapping[str, ComponentService]:
@@ -369,9 +385,38 @@ class ServiceGroup:
         self.stop()
 
     def wait(self, stop: threading.Event) -> None:
-        """Block until `stop` is set (the CLI sets it from SIGTERM/SIGINT)."""
-        while not stop.wait(0.5):
-            pass
+        """Block until `stop` is set (the CLI sets it from SIGTERM/SIGINT).
+
+        Under systemd (`Type=notify`) it says `READY=1` first and `STOPPING=1` at the end, and
+        with `WatchdogSec=` it says `WATCHDOG=1` every quarter of that time while the safety
+        loop of every host (watchdogs, deadman renewals) went round within half of it: a frozen
+        or hung service stops saying it, and systemd kills it (docs/services.md, Safety).
+        """
+        timeout = sdnotify.watchdog_s()
+        sdnotify.notify("READY=1")
+        period = 0.5 if timeout is None else min(0.5, timeout / 4)
+        while not stop.wait(period):
+            if timeout is not None and all(host.alive(timeout / 2) for host in self.hosts):
+                sdnotify.notify("WATCHDOG=1")
+        sdnotify.notify("STOPPING=1")
+
+    def safe_stop_hardware(self) -> None:
+        """Without the bus: build every served component's driver and close it, which leaves it
+        in its safe state (motors: pins low; pigpio: a killed predecessor's deadman script
+        deleted). `umlbot service KIND --safe-stop`, the units' `ExecStopPost=`, after any end
+        of the service, SIGKILL and a watchdog kill included. Raises `DriverError` naming every
+        component it could not stop, after trying them all."""
+        problems: list[str] = []
+        for host in self.hosts:
+            for name in host.component_deployments:
+                try:
+                    host._create_driver(name).close()
+                except Exception as exc:
+                    problems.append(f"{name}: {exc}")
+                    continue
+                log.info("safe_stop_done", component=name, driver=host.chosen_drivers[name])
+        if problems:
+            raise DriverError("safe stop failed: " + "; ".join(problems))
 
     @property
     def components(self) -> Mapping[str, ComponentService]:

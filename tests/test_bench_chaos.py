@@ -16,9 +16,9 @@ pytestmark = [pytest.mark.network, pytest.mark.slow]
 REPO = Path(__file__).resolve().parent.parent
 
 
-def chaos(*args: str) -> dict[str, Any]:
+def chaos(*args: str, timeout: float = 110) -> dict[str, Any]:
     result = subprocess.run([sys.executable, str(REPO / "bench" / "chaos.py"), *args],
-                            capture_output=True, text=True, timeout=110, check=False)
+                            capture_output=True, text=True, timeout=timeout, check=False)
     assert result.returncode == 0, result.stderr[-4000:]
     summary: dict[str, Any] = json.loads(result.stdout.strip().splitlines()[-1])
     return summary
@@ -74,3 +74,14 @@ def test_a_short_soak_samples_every_long_running_process() -> None:
     for name, trend in soak["processes"].items():
         assert 0 < trend["first_mb"] <= trend["peak_mb"], (name, trend)
     assert soak["processes"]["services"]["growth_mb"] < 1.0, soak["processes"]
+
+
+def test_a_frozen_or_killed_motor_service_no_longer_leaves_the_motors_running() -> None:
+    rows = chaos("--scenarios", "frozen-motor", "--brokers", "mosquitto", "--trials", "1",
+                 timeout=170)["frozen_motor"]
+    by = {(row["deadman"], row["signal"]): row for row in rows}
+    for signal in ("SIGSTOP", "SIGKILL"):
+        with_deadman, baseline = by[(True, signal)], by[(False, signal)]
+        assert with_deadman["within_watchdog"] and with_deadman["stop_max_s"] <= 2.01, with_deadman
+        assert baseline["ran_the_whole_pause"] == 1, baseline  # what a frozen service did before
+    assert by[(True, "SIGSTOP")]["stop_reasons_after_sigcont"] == ["deadman"]

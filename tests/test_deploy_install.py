@@ -428,7 +428,7 @@ def test_a_plugins_service_kind_is_installed_and_secured_like_a_built_in(tmp_pat
     acl = (root / "etc" / "mosquitto" / "umlbot.acl").read_text(encoding="utf-8")
     buzzer = acl.split("user umlbot-buzzer\n", 1)[1].split("\n\n", 1)[0].splitlines()
     assert buzzer == ["topic readwrite umlbot/car/Bell/#", "topic read umlbot/car/orchestrator/status",
-                      "topic write umlbot/car/_reply/#"]
+                      "topic read umlbot/car/orchestrator/heartbeat", "topic write umlbot/car/_reply/#"]
     motor = acl.split("user umlbot-motor\n", 1)[1].split("\n\n", 1)[0]
     assert "Bell" not in motor
 

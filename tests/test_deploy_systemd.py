@@ -1,11 +1,21 @@
-"""The systemd units in deploy/systemd pass `systemd-analyze verify` once their paths are filled in."""
+"""The systemd units in deploy/systemd pass `systemd-analyze verify` once their paths are filled
+in, and the hardware services' watchdog and safe stop work as the unit says (run by hand)."""
 
 from __future__ import annotations
 
+import contextlib
+import itertools
+import json
+import os
+import re
 import shutil
+import signal
+import socket
 import subprocess
 import sys
+import time
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -140,3 +150,79 @@ def test_the_directories_the_units_write_belong_to_the_service_user(name: str) -
             fields = line.split()
             if fields and not line.startswith("#") and "umlbot" in fields[1]:
                 assert fields[0][0] in "dDv" and fields[3:5] == ["umlbot", "umlbot"], (conf.name, line)
+
+
+# --- the deadman in systemd: WatchdogSec= and ExecStopPost=, run as systemd would -------------
+
+
+def _command_line(line: str, env: dict[str, str], instance: str) -> list[str]:
+    """An Exec*= line as systemd runs it: `%i`, `${VAR}` (one word) and `$VAR` (split into words)."""
+    words: list[str] = []
+    for word in line.replace("%i", instance).replace("/opt/umlbot/venv", str(VENV)).split():
+        if word.startswith("$") and not word.startswith("${"):
+            words += env.get(word[1:], "").split()
+        else:
+            words.append(re.sub(r"\$\{(\w+)\}", lambda m: env.get(m.group(1), ""), word))
+    return words
+
+
+@pytest.mark.network
+def test_a_frozen_service_stops_its_watchdog_pings_and_the_safe_stop_writes_the_pins_low(
+    mosquitto_broker: Any, tmp_path: Path,
+) -> None:
+    """What systemd does with the unit, done by hand: it starts ExecStart with NOTIFY_SOCKET and
+    WATCHDOG_USEC, gets READY=1 and WATCHDOG=1 pings while the service runs, sees them stop when
+    the service is frozen, kills it with WatchdogSignal= and runs ExecStopPost=, which writes the
+    pins low (the fake pigpio's pins: its state file, shared by every process of the test)."""
+    from services_support import client, deployment
+
+    service = _unit("umlbot-service@.service")["Service"]
+    kind = (service["Type"], service["NotifyAccess"], service["WatchdogSignal"])
+    assert kind == ("notify", "main", "SIGKILL")
+    watchdog_s = float(service["WatchdogSec"])
+    deploy = tmp_path / "deployment.json"
+    deploy.write_text(deployment("pigpio").model_dump_json(), encoding="utf-8")
+    pins = tmp_path / "pins.json"
+    notify = tmp_path / "notify.sock"
+    env = {**os.environ, "UMLBOT_DEPLOYMENT": str(deploy), "UMLBOT_LOG_LEVEL": "WARNING",
+           "UMLBOT_SERVICE_ARGS": f"--broker {mosquitto_broker.url} --robot car",
+           "UMLBOT_FAKE_PIGPIO": "1", "UMLBOT_FAKE_PIGPIO_STATE": str(pins)}
+    with socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM) as sd:
+        sd.bind(str(notify))
+        proc = subprocess.Popen(_command_line(service["ExecStart"], env, "motor"),
+                                env={**env, "NOTIFY_SOCKET": str(notify),
+                                     "WATCHDOG_USEC": str(int(watchdog_s * 1e6))})
+        try:
+            sd.settimeout(20.0)
+            assert sd.recv(512) == b"READY=1"
+            with client(mosquitto_broker.url) as bus:
+                for name in ("LeftActuator", "RightActuator"):
+                    bus.call(name, "dutycycle", 60, timeout=5.0)
+                    bus.call(name, "enabled", True, timeout=5.0)
+            assert json.loads(pins.read_text())["pins"]["22"]["duty_fraction"] == 0.6
+            sd.settimeout(watchdog_s)
+            pings = [time.monotonic()]
+            while len(pings) < 6:
+                assert sd.recv(512) == b"WATCHDOG=1"
+                pings.append(time.monotonic())
+            gaps = [b - a for a, b in itertools.pairwise(pings[1:])]
+            assert max(gaps) <= watchdog_s / 2, gaps
+            os.kill(proc.pid, signal.SIGSTOP)
+            with contextlib.suppress(TimeoutError):  # a ping on its way before the signal
+                sd.settimeout(0.3)
+                sd.recv(512)
+            sd.settimeout(watchdog_s)
+            with pytest.raises(TimeoutError):
+                sd.recv(512)  # no ping for WatchdogSec: systemd kills it now
+            assert json.loads(pins.read_text())["pins"]["22"]["duty_fraction"] == 0.6, "still driving"
+            os.kill(proc.pid, signal.SIGKILL)  # WatchdogSignal=SIGKILL ends a stopped process too
+            proc.wait(5)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait(5)
+    stop_post = subprocess.run(_command_line(service["ExecStopPost"], env, "motor"), env=env,
+                               capture_output=True, text=True, timeout=60, check=False)
+    assert stop_post.returncode == 0, stop_post.stderr
+    duties = {gpio: pin["duty_fraction"] for gpio, pin in json.loads(pins.read_text())["pins"].items()}
+    assert duties and set(duties.values()) == {0.0}, duties

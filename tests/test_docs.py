@@ -65,11 +65,13 @@ from services.bus.envelopes import (
     ERROR_CODES,
     CallRequest,
     ExitRequest,
+    Heartbeat,
     OrchestratorStatus,
     Reply,
     Status,
     TraceEvent,
 )
+from services.orchestrator.orchestrator import HEARTBEAT_MAX_S
 from umlbot.cli import COMMANDS, cli
 from umlbot.errors import ModelError
 from umlbot.library import BUILTIN, FeatureSpec, check_args, resolve_implementation
@@ -745,6 +747,11 @@ def test_topic_table_payloads_validate() -> None:
     assert trace_keys == list(TraceEvent.model_fields)
 
     _validate(ExitRequest, json.loads(code_spans(by_topic["umlbot/<robot>/orchestrator/exit"][2])[0]))
+
+    heartbeat_row = by_topic["umlbot/<robot>/orchestrator/heartbeat"][2]
+    beat = _validate(Heartbeat, json.loads(code_spans(heartbeat_row)[0]))
+    assert isinstance(beat, Heartbeat) and beat.period_s == HEARTBEAT_MAX_S
+    assert beat.reply_to.startswith("umlbot/car/_reply/umlbot-orchestrator-calls-"), "the calls' reply topic"
 
 
 def test_broker_url_examples_parse(tmp_path: Path) -> None:

@@ -5,10 +5,12 @@ for the channel's side."""
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
 import pytest
+from conftest import wait_until
 from services_support import ROOM  # 2 m x 3 m room, car in the middle facing +y
 
 from services.fake_lgpio import FakeLgpio
@@ -31,8 +33,8 @@ class Rig:
     drive: Callable[[], float]  # signed percent the motor receives
 
 
-def _pigpio_rig(fake: FakePi, enable: int | None) -> Rig:
-    settings = L298NSettings(in1=22, in2=23, enable=enable)
+def _pigpio_rig(fake: FakePi, enable: int | None, watchdog_s: float = 2.0) -> Rig:
+    settings = L298NSettings(in1=22, in2=23, enable=enable, watchdog_s=watchdog_s)
     driver = PigpioL298NChannel("LeftActuator", settings, pi=fake)
 
     def drive() -> float:
@@ -44,8 +46,9 @@ def _pigpio_rig(fake: FakePi, enable: int | None) -> Rig:
     return Rig(driver, drive)
 
 
-def _lgpio_rig(fake: FakeLgpio, enable: int | None) -> Rig:
-    driver = LgpioL298NChannel("LeftActuator", L298NSettings(in1=22, in2=23, enable=enable), lg=fake)
+def _lgpio_rig(fake: FakeLgpio, enable: int | None, watchdog_s: float = 2.0) -> Rig:
+    settings = L298NSettings(in1=22, in2=23, enable=enable, watchdog_s=watchdog_s)
+    driver = LgpioL298NChannel("LeftActuator", settings, lg=fake)
 
     def drive() -> float:
         in1, in2 = fake.line(22), fake.line(23)
@@ -345,3 +348,147 @@ def test_lgpio_missing_chip_says_how_to_fix_it() -> None:
     fix = r"cannot open /dev/gpiochip4 .*can not open gpiochip.*usermod -aG gpio"
     with pytest.raises(DriverError, match=fix):
         LgpioL298NChannel("M", L298NSettings(in1=22, in2=23, chip=4), lg=FakeLgpio())
+
+
+# --- the deadman outside the service's process (pigpio script, lgpio bursts, the sim world) -----
+
+DEADMAN_S = 0.4  # watchdog_s of the deadman rigs
+#: the fakes' threads and the sim's world loop end a deadman this much late at most
+DEADMAN_SLACK_S = 0.15
+
+
+@pytest.fixture(params=["pigpio-fake", "pigpio-fake-enable", "lgpio-fake", "lgpio-fake-enable", "sim"])
+def deadman_rig(request: pytest.FixtureRequest) -> Iterator[Rig]:
+    """A driver with `watchdog_s: 0.4` whose deadman runs where the hardware's would: pigpiod's
+    script thread (the fake's), lgpio's TX thread (the fake's), the world (wall-clock time)."""
+    settings = {"in1": 22, "in2": 23, "watchdog_s": DEADMAN_S}
+    if request.param == "sim":
+        from umlbot.clock import Clock
+
+        world: World = request.getfixturevalue("world")
+        world.clock = Clock(1.0)
+        channel = create_driver("motor", "sim", "LeftActuator", settings)
+
+        def drive() -> float:
+            world.advance_to(world.time_s())
+            return _sim_drive(world)
+
+        yield Rig(channel, drive)
+        channel.close()
+        return
+    enable = 24 if request.param.endswith("enable") else None
+    if request.param.startswith("lgpio"):
+        lg = FakeLgpio()
+        rig = _lgpio_rig(lg, enable, DEADMAN_S)
+        yield rig
+        rig.driver.close()
+        lg.shutdown()
+        return
+    rig = _pigpio_rig(FakePi(), enable, DEADMAN_S)
+    yield rig
+    rig.driver.close()
+
+
+def _stops_after(rig: Rig, limit_s: float, started: float | None = None) -> float | None:
+    """Seconds from `started` (default: now) until the motor stopped by itself (None: still
+    running `limit_s` after it)."""
+    started = time.monotonic() if started is None else started
+    while time.monotonic() - started < limit_s:
+        if rig.drive() == 0:
+            return time.monotonic() - started
+        time.sleep(0.01)
+    return None
+
+
+def test_deadman_stops_a_motor_nobody_renews_within_watchdog_s(deadman_rig: Rig) -> None:
+    deadman_rig.driver.set_duty_cycle(60)
+    enabled = time.monotonic()
+    deadman_rig.driver.set_enabled(True)
+    armed = time.monotonic()
+    assert deadman_rig.drive() == 60
+    stopped = _stops_after(deadman_rig, DEADMAN_S + 1.0, enabled)
+    assert stopped is not None, "a service that renews nothing (frozen) leaves the motor running"
+    # lgpio's one unrenewed burst lasts half of it; pigpio's count down ends between 3/4 and all
+    assert DEADMAN_S / 2 - (armed - enabled) <= stopped <= DEADMAN_S + DEADMAN_SLACK_S, stopped
+    assert deadman_rig.driver.renew() is False, "the next renewal says that the deadman fired"
+    assert deadman_rig.driver.renew() is True, "once"
+    deadman_rig.driver.stop()  # what the motor service does then
+    deadman_rig.driver.set_duty_cycle(60)  # commanded again: it drives again, deadman armed
+    deadman_rig.driver.set_enabled(True)
+    assert deadman_rig.drive() == 60
+    assert _stops_after(deadman_rig, DEADMAN_S + 1.0) is not None
+
+
+def test_renewals_keep_the_motor_running_and_their_end_stops_it(deadman_rig: Rig) -> None:
+    deadman_rig.driver.set_duty_cycle(40)
+    deadman_rig.driver.set_direction(False)
+    deadman_rig.driver.set_enabled(True)
+    until = time.monotonic() + 3 * DEADMAN_S
+    while time.monotonic() < until:
+        renewed = time.monotonic()
+        assert deadman_rig.driver.renew() is True
+        assert deadman_rig.drive() == -40
+        time.sleep(0.05)  # the motor service's safety round
+    stopped = _stops_after(deadman_rig, DEADMAN_S + 1.0, renewed)
+    assert stopped is not None and stopped <= DEADMAN_S + DEADMAN_SLACK_S, stopped
+
+
+def test_without_a_watchdog_there_is_no_deadman() -> None:
+    pi, lg = FakePi(), FakeLgpio()
+    settings = L298NSettings(in1=22, in2=23, watchdog_s=0)
+    pigpio = PigpioL298NChannel("M", settings, pi=pi)
+    lgpio = LgpioL298NChannel("M", settings, lg=lg)
+    for channel in (pigpio, lgpio):
+        channel.set_duty_cycle(50)
+        channel.set_enabled(True)
+    time.sleep(0.3)
+    assert pi.pin(22).duty_fraction == 0.5 and lg.line(22).duty_fraction == 0.5
+    assert not pi.calls_named("store_script") and lg.calls_named("tx_pwm")[-1][-1] == 0, "endless PWM"
+    pigpio.close()
+    lgpio.close()
+    lg.shutdown()
+
+
+def test_pigpio_deadman_is_a_daemon_script_deleted_on_close_and_after_a_kill() -> None:
+    from services.motor.pigpio import DEADMAN_MARK
+
+    pi = FakePi()
+    first = PigpioL298NChannel("Left", L298NSettings(in1=22, in2=23, watchdog_s=2.0), pi=pi)
+    other = PigpioL298NChannel("Right", L298NSettings(in1=24, in2=25, watchdog_s=2.0), pi=pi)
+    assert len(pi.scripts) == 2
+    (script,) = [i for i, s in pi.scripts.items() if 22 in s.params]
+    params = pi.script_status(script)[1]
+    assert params[:4] == (19, 22, 23, 22) and params[9] == DEADMAN_MARK, "2 s in 100 ms steps, pins, mark"
+    first.set_duty_cycle(30)
+    first.set_enabled(True)
+    assert wait_until(lambda: pi.script_status(script)[0] == 2), "it runs while the motor drives"
+    first.set_enabled(False)
+    assert wait_until(lambda: pi.script_status(script)[0] == 1), "and halts when it stops"
+    first.set_enabled(True)
+    # the service is killed: nobody closes `first`; its script stays in pigpiod. A new driver of
+    # the same pins deletes it (and leaves the other channel's alone)
+    stored = set(pi.scripts)
+    second = PigpioL298NChannel("Left", L298NSettings(in1=22, in2=23, watchdog_s=2.0), pi=pi)
+    assert script in pi.calls_named("delete_script")[0], "the killed driver's script was deleted"
+    assert len(pi.scripts) == 2 and set(pi.scripts) - stored <= {script}, "the new one stored"
+    assert any(25 in s.params for s in pi.scripts.values()), "the other channel's script is kept"
+    second.close()
+    other.close()
+    assert not pi.scripts, "close deletes the script"
+
+
+def test_lgpio_pwm_goes_out_in_bursts_and_a_new_duty_replaces_them_at_once() -> None:
+    lg = FakeLgpio()
+    channel = LgpioL298NChannel("M", L298NSettings(in1=22, in2=23, pwm_frequency_hz=100, watchdog_s=2.0),
+                                lg=lg)
+    channel.set_duty_cycle(50)
+    channel.set_enabled(True)
+    assert lg.calls_named("tx_pwm")[-1][2:] == (100, 50.0, 0, 100), "1 s bursts: watchdog_s / 2"
+    assert channel.renew() is True
+    assert lg.line(22).pwm_queue == [(100.0, 50.0, 100)], "the next burst is queued"
+    assert channel.renew() is True
+    assert len(lg.line(22).pwm_queue) == 1, "one burst queued at most"
+    channel.set_duty_cycle(80)
+    assert lg.line(22).pwm_duty_percent == 80 and lg.line(22).pwm_queue == [], "at once"
+    channel.close()
+    lg.shutdown()

@@ -61,6 +61,9 @@ class MovingWall:
                   duty_percent: float | None = None) -> None:
         self.world.set_motor(side, enabled=enabled, forward=forward, duty_percent=duty_percent)
 
+    def renew_motor(self, side: Side, lease_s: float) -> bool:
+        return self.world.renew_motor(side, lease_s)
+
     def set_servo(self, degrees: float) -> None:
         self.world.set_servo(degrees)
 

@@ -5,7 +5,8 @@ from __future__ import annotations
 
 import json
 import threading
-from collections.abc import Iterator
+import time
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
@@ -189,3 +190,49 @@ def test_env_fake_is_stopped_by_its_last_user(
     pigpio_connection.release(second)
     assert first.stopped
     assert json.loads((tmp_path / "s.json").read_text())["stopped"] is True
+
+
+# --- daemon-side scripts -------------------------------------------------------------------------
+
+
+def _until(predicate: Callable[[], bool], timeout: float = 2.0) -> bool:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if predicate():
+            return True
+        time.sleep(0.005)
+    return False
+
+
+def test_a_script_counts_its_parameter_down_and_writes_low_as_pigpiod_runs_it() -> None:
+    from services.fake_pigpio import PI_SCRIPT_HALTED, PI_SCRIPT_RUNNING
+
+    pi = FakePi()
+    pi.set_PWM_dutycycle(22, 200)
+    script = pi.store_script(b"tag 0 mils 20 dcr p0 jp 0 w p1 0 halt w p1 1")
+    assert _until(lambda: pi.script_status(script)[0] == PI_SCRIPT_HALTED), "ready once its thread runs"
+    pi.run_script(script, [5, 22])
+    assert _until(lambda: pi.script_status(script)[0] == PI_SCRIPT_RUNNING)
+    for _ in range(5):  # renewed: it keeps counting from 5
+        pi.update_script(script, [5, 22])
+        assert pi.pin(22).pwm_dutycycle == 200
+        assert not _until(lambda: pi.pin(22).pwm_dutycycle == 0, 0.05)
+    pi.stop()  # the client goes; pigpiod runs the script on
+    assert _until(lambda: pi.pin(22).pwm_dutycycle == 0, 1.0), "it wrote the pin low (ending PWM)"
+    daemon_side = pi.scripts[script]  # the client is gone: look into the daemon
+    assert daemon_side.run_state == PI_SCRIPT_HALTED and daemon_side.params[0] == -1, "halted, p0 < 0"
+    assert pi.pin(22).level == 0, "the command after HALT never ran"
+
+
+def test_bad_scripts_and_ids_are_refused_with_pigpios_messages() -> None:
+    pi = FakePi()
+    with pytest.raises(error, match="illegal script command"):
+        pi.store_script("tag 0 fly p0")
+    with pytest.raises(error, match="unresolved tag"):
+        pi.store_script("jmp 7")
+    with pytest.raises(error, match="unknown script id"):
+        pi.script_status(31)
+    script = pi.store_script("mils 1")
+    pi.delete_script(script)
+    with pytest.raises(error, match="unknown script id"):
+        pi.run_script(script)

@@ -260,3 +260,29 @@ def test_auto_service_process_says_it_chose_lgpio_and_stops_the_lines(
     events = [json.loads(line) for line in stderr.decode().splitlines() if line.startswith("{")]
     chosen = [e for e in events if e.get("event") == "driver_auto"]
     assert chosen and chosen[0]["chose"] == "lgpio" and "UMLBOT_FAKE_LGPIO" in chosen[0]["because"]
+
+
+def test_pwm_bursts_end_low_queue_behind_each_other_and_the_queue_is_bounded() -> None:
+    import time
+
+    lg = FakeLgpio()
+    h = lg.gpiochip_open(0)
+    lg.gpio_claim_output(h, 12)
+    assert lg.tx_pwm(h, 12, 100, 100, 0, 10) == 9, "0.1 s at 100 %: nine entries left"
+    assert lg.tx_pwm(h, 12, 100, 30, 0, 10) == 8, "queued behind the running burst"
+    assert lg.line(12).pwm_duty_percent == 100 and lg.tx_room(h, 12, lg.TX_PWM) == 8
+    time.sleep(0.15)
+    assert lg.line(12).pwm_duty_percent == 30, "the queued burst followed"
+    time.sleep(0.15)
+    line = lg.line(12)
+    assert (line.pwm_frequency, line.level, lg.tx_busy(h, 12, lg.TX_PWM)) == (0, 0, 0), "ended low"
+    lg.tx_pwm(h, 12, 100, 50)  # endless
+    lg.tx_pwm(h, 12, 100, 60, 0, 50)
+    assert lg.line(12).pwm_duty_percent == 60, "an endless entry gives way to the next at once"
+    for room in range(8, -1, -1):  # LG_TX_BUF: ten entries, the running one included
+        assert lg.tx_pwm(h, 12, 100, 70, 0, 50) == room
+    with pytest.raises(error, match="TX queue full"):
+        lg.tx_pwm(h, 12, 100, 70, 0, 50)
+    lg.tx_pwm(h, 12, 0, 0)
+    assert lg.tx_room(h, 12, lg.TX_PWM) == 10 and lg.line(12).pwm_queue == []
+    lg.shutdown()

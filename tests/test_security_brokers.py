@@ -142,7 +142,8 @@ def test_the_operator_writes_calls_signals_and_exit_requests_and_reads_only_its_
     if secured.kind == "amqtt":
         assert not everything  # refused in the SUBACK; Mosquitto grants it and delivers nothing
     forged = [f"{base}/LeftActuator/status", f"{base}/LeftActuator/state", f"{base}/orchestrator/status",
-              f"{base}/orchestrator/trace", f"{base}/_reply/orchestrator-1", f"{base}/Stranger/call/x"]
+              f"{base}/orchestrator/trace", f"{base}/orchestrator/heartbeat", f"{base}/_reply/orchestrator-1",
+              f"{base}/Stranger/call/x"]
     for topic in forged:
         operator.publish(topic, "forged")
     allowed = {(f"{base}/LeftActuator/call/enabled", "false"), (f"{base}/DistanceRead/call/value", "[]"),
@@ -280,6 +281,15 @@ def test_services_own_their_status_and_answer_callers(secured: SecuredBroker, co
     sonar = as_role(secured, connect, "sonar")
     sonar.publish(reply_topic, '{"id":"1","ok":true,"value":42}')
     orchestrator.wait_for(reply_topic, '{"id":"1","ok":true,"value":42}')
+
+    # the motor service hears the orchestrator's heartbeat (the lease of the motors it drives)
+    heartbeat = f"umlbot/{ROBOT}/orchestrator/heartbeat"
+    for role in ("motor", "all"):
+        listener = as_role(secured, connect, role)
+        assert listener.subscribe(heartbeat)
+        beat = f'{{"reply_to":"{reply_topic}","seq":1,"period_s":0.25,"role":"{role}"}}'
+        orchestrator.publish(heartbeat, beat)
+        listener.wait_for(heartbeat, beat)
 
 
 def test_mosquitto_clients_read_only_their_own_replies(tmp_path: Path, connect: Any, auth: AuthFiles) -> None:

@@ -10,6 +10,8 @@ import signal
 import subprocess
 import sys
 import textwrap
+import threading
+import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
@@ -170,6 +172,82 @@ def test_watchdog_stops_a_motor_without_commands(mosquitto_broker: BrokerProcess
         bus.call("LeftActuator", "enabled", True)  # a model that set dutycycle once resumes
         assert left.running and left.duty_cycle_percent == 40
         assert watch.wait("LeftActuator", lambda s: s["running"])["stop_reason"] is None
+
+
+class Heartbeat:
+    """Publishes an orchestrator's heartbeat naming `reply_to` every `period_s`, until stopped."""
+
+    def __init__(self, bus: Any, reply_to: str, period_s: float = 0.1) -> None:
+        self.stopped_at: float | None = None
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, args=(bus, reply_to, period_s), daemon=True)
+        self._thread.start()
+
+    def _run(self, bus: Any, reply_to: str, period_s: float) -> None:
+        seq = 0
+        while not self._stop.is_set():
+            beat = {"reply_to": reply_to, "seq": seq, "period_s": period_s}
+            bus.publish(TOPICS.orchestrator_heartbeat, json.dumps(beat), qos=0)
+            seq += 1
+            self._stop.wait(period_s)
+
+    def stop(self) -> float:
+        self._stop.set()
+        self._thread.join(5)
+        self.stopped_at = time.monotonic()
+        return self.stopped_at
+
+
+def test_the_orchestrators_heartbeat_keeps_the_motors_it_commanded_running(
+    mosquitto_broker: BrokerProcess,
+) -> None:
+    # a model sets the motors once and then only reads the sonar: it must drive on while its
+    # orchestrator lives, and stop within watchdog_s once the orchestrator hangs
+    url = mosquitto_broker.url
+    watchdog_s = 1.5
+    dep = deployment(LeftActuator={"watchdog_s": watchdog_s}, RightActuator={"watchdog_s": watchdog_s})
+    with running("motor", dep, url) as host, client(url) as orchestrator, client(url) as direct:
+        watch = StateWatch(direct, "LeftActuator", "RightActuator")
+        beat = Heartbeat(direct, orchestrator.reply_topic)
+        for bad in (b"garbage", b'{"reply_to": 5}', b"{}"):  # not heartbeats: ignored, no crash
+            direct.publish(TOPICS.orchestrator_heartbeat, bad, qos=0)
+        orchestrator.call("LeftActuator", "dutycycle", 40)
+        orchestrator.call("LeftActuator", "enabled", True)
+        direct.call("RightActuator", "dutycycle", 40)  # a direct caller, while the heartbeat comes
+        direct.call("RightActuator", "enabled", True)
+        commanded = time.monotonic()
+        left, right = mock(host), mock(host, "RightActuator")
+        assert right.wait_until(lambda: not right.running, watchdog_s + 2.0), "a direct caller: the watchdog"
+        assert watch.wait("RightActuator", lambda s: not s["running"])["stop_reason"] == "watchdog"
+        time.sleep(max(0.0, commanded + 2 * watchdog_s - time.monotonic()))
+        assert left.running and left.stops == 1, "the lease holds (1 stop: the service's start-up stop)"
+        silent = beat.stop()  # the orchestrator hangs (SIGSTOP): no heartbeat, no call
+        assert left.wait_until(lambda: not left.running, watchdog_s + 2.0)
+        assert time.monotonic() - silent <= watchdog_s + 0.3, "stopped within watchdog_s (+ a safety round)"
+        state = watch.wait("LeftActuator", lambda s: not s["running"])
+        assert state["stop_reason"] == "orchestrator unresponsive"
+        orchestrator.call("LeftActuator", "enabled", False)  # the run's final stop calls ...
+        direct.publish(TOPICS.orchestrator_status, json.dumps({"state": "stopped"}), qos=1)
+        time.sleep(0.3)
+        assert watch.latest["LeftActuator"]["stop_reason"] == "orchestrator unresponsive", \
+            "... leave the reason why the car stood still"
+        orchestrator.call("LeftActuator", "enabled", True)  # running again: it is history
+        assert watch.wait("LeftActuator", lambda s: s["running"])["stop_reason"] is None
+
+
+def test_a_deadman_that_fired_while_the_service_was_frozen_is_the_stop_reason(
+    mosquitto_broker: BrokerProcess,
+) -> None:
+    url = mosquitto_broker.url
+    with running("motor", deployment(), url) as host, client(url) as bus:
+        watch = StateWatch(bus, "LeftActuator")
+        bus.call("LeftActuator", "dutycycle", 70)
+        bus.call("LeftActuator", "enabled", True)
+        left = mock(host)
+        assert left.wait_until(lambda: left.renewals >= 2, 2.0), "renewed every safety round"
+        left.fire_deadman()
+        state = watch.wait("LeftActuator", lambda s: not s["enabled"], 2.0)
+        assert state["stop_reason"] == "deadman" and state["dutycycle"] == 70
 
 
 def _stopped(driver: MockMotorChannel) -> Callable[[], bool]:
@@ -341,3 +419,43 @@ def test_sim_driver_calls_over_the_bus_drive_the_world(mosquitto_broker: BrokerP
         assert world.snapshot().distance_m > 0, "the car moves"
     left = world.motor("left")
     assert (left.enabled, left.duty_percent) == (False, 0), "stopping the service stops the side"
+
+
+def test_a_plugin_driver_without_a_deadman_still_gets_the_watchdog() -> None:
+    """A motor driver of a plugin written before `MotorChannel.renew`: the service warns once that
+    nothing outside it can stop the motor, and its safety round (the watchdog) still works."""
+    import structlog
+
+    from services.motor.service import MotorService
+    from umlbot.library import resolve_implementation
+
+    class OldDriver:
+        def __init__(self) -> None:
+            self.enabled = False
+
+        def set_enabled(self, enabled: bool) -> None:
+            self.enabled = enabled
+
+        def set_direction(self, clockwise: bool) -> None: ...
+
+        def set_duty_cycle(self, percent: float) -> None: ...
+
+        def stop(self) -> None:
+            self.enabled = False
+
+        def close(self) -> None:
+            self.stop()
+
+    impl = resolve_implementation("l298n")
+    assert impl is not None
+    driver = OldDriver()
+    with structlog.testing.capture_logs() as logs:
+        service = MotorService("LeftActuator", impl, driver, {"watchdog_s": 0.5})  # type: ignore[arg-type]
+    assert [e["event"] for e in logs if e["log_level"] == "warning"] == ["motor_driver_without_deadman"]
+    service.dutycycle(50)
+    service.enabled(True)
+    service.tick(time.monotonic())
+    assert driver.enabled, "renewed (nothing to renew) and within the watchdog"
+    service.tick(time.monotonic() + 1.0)
+    assert service.stop_reason == "watchdog"
+    assert not driver.enabled

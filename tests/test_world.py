@@ -383,3 +383,71 @@ def test_halt_stops_the_motors_and_the_time_at_once() -> None:
     w.set_motor("left", enabled=True, duty_percent=80)  # a late driver command moves nothing
     after = w.snapshot()
     assert after.time_s == moving.time_s and after.pose == moving.pose
+
+
+def test_the_deadman_stops_a_side_whose_driver_stops_renewing_it() -> None:
+    w = world()
+    drive(w, 60, 60, 0.0)
+    assert w.renew_motor("left", 1.0) is True  # the left driver arms its deadman; the right none
+    w.advance_to(0.9)
+    assert w.motor("left").enabled
+    w.set_motor("left", duty_percent=60)  # a command renews too
+    w.advance_to(1.85)
+    assert w.motor("left").enabled and w.deadman_stops == []
+    w.advance_to(3.0)
+    assert not w.motor("left").enabled and w.motor("left").duty_percent == 0, "stopped, pins low"
+    assert w.motor("right").enabled, "a side without a renewing driver has no deadman"
+    ((when, side),) = w.deadman_stops
+    assert side == "left" and when == pytest.approx(1.9), "at the lease's end, not the next step's"
+    assert w.renew_motor("left", 1.0) is False, "its driver learns that it fired"
+    assert w.renew_motor("left", 1.0) is True
+    with pytest.raises(ValueError):
+        w.renew_motor("left", float("nan"))
+
+
+def test_a_sim_clock_waits_for_a_lease_renewal_before_time_passes_it() -> None:
+    import asyncio
+    import threading
+    import time
+
+    w = world()
+    clock = SimClock(1000.0)  # 5 s of sleep would take 5 ms of wall time without the lease
+    w.clock = clock
+    drive(w, 60, 60, 0.0)
+    w.renew_motor("left", 1.0)
+    stop = threading.Event()
+
+    def driver() -> None:  # a live driver renews every 0.1 s of wall time
+        while not stop.wait(0.1):
+            w.renew_motor("left", 1.0)
+
+    async def model() -> float:
+        started = time.monotonic()
+        await clock.asleep(5.0)
+        return time.monotonic() - started
+
+    thread = threading.Thread(target=driver)
+    thread.start()
+    try:
+        wall = asyncio.run(model())
+    finally:
+        stop.set()
+        thread.join()
+    w.advance_to(clock.now())
+    assert w.motor("left").enabled and w.deadman_stops == [], "renewed in time at any speed"
+    assert wall >= 0.3, "sim time waited for the renewals (1 s of lease per renewal)"
+    # nobody renews any more: time waits DEADMAN_GRACE_WALL_S, then the lease ends on time
+    from umlbot.sim.world import DEADMAN_GRACE_WALL_S
+
+    last = w.snapshot().time_s
+
+    async def later() -> float:
+        started = time.monotonic()
+        await clock.asleep(3.0)
+        return time.monotonic() - started
+
+    wall = asyncio.run(later())
+    w.advance_to(clock.now())
+    assert wall >= DEADMAN_GRACE_WALL_S * 0.9
+    ((when, side),) = w.deadman_stops
+    assert side == "left" and when <= last + 1.0 + 1e-6

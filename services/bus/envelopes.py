@@ -1,8 +1,9 @@
 """Every JSON payload on the bus, as pydantic models, in one module (SPEC §3).
 
 Requests, replies and error bodies; component availability (`Status`); and the orchestrator's
-own payloads (`TraceEvent`, `OrchestratorStatus`, `ExitRequest`). `to_payload` turns anything
-publishable into the UTF-8 JSON bytes that go on the wire; `parse_json` reads them back.
+own payloads (`TraceEvent`, `OrchestratorStatus`, `Heartbeat`, `ExitRequest`). `to_payload`
+turns anything publishable into the UTF-8 JSON bytes that go on the wire; `parse_json` reads
+them back.
 """
 
 from __future__ import annotations
@@ -141,6 +142,20 @@ class OrchestratorStatus(BaseModel):
     model: str | None = None
     #: the run's call time-out in seconds (monitors report an unanswered call after it too).
     call_timeout_s: float | None = None
+
+
+class Heartbeat(BaseModel):
+    """The orchestrator's sign of life (`…/orchestrator/heartbeat`, every `period_s` while it runs).
+
+    `reply_to` is the reply topic of its calls: a motor whose last command came with that reply
+    topic keeps running while these arrive (the orchestrator's lease); `seq` counts 0, 1, 2 …
+    """
+
+    model_config = ConfigDict(extra="ignore")
+
+    reply_to: str = Field(min_length=1, max_length=512)
+    seq: int = Field(ge=0)
+    period_s: float = Field(gt=0, allow_inf_nan=False)
 
 
 class ExitRequest(BaseModel):

@@ -10,6 +10,7 @@ line. Handlers run on the connection's dispatcher thread, one at a time, in arri
 from __future__ import annotations
 
 import contextlib
+import contextvars
 import json
 import re
 import threading
@@ -46,6 +47,19 @@ ALIVE_PROBE: Final = "_alive"
 
 #: what a starting server sends itself to learn that the broker has sent any retained status.
 _SYNC: Final = b"sync"
+
+#: the reply topic of the request whose handler runs (see `caller()`).
+_CALLER: contextvars.ContextVar[str | None] = contextvars.ContextVar("umlbot_caller", default=None)
+
+
+def caller() -> str | None:
+    """Who sent the request whose feature handler runs now: its reply topic (`reply_to`, else its
+    MQTT 5 Response Topic); None for a fire-and-forget call, and outside a handler.
+
+    The motor service tells the running orchestrator's commands (its reply topic is named in its
+    heartbeat) from a direct caller's this way.
+    """
+    return _CALLER.get()
 
 
 class ComponentTaken(UmlbotError, RuntimeError):
@@ -365,6 +379,7 @@ class ComponentServer:
             reply_to = bad.reply_to or reply_to
             self._fail(feature_name, request_id, reply_to, response_topic, correlation, bad.code, bad.message)
             return
+        token = _CALLER.set(reply_to or response_topic)
         try:
             value = feature.handler(*args)
             if reply_to is not None or response_topic is not None:
@@ -384,6 +399,8 @@ class ComponentServer:
                        f"internal error in {self.component}.{feature_name} (see the service log)",
                        logged=True)
             return
+        finally:
+            _CALLER.reset(token)
         self.calls_served += 1
 
     def _answer_alive(self, message: Message) -> None:

@@ -89,6 +89,11 @@ class Topics:
         return f"{self.base}/orchestrator/exit"
 
     @property
+    def orchestrator_heartbeat(self) -> str:
+        """The running orchestrator's lease on the motors it drives (`Heartbeat`)."""
+        return f"{self.base}/orchestrator/heartbeat"
+
+    @property
     def everything(self) -> str:
         """Filter matching all of this robot's traffic."""
         return f"{self.base}/#"

@@ -18,7 +18,7 @@ BcmPin = int
 class MotorChannel(Protocol):
     """One DC-motor channel. Every method may raise `DriverError`; `close()` twice is safe.
 
-    Must provide: `set_enabled`, `set_direction`, `set_duty_cycle`, `stop`, `close`.
+    Must provide: `set_enabled`, `set_direction`, `set_duty_cycle`, `stop`, `renew`, `close`.
     """
 
     def set_enabled(self, enabled: bool) -> None:
@@ -32,6 +32,14 @@ class MotorChannel(Protocol):
 
     def stop(self) -> None:
         """Safe state: disabled and duty 0. Never raises for an already stopped channel."""
+
+    def renew(self) -> bool:
+        """Renew the deadman outside this process; the motor service calls it every safety round
+        (`services.host.TICK_S`) while the motor is enabled. A driver with a deadman (pigpio,
+        lgpio, sim) has the hardware path stop the motor by itself when no renewal (and no
+        command) came for its `watchdog_s`, so that a frozen or killed service cannot leave it
+        running. False when the deadman fired since the last renewal (the motor was stopped
+        behind the service's back); True otherwise, and always for a driver without one."""
 
     def close(self) -> None:
         """Stop the motor and release the pins/connection; idempotent."""
@@ -53,7 +61,8 @@ class L298NSettings(BaseModel):
     enable: BcmPin | None = Field(default=None, ge=0, le=27, description="GPIO of ENA/ENB")
     pwm_frequency_hz: int = Field(default=1000, ge=10, le=8000, description="software PWM frequency")
     brake: bool = Field(default=False, description="stopping brakes instead of coasting")
-    watchdog_s: float = Field(default=2.0, ge=0, description="stop after this long without a command")
+    watchdog_s: float = Field(default=2.0, ge=0, description="stop after this long without a command, "
+                              "a heartbeat of the orchestrator or a renewal of the deadman (0: never)")
     invert: bool = Field(default=False, description="swap clockwise/anticlockwise (motor wired reversed)")
     host: str | None = Field(default=None, description="pigpiod host (default env PIGPIO_ADDR or localhost)")
     port: int | None = Field(default=None, description="pigpiod port (default env PIGPIO_PORT or 8888)")
@@ -91,8 +100,10 @@ class L298NBridge:
     driving stops first, so both inputs of a bridge arm are never driven at once.
 
     A backend (pigpio, lgpio) sets `_pins` and provides `_level(pin, level)` (a plain level,
-    ending any PWM on the pin) and `_pwm(pin)` (PWM at the current `_percent`). Starts stopped;
-    `close()` leaves it stopped.
+    ending any PWM on the pin) and `_pwm(pin)` (PWM at the current `_percent`); its deadman
+    (`renew`) overrides `_deadman(driving)` (called at the end of every change, with whether the
+    motor now drives), `_renew()` (only while it drives) and `_release()` (before the pins are
+    released). Starts stopped; `close()` leaves it stopped.
     """
 
     _pins: PinHandle
@@ -140,6 +151,12 @@ class L298NBridge:
             if not self._pins.closed:
                 self._apply()
 
+    def renew(self) -> bool:
+        with self._lock:
+            if self._closed or self._pins.closed or not self._driving():
+                return True
+            return self._renew()
+
     def close(self) -> None:
         with self._lock:
             if self._closed:
@@ -149,8 +166,21 @@ class L298NBridge:
             self._percent = 0.0
             try:
                 self._apply()
+                self._release()
             finally:
                 self._pins.close()
+
+    # the deadman (backends override) ----------------------------------------------------------
+
+    def _deadman(self, driving: bool) -> None:
+        """After every change: arm the deadman when the motor drives, disarm it when it stopped."""
+
+    def _renew(self) -> bool:
+        """`renew` while the motor drives; False when the deadman had fired."""
+        return True
+
+    def _release(self) -> None:
+        """Give back what the deadman holds (the channel is stopped)."""
 
     # the truth table ---------------------------------------------------------------------------
 
@@ -180,6 +210,7 @@ class L298NBridge:
                 self._level(s.enable, 1)  # EN high, IN1 = IN2: fast stop
             else:
                 self._halt()  # EN low: coast; without EN both inputs low (the L298N's stop)
+            self._deadman(False)
             return
         self._level(other, 0)
         if s.enable is not None:
@@ -187,3 +218,4 @@ class L298NBridge:
             self._pwm(s.enable)
         else:
             self._pwm(drive)
+        self._deadman(True)

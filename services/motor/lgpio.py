@@ -7,10 +7,20 @@ software PWM (`tx_pwm`) takes the frequency in Hz and the duty cycle in percent,
 percent is passed on exactly. Every pin is claimed as an output at level 0 before any PWM starts,
 and PWM on a pin is switched off before the pin is written a plain level (lgpio's `gpio_write`
 does not end a running PWM).
+
+The deadman: PWM goes out in finite bursts of `watchdog_s` / 2 (`tx_pwm`'s cycle count), and each
+renewal queues the next burst once nothing is queued behind the running one; lgpio's TX thread
+writes the line low when the last burst is done. So the motor stops by itself within
+`watchdog_s` when the service's own threads stop renewing (a hung service, a deadlock). lgpio's
+TX thread runs inside the service's process, though: a SIGSTOP freezes it with the line's level
+of that moment, so a frozen process is systemd's to catch (`WatchdogSec=`, then `ExecStopPost=`
+writes the pins low; docs/services.md). A new duty cycle replaces the running burst at once (PWM
+off, then the new burst), not after the queued ones. `watchdog_s: 0`: endless PWM, no deadman.
 """
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 from services.lgpio_connection import LgpioHandle
@@ -19,6 +29,10 @@ from services.registry import DriverFactory
 from umlbot.logs import get_logger
 
 log = get_logger("umlbot.motor.lgpio")
+
+TX_PWM = 0  # lgpio.TX_PWM
+#: entries of an lgpio PWM queue, the running one included (LG_TX_BUF)
+TX_BUF = 10
 
 
 class LgpioL298NChannel(L298NBridge):
@@ -29,6 +43,9 @@ class LgpioL298NChannel(L298NBridge):
     def __init__(self, component: str, settings: L298NSettings, lg: Any = None) -> None:
         super().__init__(component, settings)
         self.pwm_frequency_hz = settings.pwm_frequency_hz
+        #: cycles per burst (0: endless PWM, no deadman)
+        self.burst_cycles = (max(1, math.floor(self.pwm_frequency_hz * settings.watchdog_s / 2))
+                             if settings.watchdog_s > 0 else 0)
         self._pwm_on: set[int] = set()
         self._pins = LgpioHandle(component, settings.chip, lg)
         try:
@@ -47,8 +64,21 @@ class LgpioL298NChannel(L298NBridge):
         self._pins.call("gpio_write", pin, level)
 
     def _pwm(self, pin: int) -> None:
-        self._pins.call("tx_pwm", pin, self.pwm_frequency_hz, self._percent)
+        if pin in self._pwm_on:  # the new duty at once, not after the bursts queued
+            self._pins.call("tx_pwm", pin, 0, 0)
+        self._pins.call("tx_pwm", pin, self.pwm_frequency_hz, self._percent, 0, self.burst_cycles)
         self._pwm_on.add(pin)
+
+    def _renew(self) -> bool:
+        if not self.burst_cycles:
+            return True
+        for pin in list(self._pwm_on):
+            if not self._pins.call("tx_busy", pin, TX_PWM):
+                self._pwm_on.discard(pin)  # the last burst ended: the TX thread wrote the line low
+                return False
+            if self._pins.call("tx_room", pin, TX_PWM) >= TX_BUF - 1:  # only the running burst
+                self._pins.call("tx_pwm", pin, self.pwm_frequency_hz, self._percent, 0, self.burst_cycles)
+        return True
 
 
 def _create(component: str, settings: L298NSettings) -> LgpioL298NChannel:

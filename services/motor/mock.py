@@ -15,7 +15,11 @@ class MockMotorSettings(MockSettings):
 
 
 class MockMotorChannel(MockDriver):
-    """Satisfies `MotorChannel`. State: `enabled`, `clockwise`, `duty_cycle_percent`, `running`."""
+    """Satisfies `MotorChannel`. State: `enabled`, `clockwise`, `duty_cycle_percent`, `running`.
+
+    It has no deadman of its own: `renew()` counts the renewals (`renewals`) and answers True,
+    unless a test called `fire_deadman()`, which stops the motor as a hardware deadman would.
+    """
 
     def __init__(self, component: str, settings: MockMotorSettings | None = None) -> None:
         super().__init__(component, settings or MockMotorSettings())
@@ -23,6 +27,8 @@ class MockMotorChannel(MockDriver):
         self.clockwise = True
         self.duty_cycle_percent = 0.0
         self.stops = 0
+        self.renewals = 0
+        self._deadman_fired = False
 
     @property
     def running(self) -> bool:
@@ -56,6 +62,21 @@ class MockMotorChannel(MockDriver):
             self.enabled = False
             self.duty_cycle_percent = 0.0
             self.stops += 1
+            self._changed()
+
+    def renew(self) -> bool:
+        with self._cond:
+            self.renewals += 1
+            fired, self._deadman_fired = self._deadman_fired, False
+            return not fired
+
+    def fire_deadman(self) -> None:
+        """Stop the motor behind the service's back, as a hardware deadman does; the next
+        `renew()` says so."""
+        with self._cond:
+            self.enabled = False
+            self.duty_cycle_percent = 0.0
+            self._deadman_fired = True
             self._changed()
 
     def close(self) -> None:

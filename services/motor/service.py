@@ -2,13 +2,26 @@
 
 Features (library): `enabled(bool)`, `direction(bool)` (true = clockwise), `dutycycle(0..100)`.
 State: `{"enabled", "clockwise", "dutycycle", "running", "stop_reason"}` where `stop_reason` names
-the last safety stop (`watchdog`, `orchestrator offline`, `broker connection lost`, `service
-stopping`) and is null after a command. A safety stop disables the motor and puts its pins at
-zero duty; `dutycycle` stays the commanded value, applied again by the next `enabled(true)`.
+the last safety stop (`watchdog`, `orchestrator unresponsive`, `deadman`, `orchestrator offline`,
+`broker connection lost`, `service stopping` …) and stays until a command makes the motor run
+again (so that a run's end does not wipe out why the car stood still). A safety stop disables
+the motor and puts its pins at zero duty; `dutycycle` stays the commanded value, applied again by
+the next `enabled(true)`.
 
-Watchdog: while enabled, a command (any feature) must arrive at least every `watchdog_s` seconds
-of wall time (deployment setting, default 2.0; 0 turns it off); otherwise the motor stops. A
-driver with its own clock (`now_s()`: the simulator's) times it in that clock's seconds.
+What keeps an enabled motor running (`watchdog_s`, deployment setting, default 2.0; 0 turns both
+checks off):
+
+- the lease of the running orchestrator: when the last command came from it (its reply topic is
+  the one its heartbeat names, `services.bus.server.caller`), its heartbeat keeps the motor
+  running; when no heartbeat came for `watchdog_s` seconds of wall time (a hung or frozen
+  orchestrator) the motor stops (`orchestrator unresponsive`);
+- otherwise (a direct caller: `umlbot call`, any MQTT client) the command watchdog: a command
+  (any feature) at least every `watchdog_s` seconds, else it stops (`watchdog`). A driver with
+  its own clock (`now_s()`: the simulator's) times this watchdog in that clock's seconds.
+
+Every tick the service also renews the driver's deadman (`MotorChannel.renew`): the hardware path
+stops the motor by itself when this process stops renewing it (frozen, killed); a deadman that
+fired while the service could not act is reported as the stop reason `deadman`.
 """
 
 from __future__ import annotations
@@ -19,12 +32,15 @@ from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
+from services.bus.server import caller
 from services.component_service import ComponentService
 from services.motor.driver import MotorChannel
 from umlbot.errors import ConfigError
 from umlbot.library import Implementation
 
 DEFAULT_WATCHDOG_S = 2.0
+#: the heartbeats of this many orchestrators (reply topics) are remembered at most
+MAX_LEASE_HOLDERS = 8
 
 
 class MotorServiceSettings(BaseModel):
@@ -54,11 +70,22 @@ class MotorService(ComponentService):
         self.duty_percent = 0
         self.stop_reason: str | None = None
         self.safety_stops = 0
+        #: the reply topic of the last command (None: fire-and-forget), see `caller()`
+        self.commanded_by: str | None = None
+        #: reply topic of an orchestrator -> `time.monotonic()` of its last heartbeat
+        self._heartbeats: dict[str, float] = {}
         self._duty_zeroed = True
         # a driver with its own time (the simulator's) times the watchdog in it: at --speed 10 a
         # model's 3 s sleep with the motors on is 0.3 s of wall time, and stops them all the same
         own_clock = getattr(driver, "now_s", None)
         self._own_clock: Callable[[], float] | None = own_clock if callable(own_clock) else None
+        # a plugin's driver written before `renew` existed has no deadman: the service still runs
+        # its watchdogs, and says once that nothing outside it stops the motor
+        renew = getattr(driver, "renew", None)
+        self._renew: Callable[[], bool] = renew if callable(renew) else (lambda: True)
+        if not callable(renew):
+            self.log.warning("motor_driver_without_deadman", driver=type(driver).__name__,
+                             why="a frozen or killed service cannot stop this motor (MotorChannel.renew)")
         self.last_command = self._now()
         self.channel.stop()
 
@@ -67,7 +94,17 @@ class MotorService(ComponentService):
 
     def _command(self) -> None:
         self.last_command = self._now()
-        self.stop_reason = None
+        self.commanded_by = caller()
+        if self.is_enabled and self.duty_percent > 0:
+            self.stop_reason = None  # running again: the last safety stop is history
+
+    def orchestrator_heartbeat(self, reply_to: str) -> None:
+        now = time.monotonic()
+        with self.lock:
+            self._heartbeats.pop(reply_to, None)
+            self._heartbeats[reply_to] = now
+            while len(self._heartbeats) > MAX_LEASE_HOLDERS:  # the oldest goes (dicts keep order)
+                del self._heartbeats[next(iter(self._heartbeats))]
 
     def enabled(self, on: bool) -> None:
         with self.lock:
@@ -124,11 +161,30 @@ class MotorService(ComponentService):
             self.changed()
 
     def tick(self, now: float) -> None:
-        if self._own_clock is not None:
-            now = self._now()
+        """The safety round (`now`: the host's `time.monotonic()`): renew the deadman, then the
+        lease or the command watchdog."""
         with self.lock:
-            expired = (
-                self.watchdog_s > 0 and self.is_enabled and now - self.last_command > self.watchdog_s
-            )
-        if expired:
-            self.safe_stop("watchdog")
+            if not self.is_enabled:
+                return
+            alive = self._renew()
+        if not alive:  # the hardware stopped it while this process could not act (frozen)
+            self.safe_stop("deadman")
+            return
+        reason = self._expired(now)
+        if reason is not None:
+            self.safe_stop(reason)
+
+    def _expired(self, wall_now: float) -> str | None:
+        """Why the enabled motor must stop now, or None: the lease, else the command watchdog."""
+        if self.watchdog_s <= 0:
+            return None
+        command_now = self._now() if self._own_clock is not None else wall_now
+        with self.lock:
+            if not self.is_enabled:
+                return None
+            beat = self._heartbeats.get(self.commanded_by) if self.commanded_by else None
+            if beat is not None and wall_now - beat <= self.watchdog_s:
+                return None  # the running orchestrator's lease
+            if command_now - self.last_command <= self.watchdog_s:
+                return None
+            return "watchdog" if beat is None else "orchestrator unresponsive"

@@ -2,7 +2,9 @@
 
 It accepts the same deployment settings as the pigpio driver (pins are ignored) plus `sim_side`
 (`left` or `right`); without it the side is taken from the component name (`LeftActuator` →
-left). `invert` swaps the direction, as it does on the real robot.
+left). `invert` swaps the direction, as it does on the real robot. Its deadman is the world's
+(`World.renew_motor`, armed when the channel is made): the world stops the side when
+`watchdog_s` of sim time pass without a renewal or a command, as the robot's hardware path does.
 """
 
 from __future__ import annotations
@@ -43,12 +45,14 @@ class SimMotorChannel:
     """A `MotorChannel` whose commands set one side of the simulated car."""
 
     def __init__(self, component: str, side: Literal["left", "right"], world: WorldHandle,
-                 invert: bool = False) -> None:
+                 invert: bool = False, watchdog_s: float = 2.0) -> None:
         self.component = component
         self.side: Literal["left", "right"] = side
         self._world = world
         self._invert = invert
+        self._watchdog_s = watchdog_s
         self._closed = False
+        self.renew()  # the deadman is armed from the start, as the hardware's is
 
     def _set(self, **kwargs: bool | float) -> None:
         if self._closed:
@@ -80,6 +84,14 @@ class SimMotorChannel:
         if not self._closed:
             self._set(enabled=False, duty_percent=0.0)
 
+    def renew(self) -> bool:
+        if self._closed:
+            return True
+        try:
+            return self._world.renew_motor(self.side, self._watchdog_s)
+        except SimError as exc:
+            raise DriverError(f"{self.component}: {exc}") from exc
+
     def close(self) -> None:
         if self._closed:
             return
@@ -95,7 +107,8 @@ def create(component: str, settings: SimMotorSettings) -> SimMotorChannel:
         world = connect_world()
     except SimError as exc:
         raise DriverError(f"{component}: {exc}") from exc
-    return SimMotorChannel(component, side_of(component, settings), world, settings.invert)
+    return SimMotorChannel(component, side_of(component, settings), world, settings.invert,
+                           settings.watchdog_s)
 
 
 FACTORY = DriverFactory(SimMotorSettings, create)

@@ -4,7 +4,11 @@ Life of a run (docs/semantics.md says the same for users):
 
 1. connect (two connections: `control` carries the retained status with its last will
    `offline`, the subscriptions, the trace and the signals; `calls` carries feature calls only,
-   so a burst of trace events never queues in front of a request);
+   so a burst of trace events never queues in front of a request); from then on, until the
+   final status, a heartbeat on `…/orchestrator/heartbeat` (every `heartbeat_s` of wall time, sent
+   from the event loop: a loop that hangs stops it) names the reply topic of its calls: the
+   motors it commanded keep running while it comes (its lease) and stop within their
+   `watchdog_s` once it stays away (docs/services.md, Safety);
 2. wait, bounded by `startup_timeout_s`, until every used component's retained status is
    `online` (else `OrchestratorError` naming the missing ones);
 3. stop every actuator (its implementation's `safe_stop` calls, from the compiled file), publish
@@ -22,6 +26,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import itertools
 import signal
 import threading
 import time
@@ -69,6 +74,11 @@ FINAL_STOP_TIMEOUT_S = 1.0
 ACTUATORS_BACK_TIMEOUT_S = 2.0
 #: seconds cancelled lanes get to unwind.
 LANE_CANCEL_TIMEOUT_S = 2.0
+#: the heartbeat's period: at most this, and a quarter of the shortest `watchdog_s` among the
+#: model's components (a motor stops when the heartbeat stays away that long) ...
+HEARTBEAT_MAX_S = 0.25
+#: ... but at least this
+HEARTBEAT_MIN_S = 0.02
 
 #: a lost broker connection this soon after a component went offline (or a call found no
 #: connection) is reported as the cause: the broker went down and sent the last wills first.
@@ -78,6 +88,18 @@ BROKER_LOST = "connection to the MQTT broker lost"
 MAX_REASON_CHARS = 200
 EXIT_OK = 0
 EXIT_FAULT = 1
+
+
+def heartbeat_period_s(compiled: CompiledModel) -> float:
+    """Seconds between two heartbeats: `HEARTBEAT_MAX_S`, or a quarter of the shortest positive
+    `watchdog_s` in the model's component settings when that is shorter (`HEARTBEAT_MIN_S` at
+    least)."""
+    watchdogs = [
+        float(value) for component in compiled.components.values()
+        if isinstance(value := component.settings.get("watchdog_s"), int | float)
+        and not isinstance(value, bool) and value > 0
+    ]
+    return max(HEARTBEAT_MIN_S, min([HEARTBEAT_MAX_S, *(w / 4 for w in watchdogs)]))
 
 
 class _ExitWhileConnecting(Exception):
@@ -128,6 +150,9 @@ class Orchestrator:
         self.startup_timeout_s = startup_timeout_s
         self.reconnect_wait_s = reconnect_wait_s
         self.handle_signals = handle_signals
+        #: wall seconds between two heartbeats (`heartbeat_period_s`)
+        self.heartbeat_s = heartbeat_period_s(compiled)
+        self._heartbeat: asyncio.Task[None] | None = None
         #: the reason of the fail-safe stop, None while nothing went wrong.
         self.failure: str | None = None
         #: why termination was requested, None until it was.
@@ -135,6 +160,10 @@ class Orchestrator:
         self._broker_symptom_at: float | None = None  # when a fault came that a broker's end explains
         #: the last status published: starting, running, stopping, stopped or failed.
         self.state = "starting"
+        #: component -> the safety stop its service reported while the model ran (a motor's
+        #: `stop_reason`: watchdog, orchestrator unresponsive, deadman …): why the car stood still
+        self.safety_stops: dict[str, str] = {}
+        self._stop_reasons: dict[str, str | None] = {}  # the last `stop_reason` each state said
         self.signals = SignalBoard.for_model(compiled)
         self.engine = Engine(compiled, self, self.signals, self.clock)
         self.used = sorted(used_components(compiled))
@@ -204,6 +233,7 @@ class Orchestrator:
                          exit_reason=self.exit_reason, nodes=0, actions=0,
                          wall_s=round(time.monotonic() - started, 3))
                 return EXIT_OK
+            self._heartbeat = asyncio.create_task(self._beat(), name="heartbeat")
             try:
                 if self._pending_exit is not None:
                     self._on_exit_request(self._pending_exit)
@@ -224,7 +254,7 @@ class Orchestrator:
         finally:
             remove_handlers()
         log.info("orchestrator_finished", exit_code=code, failure=self.failure, exit_reason=self.exit_reason,
-                 nodes=self.stats.nodes, actions=self.stats.actions,
+                 nodes=self.stats.nodes, actions=self.stats.actions, safety_stops=self.safety_stops,
                  wall_s=round(time.monotonic() - started, 3))
         if start_error is not None:
             raise start_error
@@ -257,6 +287,7 @@ class Orchestrator:
         client = BusClient(self.settings, self.robot, role="orchestrator-calls")
         self._control, self._client = control, client
         control.subscribe(f"{self.topics.base}/+/status", self._on_status_message)
+        control.subscribe(f"{self.topics.base}/+/state", self._on_state_message)
         control.subscribe(self.topics.signals, self._on_signal_message)
         control.subscribe(self.topics.orchestrator_exit, self._on_exit_message)
         control.add_on_disconnect(lambda: self._to_loop(self._connection_lost, True))
@@ -421,6 +452,8 @@ class Orchestrator:
             final = "failed" if self.failure is not None else "stopped"
             self._publish_status(final, self.failure or self.exit_reason or "every lane ended")
         self._closing = True
+        if self._heartbeat is not None:
+            self._heartbeat.cancel()  # after the final status: the motors stop by it at once
         if self.recorder is not None:
             self.recorder.close()
         if control is not None and client is not None and not (control.connected and client.connected):
@@ -528,6 +561,28 @@ class Orchestrator:
         if self._changed is not None:
             self._changed.set()
 
+    def _on_state_message(self, message: Message) -> None:
+        component = message.topic[len(self.topics.base) + 1:].split("/", 1)[0]
+        if component not in self.model.components or b"stop_reason" not in message.payload:
+            return
+        try:
+            data = parse_json(message.payload)
+        except ValueError:
+            return
+        reason = data.get("stop_reason") if isinstance(data, dict) else None
+        self._to_loop(self._on_stop_reason, component, reason if isinstance(reason, str) else None,
+                      message.retain)
+
+    def _on_stop_reason(self, component: str, reason: str | None, retained: bool) -> None:
+        previous = self._stop_reasons.get(component)
+        self._stop_reasons[component] = reason
+        # a retained state is what was (another run's end); a new reason while the model runs is
+        # a safety stop of this run
+        if reason is None or reason == previous or retained or self.state not in ("running", "stopping"):
+            return
+        self.safety_stops[component] = reason
+        log.warning("actuator_stopped_by_its_service", component=component, reason=reason)
+
     def _on_signal_message(self, message: Message) -> None:
         if message.retain:  # a retained signal is old news; only live occurrences count
             return
@@ -620,6 +675,22 @@ class Orchestrator:
             control.publish(self.topics.orchestrator_status, status, qos=1, retain=True)
         except BusError as exc:
             log.warning("orchestrator status not published", state=state, error=str(exc))
+
+    async def _beat(self) -> None:
+        """Publish the heartbeat every `heartbeat_s` of wall time until cancelled.
+
+        Wall time even under the simulator's clock: it says that this process and its event loop
+        are alive (a frozen orchestrator freezes the simulated time with it).
+        """
+        control, client = self._control, self._client
+        if control is None or client is None:
+            return
+        for seq in itertools.count():
+            if control.connected:
+                beat = {"reply_to": client.reply_topic, "seq": seq, "period_s": self.heartbeat_s}
+                with contextlib.suppress(BusError):
+                    control.publish(self.topics.orchestrator_heartbeat, dumps(beat).encode("utf-8"), qos=0)
+            await asyncio.sleep(self.heartbeat_s)
 
     def _publish_trace(self, data: bytes) -> None:
         control = self._control

@@ -4,6 +4,10 @@ plugin's service kind).
 Serves every component of that kind in the deployment until SIGTERM or SIGINT; on every exit
 path (signal, error, broker loss) the motors are stopped before the process ends. KIND `all`
 serves every kind the deployment uses in this one process (one unit on a small board).
+
+`--safe-stop` serves nothing: it puts the components' hardware in its safe state (motors: pins
+low) and exits, without a broker; the systemd unit runs it after every end of the service
+(`ExecStopPost=`), also after SIGKILL or a watchdog kill, when the service could not do it itself.
 """
 
 from __future__ import annotations
@@ -52,6 +56,9 @@ def _known_kind(ctx: click.Context, param: click.Parameter, kind: str) -> str:
               help="Robot id (default: $UMLBOT_ROBOT, the deployment's robot, or car).")
 @click.option("--connect-timeout", default=10.0, show_default=True, type=seconds(0.1),
               help="Seconds to wait for the broker at start-up.")
+@click.option("--safe-stop", is_flag=True,
+              help="Serve nothing: put the components' hardware in its safe state (motors: pins low) "
+              "and exit; no broker needed (the systemd unit's ExecStopPost).")
 def command(
     kind: str,
     deploy_file: Path,
@@ -61,6 +68,7 @@ def command(
     ca_file: Path | None,
     robot: str | None,
     connect_timeout: float,
+    safe_stop: bool,
 ) -> None:
     """Run one hardware service (or `all` of them) for the components the deployment gives it."""
     from services.bus.settings import BrokerSettings, resolve_broker_url
@@ -80,6 +88,9 @@ def command(
         components=list(components) or None,
         connect_timeout_s=connect_timeout,
     )
+    if safe_stop:
+        group.safe_stop_hardware()  # a DriverError is the usual one line and exit 1
+        return
     with StopSignals() as signals:
         try:
             group.start()  # a signal meanwhile interrupts the start (exit 130)

@@ -122,6 +122,8 @@ def command(model: Path, track: Path | None, speed: float, broker_url: str | Non
         click.echo(f"  actions         {result.actions}   latency p50 {p50}, p99 {p99}")
         if result.failure:
             click.echo(f"  failure         {result.failure}")
+        if result.stood_still:
+            click.echo(f"  motors stopped  {result.stood_still}")
         if result.plot is not None:
             click.echo(f"  picture         {result.plot}")
     if follower is not None:

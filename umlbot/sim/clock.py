@@ -19,6 +19,11 @@ idle or a loaded machine. The events are advanced by a ticker task on the orches
 loop (the loop of the first `asleep` or `call_started`); a clock without one (a world used alone,
 a thread that sleeps) moves itself on when the wall clock reaches the deadline.
 
+A hold (`hold(key, until_s, grace_wall_s)`: the world's motor leases) keeps sim time short of
+`until_s` until it is renewed, dropped (`unhold`) or `grace_wall_s` wall seconds have passed:
+sim time waits for a motor driver's renewal as it waits for a call in flight, so a live driver
+renews in time at any speed, and a frozen one lets its lease end at the exact sim time.
+
 `halt()` stops time where it is (the run ended: goal, collision, fault); waits that are pending
 then stay pending until `release()` lets them all return at once (the run shuts down).
 `limit_s` ends time at that sim time: the clock halts there (the run's time-out).
@@ -65,6 +70,7 @@ class SimClock(Clock):
         self._halted = False
         self._released = False
         self._quiet = threading.Event()
+        self._holds: dict[str, tuple[float, float]] = {}  # key -> (sim time, wall deadline)
         #: time ends here: the clock halts at this sim time
         self.limit_s = math.inf
 
@@ -93,11 +99,35 @@ class SimClock(Clock):
             futures = list(self._futures.values())
             self._futures.clear()
             self._deadlines.clear()
+            self._holds.clear()
             self._cond.notify_all()
         loop = self._loop
         if loop is not None and futures:
             with contextlib.suppress(RuntimeError):  # the loop is closed
                 loop.call_soon_threadsafe(_resolve, futures)
+
+    def hold(self, key: str, until_s: float, grace_wall_s: float) -> None:
+        """Keep sim time short of `until_s` for at most `grace_wall_s` wall seconds from now (a
+        later `hold` with the same key replaces this one)."""
+        with self._cond:
+            self._holds[key] = (until_s, time.monotonic() + grace_wall_s)
+        self._poke()
+
+    def unhold(self, key: str) -> None:
+        """Drop the hold of `key` (none: nothing to do)."""
+        with self._cond:
+            dropped = self._holds.pop(key, None)
+        if dropped is not None:
+            self._poke()
+
+    def _barrier(self) -> tuple[float, float]:
+        """(the sim time no deadline may reach, wall seconds until that changes by itself);
+        (inf, inf) without holds. Caller holds the lock."""
+        now = time.monotonic()
+        live = [(until, deadline) for until, deadline in self._holds.values() if deadline > now]
+        if not live:
+            return math.inf, math.inf
+        return min(until for until, _ in live), min(deadline for _, deadline in live) - now
 
     def wait_quiet(self, timeout: float) -> bool:
         """After `halt()`: wait until the orchestrator has nothing left to do but wait."""
@@ -268,37 +298,53 @@ class SimClock(Clock):
             timeout = POLL_WALL_S
             with self._cond:
                 busy = self._in_flight > self._time_waits
-                head = self._deadlines[0][0] if self._deadlines else None
                 halted = self._halted
+                target = self._next_time()
+                at_barrier = target is None and bool(self._deadlines)
+                barrier_wall_s = self._barrier()[1]
             if halted:
                 if not busy and await self._settled(loop):
                     with self._cond:
                         if self._in_flight <= self._time_waits:
                             self._quiet.set()
-            elif head is not None and not busy:
-                wait = self._wall_origin + min(head, self.limit_s) / self.speed - time.monotonic()
+            elif at_barrier and not busy:
+                timeout = min(barrier_wall_s, POLL_WALL_S)  # at a lease's end: wait for its renewal
+            elif target is not None and not busy:
+                wait = self._wall_origin + min(target, self.limit_s) / self.speed - time.monotonic()
                 if wait <= 0:
                     if await self._settled(loop):
-                        self._advance(head)
+                        self._advance(target)
                     continue
                 timeout = min(wait, POLL_WALL_S)
             kick.clear()
             with contextlib.suppress(TimeoutError):
                 await asyncio.wait_for(kick.wait(), timeout)
 
-    def _advance(self, head: float) -> None:
-        """Move to the earliest deadline when it is still `head` and nothing got busy meanwhile."""
+    def _next_time(self) -> float | None:
+        """Where sim time moves next: the earliest deadline, or a hold's time when that comes
+        first (time stops there until the hold is renewed or its grace is over); None when it
+        stands at a hold already, or nothing waits. Caller holds the lock."""
+        if not self._deadlines:
+            return None
+        head = self._deadlines[0][0]
+        barrier = self._barrier()[0]
+        if head < barrier:
+            return head
+        return barrier if self._now < barrier else None
+
+    def _advance(self, target: float) -> None:
+        """Move to `target` when it is still where time goes next and nothing got busy meanwhile."""
         with self._cond:
             if self._halted or self._in_flight > self._time_waits:
                 return
-            if not self._deadlines or self._deadlines[0][0] != head:
+            if self._next_time() != target:
                 return
-            if head > self.limit_s:
+            if target > self.limit_s:
                 self._now = max(self._now, self.limit_s)
                 self._halted = True
                 self._cond.notify_all()
                 return
-            due = self._fire(head)
+            due = self._fire(target)
         _resolve(due)
 
 

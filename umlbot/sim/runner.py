@@ -152,6 +152,18 @@ class SimResult:
     failure: str | None = None
     final_pose: tuple[float, float, float] = (0.0, 0.0, 0.0)
     broker_url: str = ""
+    #: component -> the safety stop its service made while the model ran (`Orchestrator.safety_stops`)
+    safety_stops: dict[str, str] = field(default_factory=dict)
+    #: (sim time, side) of every motor the world's deadman stopped (its driver stopped renewing it)
+    deadman_stops: list[tuple[float, str]] = field(default_factory=list)
+
+    @property
+    def stood_still(self) -> str | None:
+        """Why the motors stopped before the run's end, in words, or None when nothing stopped them."""
+        why = [f"{component}: {reason}" for component, reason in sorted(self.safety_stops.items())]
+        why += [f"the {side} motor's driver stopped renewing it: the deadman stopped it at {t:.1f} s"
+                for t, side in self.deadman_stops]
+        return "; ".join(why) or None
 
     @property
     def ok(self) -> bool:
@@ -172,6 +184,8 @@ class SimResult:
             "action_p99_ms": _round(self.action_p99_ms),
             "plot": str(self.plot) if self.plot else None,
             "failure": self.failure,
+            "safety_stops": dict(self.safety_stops),
+            "deadman_stops": [[round(t, 3), side] for t, side in self.deadman_stops],
         }
 
 
@@ -347,6 +361,7 @@ class _Services:
         for child in self.children.values():
             if child.poll() is None:
                 child.send_signal(signal.SIGTERM)
+                child.send_signal(signal.SIGCONT)  # a frozen one (SIGSTOP) gets the SIGTERM too
         for kind, child in self.children.items():
             try:
                 child.wait(timeout=10)
@@ -581,6 +596,8 @@ def run_sim(
         failure=failure,
         broker_url=url,
         final_pose=(final.pose.x, final.pose.y, math.degrees(final.pose.heading)),
+        safety_stops=dict(orchestrator.safety_stops) if orchestrator is not None else {},
+        deadman_stops=[(t, side) for t, side in world.deadman_stops],
     )
     if options.plot is not None:
         from umlbot.sim.plot import plot_run

@@ -43,6 +43,8 @@ class WorldHandle(Protocol):
         duty_percent: float | None = None,
     ) -> None: ...
 
+    def renew_motor(self, side: Side, lease_s: float) -> bool: ...
+
     def set_servo(self, degrees: float) -> None: ...
 
     def servo_angle_deg(self) -> float: ...
@@ -111,6 +113,13 @@ def _dispatch(world: World, op: str, args: dict[str, Any]) -> Any:
         world.set_motor(side, enabled=_flag(args, "enabled"), forward=_flag(args, "forward"),
                         duty_percent=_number(args, "duty_percent"))
         return None
+    if op == "renew_motor":
+        side = args.get("side")
+        if side not in ("left", "right"):
+            raise ValueError(f"side must be 'left' or 'right', got {side!r}"[:80])
+        lease = _number(args, "lease_s", required=True)
+        assert lease is not None
+        return world.renew_motor(side, lease)
     if op == "set_servo":
         degrees = _number(args, "degrees", required=True)
         assert degrees is not None
@@ -283,6 +292,9 @@ class RemoteWorld:
         duty_percent: float | None = None,
     ) -> None:
         self._call("set_motor", side=side, enabled=enabled, forward=forward, duty_percent=duty_percent)
+
+    def renew_motor(self, side: Side, lease_s: float) -> bool:
+        return bool(self._call("renew_motor", side=side, lease_s=lease_s))
 
     def set_servo(self, degrees: float) -> None:
         self._call("set_servo", degrees=degrees)

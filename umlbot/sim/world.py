@@ -32,6 +32,9 @@ Side = Literal["left", "right"]
 CONTACT_SETTLE_S = 0.1
 
 SPEED_OF_SOUND_MPS = 343.0
+#: wall seconds a simulator clock waits at most for a motor driver to renew its lease before the
+#: lease expires (the driver is taken for frozen or dead, and the world stops its motor)
+DEADMAN_GRACE_WALL_S = 1.0
 
 
 @dataclass(frozen=True)
@@ -119,10 +122,17 @@ class _Trace:
 
 
 class World:
-    """The car on a track. Drivers call `set_motor`, `set_servo`, `read_sonar_cm`.
+    """The car on a track. Drivers call `set_motor`, `renew_motor`, `set_servo`, `read_sonar_cm`.
 
     With a `clock`, every call first advances the world to the clock's time, so commands take
     effect at the sim time they arrive, however late the world loop runs.
+
+    The motors have a deadman outside their driver's process, as on the robot (a pigpiod script,
+    finite lgpio PWM bursts): once a driver renews a side (`renew_motor(side, lease_s)`), the world
+    stops that side by itself when `lease_s` of world time pass without a renewal or a command
+    (`deadman_stops`). A simulator clock that can hold (`SimClock.hold`) does not move past a
+    lease's end for up to `DEADMAN_GRACE_WALL_S` wall seconds while it waits for the renewal, so a
+    live driver is never taken for dead however fast the run goes.
     """
 
     def __init__(
@@ -158,6 +168,11 @@ class World:
         self._motors: dict[Side, MotorChannelState] = {"left": MotorChannelState(),
                                                        "right": MotorChannelState()}
         self._servo = _Servo()
+        #: side -> (lease seconds, world time it ends) once its driver renews it
+        self._leases: dict[Side, tuple[float, float]] = {}
+        self._fired: set[Side] = set()  # sides the deadman stopped since their last renewal
+        #: (world time, side) of every deadman stop
+        self.deadman_stops: list[tuple[float, Side]] = []
         self._distance = 0.0
         self._collisions = 0
         self._in_contact = False
@@ -179,18 +194,57 @@ class World:
         forward: bool | None = None,
         duty_percent: float | None = None,
     ) -> None:
-        """Change one side's channel; arguments left None keep their value."""
+        """Change one side's channel; arguments left None keep their value. A command renews the
+        side's lease (a driver that commands is alive)."""
         with self._lock:
             self._sync()
             channel = self._motors[side]
+            if duty_percent is not None and not 0 <= duty_percent <= 100:
+                raise ValueError(f"duty must be 0..100 %, got {duty_percent}")
             if enabled is not None:
                 channel.enabled = enabled
             if forward is not None:
                 channel.forward = forward
             if duty_percent is not None:
-                if not 0 <= duty_percent <= 100:
-                    raise ValueError(f"duty must be 0..100 %, got {duty_percent}")
                 channel.duty_percent = duty_percent
+            lease = self._leases.get(side)
+            if lease is not None:
+                self._leases[side] = (lease[0], self._time + lease[0])
+            self._hold_clock(side)
+
+    def renew_motor(self, side: Side, lease_s: float) -> bool:
+        """The driver of `side` is alive: the deadman stops the side when `lease_s` seconds of
+        world time pass without another renewal or command (0: no deadman for it).
+
+        Returns False when the deadman stopped the side since the last renewal (the driver
+        learns that its motor was stopped behind its back), else True.
+        """
+        if not lease_s >= 0:
+            raise ValueError(f"the lease must be >= 0 s, got {lease_s}")
+        # the clock's time, without integrating up to it: a renewal comes at a wall-clock moment,
+        # and a step split there would make the run depend on the machine's timing
+        now = self.time_s()
+        with self._lock:
+            fired = side in self._fired
+            self._fired.discard(side)
+            if lease_s > 0:
+                self._leases[side] = (float(lease_s), now + lease_s)
+            else:
+                self._leases.pop(side, None)
+            self._hold_clock(side)
+        return not fired
+
+    def _hold_clock(self, side: Side) -> None:
+        """Ask a clock that can hold not to pass the side's lease while the side drives (caller
+        holds the lock)."""
+        hold, unhold = getattr(self.clock, "hold", None), getattr(self.clock, "unhold", None)
+        if hold is None or unhold is None:
+            return
+        lease = self._leases.get(side)
+        if lease is not None and self._motors[side].enabled and not self._halted.is_set():
+            hold(f"motor-{side}", lease[1], DEADMAN_GRACE_WALL_S)
+        else:
+            unhold(f"motor-{side}")
 
     def halt(self) -> None:
         """End the world at once: both sides disabled where the car is now, and time stops.
@@ -205,9 +259,10 @@ class World:
         if halt_clock is not None:
             halt_clock()  # the clock stops too: the run's figures are those of this moment
         with self._lock:
-            for channel in self._motors.values():
+            for side, channel in self._motors.items():
                 channel.enabled = False
                 channel.duty_percent = 0.0
+                self._hold_clock(side)
 
     @property
     def halted(self) -> bool:
@@ -301,14 +356,26 @@ class World:
                     break
                 if halted.is_set():
                     return
+                self._step_to_lease_end(boundary)
                 self.step(boundary - self._time)
+            self._step_to_lease_end(time_s)
             rest = time_s - self._time
             if rest > 1e-9 and not halted.is_set():
                 self.step(rest)
 
+    def _step_to_lease_end(self, before: float) -> None:
+        """When a driving side's lease ends before `before`, step to that moment first: the
+        deadman stops the motor at its exact time, not at the next step (only then is the grid
+        split; a run without a deadman stop integrates the same steps)."""
+        ends = [end for side, (_, end) in self._leases.items()
+                if self._motors[side].enabled and self._time + 1e-9 < end < before - 1e-9]
+        if ends:
+            self.step(min(ends) - self._time)
+
     def step(self, dt: float) -> None:
-        """Advance the world by `dt` sim seconds: motors, servo, pose, collision, goal."""
+        """Advance the world by `dt` sim seconds: deadman, motors, servo, pose, collision, goal."""
         with self._lock:
+            self._deadman()
             car = self.car
             # exact for a constant target: a step split in two ends where the whole step does
             alpha = 1.0 if car.motor_time_constant_s <= 0 else -math.expm1(-dt / car.motor_time_constant_s)
@@ -355,6 +422,19 @@ class World:
                     self._goal_reached = True
                     if self.halt_at_goal:
                         self.halt()
+
+    def _deadman(self) -> None:
+        """Stop every enabled side whose lease ended by now (caller holds the lock)."""
+        for side, (_, ends) in self._leases.items():
+            channel = self._motors[side]
+            if channel.enabled and self._time >= ends - 1e-9:
+                channel.enabled = False
+                channel.duty_percent = 0.0  # the deadman writes the pins low
+                self._fired.add(side)
+                self.deadman_stops.append((self._time, side))
+                log.warning("motor_deadman", side=side, time_s=round(self._time, 3),
+                            lease_ended_s=round(ends, 3))
+                self._hold_clock(side)
 
     def _sync(self) -> None:
         if self.clock is not None:

@@ -122,7 +122,9 @@ class StudioRun:
                              observe=self._observe)
             self.last = {"reason": result.reason, "goal_reached": result.goal_reached,
                          "collisions": result.collisions, "sim_s": round(result.sim_s, 2),
-                         "distance_m": round(result.distance_m, 2), "failure": result.failure}
+                         "distance_m": round(result.distance_m, 2), "failure": result.failure,
+                         # why the motors stopped before the end (the page may show it)
+                         "stood_still": result.stood_still}
         except Exception as exc:  # a bad model or track: tell the page, never crash the studio
             log.warning("studio run failed", error=str(exc))
             self.last = {"reason": "failed", "failure": str(exc)}
