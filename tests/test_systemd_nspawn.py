@@ -66,6 +66,8 @@ MQTT_STOP_S = 1.5
 #: what systemd adds to a watchdog period before a frozen service's motors are stopped from
 #: outside it: noticing the missed ping, killing the process, running the safe stop.
 SYSTEMD_MARGIN_S = 3.0
+#: how long a message published just before a signal may take to reach the recorder.
+IN_FLIGHT_S = 0.3
 #: how long a service takes to start and say `online` (Python, imports, broker connection).
 START_S = 6.0
 #: the probe (tests/systemd_probe.py) inside the container, the device node it tries to open and
@@ -440,26 +442,61 @@ def test_a_killed_unit_is_restarted_and_the_motors_stop_meanwhile(driving: Car, 
         + f", running again after {back.t - killed_at:.1f} s")
 
 
+def exec_stop_post(car: Car, unit: str) -> tuple[int, str, str] | None:
+    """The last run of the unit's ExecStopPost= (pid, code, status), or None when it has none."""
+    text = car.container.show(unit, "ExecStopPost").get("ExecStopPost", "")
+    found = re.search(r"pid=(\d+) ; code=(\S+) ; status=(\S+)", text)
+    return (int(found.group(1)), found.group(2), found.group(3)) if found else None
+
+
 def test_a_frozen_motor_service_has_its_motors_stopped_from_outside(driving: Car) -> None:
-    """SIGSTOP of the motor service with the motors turning: nothing in the process can stop
-    them, so a deadman outside it must (§1 of issue 23: systemd's WatchdogSec= and a safe stop
-    in ExecStopPost=), within the watchdog period and systemd's margin."""
+    """SIGSTOP of the motor service while the motors turn: nothing in the frozen process can stop
+    them, so something outside it must (issue 23 §1: systemd's WatchdogSec= ends the process, the
+    unit's ExecStopPost= safe stop writes the pins low). Through systemd that shows as: the frozen
+    process ended within the watchdog period and systemd's margin; the safe stop, when the unit
+    has one, ran after it and succeeded; the motors' retained state says stopped once the
+    service is back (a mock's pins live in its process: a safe stop in another one cannot be
+    seen on MQTT)."""
     car = driving
     unit = SERVICE.format("motor")
     before = car.unit(unit)
-    watchdog_s = max(MOTOR_WATCHDOG_S, seconds(before["WatchdogUSec"]))
+    watchdog_s = seconds(before["WatchdogUSec"]) or MOTOR_WATCHDOG_S
+    safe_stop_before = exec_stop_post(car, unit)
     frozen_at, pid, host = signal_while_driving(car, unit, signal.SIGSTOP)
     try:
-        bound = watchdog_s + SYSTEMD_MARGIN_S
+        # what the process published just before it froze may still be on its way: a stop within
+        # IN_FLIGHT_S is not one from outside (no deadman can act before a watchdog period)
+        settled = frozen_at + IN_FLIGHT_S
+        time.sleep(IN_FLIGHT_S)
         for motor in MOTORS:
-            stop = car.recorder.wait_for(topic(motor, "state"), stopped, after=frozen_at,
+            last = car.recorder.latest(topic(motor, "state"), before=settled)
+            assert last is not None and running(last.payload), f"{motor} had stopped as it froze: {last}"
+        # 1. systemd ends the frozen process
+        bound = watchdog_s + SYSTEMD_MARGIN_S
+        while Path(f"/proc/{host}").exists() and time.monotonic() < frozen_at + bound:
+            time.sleep(0.05)
+        assert not Path(f"/proc/{host}").exists(), (
+            f"the motor service is still frozen {bound:.1f} s later (WatchdogSec="
+            f"{before['WatchdogUSec']}), its motors turning: nothing outside the process stopped them\n"
+            f"{car.journal(unit)}")
+        log(f"kill -STOP {unit}: the process ended after {time.monotonic() - frozen_at:.2f} s")
+        # 2. the unit's safe stop ran once it was gone, and succeeded
+        if safe_stop_before is not None:
+            deadline = time.monotonic() + START_S
+            while (run := exec_stop_post(car, unit)) is not None and (
+                    run[0] == safe_stop_before[0] or run[1] == "(null)") and time.monotonic() < deadline:
+                time.sleep(0.05)
+            assert run is not None and run[0] != safe_stop_before[0] and run[1:] == ("exited", "0"), (
+                f"ExecStopPost= after the freeze: {run}\n{car.journal(unit)}")
+            log(f"kill -STOP {unit}: its safe stop done after {time.monotonic() - frozen_at:.2f} s")
+        # 3. the motors' state says stopped once the service is back
+        bound += seconds(before["RestartUSec"]) + START_S
+        for motor in MOTORS:
+            stop = car.recorder.wait_for(topic(motor, "state"), stopped, after=settled,
                                          timeout=max(0.0, frozen_at + bound - time.monotonic()))
-            assert stop is not None, (
-                f"{motor} still turns {bound:.1f} s after its service froze (WatchdogSec="
-                f"{before['WatchdogUSec']}): nothing outside the frozen process stopped it\n"
-                f"{car.journal(unit)}")
-        after = wait_units(car, (unit,), seconds(before["RestartUSec"]) + START_S + 10.0,
-                           lambda s: is_running(s) and s["MainPID"] != str(pid))[unit]
+            assert stop is not None, f"{motor} not stopped {bound:.1f} s after the freeze\n{car.journal()}"
+            log(f"kill -STOP {unit}: {motor} stopped on MQTT after {stop.t - frozen_at:.2f} s")
+        after = wait_units(car, (unit,), START_S, is_running)[unit]
         assert is_running(after) and after["MainPID"] != str(pid), f"{after}\n{car.journal(unit)}"
     finally:
         with contextlib.suppress(ProcessLookupError):
