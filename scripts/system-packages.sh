@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # The Debian packages `make test` needs besides Python: Mosquitto (the tests start their own),
 # Graphviz's `dot` (SVG diagrams), openssl (test certificates), systemd-analyze (unit checks),
+# systemd-nspawn and debootstrap (the units under a real systemd: `make test-systemd`),
 # chromium and chromium-driver (the studio's browser tests drive /usr/bin/chromium), nodejs and
 # npm (the studio page's TypeScript checks and unit tests), and
 # python3-venv when $PYTHON (default python3) is Debian's own Python without it: there
@@ -19,7 +20,7 @@ case "${1:-}" in
     "") ;;
     --check) CHECK_ONLY=1 ;;
     --venv) VENV_ONLY=1 ;;
-    -h|--help) sed -n '2,12p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    -h|--help) sed -n '2,/^[^#]/p' "$0" | sed -e '$d' -e 's/^# \{0,1\}//'; exit 0 ;;  # the header
     *) echo "system-packages.sh: unknown option $1 (--check, --venv, --help)" >&2; exit 2 ;;
 esac
 PYTHON="${PYTHON:-python3}"
@@ -59,6 +60,8 @@ find_missing() {
     have dot || missing+=(graphviz)
     have openssl || missing+=(openssl)
     have systemd-analyze || missing+=(systemd)
+    have systemd-nspawn || missing+=(systemd-container)
+    have debootstrap || [ -x /usr/sbin/debootstrap ] || missing+=(debootstrap)
     have chromium || missing+=(chromium)
     have chromedriver || missing+=(chromium-driver)
     have node || missing+=(nodejs)

@@ -935,6 +935,8 @@ OTHER_PROGRAMS_OPTIONS = {
     "systemctl": {"--now"},
     "journalctl": {"--since"},
     "mosquitto_sub": {"--cafile"},
+    "debootstrap": {"--variant"},
+    "systemd-nspawn": {"--boot", "--system-call-filter", "--private-network"},
 }
 
 

@@ -11,7 +11,8 @@ ROOT = Path(__file__).resolve().parent.parent
 SCRIPT = ROOT / "scripts" / "system-packages.sh"
 #: Debian package -> the program the script looks for.
 PROGRAMS = {"mosquitto": "mosquitto", "graphviz": "dot", "openssl": "openssl",
-            "systemd": "systemd-analyze", "chromium": "chromium", "chromium-driver": "chromedriver",
+            "systemd": "systemd-analyze", "systemd-container": "systemd-nspawn", "debootstrap": "debootstrap",
+            "chromium": "chromium", "chromium-driver": "chromedriver",
             "nodejs": "node", "npm": "npm"}
 
 
@@ -87,7 +88,9 @@ def test_check_agrees_with_what_is_installed() -> None:
 def test_without_apt_get_it_names_the_packages_and_stops(tmp_path: Path) -> None:
     result = run(tools(tmp_path / "bin", id="echo 0"))
     assert result.returncode == 1
-    missing = [p for p in PROGRAMS if not (p == "mosquitto" and Path("/usr/sbin/mosquitto").exists())]
+    # the script finds these two in /usr/sbin, which is not on this PATH
+    missing = [p for p in PROGRAMS
+               if not (p in ("mosquitto", "debootstrap") and Path("/usr/sbin", p).exists())]
     names = " ".join(missing)
     assert result.stderr.splitlines() == [
         f"system-packages.sh: missing Debian packages: {names} (no apt-get on this machine)",
@@ -210,3 +213,13 @@ def test_make_sim_stops_before_creating_the_venv(tmp_path: Path) -> None:
         f"system-packages.sh: {python} cannot create a virtual environment (no ensurepip): "
         "install Debian's python3-venv as root: apt-get install python3-venv")
     assert not venv.exists() and not (tmp_path / "out").exists()
+
+
+def test_help_prints_the_whole_header() -> None:
+    lines = SCRIPT.read_text(encoding="utf-8").splitlines()[1:]
+    header = [line.removeprefix("#").removeprefix(" ") for line in lines[:next(
+        i for i, line in enumerate(lines) if not line.startswith("#"))]]
+    result = run("/usr/bin:/bin", "--help")
+    assert result.returncode == 0
+    assert result.stdout.splitlines() == header
+    assert header[-1].endswith("exits 1.")
