@@ -8,10 +8,9 @@
 from __future__ import annotations
 
 import os
-import random
 import re
+import secrets
 import socket
-import string
 from pathlib import Path
 from typing import Final, Literal
 from urllib.parse import parse_qs, quote, unquote, urlsplit
@@ -165,9 +164,13 @@ _UNSAFE = re.compile(r"[^A-Za-z0-9_\-]")
 
 
 def make_client_id(role: str, robot: str) -> str:
-    """`umlbot-<role>-<robot>-<host>-<pid>-<random4>`: unique, and says what the client is."""
+    """`umlbot-<role>-<robot>-<host>-<pid>-<32 hex digits>`: says what the client is, and cannot be
+    guessed (128 random bits), so that no other client can take it (docs/security.md).
+
+    umlbot never publishes it: statuses name an `instance` token, reply topics a token of their own.
+    """
     host = _UNSAFE.sub("", socket.gethostname().split(".")[0])[:20] or "host"
-    suffix = "".join(random.choices(string.ascii_lowercase + string.digits, k=4))
+    suffix = secrets.token_hex(16)
     role_part = _UNSAFE.sub("_", role)[:32] or "client"
     robot_part = _UNSAFE.sub("_", robot)[:32] or "any"
     return f"umlbot-{role_part}-{robot_part}-{host}-{os.getpid()}-{suffix}"
