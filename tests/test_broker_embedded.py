@@ -78,7 +78,9 @@ def test_a_new_client_gets_retained_messages_only_for_its_own_subscriptions(embe
             got.append(message.topic)
             done.set()
 
-        newcomer = BusConnection(settings, "test", client_id="newcomer")
+        # 3.1.1 from the start: a fall-back from MQTT 5 would replace the paho client hooked below
+        newcomer = BusConnection(BrokerSettings.from_url(embedded.url + "?protocol=3.1.1"), "test",
+                                 client_id="newcomer")
         newcomer.subscribe("umlbot/car/Sonar/status", keep)
         raw_topics: list[str] = []
         dispatch = newcomer._client.on_message

@@ -39,7 +39,9 @@ def test_settings_from_url_with_credentials_hide_the_password() -> None:
     assert settings.password is not None and settings.password.get_secret_value() == "s3cr@t"
     assert settings.url == "mqtt://robot:***@broker.local:1999"
     assert "s3cr" not in repr(settings) and "s3cr" not in str(settings)
-    assert settings.protocol == "3.1.1"
+    assert settings.protocol == "auto"  # MQTT 5, falling back to 3.1.1 where refused
+    assert BrokerSettings.from_url("mqtt://h?protocol=3.1.1").protocol == "3.1.1"
+    assert BrokerSettings.from_url("mqtt://h?protocol=auto").protocol == "auto"
 
 
 def test_settings_defaults_and_tls(tmp_path: Path) -> None:

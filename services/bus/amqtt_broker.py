@@ -6,6 +6,9 @@ with these differences, each one a fault found against Mosquitto or the MQTT 3.1
 
 - keep-alive: a client silent for 1.5 x its keep-alive is disconnected and its will published
   (MQTT-3.1.2-24); amqtt waited for ever, so a frozen service was never announced offline;
+- an MQTT 5 CONNECT is answered with CONNACK "unacceptable protocol version" (MQTT-3.1.2-2), so
+  that the client falls back to 3.1.1; amqtt closed the connection without a word when the CONNECT
+  had a will;
 - strings: a topic, topic filter, client id or user name that is not well-formed UTF-8 or holds
   U+0000 closes the connection (MQTT-1.5.3-1, -2); amqtt turned the bytes into "b'...'" text and
   acknowledged the publish;
@@ -41,6 +44,7 @@ from amqtt.mqtt import connect as connect_packet
 from amqtt.mqtt import publish as publish_packet
 from amqtt.mqtt import subscribe as subscribe_packet
 from amqtt.mqtt import unsubscribe as unsubscribe_packet
+from amqtt.mqtt.connack import UNACCEPTABLE_PROTOCOL_VERSION, ConnackPacket
 from amqtt.mqtt.constants import QOS_0, QOS_1, QOS_2
 from amqtt.mqtt.protocol.broker_handler import BrokerProtocolHandler
 from amqtt.session import OUTGOING, Session
@@ -58,6 +62,15 @@ KEEPALIVE_GRACE = 1.5
 
 class ProtocolViolation(AMQTTError):  # type: ignore[misc]  # amqtt is untyped
     """A packet MQTT says the server must answer by closing the connection."""
+
+
+class UnsupportedProtocolLevel(ProtocolViolation):
+    """A CONNECT of another MQTT version than 3.1.1 (level 4): CONNACK 1, then close (MQTT-3.1.2-2).
+
+    amqtt read the rest of an MQTT 5 CONNECT as 3.1.1 first and closed the connection without a
+    CONNACK when that failed (as it does for one with a will): a client could not tell that it
+    should fall back to 3.1.1.
+    """
 
 
 async def _strict_decode_string(reader: Any) -> str:
@@ -87,6 +100,16 @@ def _patch_amqtt() -> None:
     if getattr(handler_cls, "_umlbot_patched", False):
         return
     handler_cls._umlbot_patched = True
+    payload_cls: Any = connect_packet.ConnectPayload
+    read_payload = payload_cls.from_stream.__func__
+
+    async def read_connect_payload(cls: Any, reader: Any, fixed_header: Any, variable_header: Any) -> Any:
+        level = getattr(variable_header, "proto_level", 4)
+        if level != 4:
+            raise UnsupportedProtocolLevel(f"MQTT protocol level {level} (only 4, MQTT 3.1.1, is spoken)")
+        return await read_payload(cls, reader, fixed_header, variable_header)
+
+    payload_cls.from_stream = classmethod(read_connect_payload)
 
     def handle_read_timeout(self: Any) -> None:
         # the reader waited 1.5 x keep-alive (see UmlbotBroker) without a packet: cancelling the
@@ -154,6 +177,12 @@ class UmlbotBroker(Broker):  # type: ignore[misc]  # amqtt is untyped
         try:
             handler, session = await BrokerProtocolHandler.init_from_connect(reader, writer,
                                                                              self.plugins_manager)
+        except UnsupportedProtocolLevel as exc:  # an MQTT 5 client: it falls back to 3.1.1
+            log.debug("broker_connect_refused", peer=where, reason=str(exc))
+            with contextlib.suppress(Exception):
+                await ConnackPacket.build(0, UNACCEPTABLE_PROTOCOL_VERSION).to_stream(writer)
+            await writer.close()
+            raise MQTTError(str(exc)) from exc
         except ProtocolViolation as exc:
             log.warning("broker_connect_refused", peer=where, reason=str(exc))
             await writer.close()
