@@ -142,6 +142,10 @@ def _patch_amqtt() -> None:
     handler_cls._handle_message_flow = handle_message_flow
 
 
+class _Refused(Exception):
+    """A connection answered and closed on purpose (no warning: the client knows what to do)."""
+
+
 class _SnapshotSubscriptions(dict[str, list[Any]]):
     """amqtt's subscription table, iterated over snapshots.
 
@@ -169,6 +173,15 @@ class UmlbotBroker(Broker):  # type: ignore[misc]  # amqtt is untyped
 
     # -- connecting: read the CONNECT, authenticate, and only then touch a stored session --------
 
+    async def _client_connected(self, listener_name: str, reader: Any, writer: Any) -> None:
+        """amqtt's, less its warning for an MQTT 5 client told to fall back (every such connect)."""
+        try:
+            await super()._client_connected(listener_name, reader, writer)
+        except _Refused:
+            server = self._servers.get(listener_name)
+            if server is not None:
+                server.release_connection()
+
     async def _initialize_client_session(
         self, reader: Any, writer: Any, remote_address: str, remote_port: int
     ) -> tuple[Any, Session]:
@@ -182,7 +195,7 @@ class UmlbotBroker(Broker):  # type: ignore[misc]  # amqtt is untyped
             with contextlib.suppress(Exception):
                 await ConnackPacket.build(0, UNACCEPTABLE_PROTOCOL_VERSION).to_stream(writer)
             await writer.close()
-            raise MQTTError(str(exc)) from exc
+            raise _Refused from exc
         except ProtocolViolation as exc:
             log.warning("broker_connect_refused", peer=where, reason=str(exc))
             await writer.close()
