@@ -12,6 +12,7 @@ import collections
 import contextlib
 import math
 import random
+import select
 import socket
 import threading
 import time
@@ -44,6 +45,11 @@ RECONNECT_MAX_S = 5.0
 #: while the broker stays unreachable, `mqtt_connect_failed` is logged as a warning on the first
 #: failed attempt and then at most once per this many seconds (the attempts between at debug).
 CONNECT_WARN_EVERY_S = 30.0
+#: after its DISCONNECT, a connection reads (and drops) what the broker still sends until the
+#: broker closes, at most this long: closing with unread data makes the kernel send a reset,
+#: and a broker that gets it may drop the DISCONNECT and what came before it (the orchestrator's
+#: final `stopped`), and publish the will (docs/security.md, "Faults and attacks tested").
+GOODBYE_WAIT_S = 1.0
 #: the MQTT 5 CONNACK reason "Unsupported Protocol Version"; paho also reports so the 3.1.1 answer
 #: "unacceptable protocol version" that a 3.1.1-only broker (amqtt) gives an MQTT 5 CONNECT.
 UNSUPPORTED_PROTOCOL = 132
@@ -128,6 +134,22 @@ class _PahoClient(mqtt.Client):
         super().__init__(*args, **kwargs)
         self._write_lock = threading.RLock()
         self.on_acknowledged: Callable[[int, Any], None] | None = None
+        self._goodbye = False  # our DISCONNECT is queued: close the socket without a reset
+
+    def _sock_close(self) -> None:
+        sock = self._sock
+        if sock is None or not self._goodbye:
+            super()._sock_close()
+            return
+        # a graceful close: read until the broker closes (it does on DISCONNECT), then close
+        self._sock = None
+        self._goodbye = False
+        try:
+            _drain_until_closed(sock, GOODBYE_WAIT_S)
+            self._call_socket_unregister_write(sock)
+            self._call_socket_close(sock)
+        finally:
+            sock.close()
 
     def _do_on_publish(self, mid: int, reason_code: Any, properties: Any) -> MQTTErrorCode:
         # before paho marks the message published, so that whoever waits for it sees the reason
@@ -145,6 +167,8 @@ class _PahoClient(mqtt.Client):
     ) -> MQTTErrorCode:
         # paho would also wake the network thread for every packet; we wake it only when the
         # packet could not be written here (inside a paho callback, or a full socket buffer).
+        if command & 0xF0 == mqtt.DISCONNECT:
+            self._goodbye = True
         self._out_packet.append(
             {"command": command, "mid": mid, "qos": qos, "pos": 0, "to_process": len(packet),
              "packet": packet, "info": info}
@@ -159,6 +183,24 @@ class _PahoClient(mqtt.Client):
             with contextlib.suppress(BlockingIOError, OSError):
                 wake.send(b"0")
         return MQTTErrorCode.MQTT_ERR_SUCCESS
+
+
+def _drain_until_closed(sock: Any, timeout: float) -> None:
+    """Read and drop what arrives on `sock` until the peer closes it or `timeout` passes."""
+    deadline = time.monotonic() + timeout
+    while (remaining := deadline - time.monotonic()) > 0:
+        try:
+            readable, _, _ = select.select([sock], [], [], remaining)
+            if not readable:
+                return
+            if not sock.recv(65536):
+                return  # the broker closed its side
+        except BlockingIOError:
+            continue
+        except OSError as exc:
+            if type(exc).__name__ in ("SSLWantReadError", "SSLWantWriteError"):
+                continue
+            return
 
 
 #: a piece of work for the dispatcher thread: a function and its arguments.
