@@ -57,6 +57,6 @@ def test_a_clean_close_under_chatter_never_leaves_the_will(
             message = reader.get(timeout=0.5, topic="goodbye/#")
         except TimeoutError:
             continue
-        final[message.topic] = message.payload
+        final[message.topic] = bytes(message.payload)
     wrong = {topic: payload for topic, payload in final.items() if payload != b"stopped"}
     assert len(final) == STOPS and wrong == {}, (len(final), wrong)
