@@ -22,6 +22,17 @@ one):
   how long until they stop, with the deadman (`watchdog_s: 2`) and without it (`watchdog_s: 0`,
   the baseline: before the deadman a frozen service left them running for the whole pause); the
   stop reason the service reports after SIGCONT.
+- `keepalive`: a service frozen by SIGSTOP (a hung process, a cut link) must be announced offline
+  by the broker: the services connect with `keepalive=5` and the broker must publish the will
+  within 1.5 x 5 s; per trial the time from SIGSTOP to the retained `offline`, and whether the
+  service came back online after SIGCONT.
+- `takeover`: a client that connects with a service's client id makes the broker drop the
+  service (its will says offline, the run fails). How the car keeps its ids from others: an
+  intruder listens to everything on `umlbot/<robot>/#` while the car drives and counts the fleet's
+  client ids it sees in topics and payloads (0 expected); then, given a motor service's id (from
+  the service's own debug log), it connects with it: the broker accepts or refuses, and the row
+  says whether the service was dropped, the run failed, and when the service was back online.
+  (These brokers have no users: the embedded broker refuses another *user's* client id only.)
 - `fuzz`: `--fuzz N` malformed payloads (random bytes, invalid, huge, deeply nested JSON,
   NaN/Infinity, wrong types, unknown features, oversize) at every component's call topics and the
   orchestrator's signal and exit topics, with the car running (call time-out 10 s, so that load
@@ -37,13 +48,13 @@ one):
   end, its peak, growth after the warm-up and slope. A process that grows more than
   `--soak-max-growth-mb` (default 3) after the warm-up, or exits, fails the run (exit status 1).
 
-The last output line is one JSON object:
-{"restart": [...], "kill": [...], "fuzz": [...], "frozen_motor": [...], "soak": [...]}.
+The last output line is one JSON object: {"restart": [...], "kill": [...], "keepalive": [...],
+"takeover": [...], "fuzz": [...], "frozen_motor": [...], "soak": [...]}.
 
     python bench/chaos.py [--trials 10] [--fuzz 10000] [--brokers mosquitto,amqtt]
                           [--kinds motor,sonar,servo,gpio]
-                          [--scenarios restart,kill,fuzz,frozen-motor,soak]
-                          [--soak-s 600] [--soak-warmup-s 300] [--soak-sample-s 5]
+                          [--scenarios restart,kill,keepalive,takeover,fuzz,frozen-motor,soak]
+                          [--listen 5] [--soak-s 600] [--soak-warmup-s 300] [--soak-sample-s 5]
                           [--soak-max-growth-mb 3]
 """
 
@@ -56,6 +67,7 @@ import json
 import math
 import os
 import random
+import re
 import shutil
 import signal
 import socket
@@ -271,7 +283,7 @@ class Fleet:
     """The four services and the orchestrator, each a real `umlbot` process."""
 
     def __init__(self, broker: Broker, workdir: Path, compiled: Path,
-                 call_timeout_s: float | None = None) -> None:
+                 call_timeout_s: float | None = None, query: str = "", log_level: str = "INFO") -> None:
         self.broker = broker
         self.workdir = workdir
         self.compiled = compiled
@@ -281,10 +293,11 @@ class Fleet:
         #: other long-running processes (the soak's `service all`, monitor and studio)
         self.others: list[Proc] = []
         self.counter = 0
-        # MQTT 5 where the broker speaks it, so that Response Topics name a reply topic too
-        url = broker.url + ("?protocol=5" if broker.kind == "mosquitto" else "")
+        # MQTT 5 where the broker speaks it (the default), so that Response Topics name a reply
+        # topic too; `query` adds URL parameters (e.g. keepalive=5)
+        url = broker.url + (f"?{query}" if query else "")
         self.env = {**{k: v for k, v in os.environ.items() if not k.startswith("UMLBOT_")},
-                    **unit_environment(), "UMLBOT_BROKER": url, "UMLBOT_LOG_LEVEL": "INFO"}
+                    **unit_environment(), "UMLBOT_BROKER": url, "UMLBOT_LOG_LEVEL": log_level}
         self.trace: Path | None = None
 
     def _spawn(self, name: str, argv: list[str], quiet_stdout: bool = False) -> Proc:
@@ -549,6 +562,115 @@ def kill_and_freeze(broker: Broker, fleet: Fleet, observer: Observer, kinds: lis
 
 def _round(value: float | None) -> float | None:
     return None if value is None else round(value, 3)
+
+
+# --- scenario: keep-alive -----------------------------------------------------------------------
+
+KEEPALIVE_S = 5  # the smallest keep-alive a broker URL may ask for
+
+
+def keepalive(broker: Broker, fleet: Fleet, observer: Observer, trials: int) -> dict[str, Any]:
+    """SIGSTOP the sonar service mid-run: the broker must publish its will within 1.5 x keep-alive."""
+    will_after: list[float | None] = []
+    back_online: list[bool] = []
+    component = COMPONENTS["sonar"][0]
+    for _trial in range(trials):
+        ensure_driving(fleet, observer)
+        service = fleet.services["sonar"]
+        sent = time.monotonic()
+        os.kill(service.popen.pid, signal.SIGSTOP)
+        offline = observer.wait(lambda o: o.status.get(component) == "offline", 4 * KEEPALIVE_S)
+        will_after.append(time.monotonic() - sent if offline else None)
+        os.kill(service.popen.pid, signal.SIGCONT)
+        back_online.append(observer.wait(lambda o: o.status.get(component) == "online", 20.0))
+        if fleet.run is not None:
+            with contextlib.suppress(subprocess.TimeoutExpired):
+                fleet.run.popen.wait(20)
+    seen = [w for w in will_after if w is not None]
+    row: dict[str, Any] = {
+        "broker": broker.kind,
+        "keepalive_s": KEEPALIVE_S,
+        "trials": trials,
+        "will_published": len(seen),
+        "will_after_max_s": _round(max(seen, default=None)),
+        "will_after_median_s": _round(statistics.median(seen) if seen else None),
+        "back_online_after_sigcont": sum(back_online),
+    }
+    print(json.dumps(row), file=sys.stderr, flush=True)
+    return row
+
+
+# --- scenario: client-id takeover ---------------------------------------------------------------
+
+CLIENT_ID = re.compile(rb"umlbot-[A-Za-z0-9_]+-[A-Za-z0-9_]+-[A-Za-z0-9_-]+")
+
+
+def fleet_client_ids(fleet: Fleet) -> set[str]:
+    """The client ids the fleet's processes connected with (their debug log says them)."""
+    ids = set()
+    for proc in fleet.all_processes():
+        for entry in log_events(proc.log, "mqtt_connected"):
+            ids.add(str(entry["client_id"]))
+    return ids
+
+
+def takeover(broker: Broker, fleet: Fleet, observer: Observer, listen_s: float) -> dict[str, Any]:
+    """Can an intruder learn a client id from the bus, and what does one that knows it do?"""
+    ensure_driving(fleet, observer)
+    heard: list[tuple[str, bytes]] = []
+    spy = mqtt.Client(CallbackAPIVersion.VERSION2, client_id=f"chaos-spy-{os.getpid()}",
+                      protocol=MQTTProtocolVersion.MQTTv5 if broker.kind == "mosquitto"
+                      else MQTTProtocolVersion.MQTTv311)
+    spy.on_connect = lambda c, u, f, rc, p=None: c.subscribe(f"umlbot/{ROBOT}/#", 0)
+    spy.on_message = lambda c, u, m: heard.append((m.topic, bytes(m.payload)))
+    spy.connect("127.0.0.1", broker.port, 30)
+    spy.loop_start()
+    from services.bus import BrokerSettings, BusClient
+
+    with BusClient(BrokerSettings.from_url(broker.url), ROBOT, role="chaos") as caller:
+        caller.call("DistanceRead", "value", timeout=5.0)  # a caller's request and its reply too
+        time.sleep(listen_s)
+    spy.disconnect()
+    spy.loop_stop()
+    ids = fleet_client_ids(fleet) | {caller.client_id}
+    leaked = {i for i in ids for topic, payload in heard if i in topic or i.encode() in payload}
+    lookalikes = {m.decode() for _, payload in heard for m in CLIENT_ID.findall(payload)}
+    motor_ids = [i for i in ids if "-service-LeftActuator-" in i]
+    row: dict[str, Any] = {"broker": broker.kind, "messages_heard": len(heard),
+                           "fleet_client_ids": len(ids), "client_ids_on_bus": len(leaked),
+                           "id_like_strings_on_bus": sorted(lookalikes)[:5]}
+    if motor_ids:
+        mark = len(observer.orchestrator)
+        accepted = threading.Event()
+        refused: list[str] = []
+
+        def on_connect(c: mqtt.Client, u: Any, f: Any, rc: Any, p: Any = None) -> None:
+            if rc.is_failure:
+                refused.append(str(rc))
+            else:
+                accepted.set()
+
+        intruder = mqtt.Client(CallbackAPIVersion.VERSION2, client_id=motor_ids[0],
+                               protocol=MQTTProtocolVersion.MQTTv311)
+        intruder.on_connect = on_connect
+        intruder.reconnect_delay_set(30, 60)  # one attempt
+        began = time.monotonic()
+        intruder.connect("127.0.0.1", broker.port, 30)
+        intruder.loop_start()
+        dropped = observer.wait(lambda o: o.status.get("LeftActuator") == "offline", 3.0)
+
+        def has_failed(o: Observer, m: int = mark) -> bool:
+            return any(e[1] == "failed" for e in o.orchestrator[m:])
+
+        failed = observer.wait(has_failed, 5.0)
+        intruder.disconnect()
+        intruder.loop_stop()
+        back = observer.wait(lambda o: o.status.get("LeftActuator") == "online", 20.0)
+        row.update({"intruder_accepted": accepted.is_set(), "intruder_refused": refused[:1],
+                    "service_dropped": dropped, "run_failed": failed,
+                    "service_online_after_s": _round(time.monotonic() - began) if back else None})
+    print(json.dumps(row), file=sys.stderr, flush=True)
+    return row
 
 
 # --- scenario: fuzz -----------------------------------------------------------------------------
@@ -1038,11 +1160,11 @@ def _freeze_trial(broker: Broker, observer: Observer, deploy_file: Path, log: Pa
 
 
 @contextlib.contextmanager
-def robot(kind: str, workdir: Path, compiled: Path, call_timeout_s: float | None = None
-          ) -> Iterator[tuple[Broker, Fleet, Observer]]:
+def robot(kind: str, workdir: Path, compiled: Path, call_timeout_s: float | None = None,
+          query: str = "", log_level: str = "INFO") -> Iterator[tuple[Broker, Fleet, Observer]]:
     broker = Broker(kind, workdir)
     broker.start()
-    fleet = Fleet(broker, workdir, compiled, call_timeout_s)
+    fleet = Fleet(broker, workdir, compiled, call_timeout_s, query, log_level)
     observer = Observer(broker.port)
     try:
         yield broker, fleet, observer
@@ -1058,9 +1180,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--fuzz", type=int, default=10_000, help="malformed payloads per fuzz run")
     parser.add_argument("--brokers", default="mosquitto,amqtt", help="brokers, e.g. mosquitto,amqtt")
     parser.add_argument("--kinds", default=",".join(KINDS), help="service kinds to SIGKILL and SIGSTOP")
-    parser.add_argument("--scenarios", default="restart,kill,fuzz,frozen-motor",
-                        help="which of restart, kill, fuzz, frozen-motor, soak (soak is not in the default: "
-                             "10 min a broker)")
+    parser.add_argument("--scenarios", default="restart,kill,keepalive,takeover,fuzz,frozen-motor",
+                        help="which of restart, kill, keepalive, takeover, fuzz, frozen-motor, soak (soak is "
+                             "not in the default: 10 min a broker)")
+    parser.add_argument("--listen", type=float, default=5.0, help="seconds the takeover spy listens")
     parser.add_argument("--outage", type=float, default=1.0, help="seconds the broker stays down")
     parser.add_argument("--seed", type=int, default=1, help="seed of the fuzzed payloads")
     parser.add_argument("--soak-s", type=float, default=600.0, help="seconds the soak runs (per broker)")
@@ -1075,13 +1198,14 @@ def main(argv: list[str] | None = None) -> int:
     kinds = [k for k in args.kinds.split(",") if k]
     scenarios = {s for s in args.scenarios.split(",") if s}
     if set(brokers) - {"mosquitto", "amqtt"} or set(kinds) - set(KINDS) or \
-            scenarios - {"restart", "kill", "fuzz", "frozen-motor", "soak"}:
+            scenarios - {"restart", "kill", "keepalive", "takeover", "fuzz", "frozen-motor", "soak"}:
         parser.error("unknown broker, kind or scenario")
 
     from umlbot.logs import configure_logging
 
     configure_logging("WARNING")
-    out: dict[str, Any] = {"restart": [], "kill": [], "fuzz": [], "frozen_motor": [], "soak": []}
+    out: dict[str, Any] = {"restart": [], "kill": [], "keepalive": [], "takeover": [], "fuzz": [],
+                           "frozen_motor": [], "soak": []}
     with tempfile.TemporaryDirectory(prefix="umlbot-chaos-") as tmp:
         workdir = Path(tmp)
         compiled = compile_car(workdir)
@@ -1092,6 +1216,13 @@ def main(argv: list[str] | None = None) -> int:
             if "kill" in scenarios and index == 0:
                 with robot(kind, workdir, compiled) as (broker, fleet, observer):
                     out["kill"] = kill_and_freeze(broker, fleet, observer, kinds, args.trials)
+            if "keepalive" in scenarios:
+                with robot(kind, workdir, compiled, query=f"keepalive={KEEPALIVE_S}") as \
+                        (broker, fleet, observer):
+                    out["keepalive"].append(keepalive(broker, fleet, observer, args.trials))
+            if "takeover" in scenarios:
+                with robot(kind, workdir, compiled, log_level="DEBUG") as (broker, fleet, observer):
+                    out["takeover"].append(takeover(broker, fleet, observer, args.listen))
             if "frozen-motor" in scenarios and index == 0:
                 with robot(kind, workdir, compiled) as (broker, _fleet, observer):
                     out["frozen_motor"] = frozen_motor(broker, observer, workdir, args.trials)

@@ -7,7 +7,11 @@ are measured in alternating blocks so that drift in machine load hits both alike
 line is one JSON object: {"results": [{"broker", "raw_p50_ms", "raw_p99_ms", "umlbot_p50_ms",
 "umlbot_p99_ms", "ratio_p50", "ratio_p99"}, ...]}.
 
-    python bench/rpc.py [--n 2000] [--blocks 10] [--brokers amqtt,mosquitto]
+    python bench/rpc.py [--n 2000] [--blocks 10] [--brokers amqtt,mosquitto] [--protocol auto]
+
+`--protocol` goes into umlbot's broker URL (`auto`, the default: MQTT 5 where the broker speaks
+it, else 3.1.1); the raw baseline speaks the MQTT version umlbot's connection ended up with
+(the `protocol` of each result).
 """
 
 from __future__ import annotations
@@ -30,7 +34,7 @@ from pathlib import Path
 from typing import Any
 
 import paho.mqtt.client as mqtt
-from paho.mqtt.enums import CallbackAPIVersion
+from paho.mqtt.enums import CallbackAPIVersion, MQTTProtocolVersion
 
 from services.bus import BrokerSettings, BusClient, ComponentServer, Feature
 from umlbot.library import implementations
@@ -86,8 +90,10 @@ def _nodelay(client: mqtt.Client, userdata: Any, sock: Any) -> None:
     sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
 
 
-def _raw_client(port: int, name: str) -> mqtt.Client:
-    client = mqtt.Client(CallbackAPIVersion.VERSION2, client_id=f"bench-raw-{name}-{os.getpid()}")
+def _raw_client(port: int, name: str, protocol: str = "3.1.1") -> mqtt.Client:
+    version = MQTTProtocolVersion.MQTTv5 if protocol == "5" else MQTTProtocolVersion.MQTTv311
+    client = mqtt.Client(CallbackAPIVersion.VERSION2, client_id=f"bench-raw-{name}-{os.getpid()}",
+                         protocol=version)
     client.on_socket_open = _nodelay
     connected = threading.Event()
     client.on_connect = lambda c, u, f, rc, p=None: connected.set()
@@ -109,12 +115,12 @@ def _subscribed(client: mqtt.Client, topic: str) -> None:
 class RawPair:
     """Responder and requester written directly on paho: the baseline."""
 
-    def __init__(self, url: str) -> None:
+    def __init__(self, url: str, protocol: str) -> None:
         port = int(url.rsplit(":", 1)[1])
         self.request_topic = f"umlbot/{ROBOT}/RawMotor/call/dutycycle"
         self.reply_topic = f"umlbot/{ROBOT}/_reply/raw-{os.getpid()}"
-        self.responder = _raw_client(port, "responder")
-        self.requester = _raw_client(port, "requester")
+        self.responder = _raw_client(port, "responder", protocol)
+        self.requester = _raw_client(port, "requester", protocol)
 
         def respond(client: mqtt.Client, userdata: Any, msg: mqtt.MQTTMessage) -> None:
             request = json.loads(msg.payload)
@@ -182,9 +188,11 @@ def percentile(samples: list[float], q: float) -> float:
     return ordered[index]
 
 
-def measure(kind: str, n: int, blocks: int, warmup: int) -> dict[str, Any]:
+def measure(kind: str, n: int, blocks: int, warmup: int, protocol: str) -> dict[str, Any]:
     with run_broker(kind) as url:
-        raw, bus = RawPair(url), UmlbotPair(url)
+        bus = UmlbotPair(f"{url}?protocol={protocol}")
+        spoken = bus.client.connection.protocol
+        raw = RawPair(url, spoken)
         try:
             for _ in range(warmup):
                 raw.round_trip()
@@ -206,6 +214,7 @@ def measure(kind: str, n: int, blocks: int, warmup: int) -> dict[str, Any]:
     bus_p50, bus_p99 = percentile(bus_samples, 50) * 1000, percentile(bus_samples, 99) * 1000
     result: dict[str, Any] = {
         "broker": kind,
+        "protocol": spoken,
         "n": len(raw_samples),
         "raw_p50_ms": round(raw_p50, 4),
         "raw_p99_ms": round(raw_p99, 4),
@@ -225,13 +234,16 @@ def main() -> None:
     parser.add_argument("--blocks", type=int, default=10, help="alternating measurement blocks")
     parser.add_argument("--warmup", type=int, default=200)
     parser.add_argument("--brokers", default="amqtt,mosquitto")
+    parser.add_argument("--protocol", default="auto", choices=["auto", "5", "3.1.1"],
+                        help="the MQTT version in umlbot's broker URL")
     options = parser.parse_args()
     configure_logging("WARNING")  # logs to stderr; stdout stays for the figures
     results = []
     for kind in options.brokers.split(","):
-        result = measure(kind.strip(), options.n, options.blocks, options.warmup)
+        result = measure(kind.strip(), options.n, options.blocks, options.warmup, options.protocol)
         print(
-            f"{kind:10s} raw p50 {result['raw_p50_ms']:.3f} ms p99 {result['raw_p99_ms']:.3f} ms | "
+            f"{kind:10s} MQTT {result['protocol']:5s} "
+            f"raw p50 {result['raw_p50_ms']:.3f} ms p99 {result['raw_p99_ms']:.3f} ms | "
             f"umlbot p50 {result['umlbot_p50_ms']:.3f} ms p99 {result['umlbot_p99_ms']:.3f} ms | "
             f"ratio p50 {result['ratio_p50']:.2f} p99 {result['ratio_p99']:.2f}",
             flush=True,

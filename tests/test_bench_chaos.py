@@ -85,3 +85,22 @@ def test_a_frozen_or_killed_motor_service_no_longer_leaves_the_motors_running() 
         assert with_deadman["within_watchdog"] and with_deadman["stop_max_s"] <= 2.01, with_deadman
         assert baseline["ran_the_whole_pause"] == 1, baseline  # what a frozen service did before
     assert by[(True, "SIGSTOP")]["stop_reasons_after_sigcont"] == ["deadman"]
+
+
+def test_a_frozen_service_is_announced_offline_within_its_keepalive() -> None:
+    """The embedded broker enforces keep-alive: a SIGSTOPped service's will goes out within
+    1.5 x 5 s (it never did), and the service is back online after SIGCONT."""
+    [row] = chaos("--scenarios", "keepalive", "--brokers", "amqtt", "--trials", "1")["keepalive"]
+    assert row["will_published"] == 1, row
+    assert row["will_after_max_s"] <= 1.5 * row["keepalive_s"] + 2.0, row
+    assert row["back_online_after_sigcont"] == 1, row
+
+
+def test_no_client_id_travels_on_the_bus() -> None:
+    """The takeover scenario: a spy on `umlbot/<robot>/#` learns none of the fleet's client ids."""
+    [row] = chaos("--scenarios", "takeover", "--brokers", "mosquitto", "--listen", "2")["takeover"]
+    assert row["fleet_client_ids"] >= 6 and row["messages_heard"] > 20, row
+    assert row["client_ids_on_bus"] == 0 and row["id_like_strings_on_bus"] == [], row
+    # given the id, a client without a user takes the service's place: the run fails safe and
+    # the service is back at once (docs/security.md: hence users on every reachable broker)
+    assert row["intruder_accepted"] and row["run_failed"] and row["service_online_after_s"] is not None, row

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import signal
 import socket
 import subprocess
@@ -15,10 +16,18 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+import structlog
 from conftest import free_port, port_accepts, wait_until
 
 from services.bus import BrokerSettings, BusClient, BusConnection, ComponentServer, Feature, Message
-from services.bus.broker import BrokerAcl, EmbeddedBroker, broker_config, load_acl, password_line
+from services.bus.broker import (
+    BrokerAcl,
+    BrokerLimits,
+    EmbeddedBroker,
+    broker_config,
+    load_acl,
+    password_line,
+)
 from umlbot.errors import ConfigError, NotConnected
 from umlbot.library import FeatureSpec
 
@@ -69,7 +78,9 @@ def test_a_new_client_gets_retained_messages_only_for_its_own_subscriptions(embe
             got.append(message.topic)
             done.set()
 
-        newcomer = BusConnection(settings, "test", client_id="newcomer")
+        # 3.1.1 from the start: a fall-back from MQTT 5 would replace the paho client hooked below
+        newcomer = BusConnection(BrokerSettings.from_url(embedded.url + "?protocol=3.1.1"), "test",
+                                 client_id="newcomer")
         newcomer.subscribe("umlbot/car/Sonar/status", keep)
         raw_topics: list[str] = []
         dispatch = newcomer._client.on_message
@@ -258,3 +269,96 @@ def test_port_0_reports_the_port_the_system_gave() -> None:
     finally:
         proc.send_signal(signal.SIGINT)
         proc.wait(10)
+
+
+def test_a_retained_message_over_the_limit_is_delivered_but_not_kept(raw_client: Callable[..., Any]) -> None:
+    """6 x 10 MB retained took the broker from 43 to 137 MB: past `max_retained_bytes` (and past
+    `max_retained_total` for all of them) a message is still delivered, not retained, and logged."""
+    limits = BrokerLimits(max_retained_bytes=1000, max_retained_total=2500)
+    with EmbeddedBroker(port=free_port(), limits=limits) as broker, \
+            structlog.testing.capture_logs() as logs:
+        live = raw_client(broker.port)
+        live.subscribe("big/#", qos=0)
+        publisher = raw_client(broker.port)
+        publisher.publish("big/small", b"s" * 1000, retain=True)
+        publisher.publish("big/huge", b"h" * 1001, retain=True)
+        assert live.get(topic="big/huge").payload == b"h" * 1001  # delivered all the same
+        publisher.publish("big/second", b"2" * 1000, retain=True)
+        publisher.publish("big/third", b"3" * 1000, retain=True)  # 3000 > 2500 in all
+        newcomer = raw_client(broker.port)
+        newcomer.subscribe("big/#", qos=0)
+        time.sleep(0.3)
+        kept = set()
+        while not newcomer.messages.empty():
+            kept.add(newcomer.messages.get().topic)
+        assert kept == {"big/small", "big/second"}
+    refused = [e for e in logs if e["event"] == "broker_retained_refused"]
+    assert [(e["topic"], e["size"]) for e in refused] == [("big/huge", 1001), ("big/third", 1000)]
+    assert "1000 bytes" in refused[0]["reason"] and "2500 bytes" in refused[1]["reason"]
+
+
+def test_an_offline_session_queues_at_most_max_queued_messages() -> None:
+    import paho.mqtt.client as mqtt
+    from paho.mqtt.enums import CallbackAPIVersion
+
+    with EmbeddedBroker(port=free_port(), limits=BrokerLimits(max_queued_messages=3)) as broker, \
+            structlog.testing.capture_logs() as logs:
+        away = mqtt.Client(CallbackAPIVersion.VERSION2, client_id="away", clean_session=False)
+        away.connect("127.0.0.1", broker.port)
+        away.loop_start()
+        away.subscribe("q/#", 1)
+        time.sleep(0.3)
+        away.disconnect()
+        away.loop_stop()
+        writer = mqtt.Client(CallbackAPIVersion.VERSION2, client_id="writer")
+        writer.connect("127.0.0.1", broker.port)
+        writer.loop_start()
+        for n in range(10):
+            writer.publish(f"q/{n}", str(n), qos=1).wait_for_publish(5)
+        writer.disconnect()
+        writer.loop_stop()
+        got: list[str] = []
+        back = mqtt.Client(CallbackAPIVersion.VERSION2, client_id="away", clean_session=False)
+        back.on_message = lambda c, u, m: got.append(m.topic)
+        back.connect("127.0.0.1", broker.port)
+        back.loop_start()
+        assert wait_until(lambda: len(got) >= 3, 5.0)
+        time.sleep(0.3)
+        back.disconnect()
+        back.loop_stop()
+    assert sorted(got) == ["q/0", "q/1", "q/2"]  # the first three; the newer seven dropped
+    assert [e["limit"] for e in logs if e["event"] == "broker_queue_full"] == [3]
+
+
+def test_exposure_warns_when_other_hosts_reach_a_broker_without_users_or_acl(tmp_path: Path) -> None:
+    passwd = tmp_path / "passwd"
+    passwd.write_text(password_line("robot", "pw") + "\n", encoding="utf-8")
+    acl = {"acl": {"robot": ["umlbot/#"]}}
+    assert EmbeddedBroker("127.0.0.1").exposure() is None
+    assert EmbeddedBroker("localhost").exposure() is None
+    assert EmbeddedBroker("::1").exposure() is None
+    for host in ("0.0.0.0", "::", "192.0.2.7"):
+        assert "no users" in (EmbeddedBroker(host).exposure() or "")
+        assert "without an ACL" in (EmbeddedBroker(host, passwd_file=passwd).exposure() or "")
+        assert EmbeddedBroker(host, passwd_file=passwd, acl=acl).exposure() is None
+
+
+def test_umlbot_broker_bound_to_every_interface_says_so_and_warns() -> None:
+    """`--bind 0.0.0.0` used to print `listening on mqtt://127.0.0.1:…` and warn of nothing. Run in
+    a network namespace of its own (`unshare -n`: loopback only), so nothing outside can reach it."""
+    unshare = shutil.which("unshare")
+    assert unshare is not None, "unshare (util-linux) is needed"
+    proc = subprocess.Popen([unshare, "-n", *_umlbot("broker", "--bind", "0.0.0.0", "--port", "0")],
+                            stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True,
+                            env={**os.environ, "UMLBOT_LOG_LEVEL": "ERROR"})
+    try:
+        assert proc.stderr is not None
+        lines = [proc.stderr.readline(), proc.stderr.readline()]
+    finally:
+        proc.send_signal(signal.SIGINT)
+        proc.wait(10)
+    assert lines[0].startswith("umlbot broker listening on 0.0.0.0:"), lines
+    assert "on this machine mqtt://127.0.0.1:" in lines[0]
+    assert lines[1].startswith("WARNING: the broker listens on 0.0.0.0, reachable from other hosts, and has "
+                               "no users"), lines
+    assert "--passwd and --acl" in lines[1]

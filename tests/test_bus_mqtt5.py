@@ -1,4 +1,5 @@
-"""MQTT 5 on Mosquitto: Response Topic and Correlation Data are honoured (amqtt speaks only 3.1.1)."""
+"""MQTT 5: Response Topic and Correlation Data are honoured on Mosquitto (the default protocol); on
+amqtt, which speaks only 3.1.1, the default falls back to 3.1.1."""
 
 from __future__ import annotations
 
@@ -81,3 +82,48 @@ def test_umlbot_client_over_mqtt5(mosquitto_broker: BrokerProcess, server5: Comp
     # a 3.1.1 client talks to the MQTT 5 server through the same broker
     with BusClient(BrokerSettings.from_url(mosquitto_broker.url), "car5") as client:
         assert client.call("Sensor", "echo", "mixed") == "mixed"
+
+
+def test_a_service_started_the_default_way_answers_an_mqtt5_request(
+    mosquitto_broker: BrokerProcess, raw_client: Callable[..., RawClient]
+) -> None:
+    """MQTT.js 5 (Node-RED) calling LeftActuator.dutycycle with a Response Topic and Correlation
+    Data got no reply: the motor service spoke 3.1.1 unless its URL said `?protocol=5`, so the
+    broker stripped the properties. It speaks MQTT 5 by default now."""
+    from services_support import ROBOT, deployment, running
+
+    with running("motor", deployment(), mosquitto_broker.url) as host:
+        assert all(s.connection.protocol == "5" for s in host.servers.values())
+        raw = raw_client(mosquitto_broker, MQTTProtocolVersion.MQTTv5)
+        raw.subscribe("nodered/replies")
+        raw.publish(Topics(ROBOT).call("LeftActuator", "dutycycle"), b"[30]",
+                    properties=_props("nodered/replies", b"flow-1"))
+        msg = raw.get(5.0, "nodered/replies")
+        assert msg.properties.CorrelationData == b"flow-1"  # type: ignore[union-attr]
+        assert json.loads(msg.payload) == {"id": "flow-1", "ok": True, "value": None}
+        assert host.drivers["LeftActuator"].duty_cycle_percent == 30
+
+
+def test_on_a_broker_that_refuses_mqtt5_the_default_falls_back_to_311_at_once() -> None:
+    """The embedded broker (amqtt) speaks only 3.1.1: it answers an MQTT 5 CONNECT with CONNACK
+    "unacceptable protocol version", and the connection goes on with 3.1.1 (logged once)."""
+    import time
+
+    import structlog
+    from conftest import free_port
+
+    from services.bus.broker import EmbeddedBroker
+
+    features = [Feature(FeatureSpec("value", (), "int"), lambda: 5)]
+    with EmbeddedBroker(port=free_port()) as broker, structlog.testing.capture_logs() as logs:
+        settings = BrokerSettings.from_url(broker.url)
+        assert settings.protocol == "auto"
+        began = time.monotonic()
+        with ComponentServer(settings, "car5", "Sensor", "hcsr04", features) as server, \
+                BusClient(settings, "car5") as client:
+            assert time.monotonic() - began < 2.0
+            assert server.connection.protocol == client.connection.protocol == "3.1.1"
+            assert client.call("Sensor", "value") == 5
+    fallbacks = [e for e in logs if e["event"] == "mqtt_protocol_fallback"]
+    assert len(fallbacks) == 1 and fallbacks[0]["protocol"] == "3.1.1"
+    assert not [e for e in logs if e["event"] == "mqtt_connect_refused"]

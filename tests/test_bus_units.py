@@ -39,7 +39,9 @@ def test_settings_from_url_with_credentials_hide_the_password() -> None:
     assert settings.password is not None and settings.password.get_secret_value() == "s3cr@t"
     assert settings.url == "mqtt://robot:***@broker.local:1999"
     assert "s3cr" not in repr(settings) and "s3cr" not in str(settings)
-    assert settings.protocol == "3.1.1"
+    assert settings.protocol == "auto"  # MQTT 5, falling back to 3.1.1 where refused
+    assert BrokerSettings.from_url("mqtt://h?protocol=3.1.1").protocol == "3.1.1"
+    assert BrokerSettings.from_url("mqtt://h?protocol=auto").protocol == "auto"
 
 
 def test_settings_defaults_and_tls(tmp_path: Path) -> None:
@@ -86,6 +88,15 @@ def test_client_id_says_who_it_is() -> None:
     assert first.startswith("umlbot-service-LeftActuator-car-")
     assert first != second
     assert "/" not in first and "+" not in first and "#" not in first
+    # 128 random bits: nobody can guess a client id to take it over (docs/security.md)
+    assert len(first.rsplit("-", 1)[1]) == 32 and int(first.rsplit("-", 1)[1], 16) >= 0
+
+
+def test_reply_topics_name_the_user_and_a_token_not_the_client_id() -> None:
+    topics = Topics("car")
+    assert topics.reply("umlbot-operator", "ab12") == "umlbot/car/_reply/umlbot-operator/ab12"
+    assert topics.reply(None, "ab12") == "umlbot/car/_reply/ab12"
+    assert topics.reply("odd/user", "ab12") == "umlbot/car/_reply/ab12"  # not a topic level
 
 
 def test_topics() -> None:

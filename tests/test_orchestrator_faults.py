@@ -225,3 +225,21 @@ def test_a_component_offline_just_before_the_broker_connection_went_is_reported_
         orch._fault("lane Main, node n1: out_of_range: percent=150")
         orch._connection_lost(True)
         assert orch.failure == "lane Main, node n1: out_of_range: percent=150"
+
+
+def test_a_spoofed_offline_status_does_not_block_the_next_start(
+    broker: BrokerProcess, raw_client: Callable[..., RawClient]
+) -> None:
+    """A retained `{"state": "offline"}` on a component's status, published by someone with write
+    access, used to stay until the service restarted: the next run waited for the component and
+    failed. The service replaces a status it did not publish with its own at once."""
+    spoofer = raw_client(broker)
+    with rig(broker.url, "fault_loop.yaml") as r:
+        spoofer.publish("umlbot/test/DistanceRead/status", '{"state": "offline"}', retain=True)
+        spoofer.publish("umlbot/test/LeftActuator/status", b"", retain=True)  # cleared: same
+        began = time.monotonic()
+        running = start_and_wait_driving(r, startup_timeout_s=2.0)
+        assert time.monotonic() - began < 2.0
+        running.orchestrator.request_exit("test over")
+        assert running.wait() == 0
+    assert not motors_running(r)

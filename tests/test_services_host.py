@@ -382,13 +382,14 @@ def test_a_second_service_for_a_served_component_refuses_and_leaves_the_first_on
 
     broker: BrokerProcess = request.getfixturevalue(f"{kind}_broker")
     with running("motor", deployment(), broker.url) as first:
-        mine = {name: server.connection.client_id for name, server in first.servers.items()}
+        mine = {name: server.instance for name, server in first.servers.items()}
         second = ServiceHost("motor", deployment(), broker_settings(broker.url), ROBOT, "mock")
-        with pytest.raises(ComponentTaken, match=r"already served by the running client umlbot-service-"):
+        with pytest.raises(ComponentTaken, match=r"already served by the running instance [0-9a-f]{16} "):
             second.start()
         # the refused one stopped itself without saying offline for the components it never served
         status = _statuses(broker.url, "LeftActuator", "RightActuator")
-        assert {name: s["client_id"] for name, s in status.items()} == mine
+        assert {name: s["instance"] for name, s in status.items()} == mine
+        assert not any("client_id" in s for s in status.values())  # never published
         assert all(s["state"] == "online" for s in status.values())
         with client(broker.url) as bus:
             bus.call("LeftActuator", "dutycycle", 40)
@@ -405,10 +406,10 @@ def test_a_stale_online_status_is_replaced(mosquitto_broker: BrokerProcess) -> N
 
     from services.bus import Topics
 
-    publish.single(Topics(ROBOT).status("LeftActuator"), '{"state": "online", "client_id": "ghost"}',
+    publish.single(Topics(ROBOT).status("LeftActuator"), '{"state": "online", "instance": "ghost"}',
                    retain=True, hostname="127.0.0.1", port=mosquitto_broker.port)
     started = time.monotonic()
     with running("motor", deployment(), mosquitto_broker.url) as host:
         assert time.monotonic() - started < 4.0
         status = _statuses(mosquitto_broker.url, "LeftActuator")["LeftActuator"]
-        assert status["client_id"] == host.servers["LeftActuator"].connection.client_id
+        assert status["instance"] == host.servers["LeftActuator"].instance

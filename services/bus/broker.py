@@ -11,10 +11,12 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import errno
+import ipaddress
 import socket
 import threading
 import warnings
-from collections.abc import Iterator, Mapping
+from collections.abc import Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -25,6 +27,18 @@ from umlbot.files import load_yaml_node, read_text, validation_problem, where
 from umlbot.logs import get_logger
 
 log = get_logger(__name__)
+
+
+@dataclass(frozen=True)
+class BrokerLimits:
+    """What the embedded broker holds at most (docs/mqtt.md, "The embedded broker")."""
+
+    #: a retained message larger than this is not retained (it is still delivered; logged).
+    max_retained_bytes: int = 256 * 1024
+    #: all retained messages together; a new one past it is not retained (logged).
+    max_retained_total: int = 64 * 1024 * 1024
+    #: messages queued for one disconnected persistent session; newer ones are dropped (logged).
+    max_queued_messages: int = 1000
 
 
 class BrokerAcl(BaseModel):
@@ -120,38 +134,20 @@ def broker_config(
     }
 
 
-class _SnapshotSubscriptions(dict[str, list[Any]]):
-    """amqtt's subscription table, iterated over snapshots.
-
-    amqtt 0.12 loops over this table across an `await` per subscriber (`Broker._run_broadcast`);
-    a client subscribing, unsubscribing or disconnecting meanwhile raised "dictionary changed size
-    during iteration" and the message being broadcast was lost for the remaining subscribers.
-    """
-
-    def __iter__(self) -> Iterator[str]:
-        return iter(list(super().keys()))
-
-    def items(self) -> list[tuple[str, list[Any]]]:  # type: ignore[override]
-        return [(key, list(value)) for key, value in super().items()]
-
-
-def _retained_only_for_own_subscriptions(broker: Any) -> None:
-    """Deliver retained messages only for the client's own subscriptions.
-
-    amqtt 0.12.1 walks the WHOLE subscription table when any client connects and sends that client
-    the retained messages matching every other client's filters: a new client received topics it
-    never subscribed to (and, with an ACL, topics it may not read). Here a retained message goes
-    out only for a filter the session itself holds (a SUBSCRIBE adds it before amqtt sends the
-    retained messages, so ordinary subscriptions are unaffected).
-    """
-    original = broker._publish_retained_messages_for_subscription
-
-    async def publish_retained(subscription: tuple[str, int], session: Any) -> None:
-        holders = broker._subscriptions.get(subscription[0], ())
-        if any(holder.client_id == session.client_id for holder, _ in holders):
-            await original(subscription, session)
-
-    broker._publish_retained_messages_for_subscription = publish_retained
+def is_loopback(host: str) -> bool:
+    """Whether `host` (an address or a name) reaches this machine only."""
+    if host in ("", "0.0.0.0", "::"):  # noqa: S104
+        return False
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        pass
+    try:
+        infos = socket.getaddrinfo(host, None)
+    except OSError:
+        return False
+    addresses = {str(info[4][0]).split("%")[0] for info in infos}
+    return bool(addresses) and all(ipaddress.ip_address(address).is_loopback for address in addresses)
 
 
 def _check_port_free(host: str, port: int) -> None:
@@ -182,8 +178,10 @@ class EmbeddedBroker:
         port: int = 1883,
         passwd_file: str | Path | None = None,
         acl: BrokerAcl | Mapping[str, Any] | str | Path | None = None,
+        limits: BrokerLimits | None = None,
     ) -> None:
         self.host = host
+        self.limits = limits or BrokerLimits()
         self.port = port
         self.passwd_file = Path(passwd_file) if passwd_file is not None else None
         if acl is None or isinstance(acl, BrokerAcl):
@@ -203,6 +201,30 @@ class EmbeddedBroker:
         """The `mqtt://host:port` URL clients use to reach this broker."""
         host = "127.0.0.1" if self.host in ("0.0.0.0", "") else self.host  # noqa: S104
         return f"mqtt://{host}:{self.port}"
+
+    @property
+    def listening_on(self) -> list[str]:
+        """The `host:port` addresses the broker's sockets are bound to (empty before `start()`)."""
+        server = getattr(self._broker, "_servers", {}).get("default")
+        addresses = []
+        for sock in getattr(getattr(server, "instance", None), "sockets", None) or ():
+            host, port = sock.getsockname()[:2]
+            addresses.append(f"[{host}]:{port}" if ":" in host else f"{host}:{port}")
+        return addresses
+
+    def exposure(self) -> str | None:
+        """A warning when clients on other hosts can reach this broker unchecked, else None."""
+        if is_loopback(self.host):
+            return None
+        if self.passwd_file is None:
+            return (f"the broker listens on {self.host}, reachable from other hosts, and has no users: "
+                    "anyone on the network can publish and subscribe, and so drive the motors; give it "
+                    "--passwd and --acl (docs/security.md), or listen on 127.0.0.1")
+        if self.acl is None:
+            return (f"the broker listens on {self.host}, reachable from other hosts, without an ACL: "
+                    "every user may publish and subscribe to every topic (drive the motors); give it "
+                    "--acl (docs/security.md)")
+        return None
 
     @property
     def running(self) -> bool:
@@ -253,15 +275,13 @@ class EmbeddedBroker:
             loop.close()
 
     async def _start_broker(self) -> None:
-        from amqtt.broker import Broker  # heavy import, only when a broker runs
+        from services.bus.amqtt_broker import UmlbotBroker  # heavy import, only when a broker runs
 
         config = broker_config(self.host, self.port, self.passwd_file, self.acl)
         with warnings.catch_warnings():
             # amqtt 0.12 calls `acl` deprecated yet its config accepts no other name for it
             warnings.filterwarnings("ignore", "The 'acl' option is deprecated", DeprecationWarning)
-            self._broker = Broker(config)
-            self._broker._subscriptions = _SnapshotSubscriptions(self._broker._subscriptions)
-            _retained_only_for_own_subscriptions(self._broker)
+            self._broker = UmlbotBroker(config, self.limits)
             await self._broker.start()
         if self.port == 0:  # "any free port": the one the system gave, for url and the logs
             self.port = self._bound_port() or 0

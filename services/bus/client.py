@@ -1,6 +1,6 @@
 """The client side of the bus: call component features and wait for their replies.
 
-A `BusClient` subscribes once to its own reply topic `umlbot/<robot>/_reply/<client_id>` and
+A `BusClient` subscribes once to its own reply topic `umlbot/<robot>/_reply/<user>/<token>` and
 matches replies to calls by id, so any number of calls may be in flight from several threads or
 asyncio tasks at once. Calls fail fast with `NotConnected` while the broker is unreachable (also
 the calls that were waiting when the connection dropped) and with `CallTimeout` when no reply
@@ -12,6 +12,7 @@ from __future__ import annotations
 import contextlib
 import itertools
 import json
+import secrets
 import threading
 import time
 from concurrent.futures import Future, InvalidStateError
@@ -42,11 +43,12 @@ class BusClient:
         self.topics = Topics(robot)
         self.robot = robot
         self.connection = BusConnection(settings, role=role, robot=robot, client_id=client_id)
-        self.reply_topic = self.topics.reply(self.connection.client_id)
+        token = secrets.token_hex(8)  # not the client id: that one is never published
+        self.reply_topic = self.topics.reply(settings.username, token)
         self._pending: dict[str, Future[dict[str, Any]]] = {}
         self._pending_lock = threading.Lock()
         self._ids = itertools.count(1)
-        self._id_prefix = self.connection.client_id.rsplit("-", 1)[-1] + "-"
+        self._id_prefix = token[:6] + "-"
         self.connection._subscribe_inline(self.reply_topic, self._on_reply, qos=0)
         self.connection._add_on_disconnect_inline(self._fail_pending)
 

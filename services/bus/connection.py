@@ -12,6 +12,7 @@ import collections
 import contextlib
 import math
 import random
+import select
 import socket
 import threading
 import time
@@ -44,6 +45,17 @@ RECONNECT_MAX_S = 5.0
 #: while the broker stays unreachable, `mqtt_connect_failed` is logged as a warning on the first
 #: failed attempt and then at most once per this many seconds (the attempts between at debug).
 CONNECT_WARN_EVERY_S = 30.0
+#: after its DISCONNECT, a connection reads (and drops) what the broker still sends until the
+#: broker closes, at most this long: closing with unread data makes the kernel send a reset,
+#: and a broker that gets it may drop the DISCONNECT and what came before it (the orchestrator's
+#: final `stopped`), and publish the will (docs/security.md, "Faults and attacks tested").
+GOODBYE_WAIT_S = 1.0
+#: the MQTT 5 CONNACK reason "Unsupported Protocol Version"; paho also reports so the 3.1.1 answer
+#: "unacceptable protocol version" that a 3.1.1-only broker (amqtt) gives an MQTT 5 CONNECT.
+UNSUPPORTED_PROTOCOL = 132
+#: brokers (host, port) whose refusal of MQTT 5 was logged in this process (logged once each).
+_REFUSED_MQTT5: set[tuple[str, int]] = set()
+
 #: CONNACK reasons that refuse the login itself (MQTT 5 codes; paho maps 3.1.1's return codes 4
 #: "bad user name or password" and 5 "not authorised" onto 134 and 135): the same credentials
 #: will be refused again, so `start()` gives up at once instead of retrying until its time-out.
@@ -121,6 +133,22 @@ class _PahoClient(mqtt.Client):
         super().__init__(*args, **kwargs)
         self._write_lock = threading.RLock()
         self.on_acknowledged: Callable[[int, Any], None] | None = None
+        self._goodbye = False  # our DISCONNECT is queued: close the socket without a reset
+
+    def _sock_close(self) -> None:
+        sock = self._sock
+        if sock is None or not self._goodbye:
+            super()._sock_close()
+            return
+        # a graceful close: read until the broker closes (it does on DISCONNECT), then close
+        self._sock = None
+        self._goodbye = False
+        try:
+            _drain_until_closed(sock, GOODBYE_WAIT_S)
+            self._call_socket_unregister_write(sock)
+            self._call_socket_close(sock)
+        finally:
+            sock.close()
 
     def _do_on_publish(self, mid: int, reason_code: Any, properties: Any) -> MQTTErrorCode:
         # before paho marks the message published, so that whoever waits for it sees the reason
@@ -138,6 +166,8 @@ class _PahoClient(mqtt.Client):
     ) -> MQTTErrorCode:
         # paho would also wake the network thread for every packet; we wake it only when the
         # packet could not be written here (inside a paho callback, or a full socket buffer).
+        if command & 0xF0 == mqtt.DISCONNECT:
+            self._goodbye = True
         self._out_packet.append(
             {"command": command, "mid": mid, "qos": qos, "pos": 0, "to_process": len(packet),
              "packet": packet, "info": info}
@@ -152,6 +182,24 @@ class _PahoClient(mqtt.Client):
             with contextlib.suppress(BlockingIOError, OSError):
                 wake.send(b"0")
         return MQTTErrorCode.MQTT_ERR_SUCCESS
+
+
+def _drain_until_closed(sock: Any, timeout: float) -> None:
+    """Read and drop what arrives on `sock` until the peer closes it or `timeout` passes."""
+    deadline = time.monotonic() + timeout
+    while (remaining := deadline - time.monotonic()) > 0:
+        try:
+            readable, _, _ = select.select([sock], [], [], remaining)
+            if not readable:
+                return
+            if not sock.recv(65536):
+                return  # the broker closed its side
+        except BlockingIOError:
+            continue
+        except OSError as exc:
+            if type(exc).__name__ in ("SSLWantReadError", "SSLWantWriteError"):
+                continue
+            return
 
 
 #: a piece of work for the dispatcher thread: a function and its arguments.
@@ -234,7 +282,10 @@ class BusConnection:
         self.reconnect_min_s = reconnect_min_s
         self.reconnect_max_s = max(reconnect_max_s, reconnect_min_s)
         self.counters = _Counters()
-        self._mqtt5 = settings.protocol == "5"
+        #: protocol "auto": MQTT 5 until the broker refuses it, then 3.1.1 (logged once)
+        self._auto = settings.protocol == "auto"
+        self._mqtt5 = settings.protocol != "3.1.1"
+        self._fall_back = False  # the broker refused MQTT 5: the supervisor reconnects with 3.1.1
         self._client = self._make_client()
         self._lock = threading.RLock()
         self._subacks = threading.Condition(self._lock)
@@ -307,6 +358,11 @@ class BusConnection:
         return client
 
     # -- public API -----------------------------------------------------------------------------
+
+    @property
+    def protocol(self) -> str:
+        """The MQTT version this connection speaks (or tries first): "5" or "3.1.1"."""
+        return "5" if self._mqtt5 else "3.1.1"
 
     @property
     def connected(self) -> bool:
@@ -517,6 +573,11 @@ class BusConnection:
     def _handle_connect(
         self, client: mqtt.Client, userdata: Any, flags: Any, reason: Any, properties: Any = None
     ) -> None:
+        if reason.is_failure and self._auto and self._mqtt5 and \
+                getattr(reason, "value", None) == UNSUPPORTED_PROTOCOL:
+            self._fall_back = True  # the supervisor connects again at once, with MQTT 3.1.1
+            self._lost.set()
+            return
         if reason.is_failure:
             self._last_error = f"broker refused the connection: {reason}"
             self.connect_problem = f"the broker refused the connection: {reason}"
@@ -672,6 +733,23 @@ class BusConnection:
             self._handle_disconnect(client, None, None, "connection lost")
         # the next reconnect() closes the old socket and drops unsent packets
 
+    def _use_mqtt311(self) -> None:
+        """The broker refused MQTT 5: a new paho client speaking 3.1.1 (supervisor thread)."""
+        broker = (self.settings.host, self.settings.port)
+        if broker not in _REFUSED_MQTT5:  # once per broker and process, not per connection
+            # (each connection still tries 5 first: the broker behind an address may change)
+            _REFUSED_MQTT5.add(broker)
+            log.debug("mqtt_protocol_fallback", broker=self.settings.url, protocol="3.1.1",
+                     reason="the broker refused MQTT 5")
+        old = self._client
+        self._fall_back = False
+        self._mqtt5 = False
+        self._client = self._make_client()
+        sock = old.socket()
+        if sock is not None:
+            with contextlib.suppress(OSError):
+                sock.close()
+
     def _supervise(self) -> None:
         delay = self.reconnect_min_s
         first = True
@@ -708,6 +786,10 @@ class BusConnection:
                 self._network_loop()
                 if self._accepted:
                     delay = self.reconnect_min_s
+                if self._fall_back:
+                    self._use_mqtt311()
+                    first = True
+                    continue
             if self._closing.is_set():
                 break
             # full jitter in [delay/2, delay]: reconnecting services do not all hit the broker at once

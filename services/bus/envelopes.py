@@ -105,7 +105,8 @@ class Status(BaseModel):
     state: Literal["online", "offline"]
     impl: str | None = None
     features: list[str] = Field(default_factory=list)
-    client_id: str | None = None
+    #: a random name of the serving process (not its client id, which nobody else may learn)
+    instance: str | None = None
     since: float | None = None  # unix time the service came online
     #: the driver the service runs the component with (`auto` resolved, e.g. "mock"); optional:
     #: a status without it (another client's service) is still a status.

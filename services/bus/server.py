@@ -13,6 +13,7 @@ import contextlib
 import contextvars
 import json
 import re
+import secrets
 import threading
 import time
 from collections.abc import Callable
@@ -22,7 +23,16 @@ from typing import Any, Final
 from pydantic import ValidationError
 
 from services.bus.connection import BusConnection, Message, Will
-from services.bus.envelopes import ENVELOPE_KEYS, CallRequest, Reply, Status, dumps, is_timeout, parse_json
+from services.bus.envelopes import (
+    ENVELOPE_KEYS,
+    CallRequest,
+    Reply,
+    Status,
+    dumps,
+    is_timeout,
+    parse_json,
+    to_payload,
+)
 from services.bus.settings import BrokerSettings
 from services.bus.topics import Topics, check_name, is_valid_publish_topic
 from umlbot.errors import ArgumentError, BusError, DriverError, NotConnected, UmlbotError
@@ -41,8 +51,10 @@ OFFLINE: Final[dict[str, str]] = {"state": "offline"}
 STATUS_WAIT_S = 1.0
 #: how long it waits for the answer of the server that status names, before calling it stale.
 ALIVE_WAIT_S = 1.0
-#: the feature name of the liveness probe: every server answers it (ok, its client id), unlogged.
+#: the feature name of the liveness probe: every server answers it (ok, its instance), unlogged.
 ALIVE_PROBE: Final = "_alive"
+#: a status on our topic that we did not publish is logged at most once in this many seconds.
+FOREIGN_STATUS_WARN_EVERY_S = 10.0
 
 
 #: what a starting server sends itself to learn that the broker has sent any retained status.
@@ -164,6 +176,9 @@ class ComponentServer:
 
     `start()` connects and publishes the retained status `online` (again after every reconnect);
     the last will sets `{"state":"offline"}`; `stop()` publishes `offline` itself and disconnects.
+    A status on its topic that it did not publish (someone else's retained `offline`) is replaced
+    with its own at once while it serves (docs/security.md, "Faults and attacks tested").
+    The status names an `instance` token, never the client id (which no one else may learn).
     """
 
     def __init__(
@@ -194,6 +209,10 @@ class ComponentServer:
         self._call_prefix = self.topics.calls(component)[:-1]  # ".../call/"
         self._claimed = False  # the component is ours: no other live server (see claim())
         self._retained: dict[str, Any] | None = None  # the last status seen on our status topic
+        self._published: bytes | None = None  # the payload of our last `online` status
+        self._foreign_warned = -FOREIGN_STATUS_WARN_EVERY_S
+        #: this server's name in its status and liveness answers (random: not the client id)
+        self.instance = secrets.token_hex(8)
         self._status_seen = threading.Event()
         self._synced = threading.Event()  # our own message came back: the retained status is in
         self._alive_answer = threading.Event()
@@ -246,9 +265,9 @@ class ComponentServer:
             if self._alive_answer.wait(ALIVE_WAIT_S):
                 raise ComponentTaken(
                     f"component {self.component} of robot {self.topics.robot!r} is already served by "
-                    f"the running client {other} (its retained status is online and it answers); "
+                    f"the running instance {other} (its retained status is online and it answers); "
                     "stop that service first, or serve this one under another --robot")
-            self._log.warning("stale_status_replaced", other_client_id=other)
+            self._log.warning("stale_status_replaced", other_instance=other)
         self.connection.subscribe(self.topics.calls(self.component), self._on_request, qos=1,
                                   wait_s=timeout)
         with self._status_lock:
@@ -257,15 +276,15 @@ class ComponentServer:
 
     @property
     def _alive_reply_topic(self) -> str:
-        return f"{self.topics.base}/{self.component}/_alive/{self.connection.client_id}"
+        return f"{self.topics.base}/{self.component}/_alive/{self.instance}"
 
     def _other_client(self) -> str | None:
-        """The client id of another server that the retained status says is online, else None."""
+        """The instance of another server that the retained status says is online, else None."""
         status = self._retained
         if status is None or status.get("state") != "online":
             return None
-        other = status.get("client_id")
-        if not isinstance(other, str) or other == self.connection.client_id:
+        other = status.get("instance")
+        if not isinstance(other, str) or other == self.instance:
             return None
         return other
 
@@ -276,6 +295,16 @@ class ComponentServer:
             data = None
         self._retained = data if isinstance(data, dict) else None
         self._status_seen.set()
+        if message.payload != self._published and self._claimed and not self._stopping:
+            # someone else's status on our topic (a retained `offline` would stop runs and block
+            # the next start until we restart): ours replaces it at once
+            now = time.monotonic()
+            if now - self._foreign_warned >= FOREIGN_STATUS_WARN_EVERY_S:
+                self._foreign_warned = now
+                self._log.warning("foreign_status_replaced",
+                                  payload=message.payload[:80].decode("utf-8", "replace"))
+            with contextlib.suppress(BusError):
+                self._publish_online()
 
     def _on_alive_answer(self, message: Message) -> None:
         if message.payload == _SYNC:
@@ -306,7 +335,7 @@ class ComponentServer:
             state="online",
             impl=self.impl_id,
             features=sorted(self.features),
-            client_id=self.connection.client_id,
+            instance=self.instance,
             since=self._since,
             driver=self.driver,
         )
@@ -325,7 +354,9 @@ class ComponentServer:
         with self._status_lock:  # never after stop() said offline, never before claim()
             if self._stopping or not self._claimed:
                 return
-            self.connection.publish(self._status_topic, self.status(), qos=1, retain=True)
+            payload = to_payload(self.status())
+            self._published = payload
+            self.connection.publish(self._status_topic, payload, qos=1, retain=True)
         self._log.info("component_online", impl=self.impl_id, features=sorted(self.features))
 
     # -- request handling (dispatcher thread) --------------------------------------------------------
@@ -407,7 +438,7 @@ class ComponentServer:
         with contextlib.suppress(_BadInput, RecursionError):
             reply_to = parse_request(message.payload).reply_to
             if reply_to is not None:
-                reply = Reply.success("alive", {"client_id": self.connection.client_id})
+                reply = Reply.success("alive", {"instance": self.instance})
                 self._send(reply.wire(), reply_to, None, None)
 
     def _fail(self, feature: str, request_id: str | int | None, reply_to: str | None,

@@ -1,17 +1,17 @@
 """Broker connection settings from a URL, and client ids that say who is talking.
 
 `mqtt://user:pass@host:1883` or `mqtts://host:8883`; query parameters `ca`, `cert`, `key`,
-`insecure=1` and `protocol=5` (default 3.1.1, which every broker speaks). The password is a
+`insecure=1` and `protocol` (`auto`, the default: MQTT 5, and 3.1.1 where the broker refuses 5;
+`5` or `3.1.1` to insist on one). The password is a
 `SecretStr` and every URL that is shown or logged goes through `redact_url`.
 """
 
 from __future__ import annotations
 
 import os
-import random
 import re
+import secrets
 import socket
-import string
 from pathlib import Path
 from typing import Final, Literal
 from urllib.parse import parse_qs, quote, unquote, urlsplit
@@ -61,7 +61,8 @@ class BrokerSettings(BaseModel):
     certfile: Path | None = None
     keyfile: Path | None = None
     insecure: bool = False
-    protocol: Literal["3.1.1", "5"] = "3.1.1"
+    #: "auto": MQTT 5, falling back to 3.1.1 on a broker that refuses 5 (amqtt)
+    protocol: Literal["auto", "3.1.1", "5"] = "auto"
     keepalive_s: int = Field(default=30, ge=5, le=3600)
 
     @property
@@ -118,7 +119,7 @@ class BrokerSettings(BaseModel):
         insecure_text = query.get("insecure", "0").lower()
         if insecure_text not in _TRUE | _FALSE:
             raise ConfigError(f"bad broker URL {shown}: insecure must be 0 or 1")
-        protocol_text = protocol if protocol is not None else query.get("protocol", "3.1.1")
+        protocol_text = protocol if protocol is not None else query.get("protocol", "auto")
         chosen_protocol = _protocol(protocol_text, shown)
         keepalive = query.get("keepalive", "30")
         if not keepalive.isdigit() or not 5 <= int(keepalive) <= 3600:
@@ -152,22 +153,28 @@ def _path(value: str | Path | None) -> Path | None:
     return Path(value) if value else None
 
 
-def _protocol(value: str, shown: str) -> Literal["3.1.1", "5"]:
+def _protocol(value: str, shown: str) -> Literal["auto", "3.1.1", "5"]:
     text = str(value).strip().lower()
+    if text in ("auto", ""):
+        return "auto"
     if text in ("3", "3.1.1", "311", "4", "v311"):
         return "3.1.1"
     if text in ("5", "5.0", "v5"):
         return "5"
-    raise ConfigError(f"bad broker URL {shown}: protocol must be 3.1.1 or 5")
+    raise ConfigError(f"bad broker URL {shown}: protocol must be auto, 3.1.1 or 5")
 
 
 _UNSAFE = re.compile(r"[^A-Za-z0-9_\-]")
 
 
 def make_client_id(role: str, robot: str) -> str:
-    """`umlbot-<role>-<robot>-<host>-<pid>-<random4>`: unique, and says what the client is."""
+    """`umlbot-<role>-<robot>-<host>-<pid>-<32 hex digits>`: says what the client is, and cannot be
+    guessed (128 random bits), so that no other client can take it (docs/security.md).
+
+    umlbot never publishes it: statuses name an `instance` token, reply topics a token of their own.
+    """
     host = _UNSAFE.sub("", socket.gethostname().split(".")[0])[:20] or "host"
-    suffix = "".join(random.choices(string.ascii_lowercase + string.digits, k=4))
+    suffix = secrets.token_hex(16)
     role_part = _UNSAFE.sub("_", role)[:32] or "client"
     robot_part = _UNSAFE.sub("_", robot)[:32] or "any"
     return f"umlbot-{role_part}-{robot_part}-{host}-{os.getpid()}-{suffix}"

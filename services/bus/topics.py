@@ -72,9 +72,13 @@ class Topics:
         """Filter matching every signal."""
         return f"{self.base}/signal/+"
 
-    def reply(self, client_id: str) -> str:
-        """Where a BusClient with this client id receives its replies."""
-        return f"{self.base}/_reply/{client_id}"
+    def reply(self, user: str | None, token: str) -> str:
+        """Where a BusClient receives its replies: `_reply/<user>/<token>` for a client with a user
+        name (a user reads only its own replies: Mosquitto's ACL pattern `_reply/%u/#`), else
+        `_reply/<token>`. The token is random: the topic does not tell the client id."""
+        if user and not any(c in user for c in "/+#\0"):
+            return f"{self.base}/_reply/{user}/{token}"
+        return f"{self.base}/_reply/{token}"
 
     @property
     def orchestrator_status(self) -> str:

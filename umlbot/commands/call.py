@@ -4,7 +4,8 @@ Exit codes: 0 the call succeeded; 1 the service answered with an error reply (st
 `code: message`); 2 bad command line; 3 no reply within `--timeout`; 4 the broker could not be
 reached (or the connection dropped during the call); 5 the broker refused the login (a wrong user
 or password: at once, no retrying) or the request or the reply subscription (its ACL), which
-only MQTT 5 reports (`?protocol=5` in the broker URL).
+only MQTT 5 reports (the default; `?protocol=3.1.1` and 3.1.1-only brokers, such as the
+embedded one, do not).
 
 The request goes out at QoS 1, so that the broker's acknowledgement can carry that refusal. Over
 MQTT 3.1.1 a broker drops a publish its ACL refuses without a word: on a broker with users the
@@ -58,9 +59,9 @@ def timeout_hint(component: str, robot: str, username: str | None, protocol: str
     hint = f"is the {component} service running for robot {robot!r}?"
     if username is not None and protocol != "5":
         hint += (f" On a broker with users the ACL may also have dropped the request of user "
-                 f"{username!r} without a word (MQTT 3.1.1 has no error for it; on a broker that "
-                 f"speaks MQTT 5, such as Mosquitto, add ?protocol=5 to the broker URL to hear its "
-                 f"reason; the embedded broker speaks only 3.1.1)")
+                 f"{username!r} without a word (this connection speaks MQTT 3.1.1, which has no "
+                 f"error for it; over MQTT 5, the default where the broker speaks it, Mosquitto "
+                 f"says why)")
     return hint
 
 
@@ -153,7 +154,7 @@ def command(
             click.echo(json.dumps({"ok": False, "error": {"code": exc.code, "message": exc.message}}))
             raise ErrorReplyFailure(f"{exc.code}: {exc.message}") from None
         except CallTimeout as exc:
-            hint = timeout_hint(component, robot, settings.username, settings.protocol)
+            hint = timeout_hint(component, robot, settings.username, client.connection.protocol)
             raise TimeoutFailure(f"timeout: {exc} ({hint})") from None
         except LoginRefused as exc:
             raise RefusedFailure(f"refused: {exc}") from None
