@@ -7,8 +7,26 @@ import type { Positions } from "./layout";
 import { sameFile } from "./paths";
 import { runEndText, speedWords } from "./runtext";
 import type {
-  CompleteAnswer, Completion, ConflictMsg, Diagnostic, EditAnswer, EditInfo, FeatureInfo, FilesMsg,
-  ImplInfo, JsonSchema, LayoutMap, Library, ModelComponent, ModelEdge, ModelLane, ModelNode, ModelView, NodeKind, Renamed, RunMsg,
+  CompleteAnswer,
+  Completion,
+  ConflictMsg,
+  Diagnostic,
+  EditAnswer,
+  EditInfo,
+  FeatureInfo,
+  FilesMsg,
+  ImplInfo,
+  JsonSchema,
+  LayoutMap,
+  Library,
+  ModelComponent,
+  ModelEdge,
+  ModelLane,
+  ModelNode,
+  ModelView,
+  NodeKind,
+  Renamed,
+  RunMsg,
 } from "./types";
 
 export interface EditorHost {
@@ -36,7 +54,11 @@ type Selection =
   | null;
 
 export interface EditHooks {
-  version: number; busy: boolean; dirty: boolean; requests: number; errors: string[];
+  version: number;
+  busy: boolean;
+  dirty: boolean;
+  requests: number;
+  errors: string[];
   /** the version whose model the shown diagram draws (tests wait for it after an edit) */
   drawn: number;
   /** per answered edit (the last 200), performance.now() ms: when its request left the page, when
@@ -46,7 +68,12 @@ export interface EditHooks {
   send?: (ops: Op[]) => Promise<boolean>;
 }
 
-export interface EditTiming { version: number; sent: number; answered: number; shown?: number }
+export interface EditTiming {
+  version: number;
+  sent: number;
+  answered: number;
+  shown?: number;
+}
 
 /** Field types (the server's library) that are flows: edited by connecting nodes, never as text. */
 const FLOW_TYPES = new Set(["node", "nodes", "branches"]);
@@ -60,7 +87,10 @@ const PASSING_NOTICES = new Set(["run", "run-goal", "run-ended", "hint"]);
 const $ = <T extends HTMLElement>(sel: string): T => document.querySelector(sel) as T;
 
 function el<K extends keyof HTMLElementTagNameMap>(
-  tag: K, attrs: Record<string, string> = {}, parent?: Element | null, text?: string,
+  tag: K,
+  attrs: Record<string, string> = {},
+  parent?: Element | null,
+  text?: string,
 ): HTMLElementTagNameMap[K] {
   const e = document.createElement(tag);
   for (const [k, v] of Object.entries(attrs)) e.setAttribute(k, v);
@@ -73,7 +103,13 @@ export function signatureText(name: string, f: FeatureInfo): string {
   const ret = f.returns && f.returns !== "none" ? ` → ${f.returns}` : "";
   return f.params === null ? `${name}${ret}` : `${name}(${f.params.map(paramText).join(", ")})${ret}`;
 }
-export function paramText(p: { name: string; type?: string; minimum?: number | null; maximum?: number | null; unit?: string | null }): string {
+export function paramText(p: {
+  name: string;
+  type?: string;
+  minimum?: number | null;
+  maximum?: number | null;
+  unit?: string | null;
+}): string {
   let s = p.name;
   if (p.type) s += `: ${p.type}`;
   const lo = p.minimum ?? null;
@@ -90,8 +126,10 @@ function typed(field: string, text: string, type: string | undefined): unknown {
   const t = text.trim();
   if (t === "") return null;
   if (field === "call" || field === "name" || field === "signal" || field === "store") return t;
-  if (/^-?\d+(\.\d+)?$/.test(t) && (!type || /number|integer|float|value|any/.test(type) || field === "value")) return Number(t);
-  if ((t === "true" || t === "false") && (!type || /bool|value|any/.test(type) || field === "value")) return t === "true";
+  if (/^-?\d+(\.\d+)?$/.test(t) && (!type || /number|integer|float|value|any/.test(type) || field === "value"))
+    return Number(t);
+  if ((t === "true" || t === "false") && (!type || /bool|value|any/.test(type) || field === "value"))
+    return t === "true";
   return t;
 }
 
@@ -192,22 +230,43 @@ export class Editor {
   private showRecovery(r: NonNullable<EditInfo["recovery"]>): void {
     const when = r.time ?? "a previous session";
     const what = [...r.files, ...(r.layout ? ["positions"] : [])].join(", ");
-    this.showNotice("recovery", `The studio quit with unsaved edits (${what}); they were kept, your files are unchanged. Restore them into the page, or discard them for good.`, [
-      ["restore", `Restore the unsaved edits of ${when}`, async () => {
-        const a = await this.request<EditAnswer>("/api/recover", { action: "restore" });
-        if (a) {
-          this.apply(a);
-          this.showNotice("restored", `Restored the edits of ${when}: Save writes them, Undo goes back to the files.`, [], 8000);
-        }
-      }],
-      ["discard", "Discard them", async () => {
-        if (await this.request<EditAnswer>("/api/recover", { action: "discard" })) {
-          this.showNotice("discarded", "The kept edits were discarded.", [], 4000);
-        }
-      }],
-    ]);
-    this.notice.querySelector('[data-action="restore"]')?.setAttribute("title", "Put the kept edits back into the page (not saved yet: Save writes them)");
-    this.notice.querySelector('[data-action="discard"]')?.setAttribute("title", "Delete the kept edits for good; your model files stay as they are");
+    this.showNotice(
+      "recovery",
+      `The studio quit with unsaved edits (${what}); they were kept, your files are unchanged. Restore them into the page, or discard them for good.`,
+      [
+        [
+          "restore",
+          `Restore the unsaved edits of ${when}`,
+          async () => {
+            const a = await this.request<EditAnswer>("/api/recover", { action: "restore" });
+            if (a) {
+              this.apply(a);
+              this.showNotice(
+                "restored",
+                `Restored the edits of ${when}: Save writes them, Undo goes back to the files.`,
+                [],
+                8000,
+              );
+            }
+          },
+        ],
+        [
+          "discard",
+          "Discard them",
+          async () => {
+            if (await this.request<EditAnswer>("/api/recover", { action: "discard" })) {
+              this.showNotice("discarded", "The kept edits were discarded.", [], 4000);
+            }
+          },
+        ],
+      ],
+    );
+    this.notice
+      .querySelector('[data-action="restore"]')
+      ?.setAttribute("title", "Put the kept edits back into the page (not saved yet: Save writes them)");
+    this.notice
+      .querySelector('[data-action="discard"]')
+      ?.setAttribute("title", "Delete the kept edits for good; your model files stay as they are");
   }
 
   /** `again`: the hello repeats a run that ended already (a reload): its end was said once. */
@@ -220,13 +279,21 @@ export class Editor {
       let seen = false;
       try {
         seen = localStorage.getItem(key) === stamp;
-      } catch { /* no storage: say it */ }
+      } catch {
+        /* no storage: say it */
+      }
       if (seen) return;
     }
-    if (msg.state === "ended" && r && this.showNotice(r.goal_reached ? "run-goal" : "run-ended", runEndText(r), [], 10000)) {
+    if (
+      msg.state === "ended" &&
+      r &&
+      this.showNotice(r.goal_reached ? "run-goal" : "run-ended", runEndText(r), [], 10000)
+    ) {
       try {
         localStorage.setItem(key, stamp); // said: a reload does not say it again
-      } catch { /* no storage */ }
+      } catch {
+        /* no storage */
+      }
     }
   }
 
@@ -239,10 +306,32 @@ export class Editor {
     target.replaceChildren();
     const form = el("form", { id: "new-model-form" }, target);
     el("h2", {}, form, "This folder has no model yet");
-    el("p", {}, form, `Start one in ${this.info.root}: a starter model with the car's components, their deployment and a main activity (start → end).`);
+    el(
+      "p",
+      {},
+      form,
+      `Start one in ${this.info.root}: a starter model with the car's components, their deployment and a main activity (start → end).`,
+    );
     const label = el("label", { for: "model-name", class: "field-label" }, form, "Robot name");
-    const name = el("input", { id: "model-name", name: "model-name", placeholder: "e.g. my_robot", value: this.info.root.split("/").filter(Boolean).pop() ?? "my_robot", required: "", "data-field": "name", "aria-describedby": "model-name-hint" }, form);
-    el("small", { id: "model-name-hint", class: "hint" }, form, "letters, digits, _ and -; it is also the robot's id on the broker");
+    const name = el(
+      "input",
+      {
+        id: "model-name",
+        name: "model-name",
+        placeholder: "e.g. my_robot",
+        value: this.info.root.split("/").filter(Boolean).pop() ?? "my_robot",
+        required: "",
+        "data-field": "name",
+        "aria-describedby": "model-name-hint",
+      },
+      form,
+    );
+    el(
+      "small",
+      { id: "model-name-hint", class: "hint" },
+      form,
+      "letters, digits, _ and -; it is also the robot's id on the broker",
+    );
     label.title = "the model's name";
     const btn = el("button", { id: "new-model", type: "submit" }, form, "Create the model");
     form.onsubmit = async (ev) => {
@@ -262,7 +351,12 @@ export class Editor {
   // ------------------------------------------------------------------ server
 
   /** POST to the studio with the token; null (and a notice, unless `quiet`) when it failed. */
-  private async request<T>(path: string, body: Record<string, unknown>, quiet = false, form?: HTMLElement): Promise<T | null> {
+  private async request<T>(
+    path: string,
+    body: Record<string, unknown>,
+    quiet = false,
+    form?: HTMLElement,
+  ): Promise<T | null> {
     this.hooks.requests += 1;
     try {
       const res = await fetch(path, {
@@ -364,13 +458,22 @@ export class Editor {
       if (r.kind === "node") {
         if (s.type === "node" && s.lane === r.lane && s.id === r.old) this.sel = { ...s, id: r.new };
         else if (s.type === "edge" && s.lane === r.lane) {
-          this.sel = { ...s, source: s.source === r.old ? r.new : s.source, target: s.target === r.old ? r.new : s.target };
+          this.sel = {
+            ...s,
+            source: s.source === r.old ? r.new : s.source,
+            target: s.target === r.old ? r.new : s.target,
+          };
         }
-      } else if (r.kind === "lane" && (s.type === "node" || s.type === "edge" || s.type === "lane") && s.lane === r.old) {
+      } else if (
+        r.kind === "lane" &&
+        (s.type === "node" || s.type === "edge" || s.type === "lane") &&
+        s.lane === r.old
+      ) {
         this.sel = { ...s, lane: r.new };
       } else if (r.kind === "component") {
         if (s.type === "component" && s.name === r.old) this.sel = { ...s, name: r.new };
-        else if ((s.type === "node" || s.type === "edge" || s.type === "lane") && s.lane === r.old) this.sel = { ...s, lane: r.new };
+        else if ((s.type === "node" || s.type === "edge" || s.type === "lane") && s.lane === r.old)
+          this.sel = { ...s, lane: r.new };
       }
     }
   }
@@ -391,13 +494,20 @@ export class Editor {
 
   async save(): Promise<void> {
     await this.settle();
-    const a = await this.request<{ saved: string[]; dirty: boolean; version?: number }>(
-      "/api/save", { version: this.hooks.version, force: this.forceSave });
+    const a = await this.request<{ saved: string[]; dirty: boolean; version?: number }>("/api/save", {
+      version: this.hooks.version,
+      force: this.forceSave,
+    });
     if (!a) return;
     this.forceSave = false;
     if (a.version !== undefined) this.hooks.version = a.version;
     this.setDirty(a.dirty);
-    this.showNotice("saved", a.saved.length ? `Saved ${a.saved.join(", ")}` : "Nothing changed: no file written", [], 3000);
+    this.showNotice(
+      "saved",
+      a.saved.length ? `Saved ${a.saved.join(", ")}` : "Nothing changed: no file written",
+      [],
+      3000,
+    );
   }
 
   /** Wait until every queued edit is answered. */
@@ -426,7 +536,12 @@ export class Editor {
     this.validateSelection();
     this.renderPalette();
     this.renderProps();
-    this.showNotice("reloaded", `${msg.changed.join(", ")} ${msg.changed.length === 1 ? "was" : "were"} changed on disk: reloaded.`, [], 8000);
+    this.showNotice(
+      "reloaded",
+      `${msg.changed.join(", ")} ${msg.changed.length === 1 ? "was" : "were"} changed on disk: reloaded.`,
+      [],
+      8000,
+    );
   }
 
   /** A file changed on disk while the page has unsaved edits: the user decides. */
@@ -436,29 +551,44 @@ export class Editor {
   }
 
   private showConflict(changed: string[]): void {
-    this.showNotice("conflict",
+    this.showNotice(
+      "conflict",
       `${changed.join(", ")} changed on disk while you have unsaved edits. Nothing was overwritten.`,
       [
-        ["reload", "Reload from disk (discard my edits)", async () => {
-          const a = await this.request<EditAnswer>("/api/reload", {});
-          if (a) {
-            this.forceSave = false;
-            this.apply(a);
-            this.showNotice("reloaded", "Reloaded from disk: your unsaved edits were discarded.", [], 6000);
-          }
-        }],
-        ["keep", "Keep mine", () => {
-          this.forceSave = true;
-          this.showNotice("kept", `Your edits are kept; Save will replace ${changed.join(", ")} on disk.`, [], 8000);
-        }],
-      ]);
+        [
+          "reload",
+          "Reload from disk (discard my edits)",
+          async () => {
+            const a = await this.request<EditAnswer>("/api/reload", {});
+            if (a) {
+              this.forceSave = false;
+              this.apply(a);
+              this.showNotice("reloaded", "Reloaded from disk: your unsaved edits were discarded.", [], 6000);
+            }
+          },
+        ],
+        [
+          "keep",
+          "Keep mine",
+          () => {
+            this.forceSave = true;
+            this.showNotice("kept", `Your edits are kept; Save will replace ${changed.join(", ")} on disk.`, [], 8000);
+          },
+        ],
+      ],
+    );
     this.notice.dataset.files = changed.join(" ");
   }
 
   /** Show a notice in place of the one shown; false when it was not shown: a passing notice (a
    * run's, a hint) never replaces a notice that waits for the user's decision (a conflict with the
    * disk, unsaved edits kept at quit) — the decision's buttons are the way out of that. */
-  showNotice(kind: string, text: string, actions: [string, string, () => void | Promise<void>][], hideAfterMs = 0): boolean {
+  showNotice(
+    kind: string,
+    text: string,
+    actions: [string, string, () => void | Promise<void>][],
+    hideAfterMs = 0,
+  ): boolean {
     const n = this.notice;
     if (PASSING_NOTICES.has(kind) && !n.hidden && DECISION_NOTICES.has(n.dataset.kind ?? "")) return false;
     n.replaceChildren();
@@ -476,7 +606,9 @@ export class Editor {
       ? "Hide this notice: the kept edits stay in the recovery file, unrestored and not discarded; the next start of the studio offers them again"
       : "Hide this notice (nothing is undone)";
     close.setAttribute("aria-label", later ? "Decide later" : "Hide this notice");
-    close.onclick = () => { n.hidden = true; };
+    close.onclick = () => {
+      n.hidden = true;
+    };
     n.hidden = false;
     if (hideAfterMs) {
       const stamp = String(performance.now());
@@ -519,11 +651,19 @@ export class Editor {
   private async run(): Promise<void> {
     await this.settle();
     const speed = Number($<HTMLSelectElement>("#run-speed").value) || 2;
-    const a = await this.request<{ running?: boolean; error?: string }>("/api/run", { track: this.trackSel.value, speed });
+    const a = await this.request<{ running?: boolean; error?: string }>("/api/run", {
+      track: this.trackSel.value,
+      speed,
+    });
     if (!a) return;
     this.setRunning(true);
     this.host.resetLive();
-    this.showNotice("run", `Running the edited model in the simulator on ${this.trackSel.value} at ${speed}× (${speedWords(speed)}).`, [], 4000);
+    this.showNotice(
+      "run",
+      `Running the edited model in the simulator on ${this.trackSel.value} at ${speed}× (${speedWords(speed)}).`,
+      [],
+      4000,
+    );
   }
 
   private async stop(): Promise<void> {
@@ -553,8 +693,12 @@ export class Editor {
       el("div", { class: "panel-title" }, p, "Component library");
       if (this.info.empty) {
         // browsable before there is a model; adding a part needs the model it goes into
-        el("div", { class: "hint", "data-hint": "no-model" }, p,
-          "There is no model yet: create it first (the form in the middle). Then click a part here to add it to the model.");
+        el(
+          "div",
+          { class: "hint", "data-hint": "no-model" },
+          p,
+          "There is no model yet: create it first (the form in the middle). Then click a part here to add it to the model.",
+        );
       }
       if (!this.library) {
         el("div", { class: "hint" }, p, "loading…");
@@ -570,12 +714,17 @@ export class Editor {
         const group = el("div", { class: "group", "data-group": kind }, p);
         el("div", { class: "group-title" }, group, kind);
         for (const impl of impls) {
-          const item = el("div", { class: "item impl", "data-impl": impl.id, "data-kind": impl.kind, tabindex: "0" }, group);
+          const item = el(
+            "div",
+            { class: "item impl", "data-impl": impl.id, "data-kind": impl.kind, tabindex: "0" },
+            group,
+          );
           el("b", {}, item, impl.id);
           if (impl.service) el("small", {}, item, ` · ${impl.service}`);
           const feats = features(impl, this.library);
           const list = el("div", { class: "features" }, item);
-          for (const [f, info] of Object.entries(feats)) el("div", { "data-feature": f }, list, info ? signatureText(f, info) : f);
+          for (const [f, info] of Object.entries(feats))
+            el("div", { "data-feature": f }, list, info ? signatureText(f, info) : f);
           if (impl.aliases.length) el("div", { class: "aliases" }, item, `seeds: ${impl.aliases.join(", ")}`);
           item.title = impl.title ?? impl.doc ?? `${impl.kind} ${impl.id}`;
           item.onclick = () => {
@@ -593,14 +742,28 @@ export class Editor {
     // the node kinds are the compiler's (the server's library), in its order
     if (!this.library) el("div", { class: "hint" }, grid, "loading…");
     for (const [kind, info] of Object.entries(this.library?.node_kinds ?? {})) {
-      const item = el("div", { class: `item node-kind kind-${kind}`, "data-kind": kind, tabindex: "0", title: info.doc ?? kind }, grid);
+      const item = el(
+        "div",
+        { class: `item node-kind kind-${kind}`, "data-kind": kind, tabindex: "0", title: info.doc ?? kind },
+        grid,
+      );
       el("i", { class: "icon" }, item);
       el("span", {}, item, kind);
       item.addEventListener("pointerdown", (ev) => this.dragKind(ev, kind));
     }
     el("div", { class: "panel-title" }, p, "Swimlanes");
     const form = el("form", { class: "add-lane" }, p);
-    const lane = el("input", { name: "lane-name", placeholder: "component or new activity", list: "lane-options", autocomplete: "off", "data-field": "lane" }, form);
+    const lane = el(
+      "input",
+      {
+        name: "lane-name",
+        placeholder: "component or new activity",
+        list: "lane-options",
+        autocomplete: "off",
+        "data-field": "lane",
+      },
+      form,
+    );
     const dl = el("datalist", { id: "lane-options" }, form);
     const used = new Set(m.diagrams.flatMap((d) => d.lanes.map((l) => l.name)));
     for (const c of m.components) if (!used.has(c.name)) el("option", { value: c.name }, dl);
@@ -609,9 +772,16 @@ export class Editor {
     // only the files a lane can be added to (the server says which: a `lanes:` list)
     for (const f of this.info.lane_files ?? []) el("option", { value: f }, file, `in ${f}`);
     file.value = this.info.lane_files?.includes(this.laneFile) ? this.laneFile : "";
-    file.onchange = () => { this.laneFile = file.value; };
+    file.onchange = () => {
+      this.laneFile = file.value;
+    };
     el("button", { type: "submit", "data-action": "add-lane" }, form, "Add swimlane");
-    el("div", { class: "hint" }, form, "a component's name runs on it; any other name is a virtual lane (a called activity)");
+    el(
+      "div",
+      { class: "hint" },
+      form,
+      "a component's name runs on it; any other name is a virtual lane (a called activity)",
+    );
     form.onsubmit = async (ev) => {
       ev.preventDefault();
       const name = lane.value.trim();
@@ -652,7 +822,13 @@ export class Editor {
       for (const g of this.host.canvas.querySelectorAll("g.lane.drop")) g.classList.remove("drop");
       const lane = moved ? this.laneAt(e.clientX, e.clientY) : this.selectedLane();
       if (!lane) {
-        if (!moved) this.showNotice("hint", "Select a swimlane first (click its header or one of its nodes), or drag the node onto it.", [], 4000);
+        if (!moved)
+          this.showNotice(
+            "hint",
+            "Select a swimlane first (click its header or one of its nodes), or drag the node onto it.",
+            [],
+            4000,
+          );
         return;
       }
       void this.addNode(lane, kind);
@@ -662,7 +838,9 @@ export class Editor {
   }
 
   private laneG(lane: string): SVGGElement | null {
-    return this.host.canvas.querySelector<SVGGElement>(`svg[data-diagram="${CSS.escape(this.host.current())}"] g.lane[data-lane="${CSS.escape(lane)}"]`);
+    return this.host.canvas.querySelector<SVGGElement>(
+      `svg[data-diagram="${CSS.escape(this.host.current())}"] g.lane[data-lane="${CSS.escape(lane)}"]`,
+    );
   }
 
   private laneAt(x: number, y: number): string | null {
@@ -731,7 +909,12 @@ export class Editor {
       return true;
     }
     if (edgeG && target.classList.contains("hit")) {
-      this.sel = { type: "edge", lane: edgeG.getAttribute("data-lane")!, source: edgeG.getAttribute("data-source")!, target: edgeG.getAttribute("data-target")! };
+      this.sel = {
+        type: "edge",
+        lane: edgeG.getAttribute("data-lane")!,
+        source: edgeG.getAttribute("data-source")!,
+        target: edgeG.getAttribute("data-target")!,
+      };
       this.renderProps();
       this.highlightSelection();
       return true;
@@ -833,7 +1016,8 @@ export class Editor {
     if (!s) return null;
     let q = "";
     if (s.type === "node") q = `g.node[data-lane="${CSS.escape(s.lane)}"][data-node="${CSS.escape(s.id)}"]`;
-    else if (s.type === "edge") q = `g.edge[data-lane="${CSS.escape(s.lane)}"][data-source="${CSS.escape(s.source)}"][data-target="${CSS.escape(s.target)}"]`;
+    else if (s.type === "edge")
+      q = `g.edge[data-lane="${CSS.escape(s.lane)}"][data-source="${CSS.escape(s.source)}"][data-target="${CSS.escape(s.target)}"]`;
     else if (s.type === "component") q = `g.component[data-component="${CSS.escape(s.name)}"]`;
     else if (s.type === "lane") q = `g.lane[data-lane="${CSS.escape(s.lane)}"]`;
     let shown: Element | null = null;
@@ -854,7 +1038,8 @@ export class Editor {
       const l = this.lane(s.lane);
       if (!l) this.sel = null;
       else if (s.type === "node" && !l.nodes.some((n) => n.id === s.id)) this.sel = null;
-      else if (s.type === "edge" && !l.edges.some((e) => e.source === s.source && e.target === s.target)) this.sel = null;
+      else if (s.type === "edge" && !l.edges.some((e) => e.source === s.source && e.target === s.target))
+        this.sel = null;
     } else if (s.type === "component" && !m.components.some((c) => c.name === s.name)) this.sel = null;
   }
 
@@ -887,7 +1072,8 @@ export class Editor {
     }
     // Undo/redo in a field: the field's own text undo while something is typed in it; with
     // nothing typed (e.g. the name field a new node focuses), the model's undo/redo.
-    if (typing && !(mod && (k === "z" || k === "y") && t instanceof HTMLInputElement && t.value === t.defaultValue)) return false;
+    if (typing && !(mod && (k === "z" || k === "y") && t instanceof HTMLInputElement && t.value === t.defaultValue))
+      return false;
     if (mod && k === "z") {
       ev.preventDefault();
       void this.history(ev.shiftKey ? "redo" : "undo");
@@ -927,13 +1113,20 @@ export class Editor {
     if (s.type === "component") {
       const lanes = m.diagrams.flatMap((d) => d.lanes).filter((l) => (l.component ?? l.name) === s.name && !l.virtual);
       let calls = 0;
-      for (const d of m.diagrams) for (const l of d.lanes) for (const x of l.nodes) {
-        const text = [x.label, ...Object.values(x.fields ?? {}).map((v) => (typeof v === "string" ? v : JSON.stringify(v)))].join(" ");
-        if (new RegExp(`(^|[^\\w.])${s.name}\\.`).test(text)) calls += 1;
-      }
+      for (const d of m.diagrams)
+        for (const l of d.lanes)
+          for (const x of l.nodes) {
+            const text = [
+              x.label,
+              ...Object.values(x.fields ?? {}).map((v) => (typeof v === "string" ? v : JSON.stringify(v))),
+            ].join(" ");
+            if (new RegExp(`(^|[^\\w.])${s.name}\\.`).test(text)) calls += 1;
+          }
       if (!lanes.length && !calls) return null;
-      const parts = [lanes.length ? `${plural(lanes.length, "swimlane")} run${lanes.length === 1 ? "s" : ""} on it` : "",
-        calls ? `${plural(calls, "node")} call${calls === 1 ? "s" : ""} it` : ""].filter(Boolean);
+      const parts = [
+        lanes.length ? `${plural(lanes.length, "swimlane")} run${lanes.length === 1 ? "s" : ""} on it` : "",
+        calls ? `${plural(calls, "node")} call${calls === 1 ? "s" : ""} it` : "",
+      ].filter(Boolean);
       return `Delete the component ${s.name}? ${parts.join(" and ")} (${lanes.length && calls ? "they" : lanes.length ? "it" : "they"} will no longer check).`;
     }
     return null;
@@ -946,11 +1139,21 @@ export class Editor {
     if (loss) {
       const what = JSON.stringify(s);
       this.showNotice("confirm", loss, [
-        ["confirm", "Delete", async () => {
-          this.notice.hidden = true;
-          if (JSON.stringify(this.sel) === what) await this.removeSelection(true);
-        }],
-        ["cancel", "Keep it", () => { this.notice.hidden = true; }],
+        [
+          "confirm",
+          "Delete",
+          async () => {
+            this.notice.hidden = true;
+            if (JSON.stringify(this.sel) === what) await this.removeSelection(true);
+          },
+        ],
+        [
+          "cancel",
+          "Keep it",
+          () => {
+            this.notice.hidden = true;
+          },
+        ],
       ]);
       return;
     }
@@ -973,32 +1176,49 @@ export class Editor {
     // in it that is not sent yet; a field with nothing typed shows the model's value (after an undo
     // or a rename, the value now, not the one it showed before).
     const a = document.activeElement;
-    const typing = a instanceof HTMLInputElement && p.contains(a) && a.name
-      ? { sel: `[name="${CSS.escape(a.name)}"]${a.dataset.target ? `[data-target="${CSS.escape(a.dataset.target)}"]` : ""}`,
-        value: a.value, typed: a.value !== a.defaultValue, start: a.selectionStart, end: a.selectionEnd, what: JSON.stringify(this.sel) }
-      : null;
+    const typing =
+      a instanceof HTMLInputElement && p.contains(a) && a.name
+        ? {
+            sel: `[name="${CSS.escape(a.name)}"]${a.dataset.target ? `[data-target="${CSS.escape(a.dataset.target)}"]` : ""}`,
+            value: a.value,
+            typed: a.value !== a.defaultValue,
+            start: a.selectionStart,
+            end: a.selectionEnd,
+            what: JSON.stringify(this.sel),
+          }
+        : null;
     p.replaceChildren();
-    if (typing) queueMicrotask(() => {
-      const again = p.querySelector<HTMLInputElement>(typing.sel);
-      if (!again || typing.what !== JSON.stringify(this.sel)) return;
-      if (typing.typed && again.value !== typing.value) again.value = typing.value;
-      again.focus();
-      if (typing.start !== null && typing.end !== null) again.setSelectionRange(typing.start, typing.end);
-    });
+    if (typing)
+      queueMicrotask(() => {
+        const again = p.querySelector<HTMLInputElement>(typing.sel);
+        if (!again || typing.what !== JSON.stringify(this.sel)) return;
+        if (typing.typed && again.value !== typing.value) again.value = typing.value;
+        again.focus();
+        if (typing.start !== null && typing.end !== null) again.setSelectionRange(typing.start, typing.end);
+      });
     el("div", { class: "panel-title" }, p, "Properties");
     const body = el("div", { class: "props-body" }, p);
     const s = this.sel;
     this.highlightSelection();
     p.dataset.selection = s ? s.type : "";
     if (!s && this.info.empty) {
-      el("div", { class: "hint", "data-hint": "no-model" }, body,
-        "There is no model yet: create it with the form in the middle. Then select a node, a flow or a component to edit it here.");
+      el(
+        "div",
+        { class: "hint", "data-hint": "no-model" },
+        body,
+        "There is no model yet: create it with the form in the middle. Then select a node, a flow or a component to edit it here.",
+      );
       return;
     }
     if (!s) {
-      el("div", { class: "hint" }, body, this.host.current() === "components"
-        ? "Click a component to edit its deployment, ports and links, or pick one from the library to add it."
-        : "Click a node, a flow or a swimlane header to edit it; drag nodes from the palette.");
+      el(
+        "div",
+        { class: "hint" },
+        body,
+        this.host.current() === "components"
+          ? "Click a component to edit its deployment, ports and links, or pick one from the library to add it."
+          : "Click a node, a flow or a swimlane header to edit it; drag nodes from the palette.",
+      );
       return;
     }
     if (s.type === "node") this.nodeProps(body, s.lane, s.id);
@@ -1022,11 +1242,29 @@ export class Editor {
 
   /** A name and a Rename button: the server renames it and every reference to it; a refused name
    * is said at the field. */
-  private renameForm(body: HTMLElement, label: string, current: string, field: string, op: (name: string) => Op,
-    selection: (name: string) => NonNullable<Selection>): void {
+  private renameForm(
+    body: HTMLElement,
+    label: string,
+    current: string,
+    field: string,
+    op: (name: string) => Op,
+    selection: (name: string) => NonNullable<Selection>,
+  ): void {
     const form = el("form", { class: "row rename", novalidate: "" }, body);
     el("span", { class: "key" }, form, label);
-    const input = el("input", { name: "rename", value: current, autocomplete: "off", spellcheck: "false", size: "14", "data-field": field, "data-label": label }, form);
+    const input = el(
+      "input",
+      {
+        name: "rename",
+        value: current,
+        autocomplete: "off",
+        spellcheck: "false",
+        size: "14",
+        "data-field": field,
+        "data-label": label,
+      },
+      form,
+    );
     input.title = "a new name: every reference to it in the model is renamed too";
     el("button", { type: "submit", name: "apply-rename" }, form, "Rename");
     form.onsubmit = async (ev) => {
@@ -1047,9 +1285,17 @@ export class Editor {
     if (!lane || !node) return;
     el("div", { class: "props-head" }, body, `${node.kind} · ${id}`);
     el("div", { class: "props-sub" }, body, `swimlane ${laneName} · ${lane.file}:${node.line}`);
-    this.renameForm(body, "id", id, "new_id", (v) => ({ op: "rename_node", lane: laneName, id, new_id: v }),
-      (v) => ({ type: "node", lane: laneName, id: v }));
-    const marks = this.host.diagnostics().filter((d) => sameFile(d.file, lane.file) && d.line >= node.line && d.line < nextLine(lane, node));
+    this.renameForm(
+      body,
+      "id",
+      id,
+      "new_id",
+      (v) => ({ op: "rename_node", lane: laneName, id, new_id: v }),
+      (v) => ({ type: "node", lane: laneName, id: v }),
+    );
+    const marks = this.host
+      .diagnostics()
+      .filter((d) => sameFile(d.file, lane.file) && d.line >= node.line && d.line < nextLine(lane, node));
     for (const d of marks) el("div", { class: `problem ${d.severity}`, "data-severity": d.severity }, body, d.text);
     // the kind's fields as the compiler defines them (the server's library)
     if (!this.library) el("div", { class: "hint" }, body, "loading…");
@@ -1058,7 +1304,8 @@ export class Editor {
       if (info.type && FLOW_TYPES.has(info.type)) continue;
       const r = this.row(body, field + (info.required ? " *" : ""));
       const current = fieldText(node, field);
-      if (info.type === "expression") { // a call or an expression: edited with completion
+      if (info.type === "expression") {
+        // a call or an expression: edited with completion
         this.codeInput(r, field, current, laneName, (text) => {
           void this.edit([{ op: "set_node", lane: laneName, id, fields: { [field]: typed(field, text, info.type) } }]);
         });
@@ -1066,7 +1313,9 @@ export class Editor {
         const input = el("input", { name: field, value: current, autocomplete: "off", spellcheck: "false" }, r);
         if (info.doc) input.title = info.doc;
         input.onchange = () => {
-          void this.edit([{ op: "set_node", lane: laneName, id, fields: { [field]: typed(field, input.value, info.type) } }]);
+          void this.edit([
+            { op: "set_node", lane: laneName, id, fields: { [field]: typed(field, input.value, info.type) } },
+          ]);
         };
       }
     }
@@ -1077,11 +1326,24 @@ export class Editor {
       const r = el("div", { class: "flow", "data-target": e.target }, body);
       el("span", {}, r, `→ ${e.target}`);
       if (node.kind === "decision") {
-        this.codeInput(r, "guard", guardOf(node, e), laneName, (text) => {
-          void this.edit([{ op: "set_guard", lane: laneName, source: id, target: e.target, guard: text.trim() }]);
-        }, { "data-target": e.target, placeholder: GUARD_PLACEHOLDER });
+        this.codeInput(
+          r,
+          "guard",
+          guardOf(node, e),
+          laneName,
+          (text) => {
+            void this.edit([{ op: "set_guard", lane: laneName, source: id, target: e.target, guard: text.trim() }]);
+          },
+          { "data-target": e.target, placeholder: GUARD_PLACEHOLDER },
+        );
       }
-      const x = this.button(r, "disconnect", "×", () => void this.edit([{ op: "disconnect", lane: laneName, source: id, target: e.target }]), "small");
+      const x = this.button(
+        r,
+        "disconnect",
+        "×",
+        () => void this.edit([{ op: "disconnect", lane: laneName, source: id, target: e.target }]),
+        "small",
+      );
       x.dataset.target = e.target;
       x.title = `remove the flow to ${e.target}`;
     }
@@ -1105,9 +1367,16 @@ export class Editor {
     el("div", { class: "props-sub" }, body, `swimlane ${laneName}`);
     if (src?.kind === "decision") {
       const r = this.row(body, "guard");
-      this.codeInput(r, "guard", src ? guardOf(src, e) : e.label, laneName, (text) => {
-        void this.edit([{ op: "set_guard", lane: laneName, source, target, guard: text.trim() }]);
-      }, { "data-target": target, placeholder: GUARD_PLACEHOLDER });
+      this.codeInput(
+        r,
+        "guard",
+        src ? guardOf(src, e) : e.label,
+        laneName,
+        (text) => {
+          void this.edit([{ op: "set_guard", lane: laneName, source, target, guard: text.trim() }]);
+        },
+        { "data-target": target, placeholder: GUARD_PLACEHOLDER },
+      );
       el("div", { class: "hint" }, body, "a condition, or else");
     }
     const actions = el("div", { class: "actions" }, body);
@@ -1118,13 +1387,28 @@ export class Editor {
     const lane = this.lane(laneName);
     if (!lane) return;
     el("div", { class: "props-head" }, body, `swimlane ${laneName}`);
-    el("div", { class: "props-sub" }, body,
-      `${lane.virtual ? "virtual: an activity that other lanes call" : `runs on the component ${lane.component ?? laneName}`} · ${lane.file}:${lane.line}`);
+    el(
+      "div",
+      { class: "props-sub" },
+      body,
+      `${lane.virtual ? "virtual: an activity that other lanes call" : `runs on the component ${lane.component ?? laneName}`} · ${lane.file}:${lane.line}`,
+    );
     if (lane.virtual) {
-      this.renameForm(body, "name", laneName, "new_name", (v) => ({ op: "rename_lane", lane: laneName, new_name: v }),
-        (v) => ({ type: "lane", lane: v }));
+      this.renameForm(
+        body,
+        "name",
+        laneName,
+        "new_name",
+        (v) => ({ op: "rename_lane", lane: laneName, new_name: v }),
+        (v) => ({ type: "lane", lane: v }),
+      );
     } else {
-      el("div", { class: "hint", "data-hint": "rename" }, body, `Its name is the component's: rename the component ${laneName} to rename it.`);
+      el(
+        "div",
+        { class: "hint", "data-hint": "rename" },
+        body,
+        `Its name is the component's: rename the component ${laneName} to rename it.`,
+      );
     }
     el("div", { class: "hint" }, body, "Drag nodes from the palette into it, or click a node kind to add it here.");
     const actions = el("div", { class: "actions" }, body);
@@ -1143,8 +1427,12 @@ export class Editor {
     el("div", { class: "props-head" }, body, `new ${impl.kind} · ${impl.id}`);
     if (this.info.empty) {
       el("div", { class: "hint" }, body, `features: ${Object.keys(features(impl, this.library)).join(", ")}`);
-      el("div", { class: "hint", "data-hint": "no-model" }, body,
-        `A ${impl.id} can be added once there is a model: create it first (the form in the middle), then click ${impl.id} again.`);
+      el(
+        "div",
+        { class: "hint", "data-hint": "no-model" },
+        body,
+        `A ${impl.id} can be added once there is a model: create it first (the form in the middle), then click ${impl.id} again.`,
+      );
       return;
     }
     const form = el("form", { class: "new-component", novalidate: "" }, body);
@@ -1154,7 +1442,11 @@ export class Editor {
     let n = 1;
     const base = impl.kind[0].toUpperCase() + impl.kind.slice(1);
     while (taken.has(`${base}${n}`)) n += 1;
-    const name = el("input", { name: "name", value: seed ?? `${base}${n}`, autocomplete: "off", spellcheck: "false", "data-field": "name" }, this.row(form, "name"));
+    const name = el(
+      "input",
+      { name: "name", value: seed ?? `${base}${n}`, autocomplete: "off", spellcheck: "false", "data-field": "name" },
+      this.row(form, "name"),
+    );
     el("div", { class: "hint" }, form, `features: ${Object.keys(features(impl, this.library)).join(", ")}`);
     const settings = this.settingsForm(form, impl, {});
     el("button", { type: "submit", name: "add" }, form, "Add component");
@@ -1172,7 +1464,11 @@ export class Editor {
   }
 
   /** Inputs for an implementation's driver settings from its JSON Schema; returns a reader (null when invalid). */
-  private settingsForm(parent: HTMLElement, impl: ImplInfo, current: Record<string, unknown>): () => Record<string, unknown> | null {
+  private settingsForm(
+    parent: HTMLElement,
+    impl: ImplInfo,
+    current: Record<string, unknown>,
+  ): () => Record<string, unknown> | null {
     const root = impl.settings_schema ?? {};
     const props = root.properties ?? {};
     const required = new Set(root.required ?? []);
@@ -1185,9 +1481,17 @@ export class Editor {
       const r = this.row(box, key + (required.has(key) ? " *" : ""));
       const type = Array.isArray(s.type) ? s.type.find((t) => t !== "null") : s.type;
       const cur = key in current ? current[key] : s.default;
-      const range = s.minimum !== undefined && s.maximum !== undefined ? `${s.minimum}..${s.maximum}`
-        : s.minimum !== undefined ? `≥ ${s.minimum}` : s.maximum !== undefined ? `≤ ${s.maximum}` : "";
-      const hint = [impl.settings_doc?.[key] ?? s.description ?? "", range && `range ${range}`].filter(Boolean).join(" · ");
+      const range =
+        s.minimum !== undefined && s.maximum !== undefined
+          ? `${s.minimum}..${s.maximum}`
+          : s.minimum !== undefined
+            ? `≥ ${s.minimum}`
+            : s.maximum !== undefined
+              ? `≤ ${s.maximum}`
+              : "";
+      const hint = [impl.settings_doc?.[key] ?? s.description ?? "", range && `range ${range}`]
+        .filter(Boolean)
+        .join(" · ");
       // sent: what the deployment has, what is required, and what the user changed from the default
       const keep = key in current || required.has(key);
       if (s.enum) {
@@ -1196,7 +1500,10 @@ export class Editor {
         for (const v of s.enum) el("option", { value: JSON.stringify(v) }, sel, String(v));
         if (cur !== undefined) sel.value = JSON.stringify(cur);
         const initial = sel.value;
-        readers.push([key, () => ({ ok: true, value: sel.value && (keep || sel.value !== initial) ? JSON.parse(sel.value) : undefined })]);
+        readers.push([
+          key,
+          () => ({ ok: true, value: sel.value && (keep || sel.value !== initial) ? JSON.parse(sel.value) : undefined }),
+        ]);
       } else if (type === "boolean") {
         const cb = el("input", { type: "checkbox", name: `setting-${key}`, "data-field": `settings.${key}` }, r);
         cb.checked = cur === true;
@@ -1204,41 +1511,53 @@ export class Editor {
         readers.push([key, () => ({ ok: true, value: keep || cb.checked !== initial ? cb.checked : undefined })]);
       } else {
         const numeric = type === "integer" || type === "number";
-        const input = el("input", { name: `setting-${key}`, autocomplete: "off", spellcheck: "false", "data-field": `settings.${key}` }, r);
+        const input = el(
+          "input",
+          { name: `setting-${key}`, autocomplete: "off", spellcheck: "false", "data-field": `settings.${key}` },
+          r,
+        );
         if (numeric) {
           input.type = "number";
           if (s.minimum !== undefined) input.min = String(s.minimum);
           if (s.maximum !== undefined) input.max = String(s.maximum);
           if (type === "number") input.step = "any";
         }
-        const show = (x: unknown): string => (typeof x === "string" || typeof x === "number" ? String(x) : JSON.stringify(x));
+        const show = (x: unknown): string =>
+          typeof x === "string" || typeof x === "number" ? String(x) : JSON.stringify(x);
         // the deployment's value, else the default as a placeholder (a default is not written)
         if (key in current && current[key] !== null) input.value = show(current[key]);
         else if (s.default !== undefined && s.default !== null) input.placeholder = `default ${show(s.default)}`;
-        if (!input.placeholder && (type === "array" || type === "object")) input.placeholder = type === "array" ? "[1, 2]" : "{}";
+        if (!input.placeholder && (type === "array" || type === "object"))
+          input.placeholder = type === "array" ? "[1, 2]" : "{}";
         const initial = input.value;
-        readers.push([key, () => {
-          const t = input.value.trim();
-          if (!t) return required.has(key) ? { ok: false, why: "is required" } : { ok: true };
-          if (!keep && input.value === initial) return { ok: true }; // the default: not written
-          if (numeric) {
-            // the schema's own bounds, checked here before anything is sent (the server checks too)
-            const v = Number(t);
-            const bounds = range ? `must be ${range.replace("≥", "at least").replace("≤", "at most")}` : "";
-            if (Number.isNaN(v)) return { ok: false, why: type === "integer" ? "must be a whole number" : "must be a number" };
-            if (type === "integer" && !Number.isInteger(v)) return { ok: false, why: `must be a whole number${range ? `, ${range}` : ""}` };
-            if ((s.minimum !== undefined && v < s.minimum) || (s.maximum !== undefined && v > s.maximum)) return { ok: false, why: bounds };
-            return { ok: true, value: v };
-          }
-          if (type === "array" || type === "object") {
-            try {
-              return { ok: true, value: JSON.parse(t) };
-            } catch {
-              return { ok: false, why: `must be JSON (${type === "array" ? "[1, 2]" : "{}"})` };
+        readers.push([
+          key,
+          () => {
+            const t = input.value.trim();
+            if (!t) return required.has(key) ? { ok: false, why: "is required" } : { ok: true };
+            if (!keep && input.value === initial) return { ok: true }; // the default: not written
+            if (numeric) {
+              // the schema's own bounds, checked here before anything is sent (the server checks too)
+              const v = Number(t);
+              const bounds = range ? `must be ${range.replace("≥", "at least").replace("≤", "at most")}` : "";
+              if (Number.isNaN(v))
+                return { ok: false, why: type === "integer" ? "must be a whole number" : "must be a number" };
+              if (type === "integer" && !Number.isInteger(v))
+                return { ok: false, why: `must be a whole number${range ? `, ${range}` : ""}` };
+              if ((s.minimum !== undefined && v < s.minimum) || (s.maximum !== undefined && v > s.maximum))
+                return { ok: false, why: bounds };
+              return { ok: true, value: v };
             }
-          }
-          return { ok: true, value: t };
-        }]);
+            if (type === "array" || type === "object") {
+              try {
+                return { ok: true, value: JSON.parse(t) };
+              } catch {
+                return { ok: false, why: `must be JSON (${type === "array" ? "[1, 2]" : "{}"})` };
+              }
+            }
+            return { ok: true, value: t };
+          },
+        ]);
       }
       if (hint) el("div", { class: "hint" }, r, hint);
     }
@@ -1261,12 +1580,20 @@ export class Editor {
 
   private componentProps(body: HTMLElement, name: string): void {
     const m = this.host.model();
-    const c = m?.components.find((x) => x.name === name) as (ModelComponent & { settings?: Record<string, unknown> }) | undefined;
+    const c = m?.components.find((x) => x.name === name) as
+      | (ModelComponent & { settings?: Record<string, unknown> })
+      | undefined;
     if (!m || !c) return;
     el("div", { class: "props-head" }, body, `${c.kind} · ${name}`);
     el("div", { class: "props-sub" }, body, `${c.impl} · ${c.service} · ${c.driver}`);
-    this.renameForm(body, "name", name, "new_name", (v) => ({ op: "rename_component", component: name, new_name: v }),
-      (v) => ({ type: "component", name: v }));
+    this.renameForm(
+      body,
+      "name",
+      name,
+      "new_name",
+      (v) => ({ op: "rename_component", component: name, new_name: v }),
+      (v) => ({ type: "component", name: v }),
+    );
     // deployment
     const dep = el("form", { class: "deployment", novalidate: "" }, body);
     el("div", { class: "props-section" }, dep, "Deployment");
@@ -1294,7 +1621,9 @@ export class Editor {
       queueMicrotask(() => {
         if (!this.revealProblems) return;
         this.revealProblems = false;
-        this.props.querySelector(".deployment .field-problem, .deployment .problem")?.scrollIntoView({ block: "nearest" });
+        this.props
+          .querySelector(".deployment .field-problem, .deployment .problem")
+          ?.scrollIntoView({ block: "nearest" });
       });
     }
     const title = dep.querySelector(".props-section");
@@ -1315,10 +1644,20 @@ export class Editor {
     for (const [port, feature] of Object.entries(c.ports)) {
       const r = el("div", { class: "flow", "data-port": port }, body);
       el("span", {}, r, `${port} → ${feature}`);
-      this.button(r, "remove-port", "×", () => void this.edit([{ op: "remove_port", component: name, port }]), "small").dataset.port = port;
+      this.button(
+        r,
+        "remove-port",
+        "×",
+        () => void this.edit([{ op: "remove_port", component: name, port }]),
+        "small",
+      ).dataset.port = port;
     }
     const pf = el("form", { class: "inline" }, body);
-    const portName = el("input", { name: "port", placeholder: "port", autocomplete: "off", size: "8", "data-field": "port" }, pf);
+    const portName = el(
+      "input",
+      { name: "port", placeholder: "port", autocomplete: "off", size: "8", "data-field": "port" },
+      pf,
+    );
     const feat = el("select", { name: "port-feature" }, pf);
     for (const f of c.features) el("option", { value: f }, feat, f);
     el("button", { type: "submit", name: "add-port" }, pf, "Add port");
@@ -1332,13 +1671,27 @@ export class Editor {
     for (const l of m.links.filter((x) => x.source.component === name || x.target.component === name)) {
       const r = el("div", { class: "flow", "data-link": l.id }, body);
       el("span", {}, r, `${l.id}: ${l.source.component}.${l.source.port} → ${l.target.component}.${l.target.port}`);
-      this.button(r, "remove-link", "×", () => void this.edit([{ op: "remove_link", id: l.id }]), "small").dataset.link = l.id;
+      this.button(
+        r,
+        "remove-link",
+        "×",
+        () => void this.edit([{ op: "remove_link", id: l.id }]),
+        "small",
+      ).dataset.link = l.id;
     }
-    const others = m.components.filter((o) => o.name !== name).flatMap((o) => Object.keys(o.ports).map((port) => `${o.name}.${port}`));
+    const others = m.components
+      .filter((o) => o.name !== name)
+      .flatMap((o) => Object.keys(o.ports).map((port) => `${o.name}.${port}`));
     if (!Object.keys(c.ports).length || !others.length) {
       // a link joins two ports: say what is missing instead of an empty list
-      el("div", { class: "hint", "data-hint": "link" }, body,
-        !Object.keys(c.ports).length ? `A link starts at a port of ${name}: add a port first (above).` : "No other component has a port yet: add one to link to.");
+      el(
+        "div",
+        { class: "hint", "data-hint": "link" },
+        body,
+        !Object.keys(c.ports).length
+          ? `A link starts at a port of ${name}: add a port first (above).`
+          : "No other component has a port yet: add one to link to.",
+      );
     }
     const lf = el("form", { class: "inline" }, body);
     lf.hidden = !Object.keys(c.ports).length || !others.length;
@@ -1360,8 +1713,14 @@ export class Editor {
   // ------------------------------------------------------------------ call / guard editor
 
   /** A one-line code input with completion (`/api/complete`) and a signature hint. */
-  private codeInput(parent: HTMLElement, name: string, value: string, lane: string, commit: (text: string) => void,
-    attrs: Record<string, string> = {}): HTMLInputElement {
+  private codeInput(
+    parent: HTMLElement,
+    name: string,
+    value: string,
+    lane: string,
+    commit: (text: string) => void,
+    attrs: Record<string, string> = {},
+  ): HTMLInputElement {
     const wrap = el("div", { class: "code-field" }, parent);
     const input = el("input", { name, value, class: "code", autocomplete: "off", spellcheck: "false", ...attrs }, wrap);
     const list = el("ul", { class: "completions", role: "listbox" }, wrap);

@@ -3,9 +3,9 @@
 // header each; edges stay inside their lane. The component diagram is one layered graph (RIGHT)
 // with the link ports on the component boxes.
 
-import ELK from "elkjs/lib/elk-api.js";
 import type { ElkExtendedEdge, ElkNode } from "elkjs/lib/elk-api.js";
-import { type Dir, type Rect, grow, middle, pathCrosses, route } from "./route";
+import ELK from "elkjs/lib/elk-api.js";
+import { type Dir, grow, middle, pathCrosses, type Rect, route } from "./route";
 import type { ModelDiagram, ModelLane, ModelNode, ModelView } from "./types";
 
 export const FONT = "system-ui, -apple-system, 'Segoe UI', Roboto, 'DejaVu Sans', sans-serif";
@@ -26,7 +26,9 @@ const canvas = document.createElement("canvas");
 const ctx = canvas.getContext("2d") as CanvasRenderingContext2D;
 /** Start the layout worker early (it has 1.5 MB of script to parse). */
 export function warmUp(): void {
-  void engine().knownLayoutAlgorithms().catch(() => undefined);
+  void engine()
+    .knownLayoutAlgorithms()
+    .catch(() => undefined);
 }
 
 export function textWidth(text: string, px: number, weight = "normal"): number {
@@ -34,25 +36,45 @@ export function textWidth(text: string, px: number, weight = "normal"): number {
   return Math.ceil(ctx.measureText(text).width);
 }
 
-export interface Point { x: number; y: number }
+export interface Point {
+  x: number;
+  y: number;
+}
 export interface NodeBox {
   node: ModelNode;
-  x: number; y: number; w: number; h: number;
-  statsX: number; statsY: number; statsInside: boolean;
+  x: number;
+  y: number;
+  w: number;
+  h: number;
+  statsX: number;
+  statsY: number;
+  statsInside: boolean;
 }
 export interface EdgeGeom {
-  id: string; source: string; target: string; label: string;
+  id: string;
+  source: string;
+  target: string;
+  label: string;
   points: Point[];
   labelBox: { x: number; y: number; w: number; h: number } | null;
 }
 export interface LaneGeom {
   lane: ModelLane;
-  x: number; y: number; w: number; h: number; // lane column incl. header
+  x: number;
+  y: number;
+  w: number;
+  h: number; // lane column incl. header
   headerH: number;
   nodes: NodeBox[];
   edges: EdgeGeom[];
 }
-export interface ActivityLayout { kind: "activity"; diagram: ModelDiagram; width: number; height: number; lanes: LaneGeom[] }
+export interface ActivityLayout {
+  kind: "activity";
+  diagram: ModelDiagram;
+  width: number;
+  height: number;
+  lanes: LaneGeom[];
+}
 
 // The header holds the lane's name, with the stereotype («component», «activity») on a line above it.
 export const HEADER_H = 44;
@@ -71,15 +93,22 @@ export function nodeSize(n: ModelNode): { w: number; h: number; statsInside: boo
   const lw = textWidth(n.label, LABEL_PX);
   const sw = STATS_W();
   switch (n.kind) {
-    case "start": return { w: 22, h: 22, statsInside: false };
-    case "end": return { w: 26, h: 26, statsInside: false };
+    case "start":
+      return { w: 22, h: 22, statsInside: false };
+    case "end":
+      return { w: 26, h: 26, statsInside: false };
     case "fork":
-    case "join": return { w: 110, h: 8, statsInside: false };
-    case "decision": return { w: Math.max(64, lw + 44), h: 44, statsInside: false };
-    case "datastore": return { w: Math.max(lw + 28, sw + 20, 150), h: 72, statsInside: true };
+    case "join":
+      return { w: 110, h: 8, statsInside: false };
+    case "decision":
+      return { w: Math.max(64, lw + 44), h: 44, statsInside: false };
+    case "datastore":
+      return { w: Math.max(lw + 28, sw + 20, 150), h: 72, statsInside: true };
     case "send":
-    case "accept": return { w: Math.max(lw + 56, sw + 36), h: 50, statsInside: true };
-    default: return { w: Math.max(lw + 28, sw + 20), h: 50, statsInside: true };
+    case "accept":
+      return { w: Math.max(lw + 56, sw + 36), h: 50, statsInside: true };
+    default:
+      return { w: Math.max(lw + 28, sw + 20), h: 50, statsInside: true };
   }
 }
 
@@ -211,10 +240,15 @@ async function layoutLane(lane: ModelLane, hints?: Hints): Promise<LaneGeom> {
       const edge: ElkExtendedEdge = { id: e.id, sources: [e.source], targets: [e.target] };
       if (e.label) {
         const text = shortGuard(e.label);
-        edge.labels = [{
-          id: `${e.id}#label`, text, width: guardWidth(e.label), height: 16,
-          layoutOptions: { "elk.edgeLabels.inline": "true", "elk.edgeLabels.placement": "CENTER" },
-        }];
+        edge.labels = [
+          {
+            id: `${e.id}#label`,
+            text,
+            width: guardWidth(e.label),
+            height: 16,
+            layoutOptions: { "elk.edgeLabels.inline": "true", "elk.edgeLabels.placement": "CENTER" },
+          },
+        ];
       }
       return edge;
     });
@@ -248,7 +282,11 @@ async function layoutLane(lane: ModelLane, hints?: Hints): Promise<LaneGeom> {
     }
     const l = e.labels?.[0];
     edgeGeoms.push({
-      id: m.id, source: m.source, target: m.target, label: m.label, points,
+      id: m.id,
+      source: m.source,
+      target: m.target,
+      label: m.label,
+      points,
       labelBox: l ? { x: l.x ?? 0, y: l.y ?? 0, w: l.width ?? 0, h: l.height ?? 0 } : null,
     });
   }
@@ -293,15 +331,28 @@ function laneText(lane: ModelLane): string {
   return text;
 }
 
-function laneLayout(diagram: string, lane: ModelLane, index: number, before: ModelDiagram | undefined): Promise<LaneGeom> {
+function laneLayout(
+  diagram: string,
+  lane: ModelLane,
+  index: number,
+  before: ModelDiagram | undefined,
+): Promise<LaneGeom> {
   const key = laneText(lane);
   let p = laneCache.get(key);
   if (!p) {
     if (laneCache.size > 4096) laneCache.clear();
     // a renamed lane is found at its index in the diagram as drawn before
-    const was = lastLane.get(`${diagram}/${lane.name}`) ?? (before && before.lanes[index] && !before.lanes.some((l) => l.name === lane.name)
-      ? lastLane.get(`${diagram}/${before.lanes[index].name}`) : undefined);
-    p = was ? was.then((g) => sameShape(g, lane) ?? relayoutLane(lane, g), () => layoutLane(lane)) : layoutLane(lane);
+    const was =
+      lastLane.get(`${diagram}/${lane.name}`) ??
+      (before && before.lanes[index] && !before.lanes.some((l) => l.name === lane.name)
+        ? lastLane.get(`${diagram}/${before.lanes[index].name}`)
+        : undefined);
+    p = was
+      ? was.then(
+          (g) => sameShape(g, lane) ?? relayoutLane(lane, g),
+          () => layoutLane(lane),
+        )
+      : layoutLane(lane);
     laneCache.set(key, p);
     p.catch(() => laneCache.delete(key));
   }
@@ -362,7 +413,8 @@ async function relayoutLane(lane: ModelLane, g: LaneGeom): Promise<LaneGeom> {
   for (const e of lane.edges) {
     const a = old.get(e.source);
     const b = old.get(e.target);
-    if (a && b && b.node.kind === "end" && b.y < a.y + a.h && !was.has(`${a.node.id}>${b.node.id}`)) old.delete(e.target);
+    if (a && b && b.node.kind === "end" && b.y < a.y + a.h && !was.has(`${a.node.id}>${b.node.id}`))
+      old.delete(e.target);
   }
   const hints = hintsFrom(g, lane, old);
   const fresh = await layoutLane(lane, hints);
@@ -411,7 +463,12 @@ function keepPlaces(fresh: LaneGeom, g: LaneGeom, old: Map<string, NodeBox>, hin
     kept.add(e.id);
     return { ...e, points: o.points, labelBox: o.labelBox };
   });
-  return grown(fresh, g, nodes, rerouteAll(edges, (e) => !kept.has(e.id), box, nodes));
+  return grown(
+    fresh,
+    g,
+    nodes,
+    rerouteAll(edges, (e) => !kept.has(e.id), box, nodes),
+  );
 }
 
 /**
@@ -452,7 +509,9 @@ export function layoutActivity(d: ModelDiagram, positions: Positions = {}): Prom
 }
 
 export function layoutComponents(model: ModelView, positions: Positions = {}): Promise<ComponentLayout> {
-  return cached("c" + JSON.stringify([model.name, model.components, model.links, positions]), () => layoutComponentsNow(model, positions));
+  return cached("c" + JSON.stringify([model.name, model.components, model.links, positions]), () =>
+    layoutComponentsNow(model, positions),
+  );
 }
 
 /** A lane with the user's positions applied: moved nodes at their places, the nodes laid out
@@ -476,14 +535,15 @@ function placeLane(auto: LaneGeom, positions: Positions): LaneGeom {
     return dy ? { ...nb, y: nb.y + dy, statsY: nb.statsY + dy } : nb;
   });
   const box = new Map(nodes.map((nb) => [nb.node.id, nb]));
-  const moved = (e: EdgeGeom): boolean => pinned.has(e.source) || pinned.has(e.target)
-    || (shift.get(e.source) ?? 0) !== (shift.get(e.target) ?? 0);
+  const moved = (e: EdgeGeom): boolean =>
+    pinned.has(e.source) || pinned.has(e.target) || (shift.get(e.source) ?? 0) !== (shift.get(e.target) ?? 0);
   const edges = auto.edges.map((e) => {
     const dy = shift.get(e.source) ?? 0;
     if (moved(e) || !dy) return e;
     // both ends moved down together: the flow moves with them
     return {
-      ...e, points: e.points.map((p) => ({ x: p.x, y: p.y + dy })),
+      ...e,
+      points: e.points.map((p) => ({ x: p.x, y: p.y + dy })),
       labelBox: e.labelBox ? { ...e.labelBox, y: e.labelBox.y + dy } : null,
     };
   });
@@ -513,7 +573,9 @@ function overlaps(a: Rect, b: Rect): boolean {
  */
 function clearOfPinned(nodes: NodeBox[], pinned: Set<string>): Map<string, number> {
   const fixed = nodes.filter((nb) => pinned.has(nb.node.id)).map((nb) => grow(nodeExtent(nb), PINNED_GAP / 2));
-  const free = nodes.filter((nb) => !pinned.has(nb.node.id)).map((nb) => ({ id: nb.node.id, r: grow(nodeExtent(nb), PINNED_GAP / 2) }))
+  const free = nodes
+    .filter((nb) => !pinned.has(nb.node.id))
+    .map((nb) => ({ id: nb.node.id, r: grow(nodeExtent(nb), PINNED_GAP / 2) }))
     .sort((p, q) => p.r.y - q.r.y);
   const shift = new Map<string, number>();
   for (let k = 0; k < free.length; k++) {
@@ -559,21 +621,41 @@ function routeEdge(a: NodeBox, b: NodeBox, nodes: NodeBox[], avoid: Point[][]): 
     from = right ? "E" : "W";
     into = b.y > a.y + a.h / 2 ? "N" : right ? "W" : "E";
   }
-  const at = (nb: NodeBox, d: Dir): Point => d === "S" ? { x: nb.x + nb.w / 2, y: nb.y + nb.h } : d === "N" ? { x: nb.x + nb.w / 2, y: nb.y }
-    : d === "E" ? { x: nb.x + nb.w, y: nb.y + nb.h / 2 } : { x: nb.x, y: nb.y + nb.h / 2 };
+  const at = (nb: NodeBox, d: Dir): Point =>
+    d === "S"
+      ? { x: nb.x + nb.w / 2, y: nb.y + nb.h }
+      : d === "N"
+        ? { x: nb.x + nb.w / 2, y: nb.y }
+        : d === "E"
+          ? { x: nb.x + nb.w, y: nb.y + nb.h / 2 }
+          : { x: nb.x, y: nb.y + nb.h / 2 };
   const keepOut: Rect[] = [];
   for (const nb of nodes) {
     keepOut.push(grow({ x: nb.x, y: nb.y, w: nb.w, h: nb.h }, FLOW_CLEARANCE));
     if (!nb.statsInside && nb !== a && nb !== b) keepOut.push(grow(nodeExtent(nb), 2));
   }
-  const found = route(at(a, from), from, at(b, into), into, keepOut, { lead, avoid, bounds: { x: 2, y: 0, w: 1e6, h: 1e6 } });
+  const found = route(at(a, from), from, at(b, into), into, keepOut, {
+    lead,
+    avoid,
+    bounds: { x: 2, y: 0, w: 1e6, h: 1e6 },
+  });
   if (found) return found;
   // walled in: the plain line (drawn over, never lost)
-  if (from === "S") return [{ x: ax, y: a.y + a.h }, { x: ax, y: (a.y + a.h + b.y) / 2 }, { x: bx, y: (a.y + a.h + b.y) / 2 }, { x: bx, y: b.y }];
+  if (from === "S")
+    return [
+      { x: ax, y: a.y + a.h },
+      { x: ax, y: (a.y + a.h + b.y) / 2 },
+      { x: bx, y: (a.y + a.h + b.y) / 2 },
+      { x: bx, y: b.y },
+    ];
   return [at(a, from), at(b, into)];
 }
 
-async function layoutActivityNow(d: ModelDiagram, positions: Positions, before: ModelDiagram | undefined): Promise<ActivityLayout> {
+async function layoutActivityNow(
+  d: ModelDiagram,
+  positions: Positions,
+  before: ModelDiagram | undefined,
+): Promise<ActivityLayout> {
   const auto = await Promise.all(d.lanes.map((l, i) => laneLayout(d.id, l, i, before)));
   // copies: the cached lane geometry is shared and must not be changed
   const lanes = auto.map((l) => placeLane({ ...l }, positions));
@@ -593,12 +675,39 @@ async function layoutActivityNow(d: ModelDiagram, positions: Positions, before: 
 // ---- component diagram ----
 
 export const COMP_STATE_LINES = 6;
-export interface PortGeom { name: string; feature: string; x: number; y: number; w: number; h: number; side: "EAST" | "WEST"; labelX: number; labelY: number }
-export interface ComponentGeom { name: string; x: number; y: number; w: number; h: number; ports: PortGeom[] }
-export interface LinkGeom { id: string; points: Point[]; label: string; labelX: number; labelY: number }
+export interface PortGeom {
+  name: string;
+  feature: string;
+  x: number;
+  y: number;
+  w: number;
+  h: number;
+  side: "EAST" | "WEST";
+  labelX: number;
+  labelY: number;
+}
+export interface ComponentGeom {
+  name: string;
+  x: number;
+  y: number;
+  w: number;
+  h: number;
+  ports: PortGeom[];
+}
+export interface LinkGeom {
+  id: string;
+  points: Point[];
+  label: string;
+  labelX: number;
+  labelY: number;
+}
 export interface ComponentLayout {
-  kind: "components"; width: number; height: number;
-  components: ComponentGeom[]; links: LinkGeom[]; orch: { x: number; y: number; w: number; h: number };
+  kind: "components";
+  width: number;
+  height: number;
+  components: ComponentGeom[];
+  links: LinkGeom[];
+  orch: { x: number; y: number; w: number; h: number };
 }
 
 // Where each component of a model was drawn last (ELK's place, or the one it kept), and what it
@@ -610,7 +719,14 @@ const lastPlaces = new Map<string, Map<string, { at: Point; extent: string }>>()
 
 /** A component as ELK laid it out: its box and what it takes with its ports and their labels
  * (`extent`, relative to the box's corner). */
-interface CompBox { id: string; x: number; y: number; w: number; h: number; extent: Rect }
+interface CompBox {
+  id: string;
+  x: number;
+  y: number;
+  w: number;
+  h: number;
+  extent: Rect;
+}
 
 /** Room kept between the components' boxes and labels when one is placed anew (px). */
 const COMP_GAP = 40;
@@ -671,9 +787,18 @@ const LINK_CLEARANCE = 12;
  * A link routed around the components (and their ports' labels) from its source port's outer
  * side to its target port's: the drawing once components keep places ELK did not give them.
  */
-function routeLink(id: string, from: PortGeom, to: PortGeom, components: ComponentGeom[], orch: Rect, avoid: Point[][]): LinkGeom {
-  const end = (p: PortGeom): { at: Point; dir: Dir } => p.side === "EAST"
-    ? { at: { x: p.x + p.w, y: p.y + p.h / 2 }, dir: "E" } : { at: { x: p.x, y: p.y + p.h / 2 }, dir: "W" };
+function routeLink(
+  id: string,
+  from: PortGeom,
+  to: PortGeom,
+  components: ComponentGeom[],
+  orch: Rect,
+  avoid: Point[][],
+): LinkGeom {
+  const end = (p: PortGeom): { at: Point; dir: Dir } =>
+    p.side === "EAST"
+      ? { at: { x: p.x + p.w, y: p.y + p.h / 2 }, dir: "E" }
+      : { at: { x: p.x, y: p.y + p.h / 2 }, dir: "W" };
   const a = end(from);
   const b = end(to);
   const keepOut: Rect[] = [grow(orch, LINK_CLEARANCE)];
@@ -688,8 +813,11 @@ function routeLink(id: string, from: PortGeom, to: PortGeom, components: Compone
       } else keepOut.push(grow(label, 3));
     }
   }
-  const points = route(a.at, a.dir, b.at, b.dir, keepOut, { lead: LINK_CLEARANCE + 4, avoid, bounds: { x: 0, y: 0, w: 1e6, h: 1e6 } })
-    ?? [a.at, { x: (a.at.x + b.at.x) / 2, y: a.at.y }, { x: (a.at.x + b.at.x) / 2, y: b.at.y }, b.at];
+  const points = route(a.at, a.dir, b.at, b.dir, keepOut, {
+    lead: LINK_CLEARANCE + 4,
+    avoid,
+    bounds: { x: 0, y: 0, w: 1e6, h: 1e6 },
+  }) ?? [a.at, { x: (a.at.x + b.at.x) / 2, y: a.at.y }, { x: (a.at.x + b.at.x) / 2, y: b.at.y }, b.at];
   const mid = middle(points);
   const w = textWidth(id, SMALL_PX);
   return mid.horizontal
@@ -717,7 +845,9 @@ async function layoutComponentsNow(model: ModelView, userPositions: Positions): 
       const side = incoming.has(`${c.name}.${port}`) ? "WEST" : "EAST";
       const text = `${port} → ${feature}`;
       return {
-        id: `${c.name}.${port}`, width: 10, height: 10,
+        id: `${c.name}.${port}`,
+        width: 10,
+        height: 10,
         labels: [{ id: `${c.name}.${port}#l`, text, width: textWidth(text, SMALL_PX), height: 14 }],
         layoutOptions: { "elk.port.side": side },
       };
@@ -767,8 +897,10 @@ async function layoutComponentsNow(model: ModelView, userPositions: Positions): 
     let y1 = y + h;
     for (const p of c.ports ?? []) {
       const l = p.labels?.[0];
-      for (const r of [{ x: p.x ?? x, y: p.y ?? y, w: p.width ?? 0, h: p.height ?? 0 },
-        ...(l ? [{ x: l.x ?? x, y: l.y ?? y, w: l.width ?? 0, h: l.height ?? 0 }] : [])]) {
+      for (const r of [
+        { x: p.x ?? x, y: p.y ?? y, w: p.width ?? 0, h: p.height ?? 0 },
+        ...(l ? [{ x: l.x ?? x, y: l.y ?? y, w: l.width ?? 0, h: l.height ?? 0 }] : []),
+      ]) {
         x0 = Math.min(x0, r.x);
         y0 = Math.min(y0, r.y);
         x1 = Math.max(x1, r.x + r.w);
@@ -778,7 +910,9 @@ async function layoutComponentsNow(model: ModelView, userPositions: Positions): 
     return { id: c.id, x, y, w, h, extent: { x: x0 - x, y: y0 - y, w: x1 - x0, h: y1 - y0 } };
   });
   // the places the user chose (the layout file), and those kept from the last drawing
-  const mine: Positions = Object.fromEntries(Object.entries(userPositions).filter(([id]) => elkBoxes.some((b) => b.id === id)));
+  const mine: Positions = Object.fromEntries(
+    Object.entries(userPositions).filter(([id]) => elkBoxes.some((b) => b.id === id)),
+  );
   const positions: Positions = { ...stickyPlaces(model.name, elkBoxes, mine), ...mine };
   for (const [id, p] of Object.entries(positions)) {
     const b = elkBoxes.find((x) => x.id === id);
@@ -801,7 +935,13 @@ async function layoutComponentsNow(model: ModelView, userPositions: Positions): 
       const l = p.labels?.[0];
       const side = incoming.has(p.id) ? "WEST" : "EAST";
       return {
-        name, feature: m.ports[name] ?? "", x: px, y: py, w: p.width ?? 10, h: p.height ?? 10, side,
+        name,
+        feature: m.ports[name] ?? "",
+        x: px,
+        y: py,
+        w: p.width ?? 10,
+        h: p.height ?? 10,
+        side,
         labelX: l && l.x !== undefined ? l.x + dx : px + 14,
         labelY: l && l.y !== undefined ? l.y + dy + 11 : py - 4,
       };
@@ -827,8 +967,11 @@ async function layoutComponentsNow(model: ModelView, userPositions: Positions): 
     for (const s of e.sections ?? []) points.push(s.startPoint, ...(s.bendPoints ?? []), s.endPoint);
     const l = e.labels?.[0];
     return {
-      id: e.id, points, label: e.id,
-      labelX: l?.x ?? points[0]?.x ?? 0, labelY: (l?.y ?? points[0]?.y ?? 0) + 11,
+      id: e.id,
+      points,
+      label: e.id,
+      labelX: l?.x ?? points[0]?.x ?? 0,
+      labelY: (l?.y ?? points[0]?.y ?? 0) + 11,
     };
   });
   let width = Math.max(out.width ?? 300, orchW + 60);
@@ -847,7 +990,8 @@ async function layoutComponentsNow(model: ModelView, userPositions: Positions): 
     kind: "components",
     width,
     height,
-    components, links,
+    components,
+    links,
     orch,
   };
 }
@@ -870,9 +1014,22 @@ function rerouted(e: EdgeGeom, box: Map<string, NodeBox>, nodes: NodeBox[], avoi
  * `edges` with those that must be drawn again (`again`: their nodes moved, or they would run
  * through another node) routed anew one by one, each beside the flows drawn before it.
  */
-function rerouteAll(edges: EdgeGeom[], again: (e: EdgeGeom) => boolean, box: Map<string, NodeBox>, nodes: NodeBox[]): EdgeGeom[] {
-  const redo = edges.map((e) => again(e) || nodes.some((nb) => nb.node.id !== e.source && nb.node.id !== e.target
-    && pathCrosses(grow({ x: nb.x, y: nb.y, w: nb.w, h: nb.h }, -1), e.points)));
+function rerouteAll(
+  edges: EdgeGeom[],
+  again: (e: EdgeGeom) => boolean,
+  box: Map<string, NodeBox>,
+  nodes: NodeBox[],
+): EdgeGeom[] {
+  const redo = edges.map(
+    (e) =>
+      again(e) ||
+      nodes.some(
+        (nb) =>
+          nb.node.id !== e.source &&
+          nb.node.id !== e.target &&
+          pathCrosses(grow({ x: nb.x, y: nb.y, w: nb.w, h: nb.h }, -1), e.points),
+      ),
+  );
   const out = edges.slice();
   for (let i = 0; i < out.length; i++) {
     if (!redo[i]) continue;

@@ -5,14 +5,18 @@ import { Editor } from "./edit";
 import { layoutActivity, layoutComponents, warmUp } from "./layout";
 import { sameFile } from "./paths";
 import type { DiagramView } from "./render";
-import { Renderer, fmtMs } from "./render";
+import { fmtMs, Renderer } from "./render";
 import { SimPanel } from "./sim";
 import type { CallRow, Snapshot } from "./state";
-import { ModelIndex, StudioState, nodeKey } from "./state";
+import { ModelIndex, nodeKey, StudioState } from "./state";
 import type { Diagnostic, HelloMsg, ModelView, MonitorEvent, ServerMsg } from "./types";
 
 interface StudioHooks {
-  latencies: number[]; frames: number[]; ready: boolean; applied: number; edit: EditHooks | null;
+  latencies: number[];
+  frames: number[];
+  ready: boolean;
+  applied: number;
+  edit: EditHooks | null;
   follow: boolean; // the view follows the running robot (docs/studio.md, "Follow")
   followPans: number; // pans follow made (tests)
   hellos: number; // hellos received: the first, and one per reconnection (tests)
@@ -20,10 +24,19 @@ interface StudioHooks {
   reveal: (lane: string, node: string) => void; // centre a node (tests and docs screenshots)
 }
 declare global {
-  interface Window { __studio: StudioHooks }
+  interface Window {
+    __studio: StudioHooks;
+  }
 }
 const hooks: StudioHooks = {
-  latencies: [], frames: [], ready: false, applied: 0, edit: null, follow: false, followPans: 0, hellos: 0,
+  latencies: [],
+  frames: [],
+  ready: false,
+  applied: 0,
+  edit: null,
+  follow: false,
+  followPans: 0,
+  hellos: 0,
   durationCounters: () => {
     let n = 0;
     for (const s of state.nodes.values()) n += s.durs.buckets;
@@ -124,7 +137,9 @@ function setModel(m: ModelView | null, diagnostics: Diagnostic[], fromEditor = f
     const d = m?.diagrams.find((x) => x.id === id);
     li.textContent = d ? d.title : "Components";
     const sub = document.createElement("small");
-    sub.textContent = d ? `${d.lanes.length} lane${d.lanes.length === 1 ? "" : "s"} · ${d.file}` : `${m?.components.length ?? 0} components`;
+    sub.textContent = d
+      ? `${d.lanes.length} lane${d.lanes.length === 1 ? "" : "s"} · ${d.file}`
+      : `${m?.components.length ?? 0} components`;
     li.append(sub);
     const dot = document.createElement("i");
     dot.className = "pulse";
@@ -155,7 +170,12 @@ function setModel(m: ModelView | null, diagnostics: Diagnostic[], fromEditor = f
   }
   const wanted = hashDiagram();
   const ids = diagramIds(m);
-  const first = wanted && ids.includes(wanted) ? wanted : current && ids.includes(current) ? current : (m.diagrams[0]?.id ?? "components");
+  const first =
+    wanted && ids.includes(wanted)
+      ? wanted
+      : current && ids.includes(current)
+        ? current
+        : (m.diagrams[0]?.id ?? "components");
   const was = current;
   current = "";
   select(first, !(fromEditor && first === was));
@@ -202,10 +222,16 @@ async function layoutAll(m: ModelView, first: string, gen: number): Promise<void
       if (hooks.edit && id === current) hooks.edit.drawn = drawnVersion;
       state.dirtyOrch = true;
       schedule();
-      console.debug(`studio: ${id} laid out in ${(t1 - t0).toFixed(0)} ms, drawn in ${(performance.now() - t1).toFixed(0)} ms`);
+      console.debug(
+        `studio: ${id} laid out in ${(t1 - t0).toFixed(0)} ms, drawn in ${(performance.now() - t1).toFixed(0)} ms`,
+      );
       if (id === first) {
         // ready once the frame that first paints it is over
-        requestAnimationFrame(() => requestAnimationFrame(() => { hooks.ready = true; }));
+        requestAnimationFrame(() =>
+          requestAnimationFrame(() => {
+            hooks.ready = true;
+          }),
+        );
       }
     } catch (err) {
       console.error(`studio: layout of ${id} failed`, err);
@@ -217,7 +243,8 @@ async function layoutAll(m: ModelView, first: string, gen: number): Promise<void
 function select(id: string, tellEditor = true): void {
   if (!diagramIds(model).includes(id)) return;
   current = id;
-  for (const li of listEl.querySelectorAll<HTMLLIElement>("li")) li.classList.toggle("selected", li.dataset.diagram === id);
+  for (const li of listEl.querySelectorAll<HTMLLIElement>("li"))
+    li.classList.toggle("selected", li.dataset.diagram === id);
   for (const [vid, v] of views) v.svg.style.display = vid === id ? "" : "none";
   for (const [vid, v] of replaced) v.svg.style.display = vid === id ? "" : "none";
   if (tellEditor) editor?.diagramShown(id);
@@ -251,7 +278,8 @@ function setDiagnostics(list: Diagnostic[]): void {
     if (at) {
       const key = nodeKey(at.lane, at.node);
       const old = renderer.marks.get(key);
-      if (!old || (old.level === "warning" && d.severity === "error")) renderer.marks.set(key, { level: d.severity, message: d.text });
+      if (!old || (old.level === "warning" && d.severity === "error"))
+        renderer.marks.set(key, { level: d.severity, message: d.text });
       li.dataset.diagram = at.diagram;
       li.dataset.lane = at.lane;
       li.dataset.node = at.node;
@@ -304,7 +332,8 @@ function nodeAtLine(file: string, line: number): { diagram: string; lane: string
     for (const lane of dg.lanes) {
       if (!sameFile(lane.file, file)) continue;
       for (const n of lane.nodes) {
-        if (n.line <= line && (!best || n.line > best.line)) best = { diagram: dg.id, lane: lane.name, node: n.id, line: n.line };
+        if (n.line <= line && (!best || n.line > best.line))
+          best = { diagram: dg.id, lane: lane.name, node: n.id, line: n.line };
       }
     }
   }
@@ -332,8 +361,16 @@ let cullPending: DiagramView | null = null;
 // diagram shows a few lanes, and the live updates of the others then cost no layout or paint.
 const laneSpan = new WeakMap<Element, LaneSpan>();
 interface LaneSpan {
-  t: string; x: number; y: number; w: number; bodyY: number;
-  bg: Element | null; head: Element | null; texts: Element[]; tw: number; headH: number;
+  t: string;
+  x: number;
+  y: number;
+  w: number;
+  bodyY: number;
+  bg: Element | null;
+  head: Element | null;
+  texts: Element[];
+  tw: number;
+  headH: number;
 }
 /** A lane's place (diagram units) from its attributes: no layout. */
 function spanOf(g: Element): LaneSpan {
@@ -341,14 +378,22 @@ function spanOf(g: Element): LaneSpan {
   let span = laneSpan.get(g);
   if (!span || span.t !== t) {
     const m = /translate\(([-\d.e]+)[ ,]+([-\d.e]+)/.exec(t);
-    const body = /translate\([-\d.e]+[ ,]+([-\d.e]+)/.exec(g.querySelector(".lane-body")?.getAttribute("transform") ?? "");
+    const body = /translate\([-\d.e]+[ ,]+([-\d.e]+)/.exec(
+      g.querySelector(".lane-body")?.getAttribute("transform") ?? "",
+    );
     const bg = g.querySelector(".lane-bg");
     const head = g.querySelector(".lane-head");
     span = {
-      t, x: m ? Number(m[1]) : 0, y: m ? Number(m[2]) : 0,
-      w: Number(bg?.getAttribute("width") ?? 0), bodyY: body ? Number(body[1]) : 0,
-      bg, head, texts: head ? [...head.querySelectorAll("text")] : [],
-      tw: Number(head?.getAttribute("data-tw") ?? 0), headH: Number(head?.getAttribute("data-h") ?? 0),
+      t,
+      x: m ? Number(m[1]) : 0,
+      y: m ? Number(m[2]) : 0,
+      w: Number(bg?.getAttribute("width") ?? 0),
+      bodyY: body ? Number(body[1]) : 0,
+      bg,
+      head,
+      texts: head ? [...head.querySelectorAll("text")] : [],
+      tw: Number(head?.getAttribute("data-tw") ?? 0),
+      headH: Number(head?.getAttribute("data-h") ?? 0),
     };
     laneSpan.set(g, span);
   }
@@ -422,7 +467,9 @@ function uncull(el: Element): void {
 /** Centre the view on a node (at a readable zoom) and flash it. */
 function reveal(lane: string, node: string): void {
   const v = views.get(current);
-  const g = canvas.querySelector<SVGGElement>(`g.node[data-lane="${CSS.escape(lane)}"][data-node="${CSS.escape(node)}"]`);
+  const g = canvas.querySelector<SVGGElement>(
+    `g.node[data-lane="${CSS.escape(lane)}"][data-node="${CSS.escape(node)}"]`,
+  );
   if (!v || !v.view || !g) return;
   setFollow(false); // the user asked to see this node: following would take the view away
   uncull(g);
@@ -474,7 +521,12 @@ function showElement(v: DiagramView, el: Element): void {
     const { W, H } = canvasSize();
     const k = v.view.k;
     c = { left: 0, top: 0, right: W, bottom: H };
-    b = { left: v.view.x + box.x * k, top: v.view.y + box.y * k, right: v.view.x + (box.x + box.w) * k, bottom: v.view.y + (box.y + box.h) * k };
+    b = {
+      left: v.view.x + box.x * k,
+      top: v.view.y + box.y * k,
+      right: v.view.x + (box.x + box.w) * k,
+      bottom: v.view.y + (box.y + box.h) * k,
+    };
   } else {
     c = canvas.getBoundingClientRect();
     b = el.getBoundingClientRect();
@@ -530,21 +582,25 @@ $<HTMLButtonElement>("#fit").addEventListener("click", () => {
   if (v) fit(v, false);
 });
 
-canvas.addEventListener("wheel", (ev) => {
-  const v = views.get(current);
-  if (!v || !v.view) return;
-  ev.preventDefault();
-  const r = canvas.getBoundingClientRect();
-  const px = ev.clientX - r.left;
-  const py = ev.clientY - r.top;
-  const f = Math.exp(-ev.deltaY * (ev.deltaMode === 1 ? 0.05 : 0.0015));
-  const k = Math.min(8, Math.max(0.02, v.view.k * f));
-  setFollow(false); // zoomed by hand: the view stays where the user put it
-  v.view.x = px - ((px - v.view.x) * k) / v.view.k;
-  v.view.y = py - ((py - v.view.y) * k) / v.view.k;
-  v.view.k = k;
-  applyView(v);
-}, { passive: false });
+canvas.addEventListener(
+  "wheel",
+  (ev) => {
+    const v = views.get(current);
+    if (!v || !v.view) return;
+    ev.preventDefault();
+    const r = canvas.getBoundingClientRect();
+    const px = ev.clientX - r.left;
+    const py = ev.clientY - r.top;
+    const f = Math.exp(-ev.deltaY * (ev.deltaMode === 1 ? 0.05 : 0.0015));
+    const k = Math.min(8, Math.max(0.02, v.view.k * f));
+    setFollow(false); // zoomed by hand: the view stays where the user put it
+    v.view.x = px - ((px - v.view.x) * k) / v.view.k;
+    v.view.y = py - ((py - v.view.y) * k) / v.view.k;
+    v.view.k = k;
+    applyView(v);
+  },
+  { passive: false },
+);
 
 let drag: { x: number; y: number; vx: number; vy: number; moved: boolean; id: number } | null = null;
 canvas.addEventListener("pointerdown", (ev) => {
@@ -672,8 +728,13 @@ function followStep(now: number): void {
   const { x, y, k } = v.view;
   const left = x + box.x * k;
   const top = y + box.y * k;
-  if (left >= FOLLOW_MARGIN && top >= FOLLOW_MARGIN && left + box.w * k <= W - FOLLOW_MARGIN
-    && top + box.h * k <= H - FOLLOW_MARGIN) return;
+  if (
+    left >= FOLLOW_MARGIN &&
+    top >= FOLLOW_MARGIN &&
+    left + box.w * k <= W - FOLLOW_MARGIN &&
+    top + box.h * k <= H - FOLLOW_MARGIN
+  )
+    return;
   if (g!.closest("g.lane")?.classList.contains("culled")) {
     if (now - followLaneAt < FOLLOW_NEW_LANE_MS) {
       followDue = true; // looked at again later
@@ -695,7 +756,10 @@ function followStep(now: number): void {
 
 // ---------------------------------------------------------------- calls and status panels
 
-interface RowEl { tr: HTMLTableRowElement; row: CallRow }
+interface RowEl {
+  tr: HTMLTableRowElement;
+  row: CallRow;
+}
 let callRows = new Map<string, RowEl>();
 
 const clockText = (t: number): string => {
@@ -807,7 +871,10 @@ function updateGaps(): void {
   gapsEl.dataset.dropped = String(dropped);
   gapsEl.dataset.lostTrace = String(lostTrace);
   const parts: string[] = [];
-  if (frameGaps) parts.push(`${frameGaps} gap${frameGaps === 1 ? "" : "s"} in the stream (${lostFrames} frame${lostFrames === 1 ? "" : "s"} lost)`);
+  if (frameGaps)
+    parts.push(
+      `${frameGaps} gap${frameGaps === 1 ? "" : "s"} in the stream (${lostFrames} frame${lostFrames === 1 ? "" : "s"} lost)`,
+    );
   if (dropped) parts.push(`${dropped} events dropped by the server`);
   if (lostTrace) parts.push(`${lostTrace} trace events lost`);
   gapsEl.hidden = parts.length === 0;
@@ -914,7 +981,8 @@ function tick(ts: number): void {
   }
 
   const following = followPan !== null || cullPending !== null || (hooks.follow && followDue);
-  if (qpos < queue.length || flowing || skippedDraw || state.dirtyNodes.size || (replay && replay.playing) || following) schedule();
+  if (qpos < queue.length || flowing || skippedDraw || state.dirtyNodes.size || (replay && replay.playing) || following)
+    schedule();
   else lastTs = 0;
 }
 
@@ -924,7 +992,10 @@ function tick(ts: number): void {
 // the page can show nothing of the robot, so it says why and when the next attempt is.
 // While a Run of the editor goes on, the toolbar shows the connection to that run's own broker
 // (the simulator's), reported like the robot's; after the run, the robot's broker again.
-interface BrokerSeen { e: MonitorEvent; retryAt: number }
+interface BrokerSeen {
+  e: MonitorEvent;
+  retryAt: number;
+}
 let brokerLast: BrokerSeen | null = null;
 let runBroker: BrokerSeen | null = null;
 let runActive = false;
@@ -964,7 +1035,9 @@ function drawBroker(): void {
   brokerEl.title = e.url ?? "";
   const who = run ? "sim broker" : "broker";
   if (e.connected) {
-    brokerEl.title = run ? `connected to the simulator's own broker of this run (${e.url ?? ""})` : `connected to ${e.url ?? "the broker"}`;
+    brokerEl.title = run
+      ? `connected to the simulator's own broker of this run (${e.url ?? ""})`
+      : `connected to ${e.url ?? "the broker"}`;
     brokerEl.dataset.state = "connected";
     brokerEl.textContent = `${who} connected`;
     return;
@@ -1008,10 +1081,14 @@ function setupReplay(events: MonitorEvent[], notes: string[]): void {
   replayNotesEl.hidden = notes.length === 0;
   replayNotesEl.textContent = notes.map((n) => `⚠ ${n}`).join("  ");
   replayNotesEl.title = notes.join("\n");
-  const sorted = events.map((e, i) => ({ e, i }))
-    .sort((a, b) => a.e.time - b.e.time || a.i - b.i).map((x) => x.e);
+  const sorted = events
+    .map((e, i) => ({ e, i }))
+    .sort((a, b) => a.e.time - b.e.time || a.i - b.i)
+    .map((x) => x.e);
   const times = new Float64Array(sorted.length);
-  sorted.forEach((e, i) => { times[i] = e.time; });
+  sorted.forEach((e, i) => {
+    times[i] = e.time;
+  });
   const t0 = sorted.length ? sorted[0].time : 0;
   const snaps: Snapshot[] = [];
   const snapPos: number[] = [];
@@ -1027,7 +1104,17 @@ function setupReplay(events: MonitorEvent[], notes: string[]): void {
   }
   const duration = sorted.length ? sorted[sorted.length - 1].time - t0 : 0;
   replay = {
-    events: sorted, times, t0, duration, snaps, snapPos, pos: 0, time: 0, playing: false, prevTs: 0, pendingTrace: null,
+    events: sorted,
+    times,
+    t0,
+    duration,
+    snaps,
+    snapPos,
+    pos: 0,
+    time: 0,
+    playing: false,
+    prevTs: 0,
+    pendingTrace: null,
   };
   state.restore(snaps[0] ?? state.snapshot());
   timeInput.min = "0";
@@ -1132,10 +1219,11 @@ const editorHost = {
   scale: (): number => views.get(current)?.view?.k ?? 1,
   select,
   setModel: (m: ModelView | null, d: Diagnostic[]): void => {
-    if (!m && model && !(editor?.info.empty)) {
+    if (!m && model && !editor?.info.empty) {
       // Broken by an edit: keep the last good diagrams, list the problems.
       setDiagnostics(d);
-      bannerEl.textContent = "The model does not compile now (see Diagnostics): the diagram shows its last version that did.";
+      bannerEl.textContent =
+        "The model does not compile now (see Diagnostics): the diagram shows its last version that did.";
       bannerEl.hidden = false;
     } else {
       bannerEl.hidden = true;
@@ -1191,7 +1279,15 @@ function resetSession(hello: HelloMsg): void {
   if (hello.edit) {
     if (editor) editor.setInfo(hello.edit);
     else {
-      hooks.edit = { version: hello.edit.version, busy: false, dirty: hello.edit.dirty, requests: 0, errors: [], drawn: -1, timings: [] };
+      hooks.edit = {
+        version: hello.edit.version,
+        busy: false,
+        dirty: hello.edit.dirty,
+        requests: 0,
+        errors: [],
+        drawn: -1,
+        timings: [],
+      };
       editor = new Editor(editorHost, hello.edit, hooks.edit);
     }
   }

@@ -4,14 +4,17 @@
 import { percentiles } from "./durations";
 import type { ActivityLayout, ComponentLayout, NodeBox, Point } from "./layout";
 import { COMP_STATE_LINES, SMALL_PX, shortGuard, textWidth } from "./layout";
-import type { Level, NodeStats, StudioState, ComponentState } from "./state";
-import { TRAIL, edgeKey, nextNodes, nodeKey } from "./state";
+import type { ComponentState, Level, NodeStats, StudioState } from "./state";
+import { edgeKey, nextNodes, nodeKey, TRAIL } from "./state";
 import type { ModelComponent, ModelView } from "./types";
 
 const SVGNS = "http://www.w3.org/2000/svg";
 
 export function svgEl<K extends keyof SVGElementTagNameMap>(
-  tag: K, attrs: Record<string, string | number> = {}, parent?: Element, text?: string,
+  tag: K,
+  attrs: Record<string, string | number> = {},
+  parent?: Element,
+  text?: string,
 ): SVGElementTagNameMap[K] {
   const e = document.createElementNS(SVGNS, tag);
   for (const [k, v] of Object.entries(attrs)) e.setAttribute(k, String(v));
@@ -50,10 +53,21 @@ interface NodeEl {
   message: string;
   valueText: string;
 }
-interface EdgeEl { g: SVGGElement; label: SVGTextElement | null; guard: string; count: number }
+interface EdgeEl {
+  g: SVGGElement;
+  label: SVGTextElement | null;
+  guard: string;
+  count: number;
+}
 interface CompEl {
-  g: SVGGElement; state: SVGTextElement; box: SVGRectElement; flashedAt: number;
-  implText: Text; implTitle: SVGTitleElement; model: ModelComponent; driver: string;
+  g: SVGGElement;
+  state: SVGTextElement;
+  box: SVGRectElement;
+  flashedAt: number;
+  implText: Text;
+  implTitle: SVGTitleElement;
+  model: ModelComponent;
+  driver: string;
 }
 
 export interface DiagramView {
@@ -67,7 +81,10 @@ export interface DiagramView {
   focus?: Point;
 }
 
-export interface Mark { level: Level; message: string }
+export interface Mark {
+  level: Level;
+  message: string;
+}
 
 export class Renderer {
   nodeEls = new Map<string, NodeEl>();
@@ -127,10 +144,20 @@ export class Renderer {
   private newSvg(id: string, width: number, height: number): DiagramView {
     const svg = svgEl("svg", { class: "diagram", "data-diagram": id });
     const defs = svgEl("defs", {}, svg);
-    const marker = svgEl("marker", {
-      id: `arrow-${id}`, viewBox: "0 0 10 10", refX: 9, refY: 5, markerWidth: 9, markerHeight: 9,
-      orient: "auto-start-reverse", markerUnits: "userSpaceOnUse",
-    }, defs);
+    const marker = svgEl(
+      "marker",
+      {
+        id: `arrow-${id}`,
+        viewBox: "0 0 10 10",
+        refX: 9,
+        refY: 5,
+        markerWidth: 9,
+        markerHeight: 9,
+        orient: "auto-start-reverse",
+        markerUnits: "userSpaceOnUse",
+      },
+      defs,
+    );
     svgEl("path", { d: "M0,0 L10,5 L0,10 z", class: "arrowhead" }, marker);
     const viewport = svgEl("g", { class: "viewport" }, svg);
     return { id, svg, viewport, width, height, view: null };
@@ -200,7 +227,11 @@ export class Renderer {
       const edgesG = svgEl("g", { class: "edges" }, body);
       const nodesG = svgEl("g", { class: "nodes" }, body);
       for (const e of lg.edges) {
-        const eg = svgEl("g", { class: "edge", "data-lane": lane.name, "data-source": e.source, "data-target": e.target, "data-count": 0 }, edgesG);
+        const eg = svgEl(
+          "g",
+          { class: "edge", "data-lane": lane.name, "data-source": e.source, "data-target": e.target, "data-count": 0 },
+          edgesG,
+        );
         const d = roundedPath(e.points);
         svgEl("path", { class: "line", d, "marker-end": marker }, eg);
         svgEl("path", { class: "hit", d }, eg); // a wide invisible stroke to click an edge (edit mode)
@@ -208,7 +239,12 @@ export class Renderer {
         if (e.labelBox) {
           // centred on its flow (an inline ELK label: the flow runs through the label's box)
           const text = shortGuard(e.label);
-          label = svgEl("text", { class: "elabel guard", x: e.labelBox.x + e.labelBox.w / 2, y: e.labelBox.y + 12 }, eg, text);
+          label = svgEl(
+            "text",
+            { class: "elabel guard", x: e.labelBox.x + e.labelBox.w / 2, y: e.labelBox.y + 12 },
+            eg,
+            text,
+          );
           if (text !== e.label) svgEl("title", {}, eg, e.label);
         }
         const ek = edgeKey(lane.name, e.source, e.target);
@@ -230,7 +266,10 @@ export class Renderer {
       const sub = lane.virtual ? "«activity»" : lane.component ? "«component»" : "";
       if (sub) svgEl("text", { class: "lane-sub", x: lg.w / 2, y: 15 }, head, sub);
       svgEl("text", { class: "lane-title", x: lg.w / 2, y: sub ? 34 : 28 }, head, lane.name);
-      head.setAttribute("data-tw", String(Math.max(textWidth(lane.name, 15, "600"), sub ? textWidth(sub, SMALL_PX) : 0)));
+      head.setAttribute(
+        "data-tw",
+        String(Math.max(textWidth(lane.name, 15, "600"), sub ? textWidth(sub, SMALL_PX) : 0)),
+      );
       this.freshLanes.add(lane.name);
       // swap it in whole (its old drawing, if any, goes below)
       const was = old && old.g.parentNode === v.viewport ? old.g : null;
@@ -239,7 +278,8 @@ export class Renderer {
         this.pool.delete(lane.name);
       } else v.viewport.append(g);
     }
-    for (const g of [...v.viewport.children]) if (g.classList.contains("lane") && !mine.has(g as SVGGElement)) g.remove();
+    for (const g of [...v.viewport.children])
+      if (g.classList.contains("lane") && !mine.has(g as SVGGElement)) g.remove();
     for (const [name, b] of this.pool) if (!b.g.isConnected) this.pool.delete(name);
     return v;
   }
@@ -252,10 +292,21 @@ export class Renderer {
     const X = (v: number): number => nb.x + v;
     const Y = (v: number): number => nb.y + v;
     const pts = (list: [number, number][]): string => list.map(([a, b]) => `${X(a)},${Y(b)}`).join(" ");
-    const g = svgEl("g", {
-      class: `node kind-${n.kind}`, "data-lane": lane, "data-node": n.id, "data-kind": n.kind, "data-count": 0,
-      "data-x": attrNum(nb.x), "data-y": attrNum(nb.y), "data-w": nb.w, "data-h": nb.h,
-    }, parent);
+    const g = svgEl(
+      "g",
+      {
+        class: `node kind-${n.kind}`,
+        "data-lane": lane,
+        "data-node": n.id,
+        "data-kind": n.kind,
+        "data-count": 0,
+        "data-x": attrNum(nb.x),
+        "data-y": attrNum(nb.y),
+        "data-w": nb.w,
+        "data-h": nb.h,
+      },
+      parent,
+    );
     const title = svgEl("title", {}, g, n.label);
     let labelY = 21;
     switch (n.kind) {
@@ -271,7 +322,19 @@ export class Renderer {
         svgEl("rect", { class: "shape bar", x: X(0), y: Y(0), width: w, height: h, rx: 2 }, g);
         break;
       case "decision":
-        svgEl("polygon", { class: "shape", points: pts([[w / 2, 0], [w, h / 2], [w / 2, h], [0, h / 2]]) }, g);
+        svgEl(
+          "polygon",
+          {
+            class: "shape",
+            points: pts([
+              [w / 2, 0],
+              [w, h / 2],
+              [w / 2, h],
+              [0, h / 2],
+            ]),
+          },
+          g,
+        );
         labelY = h / 2 + 4.5;
         break;
       case "datastore":
@@ -280,10 +343,36 @@ export class Renderer {
         labelY = 30;
         break;
       case "send":
-        svgEl("polygon", { class: "shape", points: pts([[0, 0], [w - 18, 0], [w, h / 2], [w - 18, h], [0, h]]) }, g);
+        svgEl(
+          "polygon",
+          {
+            class: "shape",
+            points: pts([
+              [0, 0],
+              [w - 18, 0],
+              [w, h / 2],
+              [w - 18, h],
+              [0, h],
+            ]),
+          },
+          g,
+        );
         break;
       case "accept":
-        svgEl("polygon", { class: "shape", points: pts([[0, 0], [w, 0], [w, h], [0, h], [18, h / 2]]) }, g);
+        svgEl(
+          "polygon",
+          {
+            class: "shape",
+            points: pts([
+              [0, 0],
+              [w, 0],
+              [w, h],
+              [0, h],
+              [18, h / 2],
+            ]),
+          },
+          g,
+        );
         break;
       default:
         svgEl("rect", { class: "shape", x: X(0), y: Y(0), width: w, height: h, rx: 11 }, g);
@@ -308,14 +397,20 @@ export class Renderer {
       stats = svgEl("text", { class: "stats", x: nb.statsX, y: nb.statsY }, g, "×0");
     } else {
       stats = svgEl("text", { class: "stats outside", x: nb.statsX, y: nb.statsY }, g);
-      statsLines = [
-        svgEl("tspan", { x: nb.statsX }, stats, "×0"),
-        svgEl("tspan", { x: nb.statsX, dy: 13 }, stats, ""),
-      ];
+      statsLines = [svgEl("tspan", { x: nb.statsX }, stats, "×0"), svgEl("tspan", { x: nb.statsX, dy: 13 }, stats, "")];
     }
     const key = nodeKey(lane, n.id);
     this.nodeEls.set(key, {
-      g, stats, statsLines, value, title, label: n.label, count: -2, level: "info", message: "", valueText: "",
+      g,
+      stats,
+      statsLines,
+      value,
+      title,
+      label: n.label,
+      count: -2,
+      level: "info",
+      message: "",
+      valueText: "",
     });
     this.freshNodes.push(key);
     return key;
@@ -331,7 +426,11 @@ export class Renderer {
       svgEl("text", { class: "elabel", x: l.labelX, y: l.labelY }, g, l.label);
     }
     const o = layout.orch;
-    const og = svgEl("g", { class: "orchestrator", "data-state": "unknown", transform: `translate(${o.x},${o.y})` }, v.viewport);
+    const og = svgEl(
+      "g",
+      { class: "orchestrator", "data-state": "unknown", transform: `translate(${o.x},${o.y})` },
+      v.viewport,
+    );
     const otitle = svgEl("title", {}, og, "unknown");
     svgEl("rect", { class: "box", width: o.w, height: o.h, rx: 4 }, og);
     svgEl("text", { class: "stereo", x: 12, y: 18 }, og, "«orchestrator»");
@@ -343,19 +442,33 @@ export class Renderer {
     for (const c of layout.components) {
       const m = model.components.find((mc) => mc.name === c.name);
       if (!m) continue;
-      const g = svgEl("g", {
-        class: "component unknown", "data-component": c.name, "data-state": "unknown", "data-x": attrNum(c.x), "data-y": attrNum(c.y),
-      }, v.viewport);
+      const g = svgEl(
+        "g",
+        {
+          class: "component unknown",
+          "data-component": c.name,
+          "data-state": "unknown",
+          "data-x": attrNum(c.x),
+          "data-y": attrNum(c.y),
+        },
+        v.viewport,
+      );
       const inner = svgEl("g", { transform: `translate(${c.x},${c.y})` }, g);
       const box = svgEl("rect", { class: "box", width: c.w, height: c.h, rx: 3 }, inner);
       // UML component icon
-      svgEl("path", { class: "icon", d: `M${c.w - 26},8 h14 v16 h-14 z M${c.w - 30},11 h8 v3 h-8 z M${c.w - 30},18 h8 v3 h-8 z` }, inner);
+      svgEl(
+        "path",
+        { class: "icon", d: `M${c.w - 26},8 h14 v16 h-14 z M${c.w - 30},11 h8 v3 h-8 z M${c.w - 30},18 h8 v3 h-8 z` },
+        inner,
+      );
       svgEl("text", { class: "stereo", x: 12, y: 18 }, inner, `«${m.kind}»`);
       svgEl("text", { class: "name", x: 12, y: 37 }, inner, c.name);
       svgEl("circle", { class: "dot", cx: c.w - 42, cy: 16, r: 6 }, inner);
       const implLine = svgEl("g", { class: "impl-line" }, inner); // (its tooltip is not in the text)
       const implTitle = svgEl("title", {}, implLine);
-      const implText = svgEl("text", { class: "impl", x: 12, y: 54 }, implLine).appendChild(document.createTextNode(""));
+      const implText = svgEl("text", { class: "impl", x: 12, y: 54 }, implLine).appendChild(
+        document.createTextNode(""),
+      );
       svgEl("text", { class: "features", x: 12, y: 69 }, inner, `features: ${m.features.join(", ")}`);
       svgEl("line", { class: "sep", x1: 0, x2: c.w, y1: 77, y2: 77 }, inner);
       const state = svgEl("text", { class: "state", x: 12, y: 92 }, inner);
@@ -488,8 +601,11 @@ export class Renderer {
   }
 
   private renderTrail(lane: string, trail: string[], state: StudioState): void {
-    for (const id of this.renderedRunning.get(lane) ?? []) this.nodeEls.get(nodeKey(lane, id))?.g.classList.remove("running");
-    const running = trail.length ? nextNodes(state.index, lane, trail[0], state.nodes.get(nodeKey(lane, trail[0]))) : [];
+    for (const id of this.renderedRunning.get(lane) ?? [])
+      this.nodeEls.get(nodeKey(lane, id))?.g.classList.remove("running");
+    const running = trail.length
+      ? nextNodes(state.index, lane, trail[0], state.nodes.get(nodeKey(lane, trail[0])))
+      : [];
     for (const id of running) this.nodeEls.get(nodeKey(lane, id))?.g.classList.add("running");
     this.renderedRunning.set(lane, running);
     const old = this.renderedTrails.get(lane) ?? [];
@@ -553,15 +669,35 @@ export class Renderer {
   }
 }
 
-interface BuiltLane { key: string; g: SVGGElement; nodes: Map<string, NodeEl>; edges: Map<string, EdgeEl> }
+interface BuiltLane {
+  key: string;
+  g: SVGGElement;
+  nodes: Map<string, NodeEl>;
+  edges: Map<string, EdgeEl>;
+}
 
 /** What a lane's drawing depends on (not the nodes' source lines, which shift with edits elsewhere). */
 function laneKey(lg: ActivityLayout["lanes"][number], virtualLanes: Set<string>): string {
   const l = lg.lane;
   return JSON.stringify([
-    lg.y, lg.w, l.name, l.file, l.virtual, l.component, // x and the column height are updated in place
-    lg.nodes.map((nb) => [nb.node.id, nb.node.kind, nb.node.label, nb.x, nb.y, nb.w, nb.h, nb.statsX, nb.statsY,
-      nb.node.kind === "action" && virtualLanes.has(nb.node.label.replace(/\(\s*\)$/, ""))]),
+    lg.y,
+    lg.w,
+    l.name,
+    l.file,
+    l.virtual,
+    l.component, // x and the column height are updated in place
+    lg.nodes.map((nb) => [
+      nb.node.id,
+      nb.node.kind,
+      nb.node.label,
+      nb.x,
+      nb.y,
+      nb.w,
+      nb.h,
+      nb.statsX,
+      nb.statsY,
+      nb.node.kind === "action" && virtualLanes.has(nb.node.label.replace(/\(\s*\)$/, "")),
+    ]),
     lg.edges.map((e) => [e.source, e.target, e.label, e.points, e.labelBox]),
   ]);
 }

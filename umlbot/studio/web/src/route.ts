@@ -3,8 +3,16 @@
 // diagram once components keep their places. ELK routes everything else. Pure geometry (no DOM):
 // unit-tested in test/route.test.ts.
 
-export interface Pt { x: number; y: number }
-export interface Rect { x: number; y: number; w: number; h: number }
+export interface Pt {
+  x: number;
+  y: number;
+}
+export interface Rect {
+  x: number;
+  y: number;
+  w: number;
+  h: number;
+}
 /** The way a line leaves a point (`S`: downwards), or the side of a box it enters (`N`: from above). */
 export type Dir = "N" | "S" | "E" | "W";
 
@@ -63,7 +71,10 @@ export function simplify(points: Pt[]): Pt[] {
     if (out.length >= 2) {
       const a = out[out.length - 2];
       const b = last;
-      if ((Math.abs(a.x - b.x) < 0.01 && Math.abs(b.x - p.x) < 0.01) || (Math.abs(a.y - b.y) < 0.01 && Math.abs(b.y - p.y) < 0.01)) {
+      if (
+        (Math.abs(a.x - b.x) < 0.01 && Math.abs(b.x - p.x) < 0.01) ||
+        (Math.abs(a.y - b.y) < 0.01 && Math.abs(b.y - p.y) < 0.01)
+      ) {
         out[out.length - 1] = p;
         continue;
       }
@@ -77,7 +88,9 @@ export function simplify(points: Pt[]): Pt[] {
 class Heap {
   private cost: number[] = [];
   private item: number[] = [];
-  get size(): number { return this.cost.length; }
+  get size(): number {
+    return this.cost.length;
+  }
   push(c: number, s: number): void {
     let i = this.cost.length;
     this.cost.push(c);
@@ -138,19 +151,35 @@ export function route(a: Pt, from: Dir, b: Pt, into: Dir, keepOut: Rect[], opts:
   let reach = opts.reach ?? 160;
   for (let tries = 0; tries < 6; tries++, reach *= 2) {
     let area: Rect = {
-      x: Math.min(a1.x, b1.x) - reach, y: Math.min(a1.y, b1.y) - reach,
-      w: Math.abs(a1.x - b1.x) + 2 * reach, h: Math.abs(a1.y - b1.y) + 2 * reach,
+      x: Math.min(a1.x, b1.x) - reach,
+      y: Math.min(a1.y, b1.y) - reach,
+      w: Math.abs(a1.x - b1.x) + 2 * reach,
+      h: Math.abs(a1.y - b1.y) + 2 * reach,
     };
     const bounds = opts.bounds;
     if (bounds) {
       const x0 = Math.max(area.x, bounds.x);
       const y0 = Math.max(area.y, bounds.y);
-      area = { x: x0, y: y0, w: Math.min(area.x + area.w, bounds.x + bounds.w) - x0, h: Math.min(area.y + area.h, bounds.y + bounds.h) - y0 };
+      area = {
+        x: x0,
+        y: y0,
+        w: Math.min(area.x + area.w, bounds.x + bounds.w) - x0,
+        h: Math.min(area.y + area.h, bounds.y + bounds.h) - y0,
+      };
     }
-    const near = keepOut.filter((r) => r.x < area.x + area.w && r.x + r.w > area.x && r.y < area.y + area.h && r.y + r.h > area.y);
+    const near = keepOut.filter(
+      (r) => r.x < area.x + area.w && r.x + r.w > area.x && r.y < area.y + area.h && r.y + r.h > area.y,
+    );
     const found = search(a1, from, b1, arrive, near, area, segments(opts.avoid ?? [], area));
     if (found) return simplify([a, ...found, b]);
-    if (bounds && area.x <= bounds.x && area.y <= bounds.y && area.x + area.w >= bounds.x + bounds.w && area.y + area.h >= bounds.y + bounds.h) break;
+    if (
+      bounds &&
+      area.x <= bounds.x &&
+      area.y <= bounds.y &&
+      area.x + area.w >= bounds.x + bounds.w &&
+      area.y + area.h >= bounds.y + bounds.h
+    )
+      break;
   }
   return null;
 }
@@ -163,7 +192,13 @@ function segments(lines: Pt[][], area: Rect): { h: [number, number, number][]; v
     for (let i = 1; i < line.length; i++) {
       const p = line[i - 1];
       const q = line[i];
-      if (Math.max(p.x, q.x) < area.x || Math.min(p.x, q.x) > area.x + area.w || Math.max(p.y, q.y) < area.y || Math.min(p.y, q.y) > area.y + area.h) continue;
+      if (
+        Math.max(p.x, q.x) < area.x ||
+        Math.min(p.x, q.x) > area.x + area.w ||
+        Math.max(p.y, q.y) < area.y ||
+        Math.min(p.y, q.y) > area.y + area.h
+      )
+        continue;
       if (Math.abs(p.y - q.y) < 0.5) h.push([p.y, Math.min(p.x, q.x), Math.max(p.x, q.x)]);
       else if (Math.abs(p.x - q.x) < 0.5) v.push([p.x, Math.min(p.y, q.y), Math.max(p.y, q.y)]);
     }
@@ -172,15 +207,34 @@ function segments(lines: Pt[][], area: Rect): { h: [number, number, number][]; v
 }
 
 /** The cheapest grid path from a1 (arrived going `from`) to b1 (leaving going `arrive`). */
-function search(a1: Pt, from: Dir, b1: Pt, arrive: Dir, rects: Rect[], area: Rect,
-  drawn: { h: [number, number, number][]; v: [number, number, number][] }): Pt[] | null {
+function search(
+  a1: Pt,
+  from: Dir,
+  b1: Pt,
+  arrive: Dir,
+  rects: Rect[],
+  area: Rect,
+  drawn: { h: [number, number, number][]; v: [number, number, number][] },
+): Pt[] | null {
   const clampX = (v: number): number => Math.min(Math.max(v, area.x), area.x + area.w);
   const clampY = (v: number): number => Math.min(Math.max(v, area.y), area.y + area.h);
   // the grid: the ends, the keep-outs' borders, and beside each line drawn already (a way along it, not on it)
-  const xs = uniq([a1.x, b1.x, area.x, area.x + area.w, ...rects.flatMap((r) => [clampX(r.x), clampX(r.x + r.w)]),
-    ...drawn.v.flatMap(([x]) => [clampX(x - BESIDE_PX), clampX(x + BESIDE_PX)])]);
-  const ys = uniq([a1.y, b1.y, area.y, area.y + area.h, ...rects.flatMap((r) => [clampY(r.y), clampY(r.y + r.h)]),
-    ...drawn.h.flatMap(([y]) => [clampY(y - BESIDE_PX), clampY(y + BESIDE_PX)])]);
+  const xs = uniq([
+    a1.x,
+    b1.x,
+    area.x,
+    area.x + area.w,
+    ...rects.flatMap((r) => [clampX(r.x), clampX(r.x + r.w)]),
+    ...drawn.v.flatMap(([x]) => [clampX(x - BESIDE_PX), clampX(x + BESIDE_PX)]),
+  ]);
+  const ys = uniq([
+    a1.y,
+    b1.y,
+    area.y,
+    area.y + area.h,
+    ...rects.flatMap((r) => [clampY(r.y), clampY(r.y + r.h)]),
+    ...drawn.h.flatMap(([y]) => [clampY(y - BESIDE_PX), clampY(y + BESIDE_PX)]),
+  ]);
   const nx = xs.length;
   const ny = ys.length;
   const index = (list: number[], v: number): number => {

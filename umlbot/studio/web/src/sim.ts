@@ -34,7 +34,11 @@ export class SimPanel {
     this.root.append(head);
     const xs: number[] = [track.goal.x_min, track.goal.x_max, track.start.x];
     const ys: number[] = [track.goal.y_min, track.goal.y_max, track.start.y];
-    for (const w of track.walls) for (const [x, y] of w) { xs.push(x); ys.push(y); }
+    for (const w of track.walls)
+      for (const [x, y] of w) {
+        xs.push(x);
+        ys.push(y);
+      }
     const pad = 0.2;
     const x0 = Math.min(...xs) - pad;
     const x1 = Math.max(...xs) + pad;
@@ -44,7 +48,11 @@ export class SimPanel {
     // y up: flip the world.
     const world = svgEl("g", { transform: "scale(1,-1)" }, svg);
     const g = track.goal;
-    svgEl("rect", { class: "goal", x: g.x_min, y: g.y_min, width: g.x_max - g.x_min, height: g.y_max - g.y_min }, world);
+    svgEl(
+      "rect",
+      { class: "goal", x: g.x_min, y: g.y_min, width: g.x_max - g.x_min, height: g.y_max - g.y_min },
+      world,
+    );
     for (const w of track.walls) {
       svgEl("polyline", { class: "wall", points: w.map(([x, y]) => `${x},${y}`).join(" ") }, world);
     }
@@ -55,7 +63,14 @@ export class SimPanel {
     const W = track.car.width_m;
     this.car = svgEl("g", { class: "car", transform: `translate(${s.x},${s.y}) rotate(${s.heading_deg})` }, world);
     svgEl("rect", { class: "body", x: -L / 2, y: -W / 2, width: L, height: W, rx: Math.min(L, W) * 0.15 }, this.car);
-    svgEl("path", { class: "nose", d: `M${L / 2},0 L${L / 2 - Math.min(L, W) * 0.5},${W * 0.3} L${L / 2 - Math.min(L, W) * 0.5},${-W * 0.3} z` }, this.car);
+    svgEl(
+      "path",
+      {
+        class: "nose",
+        d: `M${L / 2},0 L${L / 2 - Math.min(L, W) * 0.5},${W * 0.3} L${L / 2 - Math.min(L, W) * 0.5},${-W * 0.3} z`,
+      },
+      this.car,
+    );
     this.svg = svg;
     this.root.append(svg);
   }
@@ -75,10 +90,19 @@ export class SimPanel {
     this.car.setAttribute("transform", `translate(${c.x},${c.y}) rotate(${c.heading_deg})`);
     for (const m of this.pending) {
       for (const p of m.pings) {
-        svgEl("line", {
-          class: p.cm === null ? "ping miss" : "ping", x1: p.x0, y1: p.y0, x2: p.x1, y2: p.y1,
-          "data-cm": p.cm === null ? "" : p.cm, "data-t": p.t,
-        }, this.pingsG);
+        svgEl(
+          "line",
+          {
+            class: p.cm === null ? "ping miss" : "ping",
+            x1: p.x0,
+            y1: p.y0,
+            x2: p.x1,
+            y2: p.y1,
+            "data-cm": p.cm === null ? "" : p.cm,
+            "data-t": p.t,
+          },
+          this.pingsG,
+        );
       }
     }
     // Keep the last second of pings, older ones fainter.
@@ -93,7 +117,9 @@ export class SimPanel {
       lines[i].style.opacity = (1 - (0.75 * age) / PING_SECONDS).toFixed(2);
     }
     if (this.info) {
-      const hits = last.collisions ? `hit a wall ${last.collisions === 1 ? "once" : `${last.collisions} times`}` : "no collisions";
+      const hits = last.collisions
+        ? `hit a wall ${last.collisions === 1 ? "once" : `${last.collisions} times`}`
+        : "no collisions";
       this.info.textContent = `${last.t.toFixed(1)} s driven (simulated time) · sonar turned to ${last.servo_deg.toFixed(0)}° · ${hits}${last.goal ? " · goal reached" : ""}`;
       this.info.title = "The simulated car's own clock: the same at any run speed";
     }

@@ -228,15 +228,21 @@ export class StudioState {
               best = edge;
             }
           }
-          if (best && laneIdx.nodes.get(best.source)?.kind !== "decision")
-            this.bump(edgeKey(lane, best.source, node));
+          if (best && laneIdx.nodes.get(best.source)?.kind !== "decision") this.bump(edgeKey(lane, best.source, node));
         }
       }
     }
 
     this.clock += 1;
     this.nodes.set(key, {
-      count: count + 1, lastMs: d, durs, hasValue, value, level, message, lastIdx: this.clock,
+      count: count + 1,
+      lastMs: d,
+      durs,
+      hasValue,
+      value,
+      level,
+      message,
+      lastIdx: this.clock,
     });
     this.dirtyNodes.add(key);
 

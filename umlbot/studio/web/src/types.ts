@@ -145,7 +145,14 @@ export interface RunInfo {
   running: boolean;
   robot?: string;
   track?: TrackView | null;
-  result?: { reason?: string; goal_reached?: boolean; collisions?: number; sim_s?: number; distance_m?: number; failure?: string | null };
+  result?: {
+    reason?: string;
+    goal_reached?: boolean;
+    collisions?: number;
+    sim_s?: number;
+    distance_m?: number;
+    failure?: string | null;
+  };
 }
 
 export interface EditInfo {
@@ -166,8 +173,18 @@ export interface EditInfo {
   recovery?: { time: string | null; files: string[]; layout: boolean } | null;
 }
 
-export interface ParamInfo { name: string; type?: string; minimum?: number | null; maximum?: number | null; unit?: string | null }
-export interface FeatureInfo { params: ParamInfo[] | null; returns?: string | null; doc?: string }
+export interface ParamInfo {
+  name: string;
+  type?: string;
+  minimum?: number | null;
+  maximum?: number | null;
+  unit?: string | null;
+}
+export interface FeatureInfo {
+  params: ParamInfo[] | null;
+  returns?: string | null;
+  doc?: string;
+}
 export interface ImplInfo {
   id: string;
   kind: string;
@@ -194,7 +211,11 @@ export interface JsonSchema {
   $ref?: string;
   $defs?: Record<string, JsonSchema>;
 }
-export interface FieldInfo { type?: string; required?: boolean; doc?: string }
+export interface FieldInfo {
+  type?: string;
+  required?: boolean;
+  doc?: string;
+}
 export interface Library {
   kinds: Record<string, { features: Record<string, FeatureInfo>; doc?: string }>;
   implementations: ImplInfo[];
@@ -216,11 +237,31 @@ export interface EditAnswer {
   renamed?: Renamed[];
 }
 
-export interface Renamed { kind: "node" | "lane" | "component"; old: string; new: string; lane?: string | null }
+export interface Renamed {
+  kind: "node" | "lane" | "component";
+  old: string;
+  new: string;
+  lane?: string | null;
+}
 
-export interface Completion { label: string; kind: string; detail?: string; insert?: string }
-export interface Signature { label: string; params: ParamInfo[]; active: number; returns?: string; doc?: string }
-export interface CompleteAnswer { items: Completion[]; signature: Signature | null; replace?: [number, number] }
+export interface Completion {
+  label: string;
+  kind: string;
+  detail?: string;
+  insert?: string;
+}
+export interface Signature {
+  label: string;
+  params: ParamInfo[];
+  active: number;
+  returns?: string;
+  doc?: string;
+}
+export interface CompleteAnswer {
+  items: Completion[];
+  signature: Signature | null;
+  replace?: [number, number];
+}
 
 export interface FilesMsg {
   type: "files";
@@ -233,8 +274,15 @@ export interface FilesMsg {
   dirty?: boolean;
   layout?: { positions?: LayoutMap } | null;
 }
-export interface ConflictMsg { type: "conflict"; changed: string[]; version?: number }
-export interface RunMsg extends RunInfo { type: "run"; state: string }
+export interface ConflictMsg {
+  type: "conflict";
+  changed: string[];
+  version?: number;
+}
+export interface RunMsg extends RunInfo {
+  type: "run";
+  state: string;
+}
 
 export interface EventsMsg {
   type: "events";
