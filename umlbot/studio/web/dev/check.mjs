@@ -40,9 +40,9 @@ const r = await page.evaluate(() => {
     ]),
     edge_seq: attrs(q('g.edge[data-lane="Stop"][data-source="both"][data-target="left_off"]')),
     edge_loop: attrs(q('g.edge[data-lane="RaspberryPI"][data-source="halt"][data-target="running"]')),
-    lanes: qa("g.lane").map((l) => l.dataset.lane + ":" + l.querySelector("text")?.textContent),
-    active: qa("g.node.active").map((g) => g.dataset.lane + "/" + g.dataset.node),
-    trail: qa("g.node.trail").map((g) => g.dataset.lane + "/" + g.dataset.node + "#" + g.dataset.trail),
+    lanes: qa("g.lane").map((l) => `${l.dataset.lane}:${l.querySelector("text")?.textContent}`),
+    active: qa("g.node.active").map((g) => `${g.dataset.lane}/${g.dataset.node}`),
+    trail: qa("g.node.trail").map((g) => `${g.dataset.lane}/${g.dataset.node}#${g.dataset.trail}`),
     comps: qa("g.component").map((g) => [
       g.dataset.component,
       g.getAttribute("class"),

@@ -6,7 +6,7 @@ const browser = await chromium.launch({ executablePath: "/usr/bin/chromium", arg
 const page = await browser.newPage({ viewport: { width: 1600, height: 1000 } });
 page.on("pageerror", (e) => console.log("pageerror:", e.message));
 const t0 = Date.now();
-await page.goto(url + "#diagram=activity-all");
+await page.goto(`${url}#diagram=activity-all`);
 await page.waitForFunction("window.__studio.ready === true", null, { timeout: 120000 });
 console.log("ready", Date.now() - t0, "ms");
 await page.waitForTimeout(1000);

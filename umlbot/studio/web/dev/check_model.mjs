@@ -14,7 +14,7 @@ await page.addInitScript(() => {
     attributeFilter: ["data-state"],
   });
 });
-await page.goto(url + "#diagram=activity-motion");
+await page.goto(`${url}#diagram=activity-motion`);
 await page.waitForFunction("window.__studio.ready === true");
 const snap = () =>
   page.evaluate(() => ({
@@ -24,7 +24,7 @@ const snap = () =>
       .filter((s) => s.style.display !== "none")
       .map((s) => s.dataset.diagram),
     diags: [...document.querySelectorAll("#diagnostics li")].map((l) => l.textContent),
-    marked: [...document.querySelectorAll("g.node.error")].map((g) => g.dataset.lane + "/" + g.dataset.node),
+    marked: [...document.querySelectorAll("g.node.error")].map((g) => `${g.dataset.lane}/${g.dataset.node}`),
     count: document.querySelector('g.node[data-lane="MoveForward"][data-node="left_forward"]')?.dataset.count,
     conn: document.querySelector("#connection").dataset.state,
   }));

@@ -5,7 +5,7 @@ const [url] = process.argv.slice(2);
 const browser = await chromium.launch({ executablePath: "/usr/bin/chromium", args: ["--no-sandbox", "--disable-gpu"] });
 const page = await browser.newPage({ viewport: { width: 1600, height: 950 } });
 page.on("pageerror", (e) => console.log("pageerror:", e.message));
-await page.goto(url + "#diagram=activity-motion");
+await page.goto(`${url}#diagram=activity-motion`);
 await page.waitForFunction("window.__studio.ready === true");
 await page.waitForTimeout(1500);
 const snap = () =>
@@ -14,13 +14,13 @@ const snap = () =>
     value: document.querySelector("#replay-time").value,
     max: document.querySelector("#replay-time").max,
     visible: !document.querySelector("#replay").hidden,
-    active: [...document.querySelectorAll("g.node.active")].map((g) => g.dataset.lane + "/" + g.dataset.node),
+    active: [...document.querySelectorAll("g.node.active")].map((g) => `${g.dataset.lane}/${g.dataset.node}`),
     measureCount: document.querySelector('g.node[data-lane="RaspberryPI"][data-node="measure"]')?.dataset.count,
     center: document.querySelector('g.node[data-lane="Measure"][data-node="center"]')?.dataset.value,
     calls: document.querySelectorAll("#calls tbody tr").length,
     orch: document.querySelector("#orchestrator-status").textContent,
     comps: [...document.querySelectorAll("g.component")]
-      .map((g) => g.dataset.component + ":" + g.dataset.state)
+      .map((g) => `${g.dataset.component}:${g.dataset.state}`)
       .join(","),
   }));
 console.log("start", JSON.stringify(await snap()));

@@ -27,8 +27,8 @@ function bucketOf(ms: number): number {
 }
 
 // The value whose relative distance to every value of bucket k is at most REL_ERROR.
-function valueOf(k: number): number {
-  return (MIN_MS * 2 * Math.pow(GAMMA, k)) / (GAMMA + 1);
+function bucketValue(k: number): number {
+  return (MIN_MS * 2 * GAMMA ** k) / (GAMMA + 1);
 }
 
 export class Durations {
@@ -83,7 +83,7 @@ export class Durations {
       for (let i = 0; i < this.counts.length; i++) {
         seen += this.counts[i];
         if (seen >= rank) {
-          value = valueOf(this.lo + i);
+          value = bucketValue(this.lo + i);
           break;
         }
       }

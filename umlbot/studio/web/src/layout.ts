@@ -81,7 +81,7 @@ export const HEADER_H = 44;
 /** A guard longer than this is shown cut with an ellipsis (its full text is the label's tooltip). */
 export const GUARD_CHARS = 32;
 export function shortGuard(text: string): string {
-  return text.length > GUARD_CHARS ? text.slice(0, GUARD_CHARS - 1) + "…" : text;
+  return text.length > GUARD_CHARS ? `${text.slice(0, GUARD_CHARS - 1)}…` : text;
 }
 const LANE_GAP = 0;
 const STATS_W = () => textWidth(STATS_SAMPLE, SMALL_PX);
@@ -344,7 +344,7 @@ function laneLayout(
     // a renamed lane is found at its index in the diagram as drawn before
     const was =
       lastLane.get(`${diagram}/${lane.name}`) ??
-      (before && before.lanes[index] && !before.lanes.some((l) => l.name === lane.name)
+      (before?.lanes[index] && !before.lanes.some((l) => l.name === lane.name)
         ? lastLane.get(`${diagram}/${before.lanes[index].name}`)
         : undefined);
     p = was
@@ -361,7 +361,7 @@ function laneLayout(
 }
 
 /** The width ELK reserves for a flow's guard label. */
-const guardWidth = (label: string): number => textWidth(shortGuard(label) + "  ×8888", SMALL_PX) + 8;
+const guardWidth = (label: string): number => textWidth(`${shortGuard(label)}  ×8888`, SMALL_PX) + 8;
 
 /**
  * The last drawing of a lane when the edit left its shape alone — the same nodes and flows, each
@@ -498,7 +498,7 @@ export function layoutActivity(d: ModelDiagram, positions: Positions = {}): Prom
   const mine = Object.entries(positions).filter(([k]) => d.lanes.some((l) => k.startsWith(`${l.name}/`)));
   const before = lastDiagram.get(d.id);
   lastDiagram.set(d.id, d);
-  const key = "a" + JSON.stringify([{ ...d, lanes: d.lanes.length }, mine]) + d.lanes.map(laneText).join("\n");
+  const key = `a${JSON.stringify([{ ...d, lanes: d.lanes.length }, mine])}${d.lanes.map(laneText).join("\n")}`;
   const out = cached(key, () => layoutActivityNow(d, positions, before));
   // drawn from the cache (an undo): its lanes are the last drawings now
   for (const l of d.lanes) {
@@ -509,7 +509,7 @@ export function layoutActivity(d: ModelDiagram, positions: Positions = {}): Prom
 }
 
 export function layoutComponents(model: ModelView, positions: Positions = {}): Promise<ComponentLayout> {
-  return cached("c" + JSON.stringify([model.name, model.components, model.links, positions]), () =>
+  return cached(`c${JSON.stringify([model.name, model.components, model.links, positions])}`, () =>
     layoutComponentsNow(model, positions),
   );
 }

@@ -154,7 +154,7 @@ function setModel(m: ModelView | null, diagnostics: Diagnostic[], fromEditor = f
     for (const v of replaced.values()) v.svg.remove();
     replaced = new Map();
     messageEl.textContent = "The model does not compile: see the diagnostics.";
-    if (editor && editor.info.empty) editor.showEmpty(messageEl);
+    if (editor?.info.empty) editor.showEmpty(messageEl);
     messageEl.hidden = false;
     editor?.renderPalette();
     hooks.ready = true;
@@ -425,7 +425,7 @@ function cullLanes(v: DiagramView, newLanes = Infinity): boolean {
   }
   // a lane drawn again is laid out anew (all its nodes): the one nearest the middle first
   if (show.length > newLanes) show.sort((a, b) => a.off - b.off);
-  show.slice(0, newLanes).forEach(({ g }) => g.classList.remove("culled"));
+  for (const { g } of show.slice(0, newLanes)) g.classList.remove("culled");
   return show.length > newLanes;
 }
 
@@ -470,7 +470,7 @@ function reveal(lane: string, node: string): void {
   const g = canvas.querySelector<SVGGElement>(
     `g.node[data-lane="${CSS.escape(lane)}"][data-node="${CSS.escape(node)}"]`,
   );
-  if (!v || !v.view || !g) return;
+  if (!v?.view || !g) return;
   setFollow(false); // the user asked to see this node: following would take the view away
   uncull(g);
   if (v.view.k < 0.8) {
@@ -586,7 +586,7 @@ canvas.addEventListener(
   "wheel",
   (ev) => {
     const v = views.get(current);
-    if (!v || !v.view) return;
+    if (!v?.view) return;
     ev.preventDefault();
     const r = canvas.getBoundingClientRect();
     const px = ev.clientX - r.left;
@@ -609,12 +609,12 @@ canvas.addEventListener("pointerdown", (ev) => {
     return;
   }
   const v = views.get(current);
-  if (!v || !v.view || ev.button !== 0) return;
+  if (!v?.view || ev.button !== 0) return;
   drag = { x: ev.clientX, y: ev.clientY, vx: v.view.x, vy: v.view.y, moved: false, id: ev.pointerId };
 });
 canvas.addEventListener("pointermove", (ev) => {
   const v = views.get(current);
-  if (!drag || !v || !v.view || ev.pointerId !== drag.id) return;
+  if (!drag || !v?.view || ev.pointerId !== drag.id) return;
   const dx = ev.clientX - drag.x;
   const dy = ev.clientY - drag.y;
   if (!drag.moved && Math.hypot(dx, dy) > 3) {
@@ -833,7 +833,10 @@ function flushCalls(full: boolean): void {
   let top = true;
   for (const r of newest) {
     if (callRows.has(r.key)) top = false;
-    else if (!top) return flushCalls(true);
+    else if (!top) {
+      flushCalls(true);
+      return;
+    }
   }
   const frag = document.createDocumentFragment();
   for (const r of newest) {
@@ -981,7 +984,7 @@ function tick(ts: number): void {
   }
 
   const following = followPan !== null || cullPending !== null || (hooks.follow && followDue);
-  if (qpos < queue.length || flowing || skippedDraw || state.dirtyNodes.size || (replay && replay.playing) || following)
+  if (qpos < queue.length || flowing || skippedDraw || state.dirtyNodes.size || replay?.playing || following)
     schedule();
   else lastTs = 0;
 }

@@ -39,7 +39,7 @@ function json(v: unknown): string {
     return String(v);
   }
 }
-const clip = (s: string, n: number): string => (s.length > n ? s.slice(0, n - 1) + "…" : s);
+const clip = (s: string, n: number): string => (s.length > n ? `${s.slice(0, n - 1)}…` : s);
 
 interface NodeEl {
   g: SVGGElement;
@@ -568,7 +568,7 @@ export class Renderer {
       }
       g.classList.toggle("ran", count > 0);
       if (ne.value) {
-        const text = s && s.hasValue ? json(s.value) : "";
+        const text = s?.hasValue ? json(s.value) : "";
         if (text !== ne.valueText || force) {
           ne.valueText = text;
           if (text) ne.g.setAttribute("data-value", text);
@@ -649,7 +649,7 @@ export class Renderer {
         : `implementation ${m.impl}, ${m.service} service, driver ${m.driver} (as the deployment says; the service has not said which it runs)`;
     }
     while (ce.state.firstChild) ce.state.firstChild.remove();
-    if (cs && cs.hasRetained) {
+    if (cs?.hasRetained) {
       g.setAttribute("data-retained", json(cs.retained));
       const r = cs.retained;
       let lines: string[];

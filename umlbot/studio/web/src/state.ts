@@ -58,9 +58,9 @@ export interface Snapshot {
 export const TRAIL = 4; // current node + 3 fading
 const CALLS_KEPT = 200;
 
-export const nodeKey = (lane: string, node: string): string => lane + "\u0000" + node;
+export const nodeKey = (lane: string, node: string): string => `${lane}\u0000${node}`;
 export const edgeKey = (lane: string, source: string, target: string): string =>
-  lane + "\u0000" + source + "\u0000" + target;
+  `${lane}\u0000${source}\u0000${target}`;
 
 interface LaneIndex {
   nodes: Map<string, ModelNode>;
@@ -211,7 +211,7 @@ export class StudioState {
     if (e.kind === "decision" && typeof e.value === "string") this.bump(edgeKey(lane, node, e.value));
     if (laneIdx) {
       const incoming = laneIdx.incoming.get(node);
-      if (incoming && incoming.length) {
+      if (incoming?.length) {
         const kind = laneIdx.nodes.get(node)?.kind;
         if (kind === "join") {
           for (const edge of incoming) {

@@ -52,7 +52,7 @@ test("many samples of several shapes: p50 and p99 within 1 % of the exact values
       Math.exp(Math.log(5) + 0.8 * Math.sqrt(-2 * Math.log(next() || 1e-12)) * Math.cos(2 * Math.PI * next())),
     bimodal: () => (next() < 0.9 ? 2 + next() : 200 + 50 * next()), // fast path, slow tail
     tiny: () => Math.round((0.001 + next() * 0.05) * 1000) / 1000, // µs resolution, as traced
-    wide: () => MIN_MS * Math.pow(10, next() * 10), // 1 µs … 10 000 s
+    wide: () => MIN_MS * 10 ** (next() * 10), // 1 µs … 10 000 s
   };
   for (const [name, gen] of Object.entries(shapes)) {
     const d = new Durations();

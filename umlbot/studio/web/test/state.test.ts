@@ -52,16 +52,19 @@ const model: ModelView = {
 };
 
 let clock = 1000;
-const trace = (node: string, kind: string, ms: number, extra: Partial<MonitorEvent> = {}): MonitorEvent => ({
-  type: "trace",
-  time: (clock += 1),
-  lane: "L",
-  node,
-  kind,
-  duration_ms: ms,
-  level: "info",
-  ...extra,
-});
+const trace = (node: string, kind: string, ms: number, extra: Partial<MonitorEvent> = {}): MonitorEvent => {
+  clock += 1;
+  return {
+    type: "trace",
+    time: clock,
+    lane: "L",
+    node,
+    kind,
+    duration_ms: ms,
+    level: "info",
+    ...extra,
+  };
+};
 
 test("counts, last duration, datastore value, branch counts, trail", () => {
   const s = new StudioState(new ModelIndex(model));
