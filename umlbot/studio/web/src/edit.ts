@@ -3,9 +3,8 @@
 // operations to the server (contract: docs/studio.md, "Editing") and draws the model view it
 // answers with; the server's compiler checks every edit.
 
-import type { Positions } from "./layout";
-import { sameFile } from "./paths";
-import { runEndText, speedWords } from "./runtext";
+import type { Positions } from "./draw/layout";
+import { sameFile } from "./model/paths";
 import type {
   CompleteAnswer,
   Completion,
@@ -27,7 +26,8 @@ import type {
   NodeKind,
   Renamed,
   RunMsg,
-} from "./types";
+} from "./model/types";
+import { runEndText, speedWords } from "./runtext";
 
 export interface EditorHost {
   canvas: HTMLElement;

@@ -1,15 +1,15 @@
 // umlbot studio page: connection, diagram list, live/replay driving, panels.
 
+import { layoutActivity, layoutComponents, warmUp } from "./draw/layout";
+import type { DiagramView } from "./draw/render";
+import { fmtMs, Renderer } from "./draw/render";
 import type { EditHooks } from "./edit";
 import { Editor } from "./edit";
-import { layoutActivity, layoutComponents, warmUp } from "./layout";
-import { sameFile } from "./paths";
-import type { DiagramView } from "./render";
-import { fmtMs, Renderer } from "./render";
+import { sameFile } from "./model/paths";
+import type { CallRow, Snapshot } from "./model/state";
+import { ModelIndex, nodeKey, StudioState } from "./model/state";
+import type { Diagnostic, HelloMsg, ModelView, MonitorEvent, ServerMsg } from "./model/types";
 import { SimPanel } from "./sim";
-import type { CallRow, Snapshot } from "./state";
-import { ModelIndex, nodeKey, StudioState } from "./state";
-import type { Diagnostic, HelloMsg, ModelView, MonitorEvent, ServerMsg } from "./types";
 
 interface StudioHooks {
   latencies: number[];

@@ -2,7 +2,7 @@
 // percentiles, and memory that does not grow with the number of samples.
 import assert from "node:assert/strict";
 import { test } from "node:test";
-import { Durations, MAX_BUCKETS, MAX_MS, MIN_MS, percentiles, REL_ERROR } from "../src/durations";
+import { Durations, MAX_BUCKETS, MAX_MS, MIN_MS, percentiles, REL_ERROR } from "../src/model/durations";
 
 // exact nearest-rank percentile of the samples
 function exact(samples: number[], q: number): number {

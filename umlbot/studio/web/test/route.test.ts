@@ -2,7 +2,7 @@
 // and enter the way they are told, take the fewest bends, and stay in their bounds.
 import assert from "node:assert/strict";
 import { test } from "node:test";
-import { type Pt, pathCrosses, type Rect, route, simplify } from "../src/route";
+import { type Pt, pathCrosses, type Rect, route, simplify } from "../src/draw/route";
 
 function orthogonal(points: Pt[]): boolean {
   for (let i = 1; i < points.length; i++) {

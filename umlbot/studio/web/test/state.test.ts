@@ -1,10 +1,10 @@
 // Unit tests of the page's view state (run: npm test). The browser tests in tests/ cover the page.
 import assert from "node:assert/strict";
 import { test } from "node:test";
-import { percentiles } from "../src/durations";
-import type { NodeStats } from "../src/state";
-import { edgeKey, ModelIndex, nodeKey, StudioState } from "../src/state";
-import type { ModelView, MonitorEvent } from "../src/types";
+import { percentiles } from "../src/model/durations";
+import type { NodeStats } from "../src/model/state";
+import { edgeKey, ModelIndex, nodeKey, StudioState } from "../src/model/state";
+import type { ModelView, MonitorEvent } from "../src/model/types";
 
 const model: ModelView = {
   version: 1,

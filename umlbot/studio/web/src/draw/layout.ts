@@ -5,8 +5,8 @@
 
 import type { ElkExtendedEdge, ElkNode } from "elkjs/lib/elk-api.js";
 import ELK from "elkjs/lib/elk-api.js";
+import type { ModelDiagram, ModelLane, ModelNode, ModelView } from "../model/types";
 import { type Dir, grow, middle, pathCrosses, type Rect, route } from "./route";
-import type { ModelDiagram, ModelLane, ModelNode, ModelView } from "./types";
 
 export const FONT = "system-ui, -apple-system, 'Segoe UI', Roboto, 'DejaVu Sans', sans-serif";
 export const LABEL_PX = 13;

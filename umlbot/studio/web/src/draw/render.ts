@@ -1,12 +1,12 @@
 // SVG drawing of the laid-out diagrams, and the live part: the state's changes are applied as
 // attribute/class/text changes on the existing elements (never a redraw), once per frame.
 
-import { percentiles } from "./durations";
+import { percentiles } from "../model/durations";
+import type { ComponentState, Level, NodeStats, StudioState } from "../model/state";
+import { edgeKey, nextNodes, nodeKey, TRAIL } from "../model/state";
+import type { ModelComponent, ModelView } from "../model/types";
 import type { ActivityLayout, ComponentLayout, NodeBox, Point } from "./layout";
 import { COMP_STATE_LINES, SMALL_PX, shortGuard, textWidth } from "./layout";
-import type { ComponentState, Level, NodeStats, StudioState } from "./state";
-import { edgeKey, nextNodes, nodeKey, TRAIL } from "./state";
-import type { ModelComponent, ModelView } from "./types";
 
 const SVGNS = "http://www.w3.org/2000/svg";
 
