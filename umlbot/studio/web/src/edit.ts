@@ -3,6 +3,8 @@
 // operations to the server (contract: docs/studio.md, "Editing") and draws the model view it
 // answers with; the server's compiler checks every edit.
 
+import { $, el } from "./core/dom";
+import type { EditHooks } from "./core/hooks";
 import type { Positions } from "./draw/layout";
 import { sameFile } from "./model/paths";
 import type {
@@ -24,6 +26,7 @@ import type {
   ModelNode,
   ModelView,
   NodeKind,
+  Op,
   Renamed,
   RunMsg,
 } from "./model/types";
@@ -43,8 +46,6 @@ export interface EditorHost {
   resetLive(): void;
 }
 
-export type Op = Record<string, unknown> & { op: string };
-
 type Selection =
   | { type: "node"; lane: string; id: string }
   | { type: "edge"; lane: string; source: string; target: string }
@@ -52,28 +53,6 @@ type Selection =
   | { type: "lane"; lane: string }
   | { type: "new-component"; impl: string }
   | null;
-
-export interface EditHooks {
-  version: number;
-  busy: boolean;
-  dirty: boolean;
-  requests: number;
-  errors: string[];
-  /** the version whose model the shown diagram draws (tests wait for it after an edit) */
-  drawn: number;
-  /** per answered edit (the last 200), performance.now() ms: when its request left the page, when
-   * the answer came, when the frame that drew it with its diagnostics ended (bench/studio.py) */
-  timings: EditTiming[];
-  /** send operations as the page does (dev checks) */
-  send?: (ops: Op[]) => Promise<boolean>;
-}
-
-export interface EditTiming {
-  version: number;
-  sent: number;
-  answered: number;
-  shown?: number;
-}
 
 /** Field types (the server's library) that are flows: edited by connecting nodes, never as text. */
 const FLOW_TYPES = new Set(["node", "nodes", "branches"]);
@@ -83,21 +62,6 @@ const GUARD_PLACEHOLDER = "type this output's guard";
 /** Notices that wait for the user's decision, and notices that only pass by (`showNotice`). */
 const DECISION_NOTICES = new Set(["conflict", "recovery"]);
 const PASSING_NOTICES = new Set(["run", "run-goal", "run-ended", "hint"]);
-
-const $ = <T extends HTMLElement>(sel: string): T => document.querySelector(sel) as T;
-
-function el<K extends keyof HTMLElementTagNameMap>(
-  tag: K,
-  attrs: Record<string, string> = {},
-  parent?: Element | null,
-  text?: string,
-): HTMLElementTagNameMap[K] {
-  const e = document.createElement(tag);
-  for (const [k, v] of Object.entries(attrs)) e.setAttribute(k, v);
-  if (text !== undefined) e.textContent = text;
-  if (parent) parent.append(e);
-  return e;
-}
 
 export function signatureText(name: string, f: FeatureInfo): string {
   const ret = f.returns && f.returns !== "none" ? ` → ${f.returns}` : "";

@@ -323,3 +323,6 @@ export interface RobotMsg {
 }
 
 export type ServerMsg = HelloMsg | EventsMsg | WorldMsg | ModelMsg | FilesMsg | ConflictMsg | RunMsg | RobotMsg;
+
+/** An editing operation (`POST /api/edit`'s `ops`: docs/studio.md, "Editing requests"). */
+export type Op = Record<string, unknown> & { op: string };

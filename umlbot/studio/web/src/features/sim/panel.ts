@@ -1,7 +1,7 @@
 // The sim panel: track walls, goal, start, the car (pose) and its sonar pings, in world metres.
 
-import { svgEl } from "./draw/render";
-import type { TrackView, WorldMsg } from "./model/types";
+import { svgEl } from "../../draw/render";
+import type { TrackView, WorldMsg } from "../../model/types";
 
 const PING_SECONDS = 1.0; // pings of the last second (sim time) stay drawn
 const PINGS_MAX = 400;
