@@ -1,7 +1,7 @@
 import assert from "node:assert/strict";
 import { test } from "node:test";
 
-import { runEndText, speedWords } from "../src/runtext";
+import { runEndText, speedWords } from "../src/features/run/text";
 
 test("the end of a run is said in plain words", () => {
   const base = { goal_reached: false, collisions: 0, sim_s: 5.62, distance_m: 0.98 };

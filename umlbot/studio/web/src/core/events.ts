@@ -7,12 +7,14 @@ import type { Positions } from "../draw/layout";
 import type {
   ConflictMsg,
   Diagnostic,
+  EditAnswer,
   EditInfo,
   EventsMsg,
   FilesMsg,
   HelloMsg,
   ModelMsg,
   ModelView,
+  Op,
   RobotMsg,
   RunMsg,
   WorldMsg,
@@ -73,8 +75,6 @@ export interface StudioEvents {
   "follow.due": () => void;
   /** a press on the canvas: true when a feature took it (no panning) */
   "canvas.press": (ev: PointerEvent) => boolean | undefined;
-  /** a key the editor may take: true when it did */
-  "key.edit": (ev: KeyboardEvent) => boolean | undefined;
   /** play or pause the replay: true when there is one */
   "replay.toggle": () => true | undefined;
 
@@ -91,14 +91,65 @@ export interface StudioEvents {
   // ---- edit mode
   /** a hello in edit mode (before its model is shown) */
   "edit.hello": (info: EditInfo) => void;
+  /** the first hello in edit mode set edit mode up (store.edit): load what it needs */
+  "edit.started": () => void;
   /** the hello's model is shown: a run, a conflict or kept edits to say */
   "edit.after-hello": (info: EditInfo) => void;
   /** true while the folder has no model yet */
   "edit.empty": () => boolean | undefined;
+  /** a model was created in the empty folder */
+  "edit.model-created": () => void;
   /** the user's positions of diagram `id` */
   "layout.positions": (diagram: string) => Positions | undefined;
+  /** send edit operations (queued: one request at a time); true when applied. A problem with a
+   * field of `form` (`data-field`) is shown at that field. */
+  "edit.send": (ops: Op[], form?: HTMLElement) => Promise<boolean> | undefined;
+  /** every queued edit is answered */
+  "edit.settle": () => Promise<void> | undefined;
+  /** take an answer of the server: its version, model and problems (`redraw`: show its model) */
+  "edit.apply": (answer: EditAnswer, redraw: boolean) => void;
+  /** whether there are edits the files do not have */
+  "edit.dirty": (dirty: boolean) => void;
+  "edit.save": () => void;
+  "edit.history": (which: "undo" | "redo") => void;
+  /** draw the palette again (the diagram, the model or the library changed) */
+  "palette.render": () => void;
+  /** draw the properties panel again (the selection or the model changed) */
+  "props.render": () => void;
+  /** focus the panel's first field matching `selector` (`ifEmpty`: only when nothing is in it) */
+  "props.focus": (selector: string, ifEmpty?: boolean) => void;
   /** outline the selection (after a redraw too); the selected element of the shown diagram */
   "selection.highlight": () => Element | null | undefined;
+  /** delete the selection (asking first when it takes more with it than is seen) */
+  "selection.delete": () => void;
+  /** the next node clicked is connected from node `id` of `lane` */
+  "connect.start": (lane: string, id: string) => void;
+  "connect.cancel": () => void;
+  /** files changed on disk while the page has unsaved edits: the user decides */
+  "conflict.show": (changed: string[]) => void;
+  /** show a notice in place of the one shown; false when it was not shown (notices/policy.ts) */
+  "notice.show": (notice: Notice) => boolean | undefined;
+  /** hide the notice (of `kind` only, when given) */
+  "notice.hide": (kind?: string) => void;
 }
 
 export type Bus = EventBus<StudioEvents>;
+
+/** A notice of the bar over the canvas: what happened, and the user's ways out. */
+export interface Notice {
+  /** what it is about (`data-kind`: error, hint, conflict, recovery, run, saved…) */
+  kind: string;
+  text: string;
+  actions?: NoticeAction[];
+  /** hidden after this long (0: stays until closed or replaced) */
+  hideAfterMs?: number;
+  /** the files it is about (`data-files`) */
+  files?: string[];
+}
+export interface NoticeAction {
+  /** `data-action` */
+  action: string;
+  label: string;
+  title?: string;
+  run: () => void | Promise<void>;
+}

@@ -2,7 +2,8 @@
 // the others read it. A change that others must act on is also said on the bus.
 
 import { ModelIndex, StudioState } from "../model/state";
-import type { Diagnostic, ModelView } from "../model/types";
+import type { Diagnostic, EditInfo, LayoutMap, Library, ModelView } from "../model/types";
+import type { Selection } from "./selection";
 
 export class Store {
   /** live events or a recorded run (session: from the hello) */
@@ -20,4 +21,17 @@ export class Store {
   diagnostics: Diagnostic[] = [];
   /** lane name -> the id of the diagram that draws it (diagrams) */
   laneDiagram = new Map<string, string>();
+  /** edit mode (null: the page only watches): from the first hello with `edit` (editing) */
+  edit: EditSession | null = null;
+}
+
+export interface EditSession {
+  /** the hello's (editing keeps `lane_files` and `empty` up to date) */
+  info: EditInfo;
+  /** the component library and node kinds (`GET /api/library`), once loaded (editing) */
+  library: Library | null;
+  /** the user's positions by diagram (editing from answers; connect while dragging) */
+  positions: LayoutMap;
+  /** what the properties panel shows (the feature that changes it draws the panel again) */
+  selection: Selection;
 }

@@ -1,7 +1,8 @@
 // The app context every feature receives (instead of module-level state): the bus, the store, the
-// hooks, the frame loop, the canvas and the renderer.
+// hooks, the frame loop, the canvas, the renderer and the studio's HTTP API.
 
 import { Renderer } from "../draw/render";
+import { Api } from "./api";
 import { EventBus } from "./bus";
 import { Canvas } from "./canvas";
 import { $ } from "./dom";
@@ -17,6 +18,8 @@ export interface Studio {
   frames: Frames;
   canvas: Canvas;
   renderer: Renderer;
+  /** the studio's HTTP API in edit mode */
+  api: Api;
 }
 
 /** A feature: installed once, at the start, with the app context. */
@@ -29,5 +32,6 @@ export function createStudio(): Studio {
   const renderer = new Renderer();
   const frames = new Frames(bus, store, hooks, renderer);
   const canvas = new Canvas($<HTMLDivElement>("#canvas"));
-  return { bus, store, hooks, frames, canvas, renderer };
+  const api = new Api(bus, store, hooks);
+  return { bus, store, hooks, frames, canvas, renderer, api };
 }

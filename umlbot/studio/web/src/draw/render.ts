@@ -257,8 +257,8 @@ export class Renderer {
         const k = this.buildNode(nodesG, lane.name, nb);
         laneNodes.set(k, this.nodeEls.get(k)!);
       }
-      // The header, after the body: the page keeps it on the lane's visible part (main.ts,
-      // stickLaneHeads), over the nodes it passes. `data-tw`: its widest text's width.
+      // The header, after the body: the page keeps it on the lane's visible part (core/lanes.ts,
+      // stickHeads), over the nodes it passes. `data-tw`: its widest text's width.
       const head = svgEl("g", { class: "lane-head", "data-h": lg.headerH }, g);
       svgEl("rect", { class: "lane-header", x: 0, y: 0, width: lg.w, height: lg.headerH }, head);
       // a virtual lane is a called activity; a component's lane runs on that component: the

@@ -1,7 +1,7 @@
 // How a run of the editor is told to a modeller who is not a programmer: plain words, no
 // program's jargon (no "interrupted", "orchestrator", "sim seconds per wall second").
 
-import type { RunMsg } from "./model/types";
+import type { RunMsg } from "../../model/types";
 
 /** A run's speed in words: 2 → "twice as fast as real time". */
 export function speedWords(speed: number): string {
