@@ -48,11 +48,12 @@ test-systemd: system-packages $(STAMP)
 
 test: system-packages lint typecheck web pytest test-systemd
 
-# The studio page's TypeScript: type check, unit tests (node --test), and the committed build in
-# umlbot/studio/static must be what its sources build to (npm ci needs the npm registry).
+# The studio page's TypeScript: lint and format check (Biome), type check, unit tests (node --test),
+# and the committed build in umlbot/studio/static must be what its sources build to (npm ci needs
+# the npm registry).
 WEB := umlbot/studio/web
 web: system-packages
-	cd $(WEB) && npm ci --no-audit --no-fund --loglevel=error && npm run --silent check && npm test --silent
+	cd $(WEB) && npm ci --no-audit --no-fund --loglevel=error && npm run --silent lint && npm run --silent check && npm test --silent
 	@tmp=$$(mktemp -d) && trap 'rm -rf "$$tmp"' EXIT && (cd $(WEB) && node build.mjs --out "$$tmp" >/dev/null) \
 		&& diff -r "$$tmp" umlbot/studio/static >/dev/null \
 		|| { echo "umlbot/studio/static is not what $(WEB) builds to: run 'make studio' and commit it" >&2; exit 1; }

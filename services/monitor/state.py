@@ -42,7 +42,7 @@ TIMED_KINDS = frozenset({"action", "send", "accept"})
 #: a request without a reply for this long is reported as unanswered, unless the orchestrator's
 #: retained status says its own time-out (`call_timeout_s`) or the monitor was given one.
 DEFAULT_CALL_TIMEOUT_S = 5.0
-#: relative accuracy of the percentiles (the page's are as accurate: studio/web/src/durations.ts)
+#: relative accuracy of the percentiles (the page's are as accurate: studio/web/src/model/durations.ts)
 RELATIVE_ACCURACY = 0.01
 #: bins of one row's sketch at most (the lowest collapse beyond): 1 µs to 24 h at 1 % takes 1270
 SKETCH_BINS = 2048

@@ -1,9 +1,10 @@
 // Builds the page into ../static (shipped inside the Python package): `npm ci && npm run build`.
 // `node build.mjs --out DIR` builds into DIR instead (`make test` compares it with ../static).
-import { build } from "esbuild";
+
 import { copyFileSync, mkdirSync, readFileSync, rmSync, writeFileSync } from "node:fs";
 import { dirname, join } from "node:path";
 import { fileURLToPath } from "node:url";
+import { build } from "esbuild";
 
 const here = dirname(fileURLToPath(import.meta.url));
 const at = process.argv.indexOf("--out");

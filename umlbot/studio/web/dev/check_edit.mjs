@@ -6,29 +6,49 @@
 // and the frame times meanwhile (p50/p99/max).
 import { readFileSync } from "node:fs";
 import { chromium } from "playwright-core";
+
 const [url, opsFile, out = "/tmp/check_edit.png"] = process.argv.slice(2);
 const edits = JSON.parse(readFileSync(opsFile, "utf8"));
-const browser = await chromium.launch({ executablePath: "/usr/bin/chromium", args: ["--no-sandbox", "--disable-gpu", "--disable-background-networking", "--disable-component-update", "--disable-sync"] });
+const browser = await chromium.launch({
+  executablePath: "/usr/bin/chromium",
+  args: [
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+  ],
+});
 const page = await browser.newPage({ viewport: { width: 1600, height: 1000 } });
 page.on("pageerror", (e) => console.log("pageerror:", e.message));
 await page.goto(url);
-await page.waitForFunction("window.__studio && window.__studio.ready === true && window.__studio.edit && window.__studio.edit.drawn >= 0", null, { timeout: 120000 });
+await page.waitForFunction(
+  "window.__studio && window.__studio.ready === true && window.__studio.edit && window.__studio.edit.drawn >= 0",
+  null,
+  { timeout: 120000 },
+);
 await page.evaluate(() => {
   window.__editFrames = [];
   let last = 0;
-  const f = (t) => { if (last) window.__editFrames.push(t - last); last = t; requestAnimationFrame(f); };
+  const f = (t) => {
+    if (last) window.__editFrames.push(t - last);
+    last = t;
+    requestAnimationFrame(f);
+  };
   requestAnimationFrame(f);
 });
 const times = [];
 for (const ops of edits) {
-  times.push(await page.evaluate(async (ops) => {
-    const t0 = performance.now();
-    await window.__studio.edit.send(ops);
-    const answered = performance.now() - t0;
-    const v = window.__studio.edit.version;
-    while (window.__studio.edit.drawn < v) await new Promise((r) => setTimeout(r, 5));
-    return [Math.round(answered), Math.round(performance.now() - t0)];
-  }, ops));
+  times.push(
+    await page.evaluate(async (ops) => {
+      const t0 = performance.now();
+      await window.__studio.edit.send(ops);
+      const answered = performance.now() - t0;
+      const v = window.__studio.edit.version;
+      while (window.__studio.edit.drawn < v) await new Promise((r) => setTimeout(r, 5));
+      return [Math.round(answered), Math.round(performance.now() - t0)];
+    }, ops),
+  );
 }
 const r = await page.evaluate(() => {
   const f = window.__editFrames.slice().sort((a, b) => a - b);

@@ -1,8 +1,18 @@
 // Dev: measure frames under load against dev/serve.mjs --rate N (not shipped).
 //   node dev/load.mjs URL seconds OUT.png
 import { chromium } from "playwright-core";
+
 const [url, seconds = "8", out = "/work/wtstudio/out/load.png"] = process.argv.slice(2);
-const browser = await chromium.launch({ executablePath: "/usr/bin/chromium", args: ["--no-sandbox", "--disable-gpu", "--disable-background-networking", "--disable-component-update", "--disable-sync"] });
+const browser = await chromium.launch({
+  executablePath: "/usr/bin/chromium",
+  args: [
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+  ],
+});
 const page = await browser.newPage({ viewport: { width: 1600, height: 1000 } });
 page.on("pageerror", (e) => console.log("pageerror:", e.message));
 const t0 = Date.now();
@@ -14,9 +24,17 @@ await page.waitForTimeout(Number(seconds) * 1000);
 const r = await page.evaluate(() => {
   const f = window.__studio.frames.slice().sort((a, b) => a - b);
   const l = window.__studio.latencies.slice().sort((a, b) => a - b);
-  const q = (a, p) => a.length ? a[Math.min(a.length - 1, Math.ceil(p * a.length) - 1)] : null;
-  return { frames: f.length, p50: q(f, 0.5), p99: q(f, 0.99), max: f[f.length - 1], over100: f.filter((x) => x > 100).length,
-    lat50: q(l, 0.5), lat99: q(l, 0.99), applied: window.__studio.applied };
+  const q = (a, p) => (a.length ? a[Math.min(a.length - 1, Math.ceil(p * a.length) - 1)] : null);
+  return {
+    frames: f.length,
+    p50: q(f, 0.5),
+    p99: q(f, 0.99),
+    max: f[f.length - 1],
+    over100: f.filter((x) => x > 100).length,
+    lat50: q(l, 0.5),
+    lat99: q(l, 0.99),
+    applied: window.__studio.applied,
+  };
 });
 console.log(JSON.stringify(r));
 await page.screenshot({ path: out });

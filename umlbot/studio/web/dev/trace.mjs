@@ -1,7 +1,17 @@
 // Dev: a Chromium timeline summary under load (not shipped). node dev/trace.mjs URL seconds
 import { chromium } from "playwright-core";
+
 const [url, seconds = "4"] = process.argv.slice(2);
-const browser = await chromium.launch({ executablePath: "/usr/bin/chromium", args: ["--no-sandbox", "--disable-gpu", "--disable-background-networking", "--disable-component-update", "--disable-sync"] });
+const browser = await chromium.launch({
+  executablePath: "/usr/bin/chromium",
+  args: [
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+  ],
+});
 const page = await browser.newPage({ viewport: { width: 1600, height: 1000 } });
 await page.goto(url);
 await page.waitForFunction("window.__studio && window.__studio.ready === true", null, { timeout: 120000 });
@@ -11,6 +21,15 @@ await page.waitForTimeout(Number(seconds) * 1000);
 const buf = await browser.stopTracing();
 const ev = JSON.parse(buf.toString()).traceEvents;
 const sum = {};
-for (const e of ev) if (e.ph === "X" && e.dur) { sum[e.name] = (sum[e.name] || 0) + e.dur / 1000; }
-console.log(Object.entries(sum).sort((a, b) => b[1] - a[1]).slice(0, 25).map(([k, v]) => `${k}: ${v.toFixed(0)} ms`).join("\n"));
+for (const e of ev)
+  if (e.ph === "X" && e.dur) {
+    sum[e.name] = (sum[e.name] || 0) + e.dur / 1000;
+  }
+console.log(
+  Object.entries(sum)
+    .sort((a, b) => b[1] - a[1])
+    .slice(0, 25)
+    .map(([k, v]) => `${k}: ${v.toFixed(0)} ms`)
+    .join("\n"),
+);
 await browser.close();

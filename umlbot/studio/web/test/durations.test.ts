@@ -2,7 +2,7 @@
 // percentiles, and memory that does not grow with the number of samples.
 import assert from "node:assert/strict";
 import { test } from "node:test";
-import { Durations, MAX_BUCKETS, MAX_MS, MIN_MS, REL_ERROR, percentiles } from "../src/durations";
+import { Durations, MAX_BUCKETS, MAX_MS, MIN_MS, percentiles, REL_ERROR } from "../src/model/durations";
 
 // exact nearest-rank percentile of the samples
 function exact(samples: number[], q: number): number {
@@ -18,9 +18,11 @@ function near(got: number, want: number, what: string): void {
 function rng(seed: number): () => number {
   let x = seed >>> 0 || 1;
   return () => {
-    x ^= x << 13; x >>>= 0;
+    x ^= x << 13;
+    x >>>= 0;
     x ^= x >>> 17;
-    x ^= x << 5; x >>>= 0;
+    x ^= x << 5;
+    x >>>= 0;
     return x / 4294967296;
   };
 }
@@ -46,10 +48,11 @@ test("many samples of several shapes: p50 and p99 within 1 % of the exact values
   const next = rng(12345);
   const shapes: Record<string, () => number> = {
     uniform: () => 1 + next() * 99, // 1–100 ms
-    lognormal: () => Math.exp(Math.log(5) + 0.8 * Math.sqrt(-2 * Math.log(next() || 1e-12)) * Math.cos(2 * Math.PI * next())),
+    lognormal: () =>
+      Math.exp(Math.log(5) + 0.8 * Math.sqrt(-2 * Math.log(next() || 1e-12)) * Math.cos(2 * Math.PI * next())),
     bimodal: () => (next() < 0.9 ? 2 + next() : 200 + 50 * next()), // fast path, slow tail
     tiny: () => Math.round((0.001 + next() * 0.05) * 1000) / 1000, // µs resolution, as traced
-    wide: () => MIN_MS * Math.pow(10, next() * 10), // 1 µs … 10 000 s
+    wide: () => MIN_MS * 10 ** (next() * 10), // 1 µs … 10 000 s
   };
   for (const [name, gen] of Object.entries(shapes)) {
     const d = new Durations();

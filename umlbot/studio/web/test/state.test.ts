@@ -1,51 +1,84 @@
 // Unit tests of the page's view state (run: npm test). The browser tests in tests/ cover the page.
 import assert from "node:assert/strict";
 import { test } from "node:test";
-import { percentiles } from "../src/durations";
-import type { NodeStats } from "../src/state";
-import { ModelIndex, StudioState, edgeKey, nodeKey } from "../src/state";
-import type { ModelView, MonitorEvent } from "../src/types";
+import { percentiles } from "../src/model/durations";
+import type { NodeStats } from "../src/model/state";
+import { edgeKey, ModelIndex, nodeKey, StudioState } from "../src/model/state";
+import type { ModelView, MonitorEvent } from "../src/model/types";
 
 const model: ModelView = {
-  version: 1, name: "t", signals: [], components: [], links: [],
-  diagrams: [{
-    id: "activity-main", title: "main", file: "main.yaml",
-    lanes: [{
-      name: "L", virtual: false, component: null, file: "main.yaml", line: 1, start: "start", datastores: ["x"],
-      nodes: [
-        { id: "start", kind: "start", label: "start", line: 2 },
-        { id: "set", kind: "datastore", label: "x = 1", line: 3, store: "x" },
-        { id: "d", kind: "decision", label: "d", line: 4 },
-        { id: "a", kind: "action", label: "A", line: 5 },
-        { id: "b", kind: "action", label: "B", line: 6 },
-        { id: "m", kind: "action", label: "M", line: 7 },
-        { id: "end", kind: "end", label: "end", line: 8 },
+  version: 1,
+  name: "t",
+  signals: [],
+  components: [],
+  links: [],
+  diagrams: [
+    {
+      id: "activity-main",
+      title: "main",
+      file: "main.yaml",
+      lanes: [
+        {
+          name: "L",
+          virtual: false,
+          component: null,
+          file: "main.yaml",
+          line: 1,
+          start: "start",
+          datastores: ["x"],
+          nodes: [
+            { id: "start", kind: "start", label: "start", line: 2 },
+            { id: "set", kind: "datastore", label: "x = 1", line: 3, store: "x" },
+            { id: "d", kind: "decision", label: "d", line: 4 },
+            { id: "a", kind: "action", label: "A", line: 5 },
+            { id: "b", kind: "action", label: "B", line: 6 },
+            { id: "m", kind: "action", label: "M", line: 7 },
+            { id: "end", kind: "end", label: "end", line: 8 },
+          ],
+          edges: [
+            { id: "1", source: "start", target: "set", label: "" },
+            { id: "2", source: "set", target: "d", label: "" },
+            { id: "3", source: "d", target: "a", label: "x > 0" },
+            { id: "4", source: "d", target: "b", label: "else" },
+            { id: "5", source: "a", target: "m", label: "" },
+            { id: "6", source: "b", target: "m", label: "" },
+            { id: "7", source: "m", target: "d", label: "" },
+            { id: "8", source: "d", target: "end", label: "done" },
+          ],
+        },
       ],
-      edges: [
-        { id: "1", source: "start", target: "set", label: "" },
-        { id: "2", source: "set", target: "d", label: "" },
-        { id: "3", source: "d", target: "a", label: "x > 0" },
-        { id: "4", source: "d", target: "b", label: "else" },
-        { id: "5", source: "a", target: "m", label: "" },
-        { id: "6", source: "b", target: "m", label: "" },
-        { id: "7", source: "m", target: "d", label: "" },
-        { id: "8", source: "d", target: "end", label: "done" },
-      ],
-    }],
-  }],
+    },
+  ],
 };
 
 let clock = 1000;
-const trace = (node: string, kind: string, ms: number, extra: Partial<MonitorEvent> = {}): MonitorEvent =>
-  ({ type: "trace", time: (clock += 1), lane: "L", node, kind, duration_ms: ms, level: "info", ...extra });
+const trace = (node: string, kind: string, ms: number, extra: Partial<MonitorEvent> = {}): MonitorEvent => {
+  clock += 1;
+  return {
+    type: "trace",
+    time: clock,
+    lane: "L",
+    node,
+    kind,
+    duration_ms: ms,
+    level: "info",
+    ...extra,
+  };
+};
 
 test("counts, last duration, datastore value, branch counts, trail", () => {
   const s = new StudioState(new ModelIndex(model));
   for (const e of [
-    trace("start", "start", 0), trace("set", "datastore", 1, { value: 7 }), trace("d", "decision", 0, { value: "a" }),
-    trace("a", "action", 10), trace("m", "action", 2), trace("d", "decision", 0, { value: "b" }),
-    trace("b", "action", 20), trace("m", "action", 4),
-  ]) s.apply(e);
+    trace("start", "start", 0),
+    trace("set", "datastore", 1, { value: 7 }),
+    trace("d", "decision", 0, { value: "a" }),
+    trace("a", "action", 10),
+    trace("m", "action", 2),
+    trace("d", "decision", 0, { value: "b" }),
+    trace("b", "action", 20),
+    trace("m", "action", 4),
+  ])
+    s.apply(e);
   const m = s.nodes.get(nodeKey("L", "m"))!;
   assert.equal(m.count, 2);
   assert.equal(m.lastMs, 4);
@@ -74,12 +107,42 @@ test("components, orchestrator, calls (a reply updates its call, newest first)",
   s.apply({ type: "state", time: 2, component: "M", payload: { enabled: true } });
   s.apply({ type: "orchestrator", time: 3, state: "failed", detail: "M went offline" });
   s.apply({ type: "call", time: 4, component: "M", feature: "enabled", args: [true], id: "c1" });
-  s.apply({ type: "call", time: 5, component: "M", feature: "dutycycle", args: [50], id: "c2", ok: true, latency_ms: 3 });
-  s.apply({ type: "call", time: 6, component: "M", feature: "enabled", args: [true], id: "c1", ok: true, latency_ms: 2 });
-  assert.deepEqual(s.components.get("M"), { avail: "online", impl: "l298n", driver: "mock", hasRetained: true, retained: { enabled: true } });
+  s.apply({
+    type: "call",
+    time: 5,
+    component: "M",
+    feature: "dutycycle",
+    args: [50],
+    id: "c2",
+    ok: true,
+    latency_ms: 3,
+  });
+  s.apply({
+    type: "call",
+    time: 6,
+    component: "M",
+    feature: "enabled",
+    args: [true],
+    id: "c1",
+    ok: true,
+    latency_ms: 2,
+  });
+  assert.deepEqual(s.components.get("M"), {
+    avail: "online",
+    impl: "l298n",
+    driver: "mock",
+    hasRetained: true,
+    retained: { enabled: true },
+  });
   assert.deepEqual(s.orch, { state: "failed", detail: "M went offline" });
   const calls = s.newestCalls();
-  assert.deepEqual(calls.map((c) => [c.feature, c.ok]), [["dutycycle", true], ["enabled", true]]);
+  assert.deepEqual(
+    calls.map((c) => [c.feature, c.ok]),
+    [
+      ["dutycycle", true],
+      ["enabled", true],
+    ],
+  );
   assert.equal(calls[1].time, 4); // listed when it was sent
   s.apply({ type: "availability", time: 7, component: "M", state: "offline" });
   assert.equal(s.components.get("M")!.driver, ""); // nothing runs it now: no driver said
@@ -120,7 +183,10 @@ test("ownedCounters: the histogram counters the next snapshot would keep", () =>
   const a = (): NodeStats => s.nodes.get(nodeKey("L", "a"))!;
   for (const ms of [10, 12]) s.apply(trace("a", "action", ms));
   s.apply(trace("b", "action", 5));
-  assert.equal(s.ownedCounters, [...s.nodes.values()].reduce((n, v) => n + v.durs.buckets, 0));
+  assert.equal(
+    s.ownedCounters,
+    [...s.nodes.values()].reduce((n, v) => n + v.durs.buckets, 0),
+  );
   const snap = s.snapshot();
   assert.equal(s.ownedCounters, 0);
   s.apply(trace("a", "action", 500)); // a's histogram is copied (and grows): b's stays shared

@@ -1,0 +1,102 @@
+// Connect and drag on the canvas (edit mode): a press on a node drags or selects it, or — after
+// "Connect to…" — connects the node chosen before to it; a press on a component drags or selects
+// it; on a flow or a swimlane's header, selects it. Anything else is the canvas's (panning).
+
+import { findLane, type Selection } from "../../core/selection";
+import type { Studio } from "../../core/studio";
+import type { Op } from "../../model/types";
+import { dragComponent, dragNode } from "./move";
+
+export function install(studio: Studio): void {
+  const { bus, store, canvas } = studio;
+  /** the node a flow is being drawn from ("Connect to…", until the next press or Esc) */
+  let from: { lane: string; id: string } | null = null;
+
+  const cancel = (): void => {
+    from = null;
+    canvas.el.classList.remove("connecting");
+  };
+
+  const select = (sel: Selection): void => {
+    store.edit!.selection = sel;
+    bus.emit("props.render");
+    bus.request("selection.highlight");
+  };
+
+  const connect = async (lane: string, source: string, target: string): Promise<void> => {
+    // a decision's first output is its else; the server writes any other with an empty guard,
+    // which the checker reports on the decision until it is typed here
+    const op: Op = { op: "connect", lane, source, target };
+    const src = findLane(store.model, lane)?.nodes.find((n) => n.id === source);
+    if (await bus.request("edit.send", [op])) {
+      select(src?.kind === "decision" ? { type: "edge", lane, source, target } : { type: "node", lane, id: source });
+      if (src?.kind === "decision") bus.emit("props.focus", '[name="guard"]', true);
+    }
+  };
+
+  /** A press on the canvas in edit mode; true when taken (no panning). */
+  const press = (ev: PointerEvent): boolean | undefined => {
+    if (!store.edit) return undefined;
+    if (ev.button !== 0) return false;
+    const target = ev.target as Element;
+    const nodeG = target.closest?.("g.node");
+    const compG = target.closest?.("g.component");
+    const edgeG = target.closest?.("g.edge");
+    const header = target.closest?.(".lane-header, .lane-title, .lane-sub");
+    if (nodeG) {
+      const lane = nodeG.getAttribute("data-lane")!;
+      const id = nodeG.getAttribute("data-node")!;
+      if (from) {
+        const start = from;
+        cancel();
+        bus.emit("notice.hide", "hint");
+        if (start.lane !== lane) {
+          bus.request("notice.show", {
+            kind: "error",
+            text: "A flow stays inside its swimlane: connect nodes of the same lane.",
+            hideAfterMs: 5000,
+          });
+          return true;
+        }
+        void connect(lane, start.id, id);
+        return true;
+      }
+      dragNode(studio, ev, nodeG as SVGGElement, lane, id);
+      return true;
+    }
+    if (compG) {
+      dragComponent(studio, ev, compG as SVGGElement);
+      return true;
+    }
+    if (edgeG && target.classList.contains("hit")) {
+      select({
+        type: "edge",
+        lane: edgeG.getAttribute("data-lane")!,
+        source: edgeG.getAttribute("data-source")!,
+        target: edgeG.getAttribute("data-target")!,
+      });
+      return true;
+    }
+    if (header) {
+      const lane = header.closest("g.lane")?.getAttribute("data-lane");
+      if (lane) {
+        select({ type: "lane", lane });
+        return true;
+      }
+    }
+    if (from) cancel();
+    return false;
+  };
+
+  bus.on("canvas.press", press);
+  bus.on("connect.cancel", cancel);
+  bus.on("connect.start", (lane, id) => {
+    from = { lane, id };
+    canvas.el.classList.add("connecting");
+    bus.request("notice.show", {
+      kind: "hint",
+      text: `Click the node that follows ${id} (Esc cancels).`,
+      hideAfterMs: 5000,
+    });
+  });
+}
