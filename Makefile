@@ -34,7 +34,7 @@ lint: $(STAMP)
 	$(BIN)/ruff check .
 
 typecheck: $(STAMP)
-	$(BIN)/mypy umlbot compiler services tests bench scripts/studio_doc_images.py $(EXAMPLE_PLUGIN)/umlbot_buzzer
+	$(BIN)/mypy umlbot tests bench scripts $(EXAMPLE_PLUGIN)/umlbot_buzzer
 
 pytest: system-packages $(STAMP)
 	$(BIN)/pytest -m 'not systemd'

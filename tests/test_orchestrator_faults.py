@@ -20,8 +20,8 @@ import pytest
 from conftest import BrokerProcess, RawClient
 from orchestrator_support import Rig, rig, wait_for
 
-from services.bus import OrchestratorStatus
-from services.host import ServiceHost
+from umlbot.services.bus import OrchestratorStatus
+from umlbot.services.host import ServiceHost
 
 pytestmark = pytest.mark.network
 
@@ -198,7 +198,7 @@ def test_a_component_offline_just_before_the_broker_connection_went_is_reported_
 ) -> None:
     """What the orchestrator concludes from the order of events (the broker going down sends the
     components' last wills before it closes the connections), without timing a real broker."""
-    from services.orchestrator.orchestrator import BROKER_GONE_WINDOW_S, BROKER_LOST
+    from umlbot.services.orchestrator.orchestrator import BROKER_GONE_WINDOW_S, BROKER_LOST
 
     with rig(mosquitto_broker.url, "fault_loop.yaml", services=["motor"]) as r:
         for lost_after_s, expected in ((0.0, BROKER_LOST),

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from umlbot.errors import SimError
+from umlbot.base.errors import SimError
 from umlbot.sim.reach import goal_problem
 from umlbot.sim.runner import SimOptions, run_sim
 from umlbot.sim.track import load_track, parse_track, tracks_dir

@@ -18,7 +18,7 @@ from pathlib import Path
 import pytest
 from conftest import BrokerProcess
 
-from umlbot.errors import SimError
+from umlbot.base.errors import SimError
 from umlbot.sim.runner import Progress, SimOptions, SimResult, run_sim, sim_driver
 from umlbot.sim.track import tracks_dir
 

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 from services_support import ROOM  # 2 m x 3 m room, car in the middle facing +y
 
-from umlbot.errors import SimError
+from umlbot.base.errors import SimError
 from umlbot.sim.clock import SimClock
 from umlbot.sim.geometry import Point, Pose, Segment, cast, rectangle_corners, rectangle_hits
 from umlbot.sim.track import load_track, parse_track, tracks_dir

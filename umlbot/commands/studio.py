@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 
 import click
 
-from umlbot.stopsignals import StopSignals
+from umlbot.base.stopsignals import StopSignals
 
 if TYPE_CHECKING:
     from umlbot.studio.workspace import Workspace
@@ -44,8 +44,8 @@ def command(model: Path, broker_url: str | None, ca_file: Path | None, robot: st
     A model folder can be edited in the page (a new or empty folder is offered a starter model).
     Runs until Ctrl-C or SIGTERM.
     """
-    from services.bus import BrokerSettings, resolve_broker_url
-    from services.bus.settings import redact_url
+    from umlbot.services.bus import BrokerSettings, resolve_broker_url
+    from umlbot.services.bus.settings import redact_url
     from umlbot.studio.server import StudioServer, StudioThread, check_bind, is_loopback
     from umlbot.studio.sources import RobotFollower, replay_data, studio_data
 
@@ -70,7 +70,7 @@ def command(model: Path, broker_url: str | None, ca_file: Path | None, robot: st
         server.api = EditApi(workspace)
         data.edit = server.api.hello
     else:
-        from compiler.api import check_model
+        from umlbot.compiler.api import check_model
 
         result = check_model(model)
         data = studio_data(model, robot, mode="replay" if replay_file else "live", result=result)

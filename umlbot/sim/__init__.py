@@ -1,6 +1,6 @@
 """The 2D simulator: a track, the car's physics, world sharing for the sim drivers, the runner.
 
-Nothing outside the sim drivers (`services/<kind>/sim.py`) and `umlbot sim` knows it exists.
+Nothing outside the sim drivers (`umlbot/services/<kind>/sim.py`) and `umlbot sim` knows it exists.
 """
 
 from umlbot.sim.sharing import WorldServer, attach_local_world, connect_world

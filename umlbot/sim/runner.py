@@ -28,8 +28,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from umlbot.errors import ConfigError, SimError
-from umlbot.logs import get_logger
+from umlbot.base.errors import ConfigError, SimError
+from umlbot.base.logs import get_logger
 from umlbot.sim.clock import SimClock
 from umlbot.sim.reach import goal_problem_at, start_problem
 from umlbot.sim.sharing import WorldServer, attach_local_world
@@ -223,7 +223,7 @@ def sim_driver(service: str) -> str:
     """The driver a service kind runs in the simulator: its `sim` driver when it has one (motor,
     sonar, servo, a plugin's), else its `mock` driver (gpio, a plugin's kind without a sim
     driver); `SimError` when it has neither."""
-    from services.registry import known_drivers
+    from umlbot.base.registry import known_drivers
 
     known = known_drivers(service)
     for driver in ("sim", "mock"):
@@ -235,7 +235,7 @@ def sim_driver(service: str) -> str:
 
 def sim_deployment(compiled: Any) -> Any:
     """The deployment the services run with in the simulator: each component on `sim_driver`."""
-    from umlbot.deployment import ComponentDeployment, Deployment
+    from umlbot.base.deployment import ComponentDeployment, Deployment
 
     components = {
         name: ComponentDeployment(impl=comp.impl, driver=sim_driver(comp.service),
@@ -279,8 +279,8 @@ class _Services:
             self._start_in_process()
 
     def _start_in_process(self) -> None:
-        from services.bus.settings import BrokerSettings
-        from services.host import ServiceHost
+        from umlbot.services.bus.settings import BrokerSettings
+        from umlbot.services.host import ServiceHost
 
         attach_local_world(self.world)
         settings = BrokerSettings.from_url(self.broker_url)
@@ -309,7 +309,7 @@ class _Services:
         """Wait until every served component's retained status says `online` (child processes)."""
         if not self.children:
             return
-        from services.bus import BrokerSettings, BusConnection, Message, Topics
+        from umlbot.services.bus import BrokerSettings, BusConnection, Message, Topics
 
         topics = Topics(str(self.deployment.robot))
         pending = set(self.deployment.components)
@@ -387,7 +387,7 @@ def _start_broker(options: SimOptions) -> tuple[Any, str]:
     """
     if options.broker_url is not None:
         return None, options.broker_url
-    from services.bus.broker import EmbeddedBroker
+    from umlbot.services.bus.broker import EmbeddedBroker
 
     port = DEFAULT_PORT if options.port is None else (options.port or _free_port())
     broker = EmbeddedBroker("127.0.0.1", port)
@@ -427,8 +427,8 @@ def run_sim(
     starts (the studio follows the run this way); the function it returns is called when the run
     has ended, before the broker stops.
     """
-    from compiler.api import compile_model
-    from services.bus.settings import BrokerSettings
+    from umlbot.compiler.api import compile_model
+    from umlbot.services.bus.settings import BrokerSettings
     if not options.speed > 0:
         raise SimError(f"--speed must be > 0, got {options.speed}")
     if options.plot is not None:  # before the run, not after it
@@ -624,7 +624,7 @@ def _catch_up(world: World) -> None:
 
 def _sim_orchestrator_class() -> Any:
     """The orchestrator, telling its `SimClock` when a feature call is in flight."""
-    from services.orchestrator.orchestrator import Orchestrator
+    from umlbot.services.orchestrator.orchestrator import Orchestrator
 
     class SimOrchestrator(Orchestrator):
         #: called (in the orchestrator's thread) with the reason of the first fail-safe stop

@@ -25,8 +25,8 @@ import socketserver
 import threading
 from typing import Any, Protocol
 
-from umlbot.errors import SimError
-from umlbot.logs import get_logger
+from umlbot.base.errors import SimError
+from umlbot.base.logs import get_logger
 from umlbot.sim.world import Side, World
 
 log = get_logger(__name__)

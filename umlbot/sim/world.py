@@ -18,8 +18,8 @@ import threading
 from dataclasses import dataclass, field
 from typing import Literal
 
-from umlbot.clock import Clock
-from umlbot.logs import get_logger
+from umlbot.base.clock import Clock
+from umlbot.base.logs import get_logger
 from umlbot.sim.geometry import Point, Pose, Segment, WallIndex, incidence, rectangle_corners
 from umlbot.sim.track import Track
 

@@ -16,8 +16,8 @@ from typing import TYPE_CHECKING, Any
 
 from aiohttp import web
 
-from umlbot.files import loads_json
-from umlbot.logs import get_logger
+from umlbot.base.files import loads_json
+from umlbot.base.logs import get_logger
 from umlbot.sim.track import bundled_tracks
 from umlbot.studio.hub import dumps
 from umlbot.studio.run import RUN_SPEED, StudioRun, resolve_track

@@ -11,8 +11,8 @@ from __future__ import annotations
 import re
 from typing import Any
 
-from compiler.checker import SLEEP_BUILTINS
-from umlbot import library as lib
+from umlbot.base import library as lib
+from umlbot.compiler.checker import SLEEP_BUILTINS
 
 KEYWORDS = ("and", "or", "not", "true", "false", "null")
 #: the (dotted) name just before the cursor.

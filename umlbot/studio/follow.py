@@ -26,7 +26,7 @@ class SimFollower:
         self._sources: list[BrokerSource | WorldSource] = []
 
     def observe(self, world: World, broker_url: str, robot: str) -> Callable[[], None]:
-        from services.bus import BrokerSettings
+        from umlbot.services.bus import BrokerSettings
 
         data = studio_data(self.model, robot)
         data.track = track_view(world)

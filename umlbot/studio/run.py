@@ -16,7 +16,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from umlbot.logs import get_logger
+from umlbot.base.logs import get_logger
 from umlbot.studio.sources import BrokerSource, WorldSource, track_view
 from umlbot.studio.workspace import Conflict
 
@@ -90,7 +90,7 @@ class StudioRun:
         return {"running": self.running, "result": self.last}
 
     def _observe(self, world: World, broker_url: str, robot: str) -> Callable[[], None]:
-        from services.bus import BrokerSettings
+        from umlbot.services.bus import BrokerSettings
 
         self.hub.reset_world()  # a page opening later gets this run's world, not the last one's
         self.current = {"running": True, "robot": robot, "track": track_view(world)}

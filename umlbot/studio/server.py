@@ -27,8 +27,8 @@ from urllib.parse import urlsplit
 
 from aiohttp import WSMsgType, web
 
-from umlbot.errors import ConfigError
-from umlbot.logs import get_logger
+from umlbot.base.errors import ConfigError
+from umlbot.base.logs import get_logger
 from umlbot.studio.hub import CLOSE_TOO_SLOW, MAX_PAGE_CHARS, Hub, Page, dumps
 
 if TYPE_CHECKING:
