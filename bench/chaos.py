@@ -1091,9 +1091,7 @@ def _freeze_trial(broker: Broker, observer: Observer, deploy_file: Path, log: Pa
     they ran for the whole pause; the stop reasons the service gave after SIGCONT)."""
     from umlbot.base.clock import Clock
     from umlbot.services.bus import BrokerSettings, BusClient
-    from umlbot.sim.sharing import WorldServer
-    from umlbot.sim.track import parse_track
-    from umlbot.sim.world import World, WorldLoop
+    from umlbot.sim import World, WorldLoop, WorldServer, parse_track
 
     clock = Clock(1.0)
     world = World(parse_track(HALL), clock=clock)

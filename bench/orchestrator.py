@@ -45,7 +45,7 @@ from typing import Any
 import paho.mqtt.client as mqtt
 from rpc import _nodelay, _raw_client, _subscribed, free_port, percentile, wait_port
 
-from umlbot.base.errors import UmlbotError
+from umlbot import UmlbotError
 from umlbot.compiler.api import compile_model
 from umlbot.compiler.compiled import CompiledModel
 from umlbot.services.bus import BrokerSettings, BusClient, BusConnection

@@ -36,7 +36,7 @@ from typing import Any
 import paho.mqtt.client as mqtt
 from paho.mqtt.enums import CallbackAPIVersion, MQTTProtocolVersion
 
-from umlbot.base.library import implementations
+from umlbot.base.catalog import implementations
 from umlbot.base.logs import configure_logging
 from umlbot.services.bus import BrokerSettings, BusClient, ComponentServer, Feature
 

@@ -38,7 +38,7 @@ from urllib.parse import urlsplit
 
 def service_kinds() -> tuple[str, ...]:
     """Every installed service kind: the built-ins and those plugins add (`umlbot plugins`)."""
-    from umlbot.base.library import service_kinds as installed
+    from umlbot.base.catalog import service_kinds as installed
 
     return installed()
 

@@ -323,7 +323,8 @@ def raw_client() -> Iterator[Callable[..., RawClient]]:
 _SERVER_SCRIPT = """
 import sys, threading
 from umlbot.services.bus import BrokerSettings, ComponentServer, Feature
-from umlbot.base.library import FeatureSpec, Param, implementations
+from umlbot.base.library import FeatureSpec, Param
+from umlbot.base.catalog import implementations
 from umlbot.base.logs import configure_logging
 configure_logging()
 url, robot, component = sys.argv[1:4]

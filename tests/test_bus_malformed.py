@@ -21,9 +21,9 @@ from paho.mqtt.enums import MQTTProtocolVersion
 from paho.mqtt.packettypes import PacketTypes
 from paho.mqtt.properties import Properties
 
-from umlbot.base.library import FeatureSpec, Param, implementations
-from umlbot.services.bus import BrokerSettings, BusClient, ComponentServer, Feature, Topics
-from umlbot.services.bus.envelopes import parse_json
+from umlbot.base.catalog import implementations
+from umlbot.base.library import FeatureSpec, Param
+from umlbot.services.bus import BrokerSettings, BusClient, ComponentServer, Feature, Topics, parse_json
 from umlbot.services.bus.server import parse_request
 
 pytestmark = pytest.mark.network

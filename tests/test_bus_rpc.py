@@ -15,8 +15,9 @@ from typing import Any
 import pytest
 from conftest import BrokerProcess, RawClient, wait_until
 
+from umlbot.base.catalog import implementations
 from umlbot.base.errors import CallTimeout, DriverError, NotConnected, RemoteError
-from umlbot.base.library import FeatureSpec, Param, implementations
+from umlbot.base.library import FeatureSpec, Param
 from umlbot.services.bus import (
     BrokerSettings,
     BusClient,

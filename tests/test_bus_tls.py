@@ -14,8 +14,15 @@ from conftest import find_mosquitto, free_port, port_accepts, wait_until
 
 from umlbot.base.errors import NotConnected
 from umlbot.base.library import FeatureSpec
-from umlbot.services.bus import BrokerSettings, BusClient, BusConnection, ComponentServer, Feature
-from umlbot.services.bus.broker import EmbeddedBroker, password_line
+from umlbot.services.bus import (
+    BrokerSettings,
+    BusClient,
+    BusConnection,
+    ComponentServer,
+    EmbeddedBroker,
+    Feature,
+    password_line,
+)
 
 pytestmark = pytest.mark.network
 

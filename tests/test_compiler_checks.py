@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 from compiler_support import HEADER, MAIN, at, check_text, errors_of, position
 
-from umlbot.base.library import component_kinds
+from umlbot.base.catalog import component_kinds
 from umlbot.compiler.api import check_model
 from umlbot.compiler.compiled import dump_compiled
 
@@ -445,8 +445,8 @@ def test_missing_model_file(tmp_path: Path) -> None:
 
 
 def test_compile_model_raises_model_errors_with_every_diagnostic(tmp_path: Path) -> None:
+    from umlbot import ModelError
     from umlbot.base.diagnostics import ModelErrors
-    from umlbot.base.errors import ModelError
     from umlbot.compiler.api import compile_model
 
     path = tmp_path / "model.yaml"

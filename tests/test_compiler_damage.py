@@ -15,7 +15,7 @@ import pytest
 from click.testing import CliRunner, Result
 from compiler_support import position
 
-from umlbot.base.library import component_kinds
+from umlbot.base.catalog import component_kinds
 from umlbot.cli import cli
 
 ROOT = Path(__file__).resolve().parent.parent

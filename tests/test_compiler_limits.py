@@ -16,8 +16,8 @@ import pytest
 from click.testing import CliRunner
 from compiler_support import HEADER, MAIN, at, check_text, errors_of, position, with_left_out
 
+from umlbot import ModelError
 from umlbot.base import files, yamlsrc
-from umlbot.base.errors import ModelError
 from umlbot.cli import cli
 from umlbot.compiler import expr_parser
 from umlbot.compiler.api import check_model

@@ -12,8 +12,8 @@ from compiler_support import HEADER
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from umlbot import ModelError
 from umlbot.base.diagnostics import Location
-from umlbot.base.errors import ModelError
 from umlbot.compiler.api import check_model, compile_model
 from umlbot.compiler.expr_parser import RawExpr, RBinary, RCall, RConst, RName, RUnary, parse_expression
 

@@ -12,9 +12,9 @@ from pathlib import Path
 import pytest
 from services_support import broker_settings
 
+from umlbot.base.catalog import resolve_implementation
 from umlbot.base.deployment import component_pins, owned_pins, parse_deployment, shared_pins
 from umlbot.base.errors import ConfigError
-from umlbot.base.library import resolve_implementation
 from umlbot.services.host import ServiceHost
 
 REPO = Path(__file__).resolve().parent.parent

@@ -55,16 +55,17 @@ from conftest import BrokerProcess, RawClient
 from orchestrator_support import rig
 from pydantic import BaseModel
 
+from umlbot import ModelError
+from umlbot.base.catalog import resolve_implementation
 from umlbot.base.diagnostics import Diagnostics
-from umlbot.base.errors import ModelError
-from umlbot.base.library import BUILTIN, FeatureSpec, check_args, resolve_implementation
+from umlbot.base.library import BUILTIN, FeatureSpec, check_args
 from umlbot.base.yamlsrc import parse_yaml, to_python
 from umlbot.cli import COMMANDS, cli
 from umlbot.compiler.api import CheckResult, check_model, compile_model
 from umlbot.compiler.compiled import dump_compiled
 from umlbot.compiler.expr_parser import RBinary, RName, RUnary, parse_expression
 from umlbot.compiler.source import MODEL_KEYS, NODE_FIELDS
-from umlbot.services.bus.envelopes import (
+from umlbot.services.bus import (
     ERROR_CODES,
     CallRequest,
     ExitRequest,
@@ -75,7 +76,7 @@ from umlbot.services.bus.envelopes import (
     TraceEvent,
 )
 from umlbot.services.orchestrator.orchestrator import HEARTBEAT_MAX_S
-from umlbot.sim.track import load_track, parse_track
+from umlbot.sim import load_track, parse_track
 
 #: umlbot's own implementations and kinds (the docs' tables list these; plugins document theirs).
 IMPLEMENTATIONS = {impl.id: impl for impl in BUILTIN.implementations}
@@ -1204,12 +1205,12 @@ def _same_default(shown: str, expected: str) -> bool:
 
 
 def test_driver_settings_tables_are_the_settings_models() -> None:
-    from umlbot.services.gpio.driver import GpioSettings
+    from umlbot.services.gpio import GpioSettings
     from umlbot.services.gpio.mock import MockGpioSettings
-    from umlbot.services.motor.driver import L298NSettings
-    from umlbot.services.servo.driver import ServoSettings
+    from umlbot.services.motor import L298NSettings
+    from umlbot.services.servo import ServoSettings
     from umlbot.services.servo.mock import MockServoSettings
-    from umlbot.services.sonar.driver import HCSR04Settings
+    from umlbot.services.sonar import HCSR04Settings
     from umlbot.services.sonar.mock import MockSonarSettings
 
     models: dict[str, type[BaseModel]] = {"L298N": L298NSettings, "HC-SR04": HCSR04Settings,
@@ -1237,7 +1238,7 @@ def test_driver_settings_tables_are_the_settings_models() -> None:
 
 
 def test_monitor_json_events_are_as_documented() -> None:
-    from umlbot.monitor.state import MonitorEvent
+    from umlbot.monitor import MonitorEvent
 
     monitor = ROOT / "docs" / "monitor.md"
     rows = table_rows(section_text(monitor, "## `--json`"))

@@ -9,7 +9,7 @@ import pytest
 
 from umlbot.base.errors import DriverError
 from umlbot.base.registry import create_driver
-from umlbot.services.gpio.driver import GpioPins, GpioSettings, PinNotAllowed
+from umlbot.services.gpio import GpioPins, GpioSettings, PinNotAllowed
 from umlbot.services.gpio.lgpio import LgpioGpio
 from umlbot.services.gpio.mock import MockGpio, MockGpioSettings
 from umlbot.services.gpio.pigpio import PigpioGpio

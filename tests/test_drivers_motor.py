@@ -15,14 +15,13 @@ from services_support import ROOM  # 2 m x 3 m room, car in the middle facing +y
 
 from umlbot.base.errors import DriverError
 from umlbot.base.registry import create_driver
-from umlbot.services.motor.driver import L298NSettings, MotorChannel
+from umlbot.services.motor import L298NSettings, MotorChannel
 from umlbot.services.motor.lgpio import LgpioL298NChannel
 from umlbot.services.motor.mock import MockMotorChannel, MockMotorSettings
 from umlbot.services.motor.pigpio import PWM_RANGE, PigpioL298NChannel
 from umlbot.services.motor.sim import SimMotorChannel
-from umlbot.sim.sharing import attach_local_world
-from umlbot.sim.track import parse_track
-from umlbot.sim.world import CarSpec, World
+from umlbot.services.simworld import attach_local_world
+from umlbot.sim import CarSpec, World, parse_track
 from umlbot.testing.lgpio import FakeLgpio
 from umlbot.testing.pigpio import FakePi
 

@@ -15,14 +15,14 @@ import pytest
 
 from umlbot.base.errors import DriverError
 from umlbot.base.registry import create_driver
-from umlbot.services.sonar.driver import DistanceSensor, HCSR04Settings
+from umlbot.services.simworld import Side, attach_local_world
+from umlbot.services.sonar import DistanceSensor, HCSR04Settings
 from umlbot.services.sonar.lgpio import LgpioHCSR04
 from umlbot.services.sonar.mock import MockDistanceSensor, MockSonarSettings
 from umlbot.services.sonar.pigpio import PigpioHCSR04, tick_diff
 from umlbot.services.sonar.sim import SimDistanceSensor
-from umlbot.sim.sharing import attach_local_world
-from umlbot.sim.track import Track
-from umlbot.sim.world import CarSpec, Side, World
+from umlbot.sim import Track
+from umlbot.sim.world import CarSpec, World
 from umlbot.testing.lgpio import FakeLgpio
 from umlbot.testing.pigpio import TICK_WRAP, FakePi, tickDiff
 

@@ -14,7 +14,7 @@ from rich.console import Console
 
 from umlbot.base.errors import ConfigError
 from umlbot.monitor import MonitorEvent, MonitorState, Stats, read_trace, render, replay
-from umlbot.services.bus.envelopes import TraceEvent
+from umlbot.services.bus import TraceEvent
 
 
 def j(value: object) -> bytes:

@@ -27,8 +27,7 @@ from umlbot.compiler.api import compile_model
 from umlbot.services.bus import Heartbeat
 from umlbot.services.motor.service import MotorService
 from umlbot.services.orchestrator.orchestrator import HEARTBEAT_MAX_S, heartbeat_period_s
-from umlbot.sim.runner import Progress, SimOptions, run_sim
-from umlbot.sim.world import CarSpec, World
+from umlbot.sim import CarSpec, Progress, SimOptions, World, run_sim
 
 pytestmark = pytest.mark.network
 

@@ -16,8 +16,7 @@ from typing import Any
 import pytest
 
 from umlbot.services.bus import TraceEvent
-from umlbot.services.orchestrator import TraceRecorder, event_dict
-from umlbot.services.orchestrator.engine import TraceRecord
+from umlbot.services.orchestrator import TraceRecord, TraceRecorder, event_dict
 from umlbot.services.orchestrator.trace import encode_record
 
 

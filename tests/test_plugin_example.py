@@ -21,8 +21,8 @@ import pytest
 from conftest import BrokerProcess, RawClient
 from services_support import ROOM, wait_for
 
+from umlbot.base.catalog import implementations_for_service, kind_features, resolve_implementation
 from umlbot.base.errors import RemoteError
-from umlbot.base.library import implementations_for_service, kind_features, resolve_implementation
 
 ROOT = Path(__file__).resolve().parent.parent
 EXAMPLE = ROOT / "examples" / "umlbot_buzzer"
@@ -179,8 +179,8 @@ def test_its_service_is_silenced_when_the_orchestrator_goes_offline(
     does: the orchestrator's last will silences it the way it stops a motor."""
     from services_support import broker_settings, client
 
+    from umlbot.base.catalog import service_spec
     from umlbot.base.deployment import load_deployment
-    from umlbot.base.library import service_spec
     from umlbot.services.bus import Topics
     from umlbot.services.host import ServiceHost
 
@@ -215,9 +215,8 @@ def buzzer(request: pytest.FixtureRequest) -> Iterator[BuzzerRig]:
     from umlbot_buzzer.lgpio import LgpioBuzzer
 
     from umlbot.base.registry import create_driver
-    from umlbot.sim.sharing import attach_local_world
-    from umlbot.sim.track import parse_track
-    from umlbot.sim.world import World
+    from umlbot.services.simworld import attach_local_world
+    from umlbot.sim import World, parse_track
     from umlbot.testing.lgpio import FakeLgpio
 
     if request.param == "lgpio-fake":

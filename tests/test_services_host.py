@@ -16,11 +16,11 @@ from conftest import BrokerProcess, free_port
 from services_support import ROBOT, broker_settings, client, deployment, running
 
 from umlbot.base import registry
+from umlbot.base.catalog import service_kinds
 from umlbot.base.deployment import owned_pins, parse_deployment
 from umlbot.base.errors import ConfigError, DriverError, NotConnected, UnknownDriver
-from umlbot.base.library import service_kinds
 from umlbot.services.host import ServiceGroup, ServiceHost
-from umlbot.services.motor.driver import L298NSettings
+from umlbot.services.motor import L298NSettings
 from umlbot.services.motor.mock import MockMotorChannel, MockMotorSettings
 
 

@@ -426,7 +426,7 @@ def test_a_plugin_driver_without_a_deadman_still_gets_the_watchdog() -> None:
     nothing outside it can stop the motor, and its safety round (the watchdog) still works."""
     import structlog
 
-    from umlbot.base.library import resolve_implementation
+    from umlbot.base.catalog import resolve_implementation
     from umlbot.services.motor.service import MotorService
 
     class OldDriver:

@@ -19,7 +19,7 @@ from umlbot.base.errors import RemoteError
 from umlbot.services.bus import Topics
 from umlbot.services.pins import pigpio as pigpio_connection
 from umlbot.services.sonar.mock import MockDistanceSensor
-from umlbot.sim.world import CarSpec
+from umlbot.sim import CarSpec
 from umlbot.testing.pigpio import FakePi
 
 pytestmark = pytest.mark.network

@@ -15,9 +15,8 @@ from services_support import ROOM  # 2 m x 3 m room, car in the middle facing +y
 
 from umlbot.base.errors import ConfigError, DriverError, SimError
 from umlbot.base.registry import create_driver
-from umlbot.sim.sharing import ENV_ADDRESS, ENV_KEY, RemoteWorld, WorldServer, attach_local_world
-from umlbot.sim.track import parse_track
-from umlbot.sim.world import CarSpec, World
+from umlbot.services.simworld import ENV_ADDRESS, ENV_KEY, RemoteWorld, attach_local_world
+from umlbot.sim import CarSpec, World, WorldServer, parse_track
 
 AHEAD_CM = round((2.0 - CarSpec().sonar_forward_m) * 100)
 PINS: dict[str, dict[str, Any]] = {"LeftActuator": {"in1": 22, "in2": 23, "watchdog_s": 2.0},
@@ -184,7 +183,7 @@ def test_a_driver_in_another_process_moves_the_shared_world(world: World, served
 def test_the_motor_watchdog_counts_sim_seconds(world: World) -> None:
     # at --speed 10 a model's 3 s sleep with the motors on is 0.3 s of wall time: the watchdog
     # (watchdog_s: 2.0) must stop the motor all the same, and must not at --speed 0.1 after 0.2 s
-    from umlbot.base.library import resolve_implementation
+    from umlbot.base.catalog import resolve_implementation
     from umlbot.services.motor.service import MotorService
     from umlbot.sim.clock import SimClock
 

@@ -125,7 +125,8 @@ def test_a_studio_that_edits_refuses_to_listen_beyond_loopback(tmp_path: Path) -
     workspace and a non-loopback host does not start (the command never builds one)."""
     from umlbot.base.errors import ConfigError
     from umlbot.studio.api import EditApi
-    from umlbot.studio.server import StudioData, StudioServer
+    from umlbot.studio.data import StudioData
+    from umlbot.studio.server import StudioServer
     from umlbot.studio.workspace import Workspace
 
     data = StudioData(mode="live", robot="car", source="x", model=None, diagnostics=[])

@@ -25,9 +25,10 @@ from typing import Any, NamedTuple
 
 from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationError
 
+from umlbot.base.catalog import implementations, resolve_implementation
 from umlbot.base.errors import ConfigError
 from umlbot.base.files import load_yaml_node, read_text, validation_problem, where
-from umlbot.base.library import Implementation, ServiceKind, implementations, resolve_implementation
+from umlbot.base.library import Implementation, ServiceKind
 
 
 class ComponentDeployment(BaseModel):

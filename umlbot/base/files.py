@@ -339,7 +339,7 @@ def where(source: str, root: Any, path: Sequence[int | str] = ()) -> str:
     written); just `source` without a tree (a plain-text or JSON file)."""
     if root is None:
         return source
-    from umlbot.compiler.source import locate
+    from umlbot.base.yamlsrc import locate
 
     loc = locate(root, tuple(path))
     return f"{loc.file}:{loc.line}:{loc.column}"

@@ -15,7 +15,7 @@ from __future__ import annotations
 import importlib
 import sys
 import types
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from typing import Any
 
 
@@ -48,3 +48,18 @@ def import_lean(module: str, deferred: Iterable[str] = (), blocked: Iterable[str
         for name, stand_in in stand_ins.items():
             if sys.modules.get(name) is stand_in:
                 del sys.modules[name]
+
+
+def lazy_attributes(package: str, table: dict[str, str]) -> Callable[[str], Any]:
+    """A module `__getattr__` (PEP 562) for a package's front door: `name` is imported from the
+    module `table[name]` on first use, so that a heavy part (the embedded broker, the sim's runner)
+    loads only in the processes that use it. Declare the same names under `TYPE_CHECKING` for the
+    type checker."""
+
+    def __getattr__(name: str) -> Any:
+        module = table.get(name)
+        if module is None:
+            raise AttributeError(f"module {package!r} has no attribute {name!r}")
+        return getattr(importlib.import_module(module), name)
+
+    return __getattr__

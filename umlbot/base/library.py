@@ -18,12 +18,9 @@ from __future__ import annotations
 import json
 import math
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, Literal
+from typing import Any, Literal
 
 from umlbot.base.errors import ArgumentError
-
-if TYPE_CHECKING:
-    from umlbot.base.plugins import Catalog
 
 ArgType = Literal["int", "float", "bool", "str"]
 ValueType = Literal["int", "float", "bool", "str", "none"]
@@ -263,50 +260,3 @@ BUILTIN = ComponentPlugin(
         ),
     ),
 )
-
-
-# --- lookups: the assembled library (built-ins and plugins alike) -------------------------------
-
-
-def catalog() -> Catalog:
-    """The assembled library (loaded from the entry points on first use)."""
-    from umlbot.base.plugins import catalog as load
-
-    return load()
-
-
-def resolve_implementation(name: str) -> Implementation | None:
-    """The implementation for an id or seed alias (case-insensitive), or None when unknown."""
-    lib = catalog()
-    key = lib.aliases.get(name.strip().lower())
-    return lib.implementations[key] if key else None
-
-
-def implementations() -> dict[str, Implementation]:
-    """Every implementation by canonical id."""
-    return catalog().implementations
-
-
-def implementations_for_service(service: ServiceKind) -> list[Implementation]:
-    """The implementations that a service kind serves."""
-    return [impl for impl in catalog().implementations.values() if impl.service == service]
-
-
-def component_kinds() -> dict[ComponentKind, dict[str, FeatureSpec]]:
-    """Every component kind with the features a component of it can have."""
-    return catalog().kinds
-
-
-def kind_features(kind: ComponentKind) -> dict[str, FeatureSpec]:
-    """The features a component of `kind` can have (empty for an unknown kind)."""
-    return catalog().kinds.get(kind, {})
-
-
-def service_kinds() -> tuple[ServiceKind, ...]:
-    """Every service kind's name, built-ins first."""
-    return tuple(catalog().services)
-
-
-def service_spec(kind: ServiceKind) -> ServiceSpec | None:
-    """The service kind named `kind`, or None."""
-    return catalog().services.get(kind)

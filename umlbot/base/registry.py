@@ -32,8 +32,9 @@ from typing import Any, Generic, TypeVar
 
 from pydantic import BaseModel, ValidationError
 
+from umlbot.base.catalog import service_kinds
 from umlbot.base.errors import ConfigError, DriverError, UnknownDriver
-from umlbot.base.library import ServiceKind, service_kinds
+from umlbot.base.library import ServiceKind
 from umlbot.base.plugins import catalog
 
 S = TypeVar("S", bound=BaseModel)

@@ -270,3 +270,19 @@ def _too_large(total: int, aliased: int, file: str, line: int, column: int) -> M
                           "nodes (lists, mappings and scalars)", file, line, column)
     return ModelError(f"document too large: more than {MAX_NODES} YAML nodes (lists, mappings and "
                       "scalars); split it into more files", file, line, column)
+
+
+def locate(root: YNode, path: tuple[int | str, ...]) -> Location:
+    """The position of the value at a pydantic error path (as deep as the path exists)."""
+    node: YNode = root
+    loc = root.loc
+    for part in path:
+        if isinstance(node, YMap) and isinstance(part, str) and part in node.items:
+            loc = node.key_loc(part)
+            node = node.items[part]
+        elif isinstance(node, YSeq) and isinstance(part, int) and 0 <= part < len(node.items):
+            node = node.items[part]
+            loc = node.loc
+        else:
+            break
+    return loc

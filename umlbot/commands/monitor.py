@@ -88,7 +88,7 @@ def _check_trace(path: Path) -> None:
     """Read the whole trace once: an unreadable file, a bad line anywhere or no event at all
     raises ConfigError (exit 1) before anything is shown."""
     from umlbot.base.errors import ConfigError
-    from umlbot.monitor.replay import read_trace
+    from umlbot.monitor import read_trace
 
     if sum(1 for _ in read_trace(path)) == 0:  # every line read: a bad one is found now
         raise ConfigError(f"{path}: no trace events (an empty trace file; record one with "

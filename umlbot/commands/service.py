@@ -29,7 +29,7 @@ def resolve_robot(cli_value: str | None, deployment_robot: str | None) -> str:
 def _known_kind(ctx: click.Context, param: click.Parameter, kind: str) -> str:
     # Checked when the command runs, not when it is imported: the library (built-ins and
     # plugins) is read only then, after logging is set up.
-    from umlbot.base.library import service_kinds
+    from umlbot.base.catalog import service_kinds
 
     if kind != "all" and kind not in service_kinds():
         known = ", ".join(map(repr, [*service_kinds(), "all"]))
@@ -71,9 +71,10 @@ def command(
     safe_stop: bool,
 ) -> None:
     """Run one hardware service (or `all` of them) for the components the deployment gives it."""
+    from umlbot.base.catalog import service_kinds
     from umlbot.base.deployment import load_deployment
-    from umlbot.base.library import ServiceKind, service_kinds
-    from umlbot.services.bus.settings import BrokerSettings, resolve_broker_url
+    from umlbot.base.library import ServiceKind
+    from umlbot.services.bus import BrokerSettings, resolve_broker_url
     from umlbot.services.host import ServiceGroup
 
     kinds: tuple[ServiceKind, ...] = tuple(service_kinds()) if kind == "all" else (kind,)

@@ -57,8 +57,7 @@ def command(model: Path, track: Path | None, speed: float, broker_url: str | Non
     """Run MODEL on a track: embedded broker, world, services, orchestrator; exit 0 only when the
     goal was reached without a collision."""
     from umlbot.base.logs import configure_logging
-    from umlbot.sim.runner import Progress, SimOptions, run_sim
-    from umlbot.sim.track import find_track
+    from umlbot.sim import Progress, SimOptions, find_track, run_sim
 
     # the progress line and the summary are the output; logs only for warnings unless asked for
     if click.get_current_context().find_root().params.get("log_level") is None and not os.environ.get(

@@ -12,18 +12,13 @@ from collections import deque
 from dataclasses import dataclass, field
 from typing import Any, Literal, cast
 
+from umlbot.base.catalog import component_kinds, kind_features, resolve_implementation
 from umlbot.base.diagnostics import Diagnostics, Location
 from umlbot.base.errors import ConfigError, ModelError
-from umlbot.base.library import (
-    ComponentKind,
-    FeatureSpec,
-    Implementation,
-    component_kinds,
-    kind_features,
-    resolve_implementation,
-)
-from umlbot.base.yamlsrc import YMap, YScalar, YSeq
+from umlbot.base.library import ComponentKind, FeatureSpec, Implementation
+from umlbot.base.yamlsrc import YMap, YScalar, YSeq, locate
 from umlbot.compiler.compiled import CompiledModel
+from umlbot.compiler.expr import BINARY_OPERATIONS
 from umlbot.compiler.expr_parser import (
     RawExpr,
     RBinary,
@@ -34,7 +29,7 @@ from umlbot.compiler.expr_parser import (
     SourceText,
     parse_expression,
 )
-from umlbot.compiler.source import Damage, Part, SourceDeployment, SourceLane, SourceModel, SourceNode, locate
+from umlbot.compiler.source import Damage, Part, SourceDeployment, SourceLane, SourceModel, SourceNode
 
 #: expression types; "any" is a value whose type is known only at run time (a signal payload);
 #: "unknown" exists only while datastore types are being inferred.
@@ -71,8 +66,6 @@ def _is_number_const(expr: Data) -> bool:
 def _constant_number(expr: Data) -> int | float | None:
     """The value of an arithmetic expression of number constants (`90 * 3`, `-(10 + 5)`), computed
     as the orchestrator will; None when it reads anything else or cannot be computed (`1 / 0`)."""
-    from umlbot.services.orchestrator.expressions import BINARY_OPERATIONS
-
     if _is_number_const(expr):
         return cast(int | float, expr["value"])
     if expr["op"] == "unary" and expr["operator"] == "-":

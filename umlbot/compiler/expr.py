@@ -20,7 +20,9 @@ Semantics the interpreter follows (also in docs/model-format.md):
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+import operator
+from collections.abc import Callable
+from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
@@ -124,3 +126,26 @@ __all__ = [
     "Unary",
     "UnaryOperator",
 ]
+
+
+# --- what the operators compute (the orchestrator and the checker's constant folding) ---------
+
+
+def _true_division(left: Any, right: Any) -> Any:
+    return left / right
+
+
+#: The arithmetic and comparison operators; `and`/`or` short-circuit and are built separately.
+BINARY_OPERATIONS: dict[str, Callable[[Any, Any], Any]] = {
+    "+": operator.add,
+    "-": operator.sub,
+    "*": operator.mul,
+    "/": _true_division,
+    "%": operator.mod,
+    "==": operator.eq,
+    "!=": operator.ne,
+    "<": operator.lt,
+    "<=": operator.le,
+    ">": operator.gt,
+    ">=": operator.ge,
+}

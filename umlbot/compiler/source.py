@@ -17,12 +17,12 @@ from typing import Literal
 
 from pydantic import ValidationError
 
+from umlbot.base.catalog import component_kinds
 from umlbot.base.deployment import Deployment, is_plain_format
 from umlbot.base.diagnostics import Diagnostic, Diagnostics, Location
 from umlbot.base.errors import ModelError
 from umlbot.base.files import decode_utf8, file_problem, too_large
-from umlbot.base.library import component_kinds
-from umlbot.base.yamlsrc import YMap, YNode, YScalar, YSeq, parse_yaml, to_python
+from umlbot.base.yamlsrc import YMap, YNode, YScalar, YSeq, locate, parse_yaml, to_python
 
 MODEL_FILE = "model.yaml"
 ACTIVITIES_DIR = "activities"
@@ -644,22 +644,6 @@ def _deployment_from_yaml(root: YNode, shown: str, d: Diagnostics) -> SourceDepl
             where = ".".join(str(p) for p in err["loc"])
             d.error(f"invalid deployment: {where}: {err['msg']}", loc)
     return result
-
-
-def locate(root: YNode, path: tuple[int | str, ...]) -> Location:
-    """The position of the value at a pydantic error path (as deep as the path exists)."""
-    node: YNode = root
-    loc = root.loc
-    for part in path:
-        if isinstance(node, YMap) and isinstance(part, str) and part in node.items:
-            loc = node.key_loc(part)
-            node = node.items[part]
-        elif isinstance(node, YSeq) and isinstance(part, int) and 0 <= part < len(node.items):
-            node = node.items[part]
-            loc = node.loc
-        else:
-            break
-    return loc
 
 
 # --- helpers ---------------------------------------------------------------------------------------

@@ -6,10 +6,11 @@
 
 from umlbot.monitor.live import LiveMonitor, topic_filter
 from umlbot.monitor.replay import read_trace, replay
-from umlbot.monitor.state import MonitorEvent, MonitorState, Stats
+from umlbot.monitor.state import DEFAULT_CALL_TIMEOUT_S, MonitorEvent, MonitorState, Stats
 from umlbot.monitor.view import render
 
 __all__ = [
+    "DEFAULT_CALL_TIMEOUT_S",
     "LiveMonitor",
     "MonitorEvent",
     "MonitorState",

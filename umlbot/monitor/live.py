@@ -9,8 +9,7 @@ from collections.abc import Callable
 from umlbot.base.errors import BrokerRefused
 from umlbot.base.topics import check_name
 from umlbot.monitor.state import MonitorEvent, MonitorState
-from umlbot.services.bus.connection import BusConnection, Message
-from umlbot.services.bus.settings import BrokerSettings
+from umlbot.services.bus import BrokerSettings, BusConnection, Message
 
 EventSink = Callable[[MonitorEvent], None]
 

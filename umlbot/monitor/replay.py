@@ -15,7 +15,7 @@ from umlbot.base.errors import ConfigError, ModelError
 from umlbot.base.files import decode_utf8
 from umlbot.base.logs import get_logger
 from umlbot.monitor.state import MonitorEvent, MonitorState, first_problem, trace_items
-from umlbot.services.bus.envelopes import TraceEvent
+from umlbot.services.bus import TraceEvent
 
 log = get_logger(__name__)
 

@@ -30,7 +30,7 @@ from pydantic_core import from_json
 
 from umlbot.base.bounded import MAX_ROWS, RecentDict
 from umlbot.base.logs import get_logger
-from umlbot.services.bus.envelopes import ENVELOPE_KEYS, CallRequest, Reply, TraceEvent, dumps
+from umlbot.services.bus import ENVELOPE_KEYS, CallRequest, Reply, TraceEvent, dumps
 
 log = get_logger(__name__)
 

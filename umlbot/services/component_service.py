@@ -16,7 +16,7 @@ from typing import Any, ClassVar
 from umlbot.base.errors import ConfigError, DriverError
 from umlbot.base.library import Implementation, ServiceKind
 from umlbot.base.logs import get_logger
-from umlbot.services.bus.server import Feature, FeatureError
+from umlbot.services.bus import Feature, FeatureError
 
 log = get_logger("umlbot.service")
 

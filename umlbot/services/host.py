@@ -27,16 +27,14 @@ from collections.abc import Mapping
 from typing import Any
 
 from umlbot.base import sdnotify
+from umlbot.base.catalog import service_kinds, service_spec
 from umlbot.base.deployment import Deployment, owned_pins, shared_pins
 from umlbot.base.errors import ConfigError, DriverError, UnknownDriver
-from umlbot.base.library import ServiceKind, service_kinds, service_spec
+from umlbot.base.library import ServiceKind
 from umlbot.base.logs import get_logger
 from umlbot.base.registry import SettingsError, create_driver, resolve_driver
 from umlbot.base.topics import Topics
-from umlbot.services.bus.connection import Message
-from umlbot.services.bus.envelopes import Heartbeat, parse_json
-from umlbot.services.bus.server import STATUS_WAIT_S, ComponentServer
-from umlbot.services.bus.settings import BrokerSettings
+from umlbot.services.bus import STATUS_WAIT_S, BrokerSettings, ComponentServer, Heartbeat, Message, parse_json
 from umlbot.services.component_service import ComponentService
 
 log = get_logger("umlbot.host")

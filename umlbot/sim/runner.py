@@ -30,9 +30,10 @@ from typing import Any
 
 from umlbot.base.errors import ConfigError, SimError
 from umlbot.base.logs import get_logger
+from umlbot.services.simworld import attach_local_world
 from umlbot.sim.clock import SimClock
 from umlbot.sim.reach import goal_problem_at, start_problem
-from umlbot.sim.sharing import WorldServer, attach_local_world
+from umlbot.sim.sharing import WorldServer
 from umlbot.sim.track import load_track, track_warnings
 from umlbot.sim.world import CarSpec, World, WorldLoop, WorldSnapshot
 
@@ -279,7 +280,7 @@ class _Services:
             self._start_in_process()
 
     def _start_in_process(self) -> None:
-        from umlbot.services.bus.settings import BrokerSettings
+        from umlbot.services.bus import BrokerSettings
         from umlbot.services.host import ServiceHost
 
         attach_local_world(self.world)
@@ -387,7 +388,7 @@ def _start_broker(options: SimOptions) -> tuple[Any, str]:
     """
     if options.broker_url is not None:
         return None, options.broker_url
-    from umlbot.services.bus.broker import EmbeddedBroker
+    from umlbot.services.bus import EmbeddedBroker
 
     port = DEFAULT_PORT if options.port is None else (options.port or _free_port())
     broker = EmbeddedBroker("127.0.0.1", port)
@@ -428,7 +429,7 @@ def run_sim(
     has ended, before the broker stops.
     """
     from umlbot.compiler.api import compile_model
-    from umlbot.services.bus.settings import BrokerSettings
+    from umlbot.services.bus import BrokerSettings
     if not options.speed > 0:
         raise SimError(f"--speed must be > 0, got {options.speed}")
     if options.plot is not None:  # before the run, not after it
@@ -624,7 +625,7 @@ def _catch_up(world: World) -> None:
 
 def _sim_orchestrator_class() -> Any:
     """The orchestrator, telling its `SimClock` when a feature call is in flight."""
-    from umlbot.services.orchestrator.orchestrator import Orchestrator
+    from umlbot.services.orchestrator import Orchestrator
 
     class SimOrchestrator(Orchestrator):
         #: called (in the orchestrator's thread) with the reason of the first fail-safe stop

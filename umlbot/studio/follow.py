@@ -10,7 +10,7 @@ from umlbot.studio.server import StudioServer, StudioThread
 from umlbot.studio.sources import BrokerSource, WorldSource, studio_data, track_view
 
 if TYPE_CHECKING:
-    from umlbot.sim.world import World
+    from umlbot.sim import World
 
 
 class SimFollower:

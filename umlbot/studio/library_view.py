@@ -13,6 +13,7 @@ from collections.abc import Mapping
 from functools import lru_cache
 from typing import Any
 
+from umlbot.base import catalog
 from umlbot.base import library as lib
 from umlbot.compiler.checker import RESERVED, SLEEP_BUILTINS
 from umlbot.compiler.source import NODE_FIELDS, NODE_KINDS
@@ -60,7 +61,7 @@ def settings_model(impl: lib.Implementation) -> Any:
 def library() -> dict[str, Any]:
     """`GET /api/library`: kinds and features, implementations, builtins, node kinds."""
     implementations = []
-    for impl in lib.implementations().values():
+    for impl in catalog.implementations().values():
         model = settings_model(impl)
         implementations.append({
             "id": impl.id, "kind": impl.kind, "service": impl.service, "title": impl.title,
@@ -85,7 +86,7 @@ def library() -> dict[str, Any]:
     }
     return {
         "kinds": {kind: {"features": {name: _feature(spec) for name, spec in features.items()}}
-                  for kind, features in lib.component_kinds().items()},
+                  for kind, features in catalog.component_kinds().items()},
         "implementations": implementations,
         "builtins": builtins,
         "node_kinds": node_kinds,
@@ -103,9 +104,9 @@ def check_settings(impl_name: str, settings: Mapping[str, Any]) -> str | None:
     they are): the editor deploys a component with the settings every hardware driver accepts."""
     from umlbot.base.registry import AUTO, settings_problems
 
-    impl = lib.resolve_implementation(impl_name)
+    impl = catalog.resolve_implementation(impl_name)
     if impl is None:
-        known = ", ".join(lib.implementations())
+        known = ", ".join(catalog.implementations())
         return f"unknown implementation {impl_name!r} (known: {known})"
     problems = [f"{'.'.join(str(p) for p in path) or 'settings'}: {msg}"
                 for path, msg in settings_problems(impl.service, AUTO, settings)]
@@ -118,7 +119,7 @@ def settings_problems(impl_name: str, settings: Mapping[str, Any]) -> list[tuple
     from umlbot.base.registry import AUTO
     from umlbot.base.registry import settings_problems as problems
 
-    impl = lib.resolve_implementation(impl_name)
+    impl = catalog.resolve_implementation(impl_name)
     if impl is None:
         return [("", f"unknown implementation {impl_name!r}")]
     out: list[tuple[str, str]] = []

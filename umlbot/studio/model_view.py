@@ -200,7 +200,7 @@ def source_lane_view(lane: SourceLane, components: set[str]) -> dict[str, Any]:
 def source_view(source: SourceModel) -> dict[str, Any]:
     """The model as its files say, in `model_view`'s shape plus each node's `fields`, each
     component's `settings`; drawn by the editor also while the model has errors."""
-    from umlbot.base.library import component_kinds, resolve_implementation
+    from umlbot.base.catalog import component_kinds, resolve_implementation
 
     deployment = source.deployment.deployment if source.deployment is not None else None
     components = []
@@ -262,7 +262,7 @@ FieldIndex = dict[tuple[str, int, int], tuple[str, str | None]]
 def deployment_fields(source: SourceModel) -> FieldIndex:
     """Where each component's deployment entry, implementation and settings are written: the
     positions the compiler reports their problems at (a pin wired twice, a refused setting)."""
-    from umlbot.compiler.source import locate
+    from umlbot.base.yamlsrc import locate
 
     dep = source.deployment
     root = dep.root if dep is not None else None

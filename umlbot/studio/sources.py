@@ -14,16 +14,15 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from umlbot.base.logs import get_logger
+from umlbot.studio.data import StudioData
 from umlbot.studio.hub import Hub
-from umlbot.studio.server import StudioData
 
 if TYPE_CHECKING:
     from umlbot.compiler.api import CheckResult
     from umlbot.compiler.compiled import CompiledModel
-    from umlbot.monitor import MonitorEvent
-    from umlbot.monitor.live import LiveMonitor
-    from umlbot.services.bus.settings import BrokerSettings
-    from umlbot.sim.world import World
+    from umlbot.monitor import LiveMonitor, MonitorEvent
+    from umlbot.services.bus import BrokerSettings
+    from umlbot.sim import World
 
 log = get_logger(__name__)
 
@@ -63,8 +62,7 @@ def replay_data(trace_file: Path, robot: str, model: CompiledModel | None) -> di
     from umlbot.base.errors import ConfigError
     from umlbot.compiler.compiled import ActionNode, DatastoreNode
     from umlbot.compiler.expr import Call, Const, FeatureTarget
-    from umlbot.monitor import MonitorState
-    from umlbot.monitor.replay import read_trace
+    from umlbot.monitor import MonitorState, read_trace
 
     # (lane, node) -> the feature call the node makes: component, feature, its text, constant args
     calls: dict[tuple[str, str], tuple[str, str, str, list[Any] | None]] = {}
@@ -139,10 +137,8 @@ class BrokerSource:
 
     def __init__(self, settings: BrokerSettings, robot: str, hub: Hub,
                  call_timeout_s: float | None = None, origin: str | None = None) -> None:
-        from umlbot.monitor import MonitorState
-        from umlbot.monitor.live import LiveMonitor
-        from umlbot.monitor.state import DEFAULT_CALL_TIMEOUT_S
-        from umlbot.services.bus.settings import redact_url
+        from umlbot.monitor import DEFAULT_CALL_TIMEOUT_S, LiveMonitor, MonitorState
+        from umlbot.services.bus import redact_url
 
         self.hub = hub
         self.url = redact_url(settings.url)
@@ -203,7 +199,7 @@ class RobotFollower:
 
     def follow(self, robot: str) -> None:
         """Stop following the robot so far and follow `robot` (ConfigError: not a robot id)."""
-        from umlbot.monitor.live import topic_filter
+        from umlbot.monitor import topic_filter
 
         topic_filter(robot)  # a bad id is refused before the old robot is dropped
         with self._lock:

@@ -11,7 +11,7 @@ from pydantic import BaseModel, ConfigDict
 from umlbot.base.errors import DriverError, SimError
 from umlbot.base.logs import get_logger
 from umlbot.base.registry import DriverFactory
-from umlbot.sim.sharing import connect_world
+from umlbot.services.simworld import connect_world
 
 log = get_logger("umlbot.buzzer.sim")
 

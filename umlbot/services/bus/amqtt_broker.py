@@ -52,7 +52,7 @@ from amqtt.utils import format_client_message, gen_client_id
 from transitions import MachineError
 
 from umlbot.base.logs import get_logger
-from umlbot.services.bus.broker import BrokerLimits
+from umlbot.services.bus.broker_limits import BrokerLimits
 
 log = get_logger("umlbot.services.bus.broker")
 

@@ -16,7 +16,6 @@ import socket
 import threading
 import warnings
 from collections.abc import Mapping
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -25,20 +24,9 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 from umlbot.base.errors import ConfigError
 from umlbot.base.files import load_yaml_node, read_text, validation_problem, where
 from umlbot.base.logs import get_logger
+from umlbot.services.bus.broker_limits import BrokerLimits as BrokerLimits
 
 log = get_logger(__name__)
-
-
-@dataclass(frozen=True)
-class BrokerLimits:
-    """What the embedded broker holds at most (docs/mqtt.md, "The embedded broker")."""
-
-    #: a retained message larger than this is not retained (it is still delivered; logged).
-    max_retained_bytes: int = 256 * 1024
-    #: all retained messages together; a new one past it is not retained (logged).
-    max_retained_total: int = 64 * 1024 * 1024
-    #: messages queued for one disconnected persistent session; newer ones are dropped (logged).
-    max_queued_messages: int = 1000
 
 
 class BrokerAcl(BaseModel):

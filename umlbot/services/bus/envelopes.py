@@ -176,7 +176,7 @@ def parse_json(payload: bytes) -> Any:
     return loads_json(payload.decode("utf-8"))
 
 
-def _json_default(obj: Any) -> Any:
+def json_default(obj: Any) -> Any:
     if isinstance(obj, BaseModel):
         return obj.model_dump(mode="json")
     if isinstance(obj, set | frozenset | tuple):
@@ -185,7 +185,7 @@ def _json_default(obj: Any) -> Any:
 
 
 # one encoder for the hot path: json.dumps with options builds a new encoder on every call
-_ENCODER = json.JSONEncoder(separators=(",", ":"), ensure_ascii=False, default=_json_default)
+_ENCODER = json.JSONEncoder(separators=(",", ":"), ensure_ascii=False, default=json_default)
 
 
 def dumps(value: Any) -> str:

@@ -10,7 +10,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from umlbot.base.library import Implementation
-from umlbot.services.bus.server import FeatureError
+from umlbot.services.bus import FeatureError
 from umlbot.services.component_service import ComponentService
 from umlbot.services.gpio.driver import GpioPins, PinNotAllowed
 

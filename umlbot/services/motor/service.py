@@ -34,7 +34,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from umlbot.base.errors import ConfigError
 from umlbot.base.library import Implementation
-from umlbot.services.bus.server import caller
+from umlbot.services.bus import caller
 from umlbot.services.component_service import ComponentService
 from umlbot.services.motor.driver import MotorChannel
 

@@ -15,7 +15,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from umlbot.base.errors import ConfigError, DriverError, SimError
 from umlbot.base.registry import DriverFactory
-from umlbot.sim.sharing import WorldHandle, connect_world
+from umlbot.services.simworld import WorldHandle, connect_world
 
 
 class SimMotorSettings(BaseModel):

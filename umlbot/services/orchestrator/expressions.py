@@ -9,12 +9,12 @@ passed to eval/exec: every operator maps to one fixed Python operation from `BIN
 
 from __future__ import annotations
 
-import operator
 from collections.abc import Callable, Coroutine
 from dataclasses import dataclass
 from typing import Any, Protocol
 
 from umlbot.compiler.expr import (
+    BINARY_OPERATIONS,
     Binary,
     BuiltinTarget,
     Call,
@@ -47,26 +47,6 @@ class Runtime(Protocol):
 
     async def sleep(self, seconds: float) -> None:
         """Sleep for `seconds` of (sim) time."""
-
-
-def _true_division(left: Value, right: Value) -> Value:
-    return left / right
-
-
-#: The arithmetic and comparison operators; `and`/`or` short-circuit and are built separately.
-BINARY_OPERATIONS: dict[str, Callable[[Value, Value], Value]] = {
-    "+": operator.add,
-    "-": operator.sub,
-    "*": operator.mul,
-    "/": _true_division,
-    "%": operator.mod,
-    "==": operator.eq,
-    "!=": operator.ne,
-    "<": operator.lt,
-    "<=": operator.le,
-    ">": operator.gt,
-    ">=": operator.ge,
-}
 
 
 @dataclass(frozen=True, slots=True)

@@ -51,8 +51,9 @@ from umlbot.services.bus import (
     Status,
     Topics,
     Will,
+    dumps,
+    parse_json,
 )
-from umlbot.services.bus.envelopes import dumps, parse_json
 from umlbot.services.orchestrator.engine import Engine, EngineStats, NodeFailed, used_components
 from umlbot.services.orchestrator.expressions import Value
 from umlbot.services.orchestrator.signals import SignalBoard

@@ -28,7 +28,7 @@ from pathlib import Path
 from typing import IO, Any
 
 from umlbot.base.logs import get_logger
-from umlbot.services.bus.envelopes import _json_default
+from umlbot.services.bus import json_default
 from umlbot.services.orchestrator.engine import TraceRecord
 
 log = get_logger(__name__)
@@ -45,7 +45,7 @@ Listener = Callable[[dict[str, Any]], None]
 
 # strict JSON for every consumer (a browser's JSON.parse rejects NaN): such values go as their repr
 _ENCODER = json.JSONEncoder(separators=(",", ":"), ensure_ascii=False, allow_nan=False,
-                            default=_json_default)
+                            default=json_default)
 
 
 def event_dict(record: TraceRecord, seq: int | None = None) -> dict[str, Any]:

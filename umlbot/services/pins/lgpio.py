@@ -18,11 +18,13 @@ import importlib
 import os
 import sys
 import threading
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from umlbot.base.errors import DriverError
 from umlbot.base.logs import get_logger
-from umlbot.testing.lgpio import FakeLgpio
+
+if TYPE_CHECKING:  # the fake is imported only when the environment asks for it (below)
+    from umlbot.testing.lgpio import FakeLgpio
 
 log = get_logger("umlbot.lgpio")
 
@@ -53,6 +55,8 @@ def lgpio_module() -> Any:
     global _fake, _env_fake
     with _lock:
         if _fake is None and env_wants_fake():
+            from umlbot.testing.lgpio import FakeLgpio  # tests only: a robot never loads the fake
+
             _fake = _env_fake = FakeLgpio(state_file=os.environ.get(FAKE_STATE_ENV) or None)
             log.warning("using the fake lgpio (no hardware)", env=FAKE_ENV)
         if _fake is not None:

@@ -16,11 +16,13 @@ from __future__ import annotations
 import importlib
 import os
 import threading
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from umlbot.base.errors import DriverError
 from umlbot.base.logs import get_logger
-from umlbot.testing.pigpio import FakePi
+
+if TYPE_CHECKING:  # the fake is imported only when the environment asks for it (below)
+    from umlbot.testing.pigpio import FakePi
 
 log = get_logger("umlbot.pigpio")
 
@@ -63,6 +65,8 @@ def acquire(host: str | None = None, port: int | None = None) -> Any:
     global _fake, _env_fake, _env_fake_users
     with _lock:
         if _fake is None and _env_wants_fake():
+            from umlbot.testing.pigpio import FakePi  # tests only: a robot never loads the fake
+
             _fake = _env_fake = FakePi(state_file=os.environ.get(FAKE_STATE_ENV) or None)
             log.warning("using the fake pigpio (no hardware)", env=FAKE_ENV)
         if _fake is not None:

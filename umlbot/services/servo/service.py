@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from umlbot.services.bus.server import FeatureError
+from umlbot.services.bus import FeatureError
 from umlbot.services.component_service import ComponentService
 from umlbot.services.servo.driver import Servo
 

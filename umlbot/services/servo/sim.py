@@ -10,7 +10,7 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from umlbot.base.errors import DriverError, SimError
 from umlbot.base.registry import DriverFactory
-from umlbot.sim.sharing import WorldHandle, connect_world
+from umlbot.services.simworld import WorldHandle, connect_world
 
 
 class SimServoSettings(BaseModel):
