@@ -198,6 +198,8 @@ def test_a_component_offline_just_before_the_broker_connection_went_is_reported_
 ) -> None:
     """What the orchestrator concludes from the order of events (the broker going down sends the
     components' last wills before it closes the connections), without timing a real broker."""
+    from umlbot.base.errors import NotConnected, RemoteError
+    from umlbot.services.orchestrator.life import Fault, FaultKind, Phase
     from umlbot.services.orchestrator.orchestrator import BROKER_GONE_WINDOW_S, BROKER_LOST
 
     with rig(mosquitto_broker.url, "fault_loop.yaml", services=["motor"]) as r:
@@ -205,8 +207,8 @@ def test_a_component_offline_just_before_the_broker_connection_went_is_reported_
                                        (BROKER_GONE_WINDOW_S + 1, "component LeftActuator went offline"),
                                        (None, "component LeftActuator went offline")):
             orch = r.orchestrator()
-            orch.state = "running"
-            orch._fault("component LeftActuator went offline")
+            orch.life.move(Phase.RUNNING)
+            orch._fail(Fault(FaultKind.COMPONENT_LOST, "component LeftActuator went offline", "LeftActuator"))
             if lost_after_s is not None:
                 assert orch._broker_symptom_at is not None
                 orch._broker_symptom_at -= lost_after_s
@@ -214,15 +216,18 @@ def test_a_component_offline_just_before_the_broker_connection_went_is_reported_
             assert orch.failure == expected, lost_after_s
         # a call that found no connection, then the loss: the same
         orch = r.orchestrator()
-        orch.state = "stopping"
-        orch._fault("lane Main, node n1 (LeftActuator.enabled(true)): the connection to the MQTT broker "
-                    "was lost")
+        orch.life.move(Phase.RUNNING)
+        orch.life.move(Phase.STOPPING)
+        lost = NotConnected("the connection to the MQTT broker was lost")
+        orch._fail(Fault(FaultKind.NODE, f"lane Main, node n1 (LeftActuator.enabled(true)): {lost}",
+                         cause=lost))
         orch._connection_lost(False)
         assert orch.failure == BROKER_LOST
         # a call that failed otherwise is kept
         orch = r.orchestrator()
-        orch.state = "running"
-        orch._fault("lane Main, node n1: out_of_range: percent=150")
+        orch.life.move(Phase.RUNNING)
+        refused = RemoteError("out_of_range", "percent=150")
+        orch._fail(Fault(FaultKind.NODE, f"lane Main, node n1: {refused}", cause=refused))
         orch._connection_lost(True)
         assert orch.failure == "lane Main, node n1: out_of_range: percent=150"
 

@@ -35,6 +35,13 @@ class Clock:
         """How long `sim_seconds` of sim time take on the wall clock."""
         return max(0.0, sim_seconds) / self.speed
 
+    def call_started(self) -> None:
+        """A feature call left: a simulated clock (`umlbot.sim.clock.SimClock`) stands still until
+        it comes back; this one runs on."""
+
+    def call_finished(self) -> None:
+        """The call `call_started` announced came back (or failed)."""
+
     def sleep(self, sim_seconds: float, stop: threading.Event | None = None) -> bool:
         """Sleep for sim time; returns True early when `stop` is set."""
         wall = self.wall_seconds(sim_seconds)

@@ -30,6 +30,7 @@ from typing import Any
 
 from umlbot.base.errors import ConfigError, SimError
 from umlbot.base.logs import get_logger
+from umlbot.services.orchestrator import Orchestrator
 from umlbot.services.simworld import attach_local_world
 from umlbot.sim.clock import SimClock
 from umlbot.sim.reach import goal_problem_at, start_problem
@@ -490,13 +491,13 @@ def run_sim(
         # the world ends the run itself, at the sim time it happens, not when the runner looks
         world.halt_at_goal = True
         world.max_collisions = options.max_collisions
-        orchestrator = _sim_orchestrator_class()(
+        orchestrator = Orchestrator(
             compiled, BrokerSettings.from_url(url), robot=deployment.robot, clock=clock,
             trace_listener=watch.on_event, handle_signals=False, trace_file=options.trace_file,
         )
         # a fail-safe stop halts the world at once, in the orchestrator's thread: its own stop
         # calls go through the broker and may time out while the car drives on
-        orchestrator.on_fault = lambda _reason: world.halt()
+        orchestrator.life.on_fault(lambda _fault: world.halt())
 
         def run_orchestrator() -> None:
             try:
@@ -621,33 +622,6 @@ def _catch_up(world: World) -> None:
     now = world.clock.now()
     if snap is not None and now - snap.time_s <= WORLD_LAG_REPORT_S:
         world.advance_to(now)
-
-
-def _sim_orchestrator_class() -> Any:
-    """The orchestrator, telling its `SimClock` when a feature call is in flight."""
-    from umlbot.services.orchestrator import Orchestrator
-
-    class SimOrchestrator(Orchestrator):
-        #: called (in the orchestrator's thread) with the reason of the first fail-safe stop
-        on_fault: Callable[[str], None] | None = None
-
-        def _fault(self, reason: str) -> None:
-            first = self.failure is None
-            super()._fault(reason)
-            if first and self.on_fault is not None:
-                self.on_fault(reason)
-
-        async def call(self, component: str, feature: str, args: list[Any]) -> Any:
-            clock = self.clock
-            if not isinstance(clock, SimClock):
-                return await super().call(component, feature, args)
-            clock.call_started()
-            try:
-                return await super().call(component, feature, args)
-            finally:
-                clock.call_finished()
-
-    return SimOrchestrator
 
 
 def _ms(seconds: float | None) -> float | None:

@@ -56,6 +56,7 @@ from umlbot.services.bus import (
 )
 from umlbot.services.orchestrator.engine import Engine, EngineStats, NodeFailed, used_components
 from umlbot.services.orchestrator.expressions import Value
+from umlbot.services.orchestrator.life import BROKER_LOST_REASON, Fault, FaultKind, Life, Phase
 from umlbot.services.orchestrator.signals import SignalBoard
 from umlbot.services.orchestrator.trace import Listener, TraceRecorder
 
@@ -84,7 +85,7 @@ HEARTBEAT_MIN_S = 0.02
 #: a lost broker connection this soon after a component went offline (or a call found no
 #: connection) is reported as the cause: the broker went down and sent the last wills first.
 BROKER_GONE_WINDOW_S = 5.0
-BROKER_LOST = "connection to the MQTT broker lost"
+BROKER_LOST = BROKER_LOST_REASON
 #: an exit request's reason is cut to this many characters (it is logged and kept in the status).
 MAX_REASON_CHARS = 200
 EXIT_OK = 0
@@ -154,13 +155,10 @@ class Orchestrator:
         #: wall seconds between two heartbeats (`heartbeat_period_s`)
         self.heartbeat_s = heartbeat_period_s(compiled)
         self._heartbeat: asyncio.Task[None] | None = None
-        #: the reason of the fail-safe stop, None while nothing went wrong.
-        self.failure: str | None = None
-        #: why termination was requested, None until it was.
-        self.exit_reason: str | None = None
+        #: the run's phase, its first fault and why termination was requested (a state machine;
+        #: `life.on_fault`/`life.on_move` let others hear of it)
+        self.life = Life()
         self._broker_symptom_at: float | None = None  # when a fault came that a broker's end explains
-        #: the last status published: starting, running, stopping, stopped or failed.
-        self.state = "starting"
         #: component -> the safety stop its service reported while the model ran (a motor's
         #: `stop_reason`: watchdog, orchestrator unresponsive, deadman …): why the car stood still
         self.safety_stops: dict[str, str] = {}
@@ -182,9 +180,23 @@ class Orchestrator:
         self._running = False
         self._control: BusConnection | None = None
         self._client: BusClient | None = None
-        self._status_reason: str | None = None
         #: `time.perf_counter()` when the lanes started and when the last one ended (or was cancelled).
         self.lane_window: tuple[float, float] = (0.0, 0.0)
+
+    @property
+    def failure(self) -> str | None:
+        """The reason of the fail-safe stop, None while nothing went wrong."""
+        return self.life.fault.reason if self.life.fault is not None else None
+
+    @property
+    def exit_reason(self) -> str | None:
+        """Why termination was requested, None until it was."""
+        return self.life.exit_reason
+
+    @property
+    def state(self) -> str:
+        """The run's phase, as its status says it: starting, running, stopping, stopped or failed."""
+        return self.life.phase.value
 
     @property
     def stats(self) -> EngineStats:
@@ -230,6 +242,7 @@ class Orchestrator:
             try:
                 await self._connect()
             except _ExitWhileConnecting:  # nothing ran and no actuator was reached: nothing to stop
+                self.life.move(Phase.STOPPED, self.exit_reason)
                 log.info("orchestrator_finished", exit_code=EXIT_OK, failure=None,
                          exit_reason=self.exit_reason, nodes=0, actions=0,
                          wall_s=round(time.monotonic() - started, 3))
@@ -238,18 +251,18 @@ class Orchestrator:
             try:
                 if self._pending_exit is not None:
                     self._on_exit_request(self._pending_exit)
-                self._publish_status("starting")
+                self._publish_status()
                 await self._wait_online()
                 if self.failure is None and self.exit_reason is None:
                     await self._stop_actuators(at_start=True)
                 if self.failure is None and self.exit_reason is None:
-                    self._publish_status("running")
+                    self._enter(Phase.RUNNING)
                     log.info("orchestrator_running", robot=self.robot, model=self.model.name,
                              lanes=self.engine.component_lanes(), call_timeout_s=self.call_timeout_s)
                     await self._supervise()
             except OrchestratorError as exc:
                 start_error = exc
-                self._fault(str(exc))
+                self._fail(Fault(FaultKind.START, str(exc), cause=exc))
             finally:
                 code = await self._shut_down()
         finally:
@@ -268,7 +281,11 @@ class Orchestrator:
         client = self._client
         if client is None:
             raise NotConnected("the orchestrator is not connected")
-        return await client.acall(component, feature, *args, timeout=self.call_timeout_s)
+        self.clock.call_started()  # a simulated clock stands still while a call is in flight
+        try:
+            return await client.acall(component, feature, *args, timeout=self.call_timeout_s)
+        finally:
+            self.clock.call_finished()
 
     def publish_signal(self, name: str, payload: Value) -> None:
         """Publish `…/signal/<name>` with the payload as JSON (QoS 1)."""
@@ -391,38 +408,36 @@ class Orchestrator:
         except asyncio.CancelledError:
             raise
         except NodeFailed as exc:
-            self._fault(str(exc))
+            self._fail(Fault(FaultKind.NODE, str(exc), cause=exc.cause))
         except Exception as exc:  # a bug: still stop the robot safely
             log.exception("lane_crashed", lane=name)
-            self._fault(f"lane {name}: internal error: {exc!r}")
+            self._fail(Fault(FaultKind.INTERNAL, f"lane {name}: internal error: {exc!r}", cause=exc))
 
-    def _fault(self, reason: str) -> None:
-        """Fail-safe: remember the first reason and wake the supervisor (loop thread only)."""
-        if self.failure is not None:
+    def _fail(self, fault: Fault) -> None:
+        """Fail-safe: remember the first fault and wake the supervisor (loop thread only)."""
+        if self.life.fault is not None:
             return
-        self.failure = reason
-        if reason.endswith(" went offline") or "connection to the MQTT broker" in reason or (
-                "not connected" in reason):
+        if fault.broker_symptom:
             self._broker_symptom_at = time.monotonic()  # maybe the broker going down: see _connection_lost
         self.engine.exit_requested = True
         # a warning: whoever ends the run reports the fault as its error (`umlbot run`: one
         # `error: fail-safe stop: …` line), so that --log-level ERROR prints it once
-        log.warning("fail_safe_stop", reason=reason)
+        log.warning("fail_safe_stop", reason=fault.reason, kind=fault.kind.value)
+        self.life.fail(fault)
         if self._changed is not None:
             self._changed.set()
 
     def _on_exit_request(self, reason: str) -> None:
         loop, changed = self._runtime()
-        if self.exit_reason is None:
-            self.exit_reason = reason
+        if self.life.request_exit(reason):
             self.engine.exit_requested = True
             self._exit_deadline = loop.time() + self.grace_s
             log.info("exit_requested", reason=reason, grace_s=self.grace_s)
             if self._connecting:  # do not wait for a broker that may never answer
                 self._closing = True
                 loop.run_in_executor(None, self._close_connections)
-            if self.state == "running":
-                self._publish_status("stopping", reason)
+            if self.life.phase is Phase.RUNNING:
+                self._enter(Phase.STOPPING, reason)
         else:
             self._exit_deadline = loop.time()  # asked twice: no more grace
         changed.set()
@@ -450,8 +465,8 @@ class Orchestrator:
                 await self._stop_actuators(at_start=False)
             if self.recorder is not None:
                 self.recorder.close()  # the last trace events go out before the final status
-            final = "failed" if self.failure is not None else "stopped"
-            self._publish_status(final, self.failure or self.exit_reason or "every lane ended")
+        final = Phase.FAILED if self.failure is not None else Phase.STOPPED
+        self._enter(final, self.failure or self.exit_reason or "every lane ended")
         self._closing = True
         if self._heartbeat is not None:
             self._heartbeat.cancel()  # after the final status: the motors stop by it at once
@@ -556,9 +571,9 @@ class Orchestrator:
             state != "online"
             and previous == "online"
             and component in self.required
-            and self.state in ("running", "stopping")
+            and self.life.active
         ):
-            self._fault(f"component {component} went {state}")
+            self._fail(Fault(FaultKind.COMPONENT_LOST, f"component {component} went {state}", component))
         if self._changed is not None:
             self._changed.set()
 
@@ -579,7 +594,7 @@ class Orchestrator:
         self._stop_reasons[component] = reason
         # a retained state is what was (another run's end); a new reason while the model runs is
         # a safety stop of this run
-        if reason is None or reason == previous or retained or self.state not in ("running", "stopping"):
+        if reason is None or reason == previous or retained or not self.life.active:
             return
         self.safety_stops[component] = reason
         log.warning("actuator_stopped_by_its_service", component=component, reason=reason)
@@ -631,7 +646,7 @@ class Orchestrator:
             # a broker that shuts down sends its clients' last wills first (amqtt does), and calls
             # fail as it goes: the component that "went offline" just before was the broker's end
             log.info("fail_safe_stop_reason", was=self.failure, now=BROKER_LOST)
-            self.failure = BROKER_LOST
+            self.life.reclassify(Fault.broker_lost())
             self._broker_symptom_at = None
 
     def _connection_lost(self, control: bool) -> None:
@@ -642,8 +657,8 @@ class Orchestrator:
             # status subscription) gets their retained status again after its reconnect
             self.availability.clear()
         self._broker_lost()  # also while it shuts down: the fault it explains is named after it
-        if self.state in ("running", "stopping"):
-            self._fault(BROKER_LOST)
+        if self.life.active:
+            self._fail(Fault.broker_lost())
         else:
             log.warning("connection to the broker lost during start-up; waiting for it", state=self.state)
         if self._changed is not None:
@@ -654,16 +669,21 @@ class Orchestrator:
 
     def _connected_again(self) -> None:
         # a broker without persistence forgets retained messages: say again where we are
-        if self._control is not None and self._control.connected and self.state != "offline":
-            self._publish_status(self.state, self._status_reason)
+        if self._control is not None and self._control.connected:
+            self._publish_status()
         if self._changed is not None:
             self._changed.set()
 
     # --- publishing ---------------------------------------------------------------------------------
 
-    def _publish_status(self, state: str, reason: str | None = None) -> None:
-        self.state = state
-        self._status_reason = reason
+    def _enter(self, phase: Phase, reason: str | None = None) -> None:
+        """Move the run to `phase` and say so in the retained status."""
+        self.life.move(phase, reason)
+        self._publish_status()
+
+    def _publish_status(self) -> None:
+        """Publish the current phase (and the reason it was entered with) as the retained status."""
+        state, reason = self.life.phase.value, self.life.reason
         control = self._control
         if control is None:
             return
