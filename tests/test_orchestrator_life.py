@@ -13,13 +13,13 @@ def test_a_run_moves_from_starting_through_running_and_stopping_to_its_end() -> 
     life = Life()
     heard: list[tuple[Phase, str | None]] = []
     life.on_move(lambda phase, reason: heard.append((phase, reason)))
-    assert life.phase is Phase.STARTING and not life.active and not life.ended
+    assert (life.phase, life.active, life.ended) == (Phase.STARTING, False, False)
     life.move(Phase.RUNNING)
-    assert life.active
+    assert (life.phase, life.active, life.ended) == (Phase.RUNNING, True, False)
     life.move(Phase.STOPPING, "SIGTERM received")
-    assert life.active and life.reason == "SIGTERM received"
+    assert (life.active, life.reason) == (True, "SIGTERM received")
     life.move(Phase.STOPPED, "SIGTERM received")
-    assert life.ended and not life.active
+    assert (life.phase, life.active, life.ended) == (Phase.STOPPED, False, True)
     assert heard == [(Phase.RUNNING, None), (Phase.STOPPING, "SIGTERM received"),
                      (Phase.STOPPED, "SIGTERM received")]
 
