@@ -32,6 +32,7 @@ system-packages:
 
 lint: $(STAMP)
 	$(BIN)/ruff check .
+	$(BIN)/python scripts/check_layers.py
 
 typecheck: $(STAMP)
 	$(BIN)/mypy umlbot tests bench scripts $(EXAMPLE_PLUGIN)/umlbot_buzzer
