@@ -32,9 +32,10 @@ system-packages:
 
 lint: $(STAMP)
 	$(BIN)/ruff check .
+	$(BIN)/python scripts/check_layers.py
 
 typecheck: $(STAMP)
-	$(BIN)/mypy umlbot compiler services tests bench scripts/studio_doc_images.py $(EXAMPLE_PLUGIN)/umlbot_buzzer
+	$(BIN)/mypy umlbot tests bench scripts $(EXAMPLE_PLUGIN)/umlbot_buzzer
 
 pytest: system-packages $(STAMP)
 	$(BIN)/pytest -m 'not systemd'

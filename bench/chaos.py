@@ -625,7 +625,7 @@ def takeover(broker: Broker, fleet: Fleet, observer: Observer, listen_s: float) 
     spy.on_message = lambda c, u, m: heard.append((m.topic, bytes(m.payload)))
     spy.connect("127.0.0.1", broker.port, 30)
     spy.loop_start()
-    from services.bus import BrokerSettings, BusClient
+    from umlbot.services.bus import BrokerSettings, BusClient
 
     with BusClient(BrokerSettings.from_url(broker.url), ROBOT, role="chaos") as caller:
         caller.call("DistanceRead", "value", timeout=5.0)  # a caller's request and its reply too
@@ -834,8 +834,8 @@ def fuzz(broker: Broker, fleet: Fleet, observer: Observer, n: int, seed: int) ->
 
 
 def good_calls(broker: Broker) -> bool:
-    from services.bus import BrokerSettings, BusClient
-    from umlbot.errors import RemoteError
+    from umlbot.base.errors import RemoteError
+    from umlbot.services.bus import BrokerSettings, BusClient
 
     with BusClient(BrokerSettings.from_url(broker.url), ROBOT, role="chaos") as bus:
         try:
@@ -1045,7 +1045,7 @@ def frozen_motor(broker: Broker, observer: Observer, workdir: Path, trials: int)
     the baseline (`watchdog_s: 0`, no deadman, the motors' state before the deadman existed) runs
     on for the whole pause: a watchdog inside the frozen process cannot act.
     """
-    from umlbot.deployment import load_deployment
+    from umlbot.base.deployment import load_deployment
 
     rows = []
     for watchdog_s in (WATCHDOG_S, 0.0):
@@ -1089,11 +1089,9 @@ def _freeze_trial(broker: Broker, observer: Observer, deploy_file: Path, log: Pa
                   signum: int) -> tuple[float | None, set[str]]:
     """One trial of `frozen_motor`: (seconds from the signal until both motors stopped, None when
     they ran for the whole pause; the stop reasons the service gave after SIGCONT)."""
-    from services.bus import BrokerSettings, BusClient
-    from umlbot.clock import Clock
-    from umlbot.sim.sharing import WorldServer
-    from umlbot.sim.track import parse_track
-    from umlbot.sim.world import World, WorldLoop
+    from umlbot.base.clock import Clock
+    from umlbot.services.bus import BrokerSettings, BusClient
+    from umlbot.sim import World, WorldLoop, WorldServer, parse_track
 
     clock = Clock(1.0)
     world = World(parse_track(HALL), clock=clock)
@@ -1201,7 +1199,7 @@ def main(argv: list[str] | None = None) -> int:
             scenarios - {"restart", "kill", "keepalive", "takeover", "fuzz", "frozen-motor", "soak"}:
         parser.error("unknown broker, kind or scenario")
 
-    from umlbot.logs import configure_logging
+    from umlbot.base.logs import configure_logging
 
     configure_logging("WARNING")
     out: dict[str, Any] = {"restart": [], "kill": [], "keepalive": [], "takeover": [], "fuzz": [],

@@ -20,8 +20,8 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from compiler.api import compile_model
-from compiler.compiled import dump_compiled
+from umlbot.compiler.api import compile_model
+from umlbot.compiler.compiled import dump_compiled
 
 SIZES = (100, 1_000, 10_000)
 LANE_NODES = 100

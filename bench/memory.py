@@ -40,8 +40,8 @@ import paho.mqtt.client as mqtt
 from paho.mqtt.enums import CallbackAPIVersion
 from rpc import free_port, wait_port
 
-from services.bus import BrokerSettings, BusClient
-from umlbot.errors import RemoteError
+from umlbot.base.errors import RemoteError
+from umlbot.services.bus import BrokerSettings, BusClient
 
 REPO = Path(__file__).resolve().parent.parent
 DEPLOYMENT = REPO / "models" / "robot_car" / "deployment.yaml"

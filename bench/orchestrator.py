@@ -45,11 +45,11 @@ from typing import Any
 import paho.mqtt.client as mqtt
 from rpc import _nodelay, _raw_client, _subscribed, free_port, percentile, wait_port
 
-from compiler.api import compile_model
-from compiler.compiled import CompiledModel
-from services.bus import BrokerSettings, BusClient, BusConnection
-from services.orchestrator import Engine, Orchestrator, TraceRecorder
-from umlbot.errors import UmlbotError
+from umlbot import UmlbotError
+from umlbot.compiler.api import compile_model
+from umlbot.compiler.compiled import CompiledModel
+from umlbot.services.bus import BrokerSettings, BusClient, BusConnection
+from umlbot.services.orchestrator import Engine, Orchestrator, TraceRecorder
 
 ROBOT = "bench"
 MOTORS = ("LeftActuator", "RightActuator")

@@ -36,9 +36,9 @@ from typing import Any
 import paho.mqtt.client as mqtt
 from paho.mqtt.enums import CallbackAPIVersion, MQTTProtocolVersion
 
-from services.bus import BrokerSettings, BusClient, ComponentServer, Feature
-from umlbot.library import implementations
-from umlbot.logs import configure_logging
+from umlbot.base.catalog import implementations
+from umlbot.base.logs import configure_logging
+from umlbot.services.bus import BrokerSettings, BusClient, ComponentServer, Feature
 
 ROBOT = "bench"
 TIMEOUT_S = 5.0

@@ -31,8 +31,8 @@ from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from umlbot.logs import configure_logging
-from umlbot.sim.runner import SimOptions, run_sim
+from umlbot.base.logs import configure_logging
+from umlbot.sim import SimOptions, run_sim
 from umlbot.sim.track import load_track, tracks_dir
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -202,7 +202,7 @@ def publish_load(broker_url: str, lanes: dict[str, list[tuple[str, str]]], rate:
 
 def measure_load(browser: Any, broker_url: str, nodes: int, rate: float, seconds: float,
                  workdir: Path) -> dict[str, Any]:
-    from compiler.api import compile_model
+    from umlbot.compiler.api import compile_model
 
     model = big_model(workdir / "big", nodes)
     compiled = compile_model(model)
@@ -263,7 +263,7 @@ def edited_node(index: int, nodes: int) -> tuple[str, str]:
 def measure_edit(browser: Any, nodes: int, edits: int, workdir: Path) -> dict[str, Any]:
     """Edit-to-diagnostics-shown time in the page (Chromium) on a model of `nodes` nodes, its
     answer and drawing parts, and bare checks."""
-    from compiler.api import check_model
+    from umlbot.compiler.api import check_model
 
     root = big_model(workdir / f"edit{nodes}", nodes)
     env = {k: v for k, v in os.environ.items() if k not in ("UMLBOT_ROBOT", "UMLBOT_BROKER")}

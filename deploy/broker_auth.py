@@ -38,7 +38,7 @@ from urllib.parse import urlsplit
 
 def service_kinds() -> tuple[str, ...]:
     """Every installed service kind: the built-ins and those plugins add (`umlbot plugins`)."""
-    from umlbot.library import service_kinds as installed
+    from umlbot.base.catalog import service_kinds as installed
 
     return installed()
 
@@ -144,7 +144,7 @@ def amqtt_acl(table: dict[str, Grants], robot: str, source: str) -> str:
 
 def load_components(deployment_path: Path) -> dict[str, str]:
     """Component name -> service kind, from a deployment file (plain or YAML)."""
-    from umlbot.deployment import load_deployment
+    from umlbot.base.deployment import load_deployment
 
     deployment = load_deployment(deployment_path)
     return {name: comp.implementation.service for name, comp in deployment.components.items()}

@@ -172,7 +172,7 @@ if [ "$VENV" -eq 1 ]; then
 else
     PY="$PYTHON"  # --no-venv: umlbot is installed for this Python (or checked from the source)
 fi
-KINDS="$(cd "$SOURCE" && "$PY" -c 'from umlbot.library import service_kinds; print(" ".join(service_kinds()))')" \
+KINDS="$(cd "$SOURCE" && "$PY" -c 'from umlbot.base.catalog import service_kinds; print(" ".join(service_kinds()))')" \
     || die "cannot list the service kinds with $PY (is umlbot installed for it?)"
 for kind in $SERVICES; do
     case " $KINDS all " in *" $kind "*) ;; *) die "unknown service kind '$kind' (installed: $KINDS, all)" ;; esac
@@ -205,9 +205,9 @@ CHECKED_DEPLOYMENT="${CHECKED_DEPLOYMENT:+$(realpath "$CHECKED_DEPLOYMENT")}"  #
 if [ -n "$CHECKED_DEPLOYMENT" ]; then
     USED="$(cd "$SOURCE" && "$PY" - "$CHECKED_DEPLOYMENT" <<'PYEOF'
 import sys
-from umlbot.deployment import load_deployment
-from umlbot.errors import UmlbotError
-from umlbot.library import service_kinds
+from umlbot.base.deployment import load_deployment
+from umlbot.base.errors import UmlbotError
+from umlbot.base.catalog import service_kinds
 try:
     used = {c.implementation.service for c in load_deployment(sys.argv[1]).components.values()}
 except (UmlbotError, OSError) as exc:

@@ -5,8 +5,8 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from compiler.api import CheckResult, check_model
-from compiler.diagnostics import Diagnostic
+from umlbot.base.diagnostics import Diagnostic
+from umlbot.compiler.api import CheckResult, check_model
 
 HEADER = """\
 name: t

@@ -322,9 +322,10 @@ def raw_client() -> Iterator[Callable[..., RawClient]]:
 #: A component service in its own process (so a test can SIGKILL it): `Motor`-like features.
 _SERVER_SCRIPT = """
 import sys, threading
-from services.bus import BrokerSettings, ComponentServer, Feature
-from umlbot.library import FeatureSpec, Param, implementations
-from umlbot.logs import configure_logging
+from umlbot.services.bus import BrokerSettings, ComponentServer, Feature
+from umlbot.base.library import FeatureSpec, Param
+from umlbot.base.catalog import implementations
+from umlbot.base.logs import configure_logging
 configure_logging()
 url, robot, component = sys.argv[1:4]
 motor = implementations()["l298n"].features

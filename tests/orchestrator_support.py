@@ -17,13 +17,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from compiler.api import compile_model
-from compiler.compiled import CompiledModel
-from services.bus import BrokerSettings
-from services.host import ServiceHost
-from services.orchestrator import Orchestrator
-from umlbot.deployment import ComponentDeployment, Deployment
-from umlbot.library import ServiceKind
+from umlbot.base.deployment import ComponentDeployment, Deployment
+from umlbot.base.library import ServiceKind
+from umlbot.compiler.api import compile_model
+from umlbot.compiler.compiled import CompiledModel
+from umlbot.services.bus import BrokerSettings
+from umlbot.services.host import ServiceHost
+from umlbot.services.orchestrator import Orchestrator
 
 MODELS = Path(__file__).parent / "models"
 ROBOT_CAR = Path(__file__).parent.parent / "models" / "robot_car"

@@ -6,10 +6,10 @@ from __future__ import annotations
 
 from typing import Any
 
-from services.component_service import ComponentService
-from services.mock_support import MockDriver, MockSettings
-from services.registry import DriverFactory
-from umlbot.library import ComponentPlugin, FeatureSpec, Implementation, KindSpec, Param, ServiceSpec
+from umlbot.base.library import ComponentPlugin, FeatureSpec, Implementation, KindSpec, Param, ServiceSpec
+from umlbot.base.registry import DriverFactory
+from umlbot.services.component_service import ComponentService
+from umlbot.services.mock_support import MockDriver, MockSettings
 
 LIGHT = KindSpec("light", (FeatureSpec("lit", (Param("on", "bool"),), "none", "On or off."),))
 

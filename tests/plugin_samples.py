@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from umlbot.library import (
+from umlbot.base.library import (
     ACTUATOR,
     SENSOR,
     ComponentPlugin,

@@ -9,13 +9,12 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from typing import Any
 
-from services.bus import BrokerSettings, BusClient, Topics
-from services.host import ServiceHost
-from umlbot.deployment import Deployment
-from umlbot.library import ServiceKind
-from umlbot.sim.sharing import attach_local_world
-from umlbot.sim.track import parse_track
-from umlbot.sim.world import World
+from umlbot.base.deployment import Deployment
+from umlbot.base.library import ServiceKind
+from umlbot.services.bus import BrokerSettings, BusClient, Topics
+from umlbot.services.host import ServiceHost
+from umlbot.services.simworld import attach_local_world
+from umlbot.sim import World, parse_track
 
 ROBOT = "car"
 

@@ -19,7 +19,8 @@ from playwright.sync_api import Browser, Page, sync_playwright
 from robot_run import umlbot_argv
 
 from umlbot.studio.api import EditApi
-from umlbot.studio.server import StudioData, StudioServer, StudioThread
+from umlbot.studio.data import StudioData
+from umlbot.studio.server import StudioServer, StudioThread
 from umlbot.studio.workspace import Workspace
 
 URL_LINE = re.compile(r"umlbot studio: (http://\S+)")
@@ -191,8 +192,9 @@ class Editor(StudioClient):
         self.workspace = Workspace(root)
         data = StudioData(mode="live", robot="car", source=str(root), model=None, diagnostics=[])
         self.server = StudioServer(data, port=0)
-        self.server.api = EditApi(self.workspace)
-        data.edit = self.server.api.hello
+        api = EditApi(self.workspace)
+        self.server.api = api
+        data.edit = api.hello
         self.thread = StudioThread(self.server)
         super().__init__(self.thread.start(), self.workspace.token)
 

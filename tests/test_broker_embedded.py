@@ -19,8 +19,10 @@ import pytest
 import structlog
 from conftest import free_port, port_accepts, wait_until
 
-from services.bus import BrokerSettings, BusClient, BusConnection, ComponentServer, Feature, Message
-from services.bus.broker import (
+from umlbot.base.errors import ConfigError, NotConnected
+from umlbot.base.library import FeatureSpec
+from umlbot.services.bus import BrokerSettings, BusClient, BusConnection, ComponentServer, Feature, Message
+from umlbot.services.bus.broker import (
     BrokerAcl,
     BrokerLimits,
     EmbeddedBroker,
@@ -28,8 +30,6 @@ from services.bus.broker import (
     load_acl,
     password_line,
 )
-from umlbot.errors import ConfigError, NotConnected
-from umlbot.library import FeatureSpec
 
 pytestmark = pytest.mark.network
 

@@ -17,7 +17,7 @@ from collections.abc import Callable
 import pytest
 from conftest import BrokerProcess, RawClient
 
-from services.bus import BrokerSettings, BusConnection, Will
+from umlbot.services.bus import BrokerSettings, BusConnection, Will
 
 pytestmark = pytest.mark.network
 

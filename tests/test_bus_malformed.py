@@ -21,10 +21,10 @@ from paho.mqtt.enums import MQTTProtocolVersion
 from paho.mqtt.packettypes import PacketTypes
 from paho.mqtt.properties import Properties
 
-from services.bus import BrokerSettings, BusClient, ComponentServer, Feature, Topics
-from services.bus.envelopes import parse_json
-from services.bus.server import parse_request
-from umlbot.library import FeatureSpec, Param, implementations
+from umlbot.base.catalog import implementations
+from umlbot.base.library import FeatureSpec, Param
+from umlbot.services.bus import BrokerSettings, BusClient, ComponentServer, Feature, Topics, parse_json
+from umlbot.services.bus.server import parse_request
 
 pytestmark = pytest.mark.network
 

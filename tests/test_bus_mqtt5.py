@@ -12,9 +12,10 @@ from paho.mqtt.enums import MQTTProtocolVersion
 from paho.mqtt.packettypes import PacketTypes
 from paho.mqtt.properties import Properties
 
-from services.bus import BrokerSettings, BusClient, ComponentServer, Feature, Topics
-from umlbot.errors import RemoteError
-from umlbot.library import FeatureSpec, Param, implementations
+from umlbot.base.catalog import implementations
+from umlbot.base.errors import RemoteError
+from umlbot.base.library import FeatureSpec, Param
+from umlbot.services.bus import BrokerSettings, BusClient, ComponentServer, Feature, Topics
 
 pytestmark = pytest.mark.network
 
@@ -112,7 +113,7 @@ def test_on_a_broker_that_refuses_mqtt5_the_default_falls_back_to_311_at_once() 
     import structlog
     from conftest import free_port
 
-    from services.bus.broker import EmbeddedBroker
+    from umlbot.services.bus import EmbeddedBroker
 
     features = [Feature(FeatureSpec("value", (), "int"), lambda: 5)]
     with EmbeddedBroker(port=free_port()) as broker, structlog.testing.capture_logs() as logs:

@@ -12,9 +12,9 @@ from typing import Any
 import pytest
 from conftest import BrokerProcess, RawClient, wait_until
 
-from services.bus import BrokerSettings, BusClient, BusConnection, ComponentServer, Feature, Topics
-from umlbot.errors import CallTimeout, NotConnected
-from umlbot.library import FeatureSpec, Param
+from umlbot.base.errors import CallTimeout, NotConnected
+from umlbot.base.library import FeatureSpec, Param
+from umlbot.services.bus import BrokerSettings, BusClient, BusConnection, ComponentServer, Feature, Topics
 
 pytestmark = pytest.mark.network
 
@@ -155,7 +155,7 @@ def test_an_unreachable_broker_is_retried_and_the_outage_logged_again_now_and_th
 
     from conftest import free_port
 
-    from services.bus import connection as connection_module
+    from umlbot.services.bus import connection as connection_module
 
     caplog.set_level(logging.DEBUG)
     monkeypatch.setattr(connection_module, "CONNECT_WARN_EVERY_S", 0.6)

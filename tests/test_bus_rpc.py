@@ -15,9 +15,18 @@ from typing import Any
 import pytest
 from conftest import BrokerProcess, RawClient, wait_until
 
-from services.bus import BrokerSettings, BusClient, ComponentServer, Feature, FeatureError, Message, Topics
-from umlbot.errors import CallTimeout, DriverError, NotConnected, RemoteError
-from umlbot.library import FeatureSpec, Param, implementations
+from umlbot.base.catalog import implementations
+from umlbot.base.errors import CallTimeout, DriverError, NotConnected, RemoteError
+from umlbot.base.library import FeatureSpec, Param
+from umlbot.services.bus import (
+    BrokerSettings,
+    BusClient,
+    ComponentServer,
+    Feature,
+    FeatureError,
+    Message,
+    Topics,
+)
 
 pytestmark = pytest.mark.network
 

@@ -12,10 +12,17 @@ import pytest
 import structlog
 from conftest import find_mosquitto, free_port, port_accepts, wait_until
 
-from services.bus import BrokerSettings, BusClient, BusConnection, ComponentServer, Feature
-from services.bus.broker import EmbeddedBroker, password_line
-from umlbot.errors import NotConnected
-from umlbot.library import FeatureSpec
+from umlbot.base.errors import NotConnected
+from umlbot.base.library import FeatureSpec
+from umlbot.services.bus import (
+    BrokerSettings,
+    BusClient,
+    BusConnection,
+    ComponentServer,
+    EmbeddedBroker,
+    Feature,
+    password_line,
+)
 
 pytestmark = pytest.mark.network
 
@@ -70,9 +77,9 @@ def test_calls_over_tls(tls_broker: tuple[int, Path]) -> None:
 
 FRESH_TLS_CALL = """
 import sys
-from services.bus import BrokerSettings, BusClient, ComponentServer, Feature
-from umlbot.library import FeatureSpec
-assert "ssl" not in sys.modules  # paho's ssl is deferred (umlbot.lazy): imported by the first TLS use
+from umlbot.services.bus import BrokerSettings, BusClient, ComponentServer, Feature
+from umlbot.base.library import FeatureSpec
+assert "ssl" not in sys.modules  # paho's ssl is deferred (umlbot.base.lazy): imported by the first TLS use
 port, ca = int(sys.argv[1]), sys.argv[2]
 features = [Feature(FeatureSpec("value", (), "int"), lambda: 7)]
 with ComponentServer(BrokerSettings.from_url(f"mqtts://127.0.0.1:{port}?ca={ca}"), "tlscar", "Sensor",

@@ -7,7 +7,9 @@ from pathlib import Path
 
 import pytest
 
-from services.bus import (
+from umlbot.base.errors import ArgumentError, ConfigError
+from umlbot.base.library import FeatureSpec, Param, check_args
+from umlbot.services.bus import (
     BrokerSettings,
     ExitRequest,
     OrchestratorStatus,
@@ -20,9 +22,7 @@ from services.bus import (
     resolve_broker_url,
     to_payload,
 )
-from services.bus.server import _BadInput, parse_request
-from umlbot.errors import ArgumentError, ConfigError
-from umlbot.library import FeatureSpec, Param, check_args
+from umlbot.services.bus.server import _BadInput, parse_request
 
 
 def test_resolve_broker_url_prefers_cli_then_env(monkeypatch: pytest.MonkeyPatch) -> None:

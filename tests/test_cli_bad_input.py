@@ -24,9 +24,9 @@ from pathlib import Path
 import pytest
 from conftest import BrokerProcess, _broker, free_port
 
-from services.bus import BrokerSettings
-from services.host import ServiceHost
-from umlbot.deployment import load_deployment
+from umlbot.base.deployment import load_deployment
+from umlbot.services.bus import BrokerSettings
+from umlbot.services.host import ServiceHost
 
 pytestmark = pytest.mark.network
 

@@ -12,9 +12,10 @@ from typing import Any
 import pytest
 from conftest import BrokerProcess, free_port
 
-from services.bus import BrokerSettings, ComponentServer, Feature
+from umlbot.base.catalog import implementations
+from umlbot.base.library import FeatureSpec, Param
 from umlbot.commands.call import EXIT_ERROR_REPLY, EXIT_NOT_CONNECTED, EXIT_TIMEOUT, parse_arg
-from umlbot.library import FeatureSpec, Param, implementations
+from umlbot.services.bus import BrokerSettings, ComponentServer, Feature
 
 pytestmark = pytest.mark.network
 

@@ -7,9 +7,9 @@ from pathlib import Path
 import pytest
 from compiler_support import HEADER, MAIN, at, check_text, errors_of, position
 
-from compiler.api import check_model
-from compiler.compiled import dump_compiled
-from umlbot.library import component_kinds
+from umlbot.base.catalog import component_kinds
+from umlbot.compiler.api import check_model
+from umlbot.compiler.compiled import dump_compiled
 
 
 def lane(*nodes: str, name: str = "Pi") -> str:
@@ -401,7 +401,7 @@ def _folder_model(tmp_path: Path, deployment: str, name: str = "deployment.txt")
 
 
 def test_plain_deployment_positions(tmp_path: Path) -> None:
-    from compiler.api import check_model
+    from umlbot.compiler.api import check_model
 
     text = "# seed format\nPi=CModelSystemRaspberryPI\nMotor=CModelL298NActuator\n  Servo = CModelServo\n" \
            "Sonar=CModelDistanceSensorHCSR\nWheel=l298n\n"
@@ -415,7 +415,7 @@ def test_plain_deployment_positions(tmp_path: Path) -> None:
 
 
 def test_rich_deployment_shape_error_position(tmp_path: Path) -> None:
-    from compiler.api import check_model
+    from umlbot.compiler.api import check_model
 
     text = "driver: mock\ncomponents:\n  Pi: {impl: raspberrypi, colour: red}\n"
     root = _folder_model(tmp_path, text, "deployment.yaml")
@@ -425,7 +425,7 @@ def test_rich_deployment_shape_error_position(tmp_path: Path) -> None:
 
 
 def test_folder_model_errors_name_their_files(tmp_path: Path) -> None:
-    from compiler.api import check_model
+    from umlbot.compiler.api import check_model
 
     root = _folder_model(tmp_path, "Pi=raspberrypi\nMotor=l298n\nServo=servo\nSonar=hcsr04\n")
     (root / "activities" / "extra.yaml").write_text(
@@ -438,16 +438,16 @@ def test_folder_model_errors_name_their_files(tmp_path: Path) -> None:
 
 
 def test_missing_model_file(tmp_path: Path) -> None:
-    from compiler.api import check_model
+    from umlbot.compiler.api import check_model
 
     result = check_model(tmp_path)
     assert [e.message for e in result.errors] == ["not a model: no model.yaml in this folder"]
 
 
 def test_compile_model_raises_model_errors_with_every_diagnostic(tmp_path: Path) -> None:
-    from compiler.api import compile_model
-    from compiler.diagnostics import ModelErrors
-    from umlbot.errors import ModelError
+    from umlbot import ModelError
+    from umlbot.base.diagnostics import ModelErrors
+    from umlbot.compiler.api import compile_model
 
     path = tmp_path / "model.yaml"
     path.write_text(HEADER + main_with("{id: a, kind: action, call: Motr.enabled(true)}",

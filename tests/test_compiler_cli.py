@@ -10,8 +10,8 @@ from pathlib import Path
 from click.testing import CliRunner
 from compiler_support import HEADER, MAIN
 
-from compiler.compiled import load_compiled
 from umlbot.cli import cli
+from umlbot.compiler.compiled import load_compiled
 
 ROBOT_CAR = Path(__file__).resolve().parent.parent / "models" / "robot_car"
 BROKEN = HEADER.replace("Motor: {impl: l298n}", "Motor: {impl: l293d}") + MAIN.replace(

@@ -11,8 +11,9 @@ from pathlib import Path
 import pytest
 from compiler_support import HEADER, MAIN
 
-from compiler.api import compile_model
-from compiler.compiled import (
+from umlbot.base.errors import CompiledModelError, ConfigError
+from umlbot.compiler.api import compile_model
+from umlbot.compiler.compiled import (
     FORMAT_VERSION,
     AcceptNode,
     ActionNode,
@@ -26,8 +27,7 @@ from compiler.compiled import (
     load_compiled,
     write_compiled,
 )
-from compiler.expr import Binary, BuiltinTarget, Call, Const, FeatureTarget, LaneTarget, Ref
-from umlbot.errors import CompiledModelError, ConfigError
+from umlbot.compiler.expr import Binary, BuiltinTarget, Call, Const, FeatureTarget, LaneTarget, Ref
 
 ROBOT_CAR = Path(__file__).resolve().parent.parent / "models" / "robot_car"
 

@@ -15,8 +15,8 @@ import pytest
 from click.testing import CliRunner, Result
 from compiler_support import position
 
+from umlbot.base.catalog import component_kinds
 from umlbot.cli import cli
-from umlbot.library import component_kinds
 
 ROOT = Path(__file__).resolve().parent.parent
 ROBOT_CAR = ROOT / "models" / "robot_car"

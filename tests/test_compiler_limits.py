@@ -16,16 +16,16 @@ import pytest
 from click.testing import CliRunner
 from compiler_support import HEADER, MAIN, at, check_text, errors_of, position, with_left_out
 
-from compiler import expr_parser, yamlsrc
-from compiler.api import check_model
-from compiler.compiled import DatastoreNode, DecisionNode, dump_compiled, load_compiled
-from compiler.expr import Expr
-from compiler.expr_parser import parse_expression
-from compiler.source import Unreadable, read_model_folder
-from services.orchestrator.expressions import ExpressionCompiler
-from umlbot import files
+from umlbot import ModelError
+from umlbot.base import files, yamlsrc
 from umlbot.cli import cli
-from umlbot.errors import ModelError
+from umlbot.compiler import expr_parser
+from umlbot.compiler.api import check_model
+from umlbot.compiler.compiled import DatastoreNode, DecisionNode, dump_compiled, load_compiled
+from umlbot.compiler.expr import Expr
+from umlbot.compiler.expr_parser import parse_expression
+from umlbot.compiler.source import Unreadable, read_model_folder
+from umlbot.services.orchestrator.expressions import ExpressionCompiler
 
 ROOT = Path(__file__).resolve().parent.parent
 ROBOT_CAR = ROOT / "models" / "robot_car"

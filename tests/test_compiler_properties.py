@@ -12,10 +12,10 @@ from compiler_support import HEADER
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from compiler.api import check_model, compile_model
-from compiler.diagnostics import Location
-from compiler.expr_parser import RawExpr, RBinary, RCall, RConst, RName, RUnary, parse_expression
-from umlbot.errors import ModelError
+from umlbot import ModelError
+from umlbot.base.diagnostics import Location
+from umlbot.compiler.api import check_model, compile_model
+from umlbot.compiler.expr_parser import RawExpr, RBinary, RCall, RConst, RName, RUnary, parse_expression
 
 EXPRESSION_CHARS = "ab_xyzAB.()+-*/%<>=!, '\"\\0123456789\t\nandortefls"
 YAML_CHARS = "abcdeiklnorstxyz_ABPMS0123456789{}[]:,-&*!|>'\"# \n.()"

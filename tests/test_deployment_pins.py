@@ -1,6 +1,6 @@
 """GPIOs named by a component's settings, single pins and pin lists alike (gpio's `pins`): each
 pin belongs to one component, and `umlbot check`, the service host and the gpio service's
-reserved pins all read them through `umlbot.deployment.component_pins`."""
+reserved pins all read them through `umlbot.base.deployment.component_pins`."""
 
 from __future__ import annotations
 
@@ -12,10 +12,10 @@ from pathlib import Path
 import pytest
 from services_support import broker_settings
 
-from services.host import ServiceHost
-from umlbot.deployment import component_pins, owned_pins, parse_deployment, shared_pins
-from umlbot.errors import ConfigError
-from umlbot.library import resolve_implementation
+from umlbot.base.catalog import resolve_implementation
+from umlbot.base.deployment import component_pins, owned_pins, parse_deployment, shared_pins
+from umlbot.base.errors import ConfigError
+from umlbot.services.host import ServiceHost
 
 REPO = Path(__file__).resolve().parent.parent
 

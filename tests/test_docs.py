@@ -22,10 +22,10 @@ checked. Every ```yaml fence of docs/model-format.md must carry one. Kinds:
 - `track [FILE]`: a track file; `umlbot.sim.track.parse_track` loads it, giving the same track as
   FILE when one is named.
 - `CallRequest`, `Reply`, `OrchestratorStatus`, `TraceEvent`: each JSON object of the fence (the
-  whole fence, else one per line) validates against that envelope of `services.bus.envelopes`
+  whole fence, else one per line) validates against that envelope of `umlbot.services.bus.envelopes`
   and uses no key the envelope does not declare (`OrchestratorStatus`: no key the orchestrator
   does not publish). `MonitorEvent`: a line of `umlbot monitor --json`
-  (`services.monitor.state.MonitorEvent`).
+  (`umlbot.monitor.state.MonitorEvent`).
 
 Tables and prose are checked where the code has the same list: node kinds and keys, component
 kinds and features, implementations, model keys, error codes, topics, driver settings, command
@@ -55,13 +55,17 @@ from conftest import BrokerProcess, RawClient
 from orchestrator_support import rig
 from pydantic import BaseModel
 
-from compiler.api import CheckResult, check_model, compile_model
-from compiler.compiled import dump_compiled
-from compiler.diagnostics import Diagnostics
-from compiler.expr_parser import RBinary, RName, RUnary, parse_expression
-from compiler.source import MODEL_KEYS, NODE_FIELDS
-from compiler.yamlsrc import parse_yaml, to_python
-from services.bus.envelopes import (
+from umlbot import ModelError
+from umlbot.base.catalog import resolve_implementation
+from umlbot.base.diagnostics import Diagnostics
+from umlbot.base.library import BUILTIN, FeatureSpec, check_args
+from umlbot.base.yamlsrc import parse_yaml, to_python
+from umlbot.cli import COMMANDS, cli
+from umlbot.compiler.api import CheckResult, check_model, compile_model
+from umlbot.compiler.compiled import dump_compiled
+from umlbot.compiler.expr_parser import RBinary, RName, RUnary, parse_expression
+from umlbot.compiler.source import MODEL_KEYS, NODE_FIELDS
+from umlbot.services.bus import (
     ERROR_CODES,
     CallRequest,
     ExitRequest,
@@ -71,11 +75,8 @@ from services.bus.envelopes import (
     Status,
     TraceEvent,
 )
-from services.orchestrator.orchestrator import HEARTBEAT_MAX_S
-from umlbot.cli import COMMANDS, cli
-from umlbot.errors import ModelError
-from umlbot.library import BUILTIN, FeatureSpec, check_args, resolve_implementation
-from umlbot.sim.track import load_track, parse_track
+from umlbot.services.orchestrator.orchestrator import HEARTBEAT_MAX_S
+from umlbot.sim import load_track, parse_track
 
 #: umlbot's own implementations and kinds (the docs' tables list these; plugins document theirs).
 IMPLEMENTATIONS = {impl.id: impl for impl in BUILTIN.implementations}
@@ -755,7 +756,7 @@ def test_topic_table_payloads_validate() -> None:
 
 
 def test_broker_url_examples_parse(tmp_path: Path) -> None:
-    from services.bus import BrokerSettings
+    from umlbot.services.bus import BrokerSettings
 
     rows = table_rows(section_text(MQTT, "## Connecting"))
     assert len(rows) >= 5
@@ -1103,7 +1104,7 @@ def _resolves(dotted: str) -> bool:
 
 @pytest.mark.parametrize("path", DOCS, ids=lambda p: str(p.relative_to(ROOT)))
 def test_python_names_in_code_spans_exist(path: Path) -> None:
-    from umlbot.plugins import COMPONENTS_GROUP, DRIVERS_GROUP
+    from umlbot.base.plugins import COMPONENTS_GROUP, DRIVERS_GROUP
 
     named = [(s, m.group(1)) for s in spans(path) if (m := PYTHON_NAME_RE.match(s.text))]
     named = [(s, name) for s, name in named if name.rsplit(".", 1)[1] not in FILE_SUFFIXES]
@@ -1129,8 +1130,8 @@ def _parameters(function: Any) -> list[str]:
 
 
 def test_python_api_signatures_are_as_documented() -> None:
-    from services.host import ServiceHost
-    from services.orchestrator import Orchestrator
+    from umlbot.services.host import ServiceHost
+    from umlbot.services.orchestrator import Orchestrator
 
     options = section_text(SEMANTICS, "## Running the orchestrator from Python").replace("\n", " ")
     listed = re.search(r"Options: (.*?)\. `run\(\)`", options)
@@ -1204,13 +1205,13 @@ def _same_default(shown: str, expected: str) -> bool:
 
 
 def test_driver_settings_tables_are_the_settings_models() -> None:
-    from services.gpio.driver import GpioSettings
-    from services.gpio.mock import MockGpioSettings
-    from services.motor.driver import L298NSettings
-    from services.servo.driver import ServoSettings
-    from services.servo.mock import MockServoSettings
-    from services.sonar.driver import HCSR04Settings
-    from services.sonar.mock import MockSonarSettings
+    from umlbot.services.gpio import GpioSettings
+    from umlbot.services.gpio.mock import MockGpioSettings
+    from umlbot.services.motor import L298NSettings
+    from umlbot.services.servo import ServoSettings
+    from umlbot.services.servo.mock import MockServoSettings
+    from umlbot.services.sonar import HCSR04Settings
+    from umlbot.services.sonar.mock import MockSonarSettings
 
     models: dict[str, type[BaseModel]] = {"L298N": L298NSettings, "HC-SR04": HCSR04Settings,
                                           "Servo": ServoSettings, "Raspberry": GpioSettings}
@@ -1237,7 +1238,7 @@ def test_driver_settings_tables_are_the_settings_models() -> None:
 
 
 def test_monitor_json_events_are_as_documented() -> None:
-    from services.monitor.state import MonitorEvent
+    from umlbot.monitor import MonitorEvent
 
     monitor = ROOT / "docs" / "monitor.md"
     rows = table_rows(section_text(monitor, "## `--json`"))

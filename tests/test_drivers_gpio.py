@@ -7,14 +7,14 @@ from dataclasses import dataclass
 
 import pytest
 
-from services.fake_lgpio import FakeLgpio
-from services.fake_pigpio import FakePi
-from services.gpio.driver import GpioPins, GpioSettings, PinNotAllowed
-from services.gpio.lgpio import LgpioGpio
-from services.gpio.mock import MockGpio, MockGpioSettings
-from services.gpio.pigpio import PigpioGpio
-from services.registry import create_driver
-from umlbot.errors import DriverError
+from umlbot.base.errors import DriverError
+from umlbot.base.registry import create_driver
+from umlbot.services.gpio import GpioPins, GpioSettings, PinNotAllowed
+from umlbot.services.gpio.lgpio import LgpioGpio
+from umlbot.services.gpio.mock import MockGpio, MockGpioSettings
+from umlbot.services.gpio.pigpio import PigpioGpio
+from umlbot.testing.lgpio import FakeLgpio
+from umlbot.testing.pigpio import FakePi
 
 ALLOWED = [4, 17, 27]
 RESERVED = {22: "LeftActuator"}

@@ -13,18 +13,17 @@ import pytest
 from conftest import wait_until
 from services_support import ROOM  # 2 m x 3 m room, car in the middle facing +y
 
-from services.fake_lgpio import FakeLgpio
-from services.fake_pigpio import FakePi
-from services.motor.driver import L298NSettings, MotorChannel
-from services.motor.lgpio import LgpioL298NChannel
-from services.motor.mock import MockMotorChannel, MockMotorSettings
-from services.motor.pigpio import PWM_RANGE, PigpioL298NChannel
-from services.motor.sim import SimMotorChannel
-from services.registry import create_driver
-from umlbot.errors import DriverError
-from umlbot.sim.sharing import attach_local_world
-from umlbot.sim.track import parse_track
-from umlbot.sim.world import CarSpec, World
+from umlbot.base.errors import DriverError
+from umlbot.base.registry import create_driver
+from umlbot.services.motor import L298NSettings, MotorChannel
+from umlbot.services.motor.lgpio import LgpioL298NChannel
+from umlbot.services.motor.mock import MockMotorChannel, MockMotorSettings
+from umlbot.services.motor.pigpio import PWM_RANGE, PigpioL298NChannel
+from umlbot.services.motor.sim import SimMotorChannel
+from umlbot.services.simworld import attach_local_world
+from umlbot.sim import CarSpec, World, parse_track
+from umlbot.testing.lgpio import FakeLgpio
+from umlbot.testing.pigpio import FakePi
 
 
 @dataclass
@@ -363,7 +362,7 @@ def deadman_rig(request: pytest.FixtureRequest) -> Iterator[Rig]:
     script thread (the fake's), lgpio's TX thread (the fake's), the world (wall-clock time)."""
     settings = {"in1": 22, "in2": 23, "watchdog_s": DEADMAN_S}
     if request.param == "sim":
-        from umlbot.clock import Clock
+        from umlbot.base.clock import Clock
 
         world: World = request.getfixturevalue("world")
         world.clock = Clock(1.0)
@@ -450,7 +449,7 @@ def test_without_a_watchdog_there_is_no_deadman() -> None:
 
 
 def test_pigpio_deadman_is_a_daemon_script_deleted_on_close_and_after_a_kill() -> None:
-    from services.motor.pigpio import DEADMAN_MARK
+    from umlbot.services.motor.pigpio import DEADMAN_MARK
 
     pi = FakePi()
     first = PigpioL298NChannel("Left", L298NSettings(in1=22, in2=23, watchdog_s=2.0), pi=pi)

@@ -11,17 +11,16 @@ from dataclasses import dataclass
 import pytest
 from services_support import ROOM  # 2 m x 3 m room, car in the middle facing +y
 
-from services.fake_lgpio import FakeLgpio
-from services.fake_pigpio import FakePi
-from services.registry import create_driver
-from services.servo.driver import Servo, ServoSettings
-from services.servo.lgpio import LgpioServo
-from services.servo.mock import MockServo
-from services.servo.pigpio import PigpioServo
-from umlbot.errors import ConfigError, DriverError
-from umlbot.sim.sharing import attach_local_world
-from umlbot.sim.track import parse_track
-from umlbot.sim.world import CarSpec, World
+from umlbot.base.errors import ConfigError, DriverError
+from umlbot.base.registry import create_driver
+from umlbot.services.servo import Servo, ServoSettings
+from umlbot.services.servo.lgpio import LgpioServo
+from umlbot.services.servo.mock import MockServo
+from umlbot.services.servo.pigpio import PigpioServo
+from umlbot.services.simworld import attach_local_world
+from umlbot.sim import CarSpec, World, parse_track
+from umlbot.testing.lgpio import FakeLgpio
+from umlbot.testing.pigpio import FakePi
 
 #: Sim seconds the servo needs for its whole range.
 FULL_TURN_S = CarSpec().servo_max_deg / CarSpec().servo_deg_per_s

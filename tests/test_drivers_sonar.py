@@ -13,18 +13,18 @@ from dataclasses import dataclass
 
 import pytest
 
-from services.fake_lgpio import FakeLgpio
-from services.fake_pigpio import TICK_WRAP, FakePi, tickDiff
-from services.registry import create_driver
-from services.sonar.driver import DistanceSensor, HCSR04Settings
-from services.sonar.lgpio import LgpioHCSR04
-from services.sonar.mock import MockDistanceSensor, MockSonarSettings
-from services.sonar.pigpio import PigpioHCSR04, tick_diff
-from services.sonar.sim import SimDistanceSensor
-from umlbot.errors import DriverError
-from umlbot.sim.sharing import attach_local_world
-from umlbot.sim.track import Track
-from umlbot.sim.world import CarSpec, Side, World
+from umlbot.base.errors import DriverError
+from umlbot.base.registry import create_driver
+from umlbot.services.simworld import Side, attach_local_world
+from umlbot.services.sonar import DistanceSensor, HCSR04Settings
+from umlbot.services.sonar.lgpio import LgpioHCSR04
+from umlbot.services.sonar.mock import MockDistanceSensor, MockSonarSettings
+from umlbot.services.sonar.pigpio import PigpioHCSR04, tick_diff
+from umlbot.services.sonar.sim import SimDistanceSensor
+from umlbot.sim import Track
+from umlbot.sim.world import CarSpec, World
+from umlbot.testing.lgpio import FakeLgpio
+from umlbot.testing.pigpio import TICK_WRAP, FakePi, tickDiff
 
 CAR = CarSpec()
 
@@ -370,7 +370,7 @@ def test_mock_script_cycles() -> None:
 
 
 def test_mock_unknown_mock_setting_is_a_config_error() -> None:
-    from umlbot.errors import ConfigError
+    from umlbot.base.errors import ConfigError
 
     with pytest.raises(ConfigError, match="mock_distnces"):
         create_driver("sonar", "mock", "S", {"mock_distnces": [1]})

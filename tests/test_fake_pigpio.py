@@ -11,9 +11,9 @@ from pathlib import Path
 
 import pytest
 
-from services import pigpio_connection
-from services.fake_pigpio import EITHER_EDGE, FALLING_EDGE, OUTPUT, RISING_EDGE, FakePi, error
-from umlbot.errors import DriverError
+from umlbot.base.errors import DriverError
+from umlbot.services.pins import pigpio as pigpio_connection
+from umlbot.testing.pigpio import EITHER_EDGE, FALLING_EDGE, OUTPUT, RISING_EDGE, FakePi, error
 
 
 @pytest.fixture
@@ -205,7 +205,7 @@ def _until(predicate: Callable[[], bool], timeout: float = 2.0) -> bool:
 
 
 def test_a_script_counts_its_parameter_down_and_writes_low_as_pigpiod_runs_it() -> None:
-    from services.fake_pigpio import PI_SCRIPT_HALTED, PI_SCRIPT_RUNNING
+    from umlbot.testing.pigpio import PI_SCRIPT_HALTED, PI_SCRIPT_RUNNING
 
     pi = FakePi()
     pi.set_PWM_dutycycle(22, 200)

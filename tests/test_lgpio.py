@@ -19,12 +19,13 @@ import pytest
 from conftest import BrokerProcess
 from services_support import client, deployment, running, wait_for
 
-from services import lgpio_connection, registry
-from services.autodetect import Machine, choose, forget
-from services.fake_lgpio import FakeLgpio, error
-from services.motor.lgpio import LgpioL298NChannel
-from services.motor.pigpio import PigpioL298NChannel
-from umlbot.errors import DriverError, UnknownDriver
+from umlbot.base import registry
+from umlbot.base.autodetect import Machine, choose, forget
+from umlbot.base.errors import DriverError, UnknownDriver
+from umlbot.services.motor.lgpio import LgpioL298NChannel
+from umlbot.services.motor.pigpio import PigpioL298NChannel
+from umlbot.services.pins import lgpio as lgpio_connection
+from umlbot.testing.lgpio import FakeLgpio, error
 
 
 @pytest.fixture(autouse=True)

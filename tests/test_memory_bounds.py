@@ -13,10 +13,10 @@ from typing import Any
 import pytest
 from rich.console import Console
 
-from services.mock_support import DEFAULT_RECORD
-from services.monitor import MonitorState, Stats, render
-from services.registry import SettingsError, create_driver
-from umlbot.bounded import MAX_ROWS
+from umlbot.base.bounded import MAX_ROWS
+from umlbot.base.registry import SettingsError, create_driver
+from umlbot.monitor import MonitorState, Stats, render
+from umlbot.services.mock_support import DEFAULT_RECORD
 from umlbot.studio.hub import KEEP_CALLS, Hub
 
 MOCK_CALLS: dict[str, tuple[str, dict[str, Any], str]] = {

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from compiler.api import check_model, compile_model
-from compiler.compiled import ActionNode, CompiledModel, DatastoreNode, DecisionNode, ForkNode, Lane
-from compiler.expr import Call, Const, FeatureTarget, LaneTarget, Ref
-from services.sonar.driver import HCSR04Settings
+from umlbot.compiler.api import check_model, compile_model
+from umlbot.compiler.compiled import ActionNode, CompiledModel, DatastoreNode, DecisionNode, ForkNode, Lane
+from umlbot.compiler.expr import Call, Const, FeatureTarget, LaneTarget, Ref
+from umlbot.services.sonar import HCSR04Settings
 
 ROBOT_CAR = Path(__file__).resolve().parent.parent / "models" / "robot_car"
 

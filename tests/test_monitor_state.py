@@ -12,9 +12,9 @@ from pathlib import Path
 import pytest
 from rich.console import Console
 
-from services.bus.envelopes import TraceEvent
-from services.monitor import MonitorEvent, MonitorState, Stats, read_trace, render, replay
-from umlbot.errors import ConfigError
+from umlbot.base.errors import ConfigError
+from umlbot.monitor import MonitorEvent, MonitorState, Stats, read_trace, render, replay
+from umlbot.services.bus import TraceEvent
 
 
 def j(value: object) -> bytes:

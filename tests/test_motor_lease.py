@@ -23,12 +23,11 @@ from conftest import BrokerProcess, RawClient
 from orchestrator_support import MODELS, rig, wait_for
 from test_orchestrator_cli import compiled_file, umlbot_run
 
-from compiler.api import compile_model
-from services.bus import Heartbeat
-from services.motor.service import MotorService
-from services.orchestrator.orchestrator import HEARTBEAT_MAX_S, heartbeat_period_s
-from umlbot.sim.runner import Progress, SimOptions, run_sim
-from umlbot.sim.world import CarSpec, World
+from umlbot.compiler.api import compile_model
+from umlbot.services.bus import Heartbeat
+from umlbot.services.motor.service import MotorService
+from umlbot.services.orchestrator.orchestrator import HEARTBEAT_MAX_S, heartbeat_period_s
+from umlbot.sim import CarSpec, Progress, SimOptions, World, run_sim
 
 pytestmark = pytest.mark.network
 

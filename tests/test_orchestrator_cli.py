@@ -17,9 +17,9 @@ import pytest
 from conftest import BrokerProcess, RawClient
 from orchestrator_support import MODELS, rig, wait_for
 
-from compiler.api import compile_model
-from compiler.compiled import dump_compiled
-from services.bus import OrchestratorStatus, TraceEvent
+from umlbot.compiler.api import compile_model
+from umlbot.compiler.compiled import dump_compiled
+from umlbot.services.bus import OrchestratorStatus, TraceEvent
 
 pytestmark = pytest.mark.network
 

@@ -17,13 +17,13 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from compiler.api import compile_model
-from compiler.compiled import CompiledModel
-from compiler.expr import Binary, BuiltinTarget, Call, Const, Expr, FeatureTarget, Ref, Unary
-from services.orchestrator import Engine, NodeFailed, SignalBoard, TraceRecord
-from services.orchestrator.expressions import ExpressionCompiler
-from umlbot.clock import Clock
-from umlbot.errors import RemoteError
+from umlbot.base.clock import Clock
+from umlbot.base.errors import RemoteError
+from umlbot.compiler.api import compile_model
+from umlbot.compiler.compiled import CompiledModel
+from umlbot.compiler.expr import Binary, BuiltinTarget, Call, Const, Expr, FeatureTarget, Ref, Unary
+from umlbot.services.orchestrator import Engine, NodeFailed, SignalBoard, TraceRecord
+from umlbot.services.orchestrator.expressions import ExpressionCompiler
 
 HEADER = """
 name: unit

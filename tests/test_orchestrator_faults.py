@@ -20,8 +20,8 @@ import pytest
 from conftest import BrokerProcess, RawClient
 from orchestrator_support import Rig, rig, wait_for
 
-from services.bus import OrchestratorStatus
-from services.host import ServiceHost
+from umlbot.services.bus import OrchestratorStatus
+from umlbot.services.host import ServiceHost
 
 pytestmark = pytest.mark.network
 
@@ -198,15 +198,17 @@ def test_a_component_offline_just_before_the_broker_connection_went_is_reported_
 ) -> None:
     """What the orchestrator concludes from the order of events (the broker going down sends the
     components' last wills before it closes the connections), without timing a real broker."""
-    from services.orchestrator.orchestrator import BROKER_GONE_WINDOW_S, BROKER_LOST
+    from umlbot.base.errors import NotConnected, RemoteError
+    from umlbot.services.orchestrator.life import Fault, FaultKind, Phase
+    from umlbot.services.orchestrator.orchestrator import BROKER_GONE_WINDOW_S, BROKER_LOST
 
     with rig(mosquitto_broker.url, "fault_loop.yaml", services=["motor"]) as r:
         for lost_after_s, expected in ((0.0, BROKER_LOST),
                                        (BROKER_GONE_WINDOW_S + 1, "component LeftActuator went offline"),
                                        (None, "component LeftActuator went offline")):
             orch = r.orchestrator()
-            orch.state = "running"
-            orch._fault("component LeftActuator went offline")
+            orch.life.move(Phase.RUNNING)
+            orch._fail(Fault(FaultKind.COMPONENT_LOST, "component LeftActuator went offline", "LeftActuator"))
             if lost_after_s is not None:
                 assert orch._broker_symptom_at is not None
                 orch._broker_symptom_at -= lost_after_s
@@ -214,15 +216,18 @@ def test_a_component_offline_just_before_the_broker_connection_went_is_reported_
             assert orch.failure == expected, lost_after_s
         # a call that found no connection, then the loss: the same
         orch = r.orchestrator()
-        orch.state = "stopping"
-        orch._fault("lane Main, node n1 (LeftActuator.enabled(true)): the connection to the MQTT broker "
-                    "was lost")
+        orch.life.move(Phase.RUNNING)
+        orch.life.move(Phase.STOPPING)
+        lost = NotConnected("the connection to the MQTT broker was lost")
+        orch._fail(Fault(FaultKind.NODE, f"lane Main, node n1 (LeftActuator.enabled(true)): {lost}",
+                         cause=lost))
         orch._connection_lost(False)
         assert orch.failure == BROKER_LOST
         # a call that failed otherwise is kept
         orch = r.orchestrator()
-        orch.state = "running"
-        orch._fault("lane Main, node n1: out_of_range: percent=150")
+        orch.life.move(Phase.RUNNING)
+        refused = RemoteError("out_of_range", "percent=150")
+        orch._fail(Fault(FaultKind.NODE, f"lane Main, node n1: {refused}", cause=refused))
         orch._connection_lost(True)
         assert orch.failure == "lane Main, node n1: out_of_range: percent=150"
 

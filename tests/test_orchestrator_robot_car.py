@@ -17,8 +17,8 @@ import pytest
 from conftest import BrokerProcess
 from orchestrator_support import ROBOT_CAR, rig, wait_for
 
-from compiler.api import compile_model
-from umlbot.clock import Clock
+from umlbot.base.clock import Clock
+from umlbot.compiler.api import compile_model
 
 pytestmark = pytest.mark.network
 

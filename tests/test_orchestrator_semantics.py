@@ -16,9 +16,9 @@ import pytest
 from conftest import BrokerProcess, RawClient
 from orchestrator_support import rig, wait_for
 
-from services.bus import OrchestratorStatus, TraceEvent
-from services.orchestrator import run_orchestrator
-from umlbot.errors import OrchestratorError
+from umlbot.base.errors import OrchestratorError
+from umlbot.services.bus import OrchestratorStatus, TraceEvent
+from umlbot.services.orchestrator import run_orchestrator
 
 pytestmark = pytest.mark.network
 
@@ -222,7 +222,7 @@ def test_an_exit_reason_is_cut_and_a_reason_that_is_no_string_is_named(
 ) -> None:
     import structlog
 
-    from services.orchestrator.orchestrator import MAX_REASON_CHARS
+    from umlbot.services.orchestrator.orchestrator import MAX_REASON_CHARS
 
     raw = raw_client(broker)
     raw.subscribe("umlbot/test/orchestrator/status")

@@ -15,10 +15,9 @@ from typing import Any
 
 import pytest
 
-from services.bus import TraceEvent
-from services.orchestrator import TraceRecorder, event_dict
-from services.orchestrator.engine import TraceRecord
-from services.orchestrator.trace import encode_record
+from umlbot.services.bus import TraceEvent
+from umlbot.services.orchestrator import TraceRecord, TraceRecorder, event_dict
+from umlbot.services.orchestrator.trace import encode_record
 
 
 def rec(i: int, value: Any = None) -> TraceRecord:

@@ -21,8 +21,8 @@ import pytest
 from conftest import BrokerProcess, RawClient
 from services_support import ROOM, wait_for
 
-from umlbot.errors import RemoteError
-from umlbot.library import implementations_for_service, kind_features, resolve_implementation
+from umlbot.base.catalog import implementations_for_service, kind_features, resolve_implementation
+from umlbot.base.errors import RemoteError
 
 ROOT = Path(__file__).resolve().parent.parent
 EXAMPLE = ROOT / "examples" / "umlbot_buzzer"
@@ -96,11 +96,11 @@ def test_the_compiled_model_carries_its_safe_stop_so_the_orchestrator_needs_no_p
     silences the Bell at start and end, from the safe stop the compiled file carries."""
     from importlib.metadata import entry_points
 
-    from compiler.api import compile_model
-    from compiler.compiled import SafeStopCall, dump_compiled, load_compiled
-    from services.bus import BrokerSettings
-    from services.orchestrator import Orchestrator
-    from umlbot import plugins
+    from umlbot.base import plugins
+    from umlbot.compiler.api import compile_model
+    from umlbot.compiler.compiled import SafeStopCall, dump_compiled, load_compiled
+    from umlbot.services.bus import BrokerSettings
+    from umlbot.services.orchestrator import Orchestrator
 
     data = dump_compiled(compile_model(MODEL))
     umlbot_only = plugins.build_catalog(
@@ -157,8 +157,8 @@ def test_its_service_runs_a_compiled_model_end_to_end(
 def test_its_mock_driver_runs_in_process(mosquitto_broker: BrokerProcess) -> None:
     from services_support import broker_settings, client
 
-    from services.host import ServiceHost
-    from umlbot.deployment import load_deployment
+    from umlbot.base.deployment import load_deployment
+    from umlbot.services.host import ServiceHost
 
     deployment = load_deployment(MODEL / "deployment.yaml")
     with ServiceHost("buzzer", deployment, broker_settings(mosquitto_broker.url), "car", "mock") as host, \
@@ -179,10 +179,10 @@ def test_its_service_is_silenced_when_the_orchestrator_goes_offline(
     does: the orchestrator's last will silences it the way it stops a motor."""
     from services_support import broker_settings, client
 
-    from services.bus import Topics
-    from services.host import ServiceHost
-    from umlbot.deployment import load_deployment
-    from umlbot.library import service_spec
+    from umlbot.base.catalog import service_spec
+    from umlbot.base.deployment import load_deployment
+    from umlbot.services.bus import Topics
+    from umlbot.services.host import ServiceHost
 
     assert [kind for kind in ("motor", "sonar", "servo", "gpio", "buzzer")
             if getattr(service_spec(kind), "stop_when_orchestrator_offline", None)] == ["motor", "buzzer"]
@@ -214,11 +214,10 @@ def buzzer(request: pytest.FixtureRequest) -> Iterator[BuzzerRig]:
     from umlbot_buzzer.driver import BuzzerSettings
     from umlbot_buzzer.lgpio import LgpioBuzzer
 
-    from services.fake_lgpio import FakeLgpio
-    from services.registry import create_driver
-    from umlbot.sim.sharing import attach_local_world
-    from umlbot.sim.track import parse_track
-    from umlbot.sim.world import World
+    from umlbot.base.registry import create_driver
+    from umlbot.services.simworld import attach_local_world
+    from umlbot.sim import World, parse_track
+    from umlbot.testing.lgpio import FakeLgpio
 
     if request.param == "lgpio-fake":
         lg = FakeLgpio()

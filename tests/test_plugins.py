@@ -11,7 +11,7 @@ import sys
 from importlib.metadata import EntryPoint, distributions, entry_points
 from pathlib import Path
 
-from umlbot.plugins import COMPONENTS_GROUP, DRIVERS_GROUP, Catalog, build_catalog, catalog
+from umlbot.base.plugins import COMPONENTS_GROUP, DRIVERS_GROUP, Catalog, build_catalog, catalog
 
 ROOT = Path(__file__).resolve().parent.parent
 TESTS = Path(__file__).resolve().parent
@@ -27,14 +27,14 @@ BROKEN_COMPONENTS = {
     "badstop": "plugin_samples:BAD_STOP",
     "exits": "plugin_sample_exits:PLUGIN",
 }
-BROKEN_DRIVERS = {"motor.hbboard": "services.motor.mock:FACTORY"}
+BROKEN_DRIVERS = {"motor.hbboard": "umlbot.services.motor.mock:FACTORY"}
 #: good-plugins 1.0: a good component plugin, and one mistake per driver entry point.
 GOOD_COMPONENTS = {"good": "plugin_samples:GOOD"}
 GOOD_DRIVERS = {
-    "linesensor.mock": "services.sonar.mock:FACTORY",
-    "warp.mock": "services.motor.mock:FACTORY",
-    "motor.mock": "services.sonar.mock:FACTORY",
-    "badname": "services.motor.mock:FACTORY",
+    "linesensor.mock": "umlbot.services.sonar.mock:FACTORY",
+    "warp.mock": "umlbot.services.motor.mock:FACTORY",
+    "motor.mock": "umlbot.services.sonar.mock:FACTORY",
+    "badname": "umlbot.services.motor.mock:FACTORY",
     "buzzer.broken": "no_such_driver_module:FACTORY",
     "buzzer.exits": "plugin_sample_exits:FACTORY",
 }
@@ -45,7 +45,7 @@ def test_builtins_come_through_the_entry_points() -> None:
     lib = catalog()
     names = {ep.name: ep.value for ep in entry_points(group=COMPONENTS_GROUP) if ep.dist
              and ep.dist.metadata["Name"] == "umlbot"}
-    assert names == {"builtin": "umlbot.library:BUILTIN"}
+    assert names == {"builtin": "umlbot.base.library:BUILTIN"}
     assert lib.origin["impl:l298n"] == lib.origin["kind:actuator"] == lib.origin["service:motor"] == "umlbot"
     assert {(k, n) for (k, n), entry in lib.drivers.items() if entry.package == "umlbot"} == {
         (kind, name) for kind in ("motor", "sonar", "servo", "gpio")
@@ -93,7 +93,7 @@ def test_a_broken_plugin_is_named_and_the_others_still_load(tmp_path: Path) -> N
     assert "may only narrow the kind's maximum 360" in problems["badspec"]
     assert "feature 'value' is not a feature of kind actuator" in problems["badspec"]
     assert problems["notaplugin"] == ("plugin_samples:NOT_A_PLUGIN is a int, "
-                                      "not a umlbot.library.ComponentPlugin")
+                                      "not a umlbot.base.library.ComponentPlugin")
     assert problems["warp.mock"].startswith("unknown service kind 'warp'")
     assert problems["motor.mock"] == "the motor driver 'mock' is already provided by umlbot"
     assert problems["badname"] == "a driver entry point is named '<service kind>.<driver>'"

@@ -8,9 +8,9 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
-from compiler.api import compile_model
-from compiler.render import RenderError, SvgNotDrawn, dot_to_svg, render_model, render_texts
 from umlbot.cli import cli
+from umlbot.compiler.api import compile_model
+from umlbot.compiler.render import RenderError, SvgNotDrawn, dot_to_svg, render_model, render_texts
 
 ROBOT_CAR = Path(__file__).resolve().parent.parent / "models" / "robot_car"
 SVG = "{http://www.w3.org/2000/svg}"

@@ -34,8 +34,8 @@ from secured_brokers import (
     url_of,
 )
 
-from services.bus import BrokerSettings, BusConnection
 from umlbot.commands.call import EXIT_REFUSED, EXIT_TIMEOUT
+from umlbot.services.bus import BrokerSettings, BusConnection
 
 QUIET_S = 0.5  # how long "nothing arrives" is watched, after a positive control arrived
 
@@ -407,8 +407,8 @@ def test_nothing_the_monitor_reads_tells_a_client_id(secured: SecuredBroker, con
     the broker drop the service (its will says offline: the run fails). umlbot's client ids are
     random (128 bits) and appear in no topic and no payload: not in the retained status (they
     did), not in the liveness topic, not in reply topics or request envelopes."""
-    from services.bus import BrokerSettings, BusClient, ComponentServer, Feature
-    from umlbot.library import FeatureSpec
+    from umlbot.base.library import FeatureSpec
+    from umlbot.services.bus import BrokerSettings, BusClient, ComponentServer, Feature
 
     monitor = as_role(secured, connect, "monitor")
     assert monitor.subscribe(f"umlbot/{ROBOT}/#")
@@ -436,8 +436,8 @@ def test_a_client_id_cannot_be_taken_by_another_user(secured: SecuredBroker, con
     broker: its CONNACK says not authorised and the service stays connected (amqtt let anyone,
     even before checking the password, delete or take over the session). Mosquitto 2.0 has no
     such binding: there the id must stay unknown (the test above)."""
-    from services.bus import BrokerSettings, ComponentServer, Feature
-    from umlbot.library import FeatureSpec
+    from umlbot.base.library import FeatureSpec
+    from umlbot.services.bus import BrokerSettings, ComponentServer, Feature
 
     watcher = as_role(secured, connect, "monitor")
     assert watcher.subscribe(f"umlbot/{ROBOT}/DistanceRead/status")

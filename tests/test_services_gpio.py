@@ -9,12 +9,12 @@ import pytest
 from conftest import BrokerProcess, RawClient
 from services_support import ROBOT, StateWatch, broker_settings, client, deployment, raw_state, running
 
-from services import pigpio_connection
-from services.bus import Topics
-from services.fake_pigpio import FakePi
-from services.gpio.mock import MockGpio
-from services.host import ServiceHost
-from umlbot.errors import ConfigError, RemoteError
+from umlbot.base.errors import ConfigError, RemoteError
+from umlbot.services.bus import Topics
+from umlbot.services.gpio.mock import MockGpio
+from umlbot.services.host import ServiceHost
+from umlbot.services.pins import pigpio as pigpio_connection
+from umlbot.testing.pigpio import FakePi
 
 pytestmark = pytest.mark.network
 TOPICS = Topics(ROBOT)
@@ -46,7 +46,7 @@ def test_default_pins_exclude_every_owned_pin(mosquitto_broker: BrokerProcess) -
     dep = deployment()
     data = json.loads(dep.model_dump_json())
     del data["components"]["RaspberryPI"]["settings"]["pins"]
-    from umlbot.deployment import Deployment
+    from umlbot.base.deployment import Deployment
 
     with running("gpio", Deployment.model_validate(data), mosquitto_broker.url) as host:
         assert host.drivers["RaspberryPI"].allowed_pins == frozenset(range(28)) - {22, 23, 24, 25, 18, 8, 7}

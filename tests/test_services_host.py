@@ -15,13 +15,13 @@ import pytest
 from conftest import BrokerProcess, free_port
 from services_support import ROBOT, broker_settings, client, deployment, running
 
-from services import registry
-from services.host import ServiceGroup, ServiceHost
-from services.motor.driver import L298NSettings
-from services.motor.mock import MockMotorChannel, MockMotorSettings
-from umlbot.deployment import owned_pins, parse_deployment
-from umlbot.errors import ConfigError, DriverError, NotConnected, UnknownDriver
-from umlbot.library import service_kinds
+from umlbot.base import registry
+from umlbot.base.catalog import service_kinds
+from umlbot.base.deployment import owned_pins, parse_deployment
+from umlbot.base.errors import ConfigError, DriverError, NotConnected, UnknownDriver
+from umlbot.services.host import ServiceGroup, ServiceHost
+from umlbot.services.motor import L298NSettings
+from umlbot.services.motor.mock import MockMotorChannel, MockMotorSettings
 
 
 def test_unknown_driver_lists_the_known_names() -> None:
@@ -132,7 +132,7 @@ def test_failed_start_releases_what_was_built(monkeypatch: pytest.MonkeyPatch) -
         built.append(original(kind, driver, component, settings))
         return built[-1]
 
-    monkeypatch.setattr("services.host.create_driver", create)
+    monkeypatch.setattr("umlbot.services.host.create_driver", create)
     host = ServiceHost("motor", deployment(), broker_settings("mqtt://127.0.0.1:1"), ROBOT)
     with pytest.raises(DriverError):
         host.start()
@@ -343,7 +343,7 @@ def _statuses(url: str, *components: str) -> dict[str, dict[str, Any]]:
 
     import paho.mqtt.subscribe as subscribe
 
-    from services.bus import Topics
+    from umlbot.services.bus import Topics
 
     port = int(url.rsplit(":", 1)[1])
     topics = [Topics(ROBOT).status(c) for c in components]
@@ -358,7 +358,7 @@ def test_the_status_says_the_driver_that_runs_with_auto_resolved(
 ) -> None:
     """`--driver mock` over a deployment that says `auto` says "mock"; `auto` alone says what it
     chose on this machine (here the fake pigpio the environment asks for), never "auto"."""
-    from services import autodetect
+    from umlbot.base import autodetect
 
     with running("motor", deployment("auto"), mosquitto_broker.url, "mock"):
         status = _statuses(mosquitto_broker.url, "LeftActuator", "RightActuator")
@@ -378,7 +378,7 @@ def test_the_status_says_the_driver_that_runs_with_auto_resolved(
 def test_a_second_service_for_a_served_component_refuses_and_leaves_the_first_online(
     kind: str, request: pytest.FixtureRequest
 ) -> None:
-    from services.bus.server import ComponentTaken
+    from umlbot.services.bus.server import ComponentTaken
 
     broker: BrokerProcess = request.getfixturevalue(f"{kind}_broker")
     with running("motor", deployment(), broker.url) as first:
@@ -404,7 +404,7 @@ def test_a_stale_online_status_is_replaced(mosquitto_broker: BrokerProcess) -> N
     does not block the start."""
     import paho.mqtt.publish as publish
 
-    from services.bus import Topics
+    from umlbot.services.bus import Topics
 
     publish.single(Topics(ROBOT).status("LeftActuator"), '{"state": "online", "instance": "ghost"}',
                    retain=True, hostname="127.0.0.1", port=mosquitto_broker.port)

@@ -19,8 +19,8 @@ from pathlib import Path
 import pytest
 from conftest import BrokerProcess
 
-from services.bus import BrokerSettings, BusClient, Message, Topics
-from umlbot.errors import RemoteError
+from umlbot.base.errors import RemoteError
+from umlbot.services.bus import BrokerSettings, BusClient, Message, Topics
 
 ROOT = Path(__file__).resolve().parent.parent
 DEPLOYMENT = ROOT / "models" / "robot_car" / "deployment.yaml"
@@ -52,13 +52,13 @@ main()
 #: time of the dump is up to the machine's load.
 ABSENT = (
     "asyncio", "rich", "greenlet", "urllib.request", "http.client", "matplotlib", "numpy", "amqtt",
-    "aiohttp",
-    "compiler.api", "compiler.checker", "compiler.source", "compiler.expr_parser", "compiler.compiled",
-    "compiler.render", "umlbot.sim", "umlbot.studio", "services.orchestrator", "services.monitor",
-    "services.bus.broker", "pigpio", "lgpio",
+    "aiohttp", "umlbot.compiler.api", "umlbot.compiler.checker", "umlbot.compiler.source",
+    "umlbot.compiler.expr_parser", "umlbot.compiler.compiled", "umlbot.compiler.render", "umlbot.sim",
+    "umlbot.studio", "umlbot.services.orchestrator", "umlbot.monitor", "umlbot.services.bus.broker",
+    "pigpio", "lgpio",
 )
 #: What the service keeps on purpose: request validation, logging, the MQTT client, the CLI.
-PRESENT = ("pydantic", "services.bus.envelopes", "structlog", "paho.mqtt.client", "click")
+PRESENT = ("pydantic", "umlbot.services.bus.envelopes", "structlog", "paho.mqtt.client", "click")
 
 
 #: The reference car's components by service kind.
@@ -117,8 +117,8 @@ def test_a_serving_service_imports_only_what_it_uses(
 
 ASYNC_LOGGING = """
 import sys
-from umlbot.logs import configure_logging, get_logger
-assert "asyncio" not in sys.modules, "umlbot.logs imported asyncio"
+from umlbot.base.logs import configure_logging, get_logger
+assert "asyncio" not in sys.modules, "umlbot.base.logs imported asyncio"
 configure_logging("INFO", json=True)
 import asyncio
 import structlog.stdlib
@@ -133,7 +133,7 @@ assert structlog.stdlib.asyncio.get_running_loop is asyncio.get_running_loop
 
 
 def test_structlog_async_methods_still_work_where_asyncio_is_used() -> None:
-    """umlbot.logs gives structlog asyncio only on first use; its coroutine methods still log."""
+    """umlbot.base.logs gives structlog asyncio only on first use; its coroutine methods still log."""
     result = subprocess.run([sys.executable, "-c", ASYNC_LOGGING], capture_output=True, text=True,
                             timeout=60, check=False)
     assert result.returncode == 0, result.stderr

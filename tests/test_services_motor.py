@@ -20,11 +20,11 @@ import pytest
 from conftest import BrokerProcess, RawClient
 from services_support import ROBOT, StateWatch, client, deployment, raw_state, running, sim_world, wait_for
 
-from services import pigpio_connection
-from services.bus import Topics
-from services.fake_pigpio import FakePi
-from services.motor.mock import MockMotorChannel
-from umlbot.errors import RemoteError
+from umlbot.base.errors import RemoteError
+from umlbot.services.bus import Topics
+from umlbot.services.motor.mock import MockMotorChannel
+from umlbot.services.pins import pigpio as pigpio_connection
+from umlbot.testing.pigpio import FakePi
 
 pytestmark = pytest.mark.network
 TOPICS = Topics(ROBOT)
@@ -426,8 +426,8 @@ def test_a_plugin_driver_without_a_deadman_still_gets_the_watchdog() -> None:
     nothing outside it can stop the motor, and its safety round (the watchdog) still works."""
     import structlog
 
-    from services.motor.service import MotorService
-    from umlbot.library import resolve_implementation
+    from umlbot.base.catalog import resolve_implementation
+    from umlbot.services.motor.service import MotorService
 
     class OldDriver:
         def __init__(self) -> None:

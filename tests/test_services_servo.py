@@ -10,11 +10,11 @@ import pytest
 from conftest import BrokerProcess, RawClient
 from services_support import ROBOT, StateWatch, client, deployment, raw_state, running, sim_world
 
-from services import pigpio_connection
-from services.bus import Topics
-from services.fake_pigpio import FakePi
-from services.servo.mock import MockServo
-from umlbot.errors import RemoteError
+from umlbot.base.errors import RemoteError
+from umlbot.services.bus import Topics
+from umlbot.services.pins import pigpio as pigpio_connection
+from umlbot.services.servo.mock import MockServo
+from umlbot.testing.pigpio import FakePi
 
 pytestmark = pytest.mark.network
 TOPICS = Topics(ROBOT)

@@ -15,12 +15,12 @@ import pytest
 from conftest import BrokerProcess, RawClient
 from services_support import ROBOT, StateWatch, client, deployment, raw_state, running, sim_world, wait_for
 
-from services import pigpio_connection
-from services.bus import Topics
-from services.fake_pigpio import FakePi
-from services.sonar.mock import MockDistanceSensor
-from umlbot.errors import RemoteError
-from umlbot.sim.world import CarSpec
+from umlbot.base.errors import RemoteError
+from umlbot.services.bus import Topics
+from umlbot.services.pins import pigpio as pigpio_connection
+from umlbot.services.sonar.mock import MockDistanceSensor
+from umlbot.sim import CarSpec
+from umlbot.testing.pigpio import FakePi
 
 pytestmark = pytest.mark.network
 TOPICS = Topics(ROBOT)

@@ -13,11 +13,10 @@ from typing import Any
 import pytest
 from services_support import ROOM  # 2 m x 3 m room, car in the middle facing +y
 
-from services.registry import create_driver
-from umlbot.errors import ConfigError, DriverError, SimError
-from umlbot.sim.sharing import ENV_ADDRESS, ENV_KEY, RemoteWorld, WorldServer, attach_local_world
-from umlbot.sim.track import parse_track
-from umlbot.sim.world import CarSpec, World
+from umlbot.base.errors import ConfigError, DriverError, SimError
+from umlbot.base.registry import create_driver
+from umlbot.services.simworld import ENV_ADDRESS, ENV_KEY, RemoteWorld, attach_local_world
+from umlbot.sim import CarSpec, World, WorldServer, parse_track
 
 AHEAD_CM = round((2.0 - CarSpec().sonar_forward_m) * 100)
 PINS: dict[str, dict[str, Any]] = {"LeftActuator": {"in1": 22, "in2": 23, "watchdog_s": 2.0},
@@ -169,7 +168,7 @@ def test_unreachable_world_is_a_driver_error(monkeypatch: pytest.MonkeyPatch) ->
 
 def test_a_driver_in_another_process_moves_the_shared_world(world: World, served: WorldServer) -> None:
     code = (
-        "from services.registry import create_driver\n"
+        "from umlbot.base.registry import create_driver\n"
         "m = create_driver('motor', 'sim', 'RightActuator', {'in1': 24, 'in2': 25})\n"
         "m.set_duty_cycle(80); m.set_enabled(True)\n"
         "s = create_driver('sonar', 'sim', 'DistanceRead', {'trigger': 8, 'echo': 7})\n"
@@ -184,8 +183,8 @@ def test_a_driver_in_another_process_moves_the_shared_world(world: World, served
 def test_the_motor_watchdog_counts_sim_seconds(world: World) -> None:
     # at --speed 10 a model's 3 s sleep with the motors on is 0.3 s of wall time: the watchdog
     # (watchdog_s: 2.0) must stop the motor all the same, and must not at --speed 0.1 after 0.2 s
-    from services.motor.service import MotorService
-    from umlbot.library import resolve_implementation
+    from umlbot.base.catalog import resolve_implementation
+    from umlbot.services.motor.service import MotorService
     from umlbot.sim.clock import SimClock
 
     clock = SimClock(1.0)

@@ -8,11 +8,10 @@ from pathlib import Path
 
 import pytest
 
-from umlbot.errors import SimError
+from umlbot.base.errors import SimError
+from umlbot.sim import CarSpec, SimOptions, run_sim
 from umlbot.sim.reach import goal_problem
-from umlbot.sim.runner import SimOptions, run_sim
 from umlbot.sim.track import load_track, parse_track, tracks_dir
-from umlbot.sim.world import CarSpec
 
 ROOT = Path(__file__).resolve().parents[1]
 WIDTH = CarSpec().width_m

@@ -18,7 +18,7 @@ from pathlib import Path
 import pytest
 from conftest import BrokerProcess
 
-from umlbot.errors import SimError
+from umlbot.base.errors import SimError
 from umlbot.sim.runner import Progress, SimOptions, SimResult, run_sim, sim_driver
 from umlbot.sim.track import tracks_dir
 
@@ -197,7 +197,7 @@ def test_a_hung_service_fails_the_orchestrator_and_the_run_ends_at_once() -> Non
     # the sonar service process is frozen (SIGSTOP) while the car drives: DistanceRead.value gets
     # no reply within the model's 2 s call time-out, the orchestrator fails safe, and the run must
     # end right then with that failure, the world's motors off (not the car driving on)
-    from umlbot.sim.world import World
+    from umlbot.sim import World
 
     frozen: list[tuple[int, float]] = []
     worlds: list[World] = []

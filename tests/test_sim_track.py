@@ -8,11 +8,11 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
-from umlbot.errors import SimError
+from umlbot.base.errors import SimError
+from umlbot.sim import CarSpec
 from umlbot.sim.reach import goal_problem_at, start_problem
 from umlbot.sim.runner import WALL_STALL_S, SimOptions, WallGuard, run_sim, wall_limit_s
 from umlbot.sim.track import bundled_tracks, find_track, load_track, parse_track, track_warnings
-from umlbot.sim.world import CarSpec
 
 ROOT = Path(__file__).resolve().parents[1]
 CAR = CarSpec()

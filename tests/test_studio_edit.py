@@ -29,10 +29,10 @@ from hypothesis import strategies as st
 from robot_run import CAR_MODEL, umlbot_argv
 from studio_support import Editor, events_of, read_frames, snapshot, studio
 
-from compiler.api import check_model
-from compiler.compiled import dump_compiled
-from umlbot import files as user_files
+from umlbot.base import files as user_files
 from umlbot.cli import cli
+from umlbot.compiler.api import check_model
+from umlbot.compiler.compiled import dump_compiled
 from umlbot.studio.edit import EditError, apply_ops, parse_ops
 from umlbot.studio.model_view import model_view, source_view
 from umlbot.studio.workspace import LAYOUT_FILE, Workspace, model_files, read_layout, safe_path
@@ -1337,7 +1337,7 @@ def test_a_name_the_compiler_refuses_is_refused_at_its_field_with_the_compilers_
 
 
 def test_a_pin_wired_twice_is_said_at_the_setting_with_umlbot_checks_line(car: tuple[Path, Editor]) -> None:
-    from umlbot.deployment import shared_pin_message
+    from umlbot.base.deployment import shared_pin_message
 
     root, editor = car
     version = editor.get("files")["version"]

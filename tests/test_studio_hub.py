@@ -23,9 +23,10 @@ import aiohttp
 from conftest import BrokerProcess, wait_until
 from studio_support import events_of
 
-from services.bus import BrokerSettings
+from umlbot.services.bus import BrokerSettings
+from umlbot.studio.data import StudioData
 from umlbot.studio.hub import CLOSE_TOO_SLOW, MAX_VALUE_CHARS, Hub, Page
-from umlbot.studio.server import StudioData, StudioServer, StudioThread
+from umlbot.studio.server import StudioServer, StudioThread
 from umlbot.studio.sources import RobotFollower
 
 ROBOT = "car"

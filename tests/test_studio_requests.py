@@ -123,9 +123,10 @@ def test_any_json_body_on_any_route_is_answered_without_a_500(car: tuple[Path, E
 def test_a_studio_that_edits_refuses_to_listen_beyond_loopback(tmp_path: Path) -> None:
     """Editing needs the Host check, which only a loopback bind can make: a server given a
     workspace and a non-loopback host does not start (the command never builds one)."""
-    from umlbot.errors import ConfigError
+    from umlbot.base.errors import ConfigError
     from umlbot.studio.api import EditApi
-    from umlbot.studio.server import StudioData, StudioServer
+    from umlbot.studio.data import StudioData
+    from umlbot.studio.server import StudioServer
     from umlbot.studio.workspace import Workspace
 
     data = StudioData(mode="live", robot="car", source="x", model=None, diagnostics=[])

@@ -18,7 +18,7 @@ from conftest import BrokerProcess
 from robot_run import CAR_MODEL, Proc, compile_car, processes, umlbot_argv
 from studio_support import BROKEN_MODEL, events_of, read_frames, studio
 
-from compiler.api import check_model
+from umlbot.compiler.api import check_model
 from umlbot.studio.model_view import model_view
 
 ROBOT = "car"

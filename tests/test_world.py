@@ -9,11 +9,11 @@ from pathlib import Path
 import pytest
 from services_support import ROOM  # 2 m x 3 m room, car in the middle facing +y
 
-from umlbot.errors import SimError
+from umlbot.base.errors import SimError
+from umlbot.sim import CarSpec, World
 from umlbot.sim.clock import SimClock
 from umlbot.sim.geometry import Point, Pose, Segment, cast, rectangle_corners, rectangle_hits
 from umlbot.sim.track import load_track, parse_track, tracks_dir
-from umlbot.sim.world import CarSpec, World
 
 # no lag: speeds follow the command at once, so the expected motion is exact
 IDEAL = CarSpec(motor_time_constant_s=0.0)

@@ -19,8 +19,8 @@ from typing import Any
 import click
 
 from umlbot import __version__
-from umlbot.errors import UmlbotError
-from umlbot.logs import configure_logging
+from umlbot.base.errors import UmlbotError
+from umlbot.base.logs import configure_logging
 
 #: command name -> one-line help; the module `umlbot.commands.<name>` defines `command`.
 COMMANDS: dict[str, str] = {

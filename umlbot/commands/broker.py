@@ -9,7 +9,7 @@ from types import FrameType
 
 import click
 
-from umlbot.logs import get_logger
+from umlbot.base.logs import get_logger
 
 log = get_logger(__name__)
 
@@ -37,7 +37,7 @@ def command(
     It listens on loopback only, unless --bind says otherwise; reachable from other hosts without
     --passwd and --acl, it says so on stderr (anyone there could drive the motors).
     """
-    from services.bus.broker import BrokerLimits, EmbeddedBroker, check_user_name, password_line
+    from umlbot.services.bus import BrokerLimits, EmbeddedBroker, check_user_name, password_line
 
     if hash_user is not None:
         check_user_name(hash_user)  # before asking for the password

@@ -68,11 +68,11 @@ def timeout_hint(component: str, robot: str, username: str | None, protocol: str
 def parse_arg(text: str) -> Any:
     """A command-line argument as JSON when it parses (`60`, `true`, `[1,2]`), else the string.
 
-    Parsed by the loader that reads the wire (`umlbot.files.loads_json`), strictly: what parses but
+    Parsed by the loader that reads the wire (`umlbot.base.files.loads_json`), strictly: what parses but
     cannot be sent as JSON (NaN, Infinity, 1e400) or what the decoder refuses (nesting too deep, an
     integer too long) is a bad command line (exit 2), not a string and not a traceback.
     """
-    from umlbot.files import loads_json
+    from umlbot.base.files import loads_json
 
     try:
         return loads_json(text, finite=True)
@@ -88,8 +88,8 @@ def _shorten(text: str, limit: int = 40) -> str:
 
 def parse_target(target: str) -> tuple[str, str]:
     """`Component.feature` -> (component, feature), each one MQTT topic level (as robot ids)."""
-    from services.bus.topics import check_name
-    from umlbot.errors import ConfigError
+    from umlbot.base.errors import ConfigError
+    from umlbot.base.topics import check_name
 
     component, dot, feature = target.partition(".")
     if not dot or not component or not feature or "." in feature:
@@ -136,8 +136,8 @@ def command(
 
     Example: umlbot call LeftActuator.dutycycle 60
     """
-    from services.bus import BrokerSettings, BusClient, resolve_broker_url
-    from umlbot.errors import BrokerRefused, CallTimeout, LoginRefused, NotConnected, RemoteError
+    from umlbot.base.errors import BrokerRefused, CallTimeout, LoginRefused, NotConnected, RemoteError
+    from umlbot.services.bus import BrokerSettings, BusClient, resolve_broker_url
 
     component, feature = parse_target(target)
     values = [parse_arg(a) for a in args]

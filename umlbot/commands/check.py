@@ -15,7 +15,7 @@ import click
 @click.option("--warnings-as-errors", "-W", is_flag=True, help="Fail on warnings too.")
 def command(model: Path, deployment: Path | None, warnings_as_errors: bool) -> None:
     """Validate MODEL (a model folder or file): print every problem, exit 1 on any error."""
-    from compiler.api import check_model
+    from umlbot.compiler.api import check_model
 
     result = check_model(model, deployment)
     for diagnostic in result.diagnostics:

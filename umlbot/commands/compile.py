@@ -16,8 +16,8 @@ import click
               help="Deployment file to use instead of the model's own.")
 def command(model: Path, output: Path | None, deployment: Path | None) -> None:
     """Compile MODEL (a model folder or file) into a compiled model file for `umlbot run`."""
-    from compiler.api import check_model
-    from compiler.compiled import dump_compiled, write_compiled
+    from umlbot.compiler.api import check_model
+    from umlbot.compiler.compiled import dump_compiled, write_compiled
 
     result = check_model(model, deployment)
     for diagnostic in result.diagnostics:

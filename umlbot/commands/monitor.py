@@ -13,11 +13,11 @@ from typing import TYPE_CHECKING
 
 import click
 
+from umlbot.base.stopsignals import StopSignals
 from umlbot.commands.options import Number, seconds
-from umlbot.stopsignals import StopSignals
 
 if TYPE_CHECKING:
-    from services.monitor import MonitorEvent, MonitorState
+    from umlbot.monitor import MonitorEvent, MonitorState
 
 Sink = Callable[["MonitorEvent"], None]
 
@@ -62,7 +62,7 @@ def command(
     With --json every event is one JSON line on stdout (type: availability, call, state, signal,
     trace, orchestrator, exit). With --replay FILE a recorded trace is played instead.
     """
-    from services.monitor import MonitorState
+    from umlbot.monitor import MonitorState
 
     out_lock = threading.Lock()
 
@@ -87,8 +87,8 @@ def command(
 def _check_trace(path: Path) -> None:
     """Read the whole trace once: an unreadable file, a bad line anywhere or no event at all
     raises ConfigError (exit 1) before anything is shown."""
-    from services.monitor.replay import read_trace
-    from umlbot.errors import ConfigError
+    from umlbot.base.errors import ConfigError
+    from umlbot.monitor import read_trace
 
     if sum(1 for _ in read_trace(path)) == 0:  # every line read: a bad one is found now
         raise ConfigError(f"{path}: no trace events (an empty trace file; record one with "
@@ -118,7 +118,7 @@ def _run_replay(path: Path, state: MonitorState, robot: str, as_json: bool, prin
     from rich.console import Console
     from rich.live import Live
 
-    from services.monitor import render, replay
+    from umlbot.monitor import render, replay
 
     pace = speed if speed is not None else (0.0 if as_json else 1.0)
 
@@ -155,8 +155,8 @@ def _run_live(state: MonitorState, robot: str | None, broker_url: str | None, ca
     from rich.console import Console
     from rich.live import Live
 
-    from services.bus import BrokerSettings, resolve_broker_url
-    from services.monitor import LiveMonitor, render
+    from umlbot.monitor import LiveMonitor, render
+    from umlbot.services.bus import BrokerSettings, resolve_broker_url
 
     settings = BrokerSettings.from_url(resolve_broker_url(broker_url), ca_file=ca_file)
 

@@ -18,7 +18,7 @@ import click
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON document instead of the list.")
 def command(as_json: bool) -> None:
     """List the installed component and driver plugins; exit 1 if one could not be loaded."""
-    from umlbot.plugins import catalog
+    from umlbot.base.plugins import catalog
 
     lib = catalog()
     packages = sorted(lib.packages.values(), key=lambda p: (p.package != "umlbot", p.package.lower()))

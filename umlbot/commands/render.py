@@ -23,8 +23,8 @@ def command(model: Path, out_dir: Path | None, fmt: str,
             deployment: Path | None) -> None:
     """Draw MODEL's diagrams (SVG needs Graphviz's `dot`: without it the other formats are
     written and the command exits 3)."""
-    from compiler.api import check_model
-    from compiler.render import FORMATS, Format, SvgNotDrawn, render_model
+    from umlbot.compiler.api import check_model
+    from umlbot.compiler.render import FORMATS, Format, SvgNotDrawn, render_model
 
     result = check_model(model, deployment)
     for diagnostic in result.diagnostics:

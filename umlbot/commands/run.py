@@ -63,15 +63,10 @@ def command(
     Waits for every component the model uses to be online, stops every actuator, runs every
     component swimlane until they end or SIGINT/SIGTERM arrives, and stops every actuator again.
     """
-    from compiler.compiled import load_compiled
-    from services.bus import BrokerSettings, resolve_broker_url
-    from services.orchestrator import (
-        DEFAULT_GRACE_S,
-        DEFAULT_STARTUP_TIMEOUT_S,
-        EXIT_OK,
-        Orchestrator,
-    )
-    from umlbot.clock import Clock
+    from umlbot.base.clock import Clock
+    from umlbot.compiler.compiled import load_compiled
+    from umlbot.services.bus import BrokerSettings, resolve_broker_url
+    from umlbot.services.orchestrator import DEFAULT_GRACE_S, DEFAULT_STARTUP_TIMEOUT_S, EXIT_OK, Orchestrator
 
     model = load_compiled(compiled)
     settings = BrokerSettings.from_url(resolve_broker_url(broker_url), ca_file=ca_file)

@@ -17,8 +17,8 @@ from pathlib import Path
 
 import click
 
+from umlbot.base.stopsignals import StopSignals
 from umlbot.commands.options import seconds
-from umlbot.stopsignals import StopSignals
 
 
 def resolve_robot(cli_value: str | None, deployment_robot: str | None) -> str:
@@ -29,7 +29,7 @@ def resolve_robot(cli_value: str | None, deployment_robot: str | None) -> str:
 def _known_kind(ctx: click.Context, param: click.Parameter, kind: str) -> str:
     # Checked when the command runs, not when it is imported: the library (built-ins and
     # plugins) is read only then, after logging is set up.
-    from umlbot.library import service_kinds
+    from umlbot.base.catalog import service_kinds
 
     if kind != "all" and kind not in service_kinds():
         known = ", ".join(map(repr, [*service_kinds(), "all"]))
@@ -71,10 +71,11 @@ def command(
     safe_stop: bool,
 ) -> None:
     """Run one hardware service (or `all` of them) for the components the deployment gives it."""
-    from services.bus.settings import BrokerSettings, resolve_broker_url
-    from services.host import ServiceGroup
-    from umlbot.deployment import load_deployment
-    from umlbot.library import ServiceKind, service_kinds
+    from umlbot.base.catalog import service_kinds
+    from umlbot.base.deployment import load_deployment
+    from umlbot.base.library import ServiceKind
+    from umlbot.services.bus import BrokerSettings, resolve_broker_url
+    from umlbot.services.host import ServiceGroup
 
     kinds: tuple[ServiceKind, ...] = tuple(service_kinds()) if kind == "all" else (kind,)
     deployment = load_deployment(deploy_file)

@@ -10,8 +10,8 @@ from pathlib import Path
 
 import click
 
+from umlbot.base.stopsignals import StopSignals
 from umlbot.commands.options import Number, seconds
-from umlbot.stopsignals import StopSignals
 
 DEFAULT_TRACK = "s_bend"  # the bundled track, wherever umlbot is run from
 
@@ -56,9 +56,8 @@ def command(model: Path, track: Path | None, speed: float, broker_url: str | Non
             studio: bool, studio_port: int) -> None:
     """Run MODEL on a track: embedded broker, world, services, orchestrator; exit 0 only when the
     goal was reached without a collision."""
-    from umlbot.logs import configure_logging
-    from umlbot.sim.runner import Progress, SimOptions, run_sim
-    from umlbot.sim.track import find_track
+    from umlbot.base.logs import configure_logging
+    from umlbot.sim import Progress, SimOptions, find_track, run_sim
 
     # the progress line and the summary are the output; logs only for warnings unless asked for
     if click.get_current_context().find_root().params.get("log_level") is None and not os.environ.get(

@@ -8,9 +8,10 @@ from typing import TYPE_CHECKING
 
 import click
 
-from umlbot.stopsignals import StopSignals
+from umlbot.base.stopsignals import StopSignals
 
 if TYPE_CHECKING:
+    from umlbot.studio.api import EditApi
     from umlbot.studio.workspace import Workspace
 
 
@@ -44,8 +45,7 @@ def command(model: Path, broker_url: str | None, ca_file: Path | None, robot: st
     A model folder can be edited in the page (a new or empty folder is offered a starter model).
     Runs until Ctrl-C or SIGTERM.
     """
-    from services.bus import BrokerSettings, resolve_broker_url
-    from services.bus.settings import redact_url
+    from umlbot.services.bus import BrokerSettings, redact_url, resolve_broker_url
     from umlbot.studio.server import StudioServer, StudioThread, check_bind, is_loopback
     from umlbot.studio.sources import RobotFollower, replay_data, studio_data
 
@@ -60,6 +60,7 @@ def command(model: Path, broker_url: str | None, ca_file: Path | None, robot: st
         raise click.BadParameter(f"{model} does not exist (a new model folder needs {needs})",
                                  param_hint="'MODEL'")
     check_bind(host, allow_remote)
+    api: EditApi | None = None
     if editable:
         from umlbot.studio.api import EditApi
         from umlbot.studio.workspace import Workspace
@@ -67,10 +68,11 @@ def command(model: Path, broker_url: str | None, ca_file: Path | None, robot: st
         workspace = Workspace(model)  # checks the model once; the page's first view is that check
         data = studio_data(model, robot, result=workspace.result)
         server = StudioServer(data, host=host, port=port, allow_remote=allow_remote)
-        server.api = EditApi(workspace)
-        data.edit = server.api.hello
+        api = EditApi(workspace)
+        server.api = api
+        data.edit = api.hello
     else:
-        from compiler.api import check_model
+        from umlbot.compiler.api import check_model
 
         result = check_model(model)
         data = studio_data(model, robot, mode="replay" if replay_file else "live", result=result)
@@ -89,7 +91,7 @@ def command(model: Path, broker_url: str | None, ca_file: Path | None, robot: st
             what = f"a new model, followed under the name you give it, on {redact_url(url)}"
         source = RobotFollower(settings, data.robot, server.hub, data.call_timeout_s)
         server.tick = source.tick
-        if server.api is not None and robot is None:
+        if api is not None and robot is None:
             follower = source
 
             def follow_name(name: str) -> None:  # the robot id is the model's name: follow it
@@ -100,7 +102,7 @@ def command(model: Path, broker_url: str | None, ca_file: Path | None, robot: st
                     data.robot = before
                     raise
 
-            server.api.on_name = follow_name
+            api.on_name = follow_name
     errors = sum(1 for d in data.diagnostics if d["severity"] == "error")
     studio = StudioThread(server)
     with StopSignals() as signals:

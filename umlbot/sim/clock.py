@@ -40,7 +40,7 @@ import threading
 import time
 from collections.abc import Iterable
 
-from umlbot.clock import Clock
+from umlbot.base.clock import Clock
 
 #: Wall seconds the ticker sleeps at most before it looks again (a missed wake-up costs no more).
 POLL_WALL_S = 0.05

@@ -7,7 +7,7 @@ import textwrap
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from umlbot.errors import SimError
+from umlbot.base.errors import SimError
 from umlbot.sim.geometry import rectangle_corners
 from umlbot.sim.world import CarSpec, World
 

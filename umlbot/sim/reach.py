@@ -21,7 +21,7 @@ from collections import deque
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from umlbot.logs import get_logger
+from umlbot.base.logs import get_logger
 from umlbot.sim.geometry import Segment, rectangle_corners, rectangle_hits
 
 if TYPE_CHECKING:

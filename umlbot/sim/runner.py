@@ -28,11 +28,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from umlbot.errors import ConfigError, SimError
-from umlbot.logs import get_logger
+from umlbot.base.errors import ConfigError, SimError
+from umlbot.base.logs import get_logger
+from umlbot.services.orchestrator import Orchestrator
+from umlbot.services.simworld import attach_local_world
 from umlbot.sim.clock import SimClock
 from umlbot.sim.reach import goal_problem_at, start_problem
-from umlbot.sim.sharing import WorldServer, attach_local_world
+from umlbot.sim.sharing import WorldServer
 from umlbot.sim.track import load_track, track_warnings
 from umlbot.sim.world import CarSpec, World, WorldLoop, WorldSnapshot
 
@@ -223,7 +225,7 @@ def sim_driver(service: str) -> str:
     """The driver a service kind runs in the simulator: its `sim` driver when it has one (motor,
     sonar, servo, a plugin's), else its `mock` driver (gpio, a plugin's kind without a sim
     driver); `SimError` when it has neither."""
-    from services.registry import known_drivers
+    from umlbot.base.registry import known_drivers
 
     known = known_drivers(service)
     for driver in ("sim", "mock"):
@@ -235,7 +237,7 @@ def sim_driver(service: str) -> str:
 
 def sim_deployment(compiled: Any) -> Any:
     """The deployment the services run with in the simulator: each component on `sim_driver`."""
-    from umlbot.deployment import ComponentDeployment, Deployment
+    from umlbot.base.deployment import ComponentDeployment, Deployment
 
     components = {
         name: ComponentDeployment(impl=comp.impl, driver=sim_driver(comp.service),
@@ -279,8 +281,8 @@ class _Services:
             self._start_in_process()
 
     def _start_in_process(self) -> None:
-        from services.bus.settings import BrokerSettings
-        from services.host import ServiceHost
+        from umlbot.services.bus import BrokerSettings
+        from umlbot.services.host import ServiceHost
 
         attach_local_world(self.world)
         settings = BrokerSettings.from_url(self.broker_url)
@@ -309,7 +311,7 @@ class _Services:
         """Wait until every served component's retained status says `online` (child processes)."""
         if not self.children:
             return
-        from services.bus import BrokerSettings, BusConnection, Message, Topics
+        from umlbot.services.bus import BrokerSettings, BusConnection, Message, Topics
 
         topics = Topics(str(self.deployment.robot))
         pending = set(self.deployment.components)
@@ -387,7 +389,7 @@ def _start_broker(options: SimOptions) -> tuple[Any, str]:
     """
     if options.broker_url is not None:
         return None, options.broker_url
-    from services.bus.broker import EmbeddedBroker
+    from umlbot.services.bus import EmbeddedBroker
 
     port = DEFAULT_PORT if options.port is None else (options.port or _free_port())
     broker = EmbeddedBroker("127.0.0.1", port)
@@ -427,8 +429,8 @@ def run_sim(
     starts (the studio follows the run this way); the function it returns is called when the run
     has ended, before the broker stops.
     """
-    from compiler.api import compile_model
-    from services.bus.settings import BrokerSettings
+    from umlbot.compiler.api import compile_model
+    from umlbot.services.bus import BrokerSettings
     if not options.speed > 0:
         raise SimError(f"--speed must be > 0, got {options.speed}")
     if options.plot is not None:  # before the run, not after it
@@ -489,13 +491,13 @@ def run_sim(
         # the world ends the run itself, at the sim time it happens, not when the runner looks
         world.halt_at_goal = True
         world.max_collisions = options.max_collisions
-        orchestrator = _sim_orchestrator_class()(
+        orchestrator = Orchestrator(
             compiled, BrokerSettings.from_url(url), robot=deployment.robot, clock=clock,
             trace_listener=watch.on_event, handle_signals=False, trace_file=options.trace_file,
         )
         # a fail-safe stop halts the world at once, in the orchestrator's thread: its own stop
         # calls go through the broker and may time out while the car drives on
-        orchestrator.on_fault = lambda _reason: world.halt()
+        orchestrator.life.on_fault(lambda _fault: world.halt())
 
         def run_orchestrator() -> None:
             try:
@@ -620,33 +622,6 @@ def _catch_up(world: World) -> None:
     now = world.clock.now()
     if snap is not None and now - snap.time_s <= WORLD_LAG_REPORT_S:
         world.advance_to(now)
-
-
-def _sim_orchestrator_class() -> Any:
-    """The orchestrator, telling its `SimClock` when a feature call is in flight."""
-    from services.orchestrator.orchestrator import Orchestrator
-
-    class SimOrchestrator(Orchestrator):
-        #: called (in the orchestrator's thread) with the reason of the first fail-safe stop
-        on_fault: Callable[[str], None] | None = None
-
-        def _fault(self, reason: str) -> None:
-            first = self.failure is None
-            super()._fault(reason)
-            if first and self.on_fault is not None:
-                self.on_fault(reason)
-
-        async def call(self, component: str, feature: str, args: list[Any]) -> Any:
-            clock = self.clock
-            if not isinstance(clock, SimClock):
-                return await super().call(component, feature, args)
-            clock.call_started()
-            try:
-                return await super().call(component, feature, args)
-            finally:
-                clock.call_finished()
-
-    return SimOrchestrator
 
 
 def _ms(seconds: float | None) -> float | None:

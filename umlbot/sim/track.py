@@ -30,8 +30,8 @@ from pydantic import (
     model_validator,
 )
 
-from umlbot.errors import SimError
-from umlbot.files import load_yaml_node, read_text, validation_problem, where
+from umlbot.base.errors import SimError
+from umlbot.base.files import load_yaml_node, read_text, validation_problem, where
 from umlbot.sim.geometry import Point, Pose, Segment
 
 
@@ -140,7 +140,7 @@ class Track(BaseModel):
 
 def parse_track(text: str, source: str = "<track>") -> Track:
     """Read a track from YAML text; errors name the source and the field."""
-    from compiler.yamlsrc import to_python
+    from umlbot.base.yamlsrc import to_python
 
     root = load_yaml_node(text, source, SimError)
     data = to_python(root)

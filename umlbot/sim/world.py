@@ -16,16 +16,15 @@ import math
 import random
 import threading
 from dataclasses import dataclass, field
-from typing import Literal
 
-from umlbot.clock import Clock
-from umlbot.logs import get_logger
+from umlbot.base.clock import Clock
+from umlbot.base.logs import get_logger
+from umlbot.services.simworld import Side
 from umlbot.sim.geometry import Point, Pose, Segment, WallIndex, incidence, rectangle_corners
 from umlbot.sim.track import Track
 
 log = get_logger(__name__)
 
-Side = Literal["left", "right"]
 
 #: A car scraping along a wall touches it again and again; a new collision is counted only after
 #: it has moved free of every wall for this long (sim seconds).

@@ -16,12 +16,12 @@ from typing import TYPE_CHECKING, Any
 
 from aiohttp import web
 
-from umlbot.files import loads_json
-from umlbot.logs import get_logger
-from umlbot.sim.track import bundled_tracks
+from umlbot.base.files import loads_json
+from umlbot.base.logs import get_logger
+from umlbot.sim import bundled_tracks
+from umlbot.studio.data import MAX_BODY
 from umlbot.studio.hub import dumps
 from umlbot.studio.run import RUN_SPEED, StudioRun, resolve_track
-from umlbot.studio.server import MAX_BODY
 from umlbot.studio.textedit import EditError
 from umlbot.studio.workspace import Conflict, SaveFailed, Workspace
 

@@ -11,8 +11,9 @@ from __future__ import annotations
 import re
 from typing import Any
 
-from compiler.checker import SLEEP_BUILTINS
-from umlbot import library as lib
+from umlbot.base import catalog
+from umlbot.base import library as lib
+from umlbot.compiler.checker import SLEEP_BUILTINS
 
 KEYWORDS = ("and", "or", "not", "true", "false", "null")
 #: the (dotted) name just before the cursor.
@@ -38,11 +39,11 @@ def _params(spec: lib.FeatureSpec) -> list[dict[str, Any]]:
 
 def _features(component: dict[str, Any]) -> dict[str, lib.FeatureSpec]:
     """The features a component of the model offers: its implementation's, else its kind's."""
-    impl = lib.resolve_implementation(component.get("impl") or "")
+    impl = catalog.resolve_implementation(component.get("impl") or "")
     if impl is not None:
         return dict(impl.features)
     kind = component.get("kind")
-    kinds = lib.component_kinds()
+    kinds = catalog.component_kinds()
     return dict(kinds[kind]) if kind in kinds else {}
 
 

@@ -18,8 +18,9 @@ from typing import Any, cast
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
-from compiler.expr_parser import RawExpr, RBinary, RCall, RName, RUnary, parse_expression
-from compiler.source import (
+from umlbot.base.errors import ModelError
+from umlbot.compiler.expr_parser import RawExpr, RBinary, RCall, RName, RUnary, parse_expression
+from umlbot.compiler.source import (
     ACTIVITIES_DIR,
     ACTIVITY_FILE,
     DEPLOYMENT_FILES,
@@ -27,7 +28,6 @@ from compiler.source import (
     NODE_FIELDS,
     NODE_KINDS,
 )
-from umlbot.errors import ModelError
 from umlbot.studio.library_view import check_settings, settings_problems
 from umlbot.studio.textedit import (
     EditError,

@@ -10,7 +10,7 @@ from umlbot.studio.server import StudioServer, StudioThread
 from umlbot.studio.sources import BrokerSource, WorldSource, studio_data, track_view
 
 if TYPE_CHECKING:
-    from umlbot.sim.world import World
+    from umlbot.sim import World
 
 
 class SimFollower:
@@ -26,7 +26,7 @@ class SimFollower:
         self._sources: list[BrokerSource | WorldSource] = []
 
     def observe(self, world: World, broker_url: str, robot: str) -> Callable[[], None]:
-        from services.bus import BrokerSettings
+        from umlbot.services.bus import BrokerSettings
 
         data = studio_data(self.model, robot)
         data.track = track_view(world)

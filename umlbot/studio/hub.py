@@ -33,8 +33,8 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from umlbot.bounded import MAX_ROWS, RecentDict
-from umlbot.logs import get_logger
+from umlbot.base.bounded import MAX_ROWS, RecentDict
+from umlbot.base.logs import get_logger
 
 log = get_logger(__name__)
 

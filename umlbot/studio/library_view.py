@@ -1,7 +1,7 @@
 """The component library and the editable parts of the model format, as JSON for the page.
 
-Generated from the compiler's and the library's own definitions (`umlbot.library`, the node kinds
-of `compiler.source`, the hardware drivers' settings models of `services.registry`, built-in and
+Generated from the compiler's and the library's own definitions (`umlbot.base.library`, the node kinds
+of `umlbot.compiler.source`, the hardware drivers' settings models of `umlbot.base.registry`, built-in and
 plugins' alike), so the page never holds
 a second definition of the model format. `library()` is the one conversion of the library.
 """
@@ -13,9 +13,10 @@ from collections.abc import Mapping
 from functools import lru_cache
 from typing import Any
 
-from compiler.checker import RESERVED, SLEEP_BUILTINS
-from compiler.source import NODE_FIELDS, NODE_KINDS
-from umlbot import library as lib
+from umlbot.base import catalog
+from umlbot.base import library as lib
+from umlbot.compiler.checker import RESERVED, SLEEP_BUILTINS
+from umlbot.compiler.source import NODE_FIELDS, NODE_KINDS
 
 _FIELD_DOCS: dict[str, tuple[str, str]] = {
     "next": ("node", "the node that follows (default: the node written below)"),
@@ -50,7 +51,7 @@ def _feature(spec: lib.FeatureSpec) -> dict[str, Any]:
 
 def settings_model(impl: lib.Implementation) -> Any:
     """The settings model the page's form is built from (the first hardware driver's), or None."""
-    from services.registry import hardware_settings_models
+    from umlbot.base.registry import hardware_settings_models
 
     models = hardware_settings_models(impl.service)
     return models[0][1] if models else None
@@ -60,7 +61,7 @@ def settings_model(impl: lib.Implementation) -> Any:
 def library() -> dict[str, Any]:
     """`GET /api/library`: kinds and features, implementations, builtins, node kinds."""
     implementations = []
-    for impl in lib.implementations().values():
+    for impl in catalog.implementations().values():
         model = settings_model(impl)
         implementations.append({
             "id": impl.id, "kind": impl.kind, "service": impl.service, "title": impl.title,
@@ -85,7 +86,7 @@ def library() -> dict[str, Any]:
     }
     return {
         "kinds": {kind: {"features": {name: _feature(spec) for name, spec in features.items()}}
-                  for kind, features in lib.component_kinds().items()},
+                  for kind, features in catalog.component_kinds().items()},
         "implementations": implementations,
         "builtins": builtins,
         "node_kinds": node_kinds,
@@ -101,11 +102,11 @@ def library() -> dict[str, Any]:
 def check_settings(impl_name: str, settings: Mapping[str, Any]) -> str | None:
     """Why `settings` are not valid for the implementation `impl_name` on the hardware (None when
     they are): the editor deploys a component with the settings every hardware driver accepts."""
-    from services.registry import AUTO, settings_problems
+    from umlbot.base.registry import AUTO, settings_problems
 
-    impl = lib.resolve_implementation(impl_name)
+    impl = catalog.resolve_implementation(impl_name)
     if impl is None:
-        known = ", ".join(lib.implementations())
+        known = ", ".join(catalog.implementations())
         return f"unknown implementation {impl_name!r} (known: {known})"
     problems = [f"{'.'.join(str(p) for p in path) or 'settings'}: {msg}"
                 for path, msg in settings_problems(impl.service, AUTO, settings)]
@@ -115,10 +116,10 @@ def check_settings(impl_name: str, settings: Mapping[str, Any]) -> str | None:
 def settings_problems(impl_name: str, settings: Mapping[str, Any]) -> list[tuple[str, str]]:
     """(setting, what is wrong) for each problem `check_settings` finds, in words for the person
     who typed the value ("must be at most 27"); the setting is "" for the settings as a whole."""
-    from services.registry import AUTO
-    from services.registry import settings_problems as problems
+    from umlbot.base.registry import AUTO
+    from umlbot.base.registry import settings_problems as problems
 
-    impl = lib.resolve_implementation(impl_name)
+    impl = catalog.resolve_implementation(impl_name)
     if impl is None:
         return [("", f"unknown implementation {impl_name!r}")]
     out: list[tuple[str, str]] = []

@@ -11,18 +11,11 @@ from __future__ import annotations
 import bisect
 from typing import Any
 
-from compiler.compiled import (
-    AcceptNode,
-    CompiledModel,
-    DatastoreNode,
-    Lane,
-    Node,
-    SendNode,
-)
-from compiler.diagnostics import Diagnostic
-from compiler.render import diagram_id, diagrams, successors
-from compiler.source import SourceLane, SourceModel, SourceNode
-from compiler.yamlsrc import YMap, YNode, YScalar, YSeq, to_python
+from umlbot.base.diagnostics import Diagnostic
+from umlbot.base.yamlsrc import YMap, YNode, YScalar, YSeq, to_python
+from umlbot.compiler.compiled import AcceptNode, CompiledModel, DatastoreNode, Lane, Node, SendNode
+from umlbot.compiler.render import diagram_id, diagrams, successors
+from umlbot.compiler.source import SourceLane, SourceModel, SourceNode
 
 #: the version of the JSON shape below; bumped on an incompatible change.
 VIEW_VERSION = 1
@@ -207,7 +200,7 @@ def source_lane_view(lane: SourceLane, components: set[str]) -> dict[str, Any]:
 def source_view(source: SourceModel) -> dict[str, Any]:
     """The model as its files say, in `model_view`'s shape plus each node's `fields`, each
     component's `settings`; drawn by the editor also while the model has errors."""
-    from umlbot.library import component_kinds, resolve_implementation
+    from umlbot.base.catalog import component_kinds, resolve_implementation
 
     deployment = source.deployment.deployment if source.deployment is not None else None
     components = []
@@ -269,7 +262,7 @@ FieldIndex = dict[tuple[str, int, int], tuple[str, str | None]]
 def deployment_fields(source: SourceModel) -> FieldIndex:
     """Where each component's deployment entry, implementation and settings are written: the
     positions the compiler reports their problems at (a pin wired twice, a refused setting)."""
-    from compiler.source import locate
+    from umlbot.base.yamlsrc import locate
 
     dep = source.deployment
     root = dep.root if dep is not None else None

@@ -16,12 +16,12 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from umlbot.logs import get_logger
+from umlbot.base.logs import get_logger
 from umlbot.studio.sources import BrokerSource, WorldSource, track_view
 from umlbot.studio.workspace import Conflict
 
 if TYPE_CHECKING:
-    from umlbot.sim.world import World
+    from umlbot.sim import World
     from umlbot.studio.hub import Hub
 
 log = get_logger(__name__)
@@ -32,7 +32,7 @@ RUN_SPEED = 2.0
 
 def resolve_track(track: Any, model_root: Path) -> Path:
     """A bundled track's name, or a track file inside the model folder (nothing else)."""
-    from umlbot.sim.track import bundled_tracks
+    from umlbot.sim import bundled_tracks
     from umlbot.studio.workspace import safe_path, shown
 
     if not isinstance(track, str) or not track:
@@ -90,7 +90,7 @@ class StudioRun:
         return {"running": self.running, "result": self.last}
 
     def _observe(self, world: World, broker_url: str, robot: str) -> Callable[[], None]:
-        from services.bus import BrokerSettings
+        from umlbot.services.bus import BrokerSettings
 
         self.hub.reset_world()  # a page opening later gets this run's world, not the last one's
         self.current = {"running": True, "robot": robot, "track": track_view(world)}
@@ -115,7 +115,7 @@ class StudioRun:
         self._sources = []
 
     def _run(self, folder: Path, model: Path, track: Path, speed: float) -> None:
-        from umlbot.sim.runner import SimOptions, run_sim
+        from umlbot.sim import SimOptions, run_sim
 
         try:
             result = run_sim(SimOptions(model=model, track=track, speed=speed, port=0), stop=self._stop,

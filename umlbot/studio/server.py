@@ -22,27 +22,22 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 from urllib.parse import urlsplit
 
 from aiohttp import WSMsgType, web
 
-from umlbot.errors import ConfigError
-from umlbot.logs import get_logger
+from umlbot.base.errors import ConfigError
+from umlbot.base.logs import get_logger
+from umlbot.studio.data import MAX_BODY, StudioData
 from umlbot.studio.hub import CLOSE_TOO_SLOW, MAX_PAGE_CHARS, Hub, Page, dumps
-
-if TYPE_CHECKING:
-    from umlbot.studio.api import EditApi
 
 log = get_logger(__name__)
 
-PROTOCOL_VERSION = 1
 DEFAULT_HOST = "127.0.0.1"
 DEFAULT_PORT = 8080
 #: seconds between two checks for calls that stayed unanswered.
 EXPIRE_EVERY_S = 1.0
-#: the largest request body accepted (an edit batch, a completion request).
-MAX_BODY = 1 << 20
 #: seconds a dropped page has to take its close frame before its connection is aborted.
 CLOSE_WAIT_S = 2.0
 
@@ -93,28 +88,20 @@ def bind_error(host: str, port: int, exc: OSError, port_option: str = "--port") 
     return text
 
 
-@dataclass
-class StudioData:
-    """What the page shows besides the live events: the model, its problems, a replay, a track."""
+class EditRoutes(Protocol):
+    """The editing requests a studio that edits a model folder serves (`umlbot.studio.api.EditApi`)."""
 
-    mode: str  # "live" or "replay"
-    robot: str
-    source: str
-    model: dict[str, Any] | None
-    diagnostics: list[dict[str, Any]]
-    track: dict[str, Any] | None = None
-    replay: dict[str, Any] | None = None
-    #: the editing session's part of the hello (None: the page cannot edit).
-    edit: Callable[[], dict[str, Any]] | None = None
-    #: the model's `call_timeout_s` (a call unanswered this long is reported, until the
-    #: orchestrator's status says the run's own time-out).
-    call_timeout_s: float | None = None
+    def routes(self, app: web.Application, server: StudioServer) -> None:
+        """Add the `/api/*` routes to `app`."""
 
-    def hello(self) -> dict[str, Any]:
-        return {"type": "hello", "version": PROTOCOL_VERSION, "mode": self.mode, "robot": self.robot,
-                "source": self.source, "model": self.model, "diagnostics": self.diagnostics,
-                "track": self.track, "replay": self.replay,
-                "edit": self.edit() if self.edit is not None else None}
+    async def watch(self) -> None:
+        """Watch the folder for changes on disk until cancelled."""
+
+    def tick(self) -> None:
+        """Called about once a second on the event loop."""
+
+    def close(self) -> None:
+        """Release what the editing session holds (called in an executor)."""
 
 
 @dataclass
@@ -129,7 +116,7 @@ class StudioServer:
     #: called about once a second on the event loop (expire unanswered calls, poll a world, …).
     tick: Callable[[], None] | None = None
     #: the editing requests (`/api/*`), when the studio edits a model folder.
-    api: EditApi | None = None
+    api: EditRoutes | None = None
     #: the command's option that sets `port` (named when the port is taken).
     port_option: str = "--port"
     #: characters of JSON one page may have waiting before it is dropped (`Page`).

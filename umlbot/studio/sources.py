@@ -2,7 +2,7 @@
 recorded trace, or the simulated world of `umlbot sim --studio`.
 
 Every source produces the same `MonitorEvent`s `umlbot monitor` uses (one code path for live and
-replay, one decoder of the robot's topics: `services.monitor`).
+replay, one decoder of the robot's topics: `umlbot.monitor`).
 """
 
 from __future__ import annotations
@@ -13,17 +13,16 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from umlbot.logs import get_logger
+from umlbot.base.logs import get_logger
+from umlbot.studio.data import StudioData
 from umlbot.studio.hub import Hub
-from umlbot.studio.server import StudioData
 
 if TYPE_CHECKING:
-    from compiler.api import CheckResult
-    from compiler.compiled import CompiledModel
-    from services.bus.settings import BrokerSettings
-    from services.monitor import MonitorEvent
-    from services.monitor.live import LiveMonitor
-    from umlbot.sim.world import World
+    from umlbot.compiler.api import CheckResult
+    from umlbot.compiler.compiled import CompiledModel
+    from umlbot.monitor import LiveMonitor, MonitorEvent
+    from umlbot.services.bus import BrokerSettings
+    from umlbot.sim import World
 
 log = get_logger(__name__)
 
@@ -40,7 +39,7 @@ def studio_data(path: Path, robot: str | None, mode: str = "live",
                 result: CheckResult | None = None) -> StudioData:
     """The page's data for the model at `path` (compiled here unless `result` is its check already);
     the robot id is `robot`, else the model's name."""
-    from compiler.api import check_model
+    from umlbot.compiler.api import check_model
     from umlbot.studio.model_view import diagnostic_view, model_view
 
     if result is None:
@@ -60,11 +59,10 @@ def replay_data(trace_file: Path, robot: str, model: CompiledModel | None) -> di
 
     Raises ConfigError for a bad line and for a file without events.
     """
-    from compiler.compiled import ActionNode, DatastoreNode
-    from compiler.expr import Call, Const, FeatureTarget
-    from services.monitor import MonitorState
-    from services.monitor.replay import read_trace
-    from umlbot.errors import ConfigError
+    from umlbot.base.errors import ConfigError
+    from umlbot.compiler.compiled import ActionNode, DatastoreNode
+    from umlbot.compiler.expr import Call, Const, FeatureTarget
+    from umlbot.monitor import MonitorState, read_trace
 
     # (lane, node) -> the feature call the node makes: component, feature, its text, constant args
     calls: dict[tuple[str, str], tuple[str, str, str, list[Any] | None]] = {}
@@ -139,10 +137,8 @@ class BrokerSource:
 
     def __init__(self, settings: BrokerSettings, robot: str, hub: Hub,
                  call_timeout_s: float | None = None, origin: str | None = None) -> None:
-        from services.bus.settings import redact_url
-        from services.monitor import MonitorState
-        from services.monitor.live import LiveMonitor
-        from services.monitor.state import DEFAULT_CALL_TIMEOUT_S
+        from umlbot.monitor import DEFAULT_CALL_TIMEOUT_S, LiveMonitor, MonitorState
+        from umlbot.services.bus import redact_url
 
         self.hub = hub
         self.url = redact_url(settings.url)
@@ -203,7 +199,7 @@ class RobotFollower:
 
     def follow(self, robot: str) -> None:
         """Stop following the robot so far and follow `robot` (ConfigError: not a robot id)."""
-        from services.monitor.live import topic_filter
+        from umlbot.monitor import topic_filter
 
         topic_filter(robot)  # a bad id is refused before the old robot is dropped
         with self._lock:

@@ -17,7 +17,7 @@ from typing import Any, cast
 
 import yaml
 
-from compiler.yamlsrc import resolve_tag
+from umlbot.base.yamlsrc import resolve_tag
 
 Value = str | int | float | bool | None | list[Any] | dict[str, Any]
 

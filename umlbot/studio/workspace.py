@@ -29,10 +29,8 @@ from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath
 from typing import Any
 
-from compiler.api import CheckResult, check_model
-from compiler.source import ACTIVITIES_DIR, MODEL_FILE, Unreadable, read_model_folder
-from umlbot.errors import ModelError
-from umlbot.files import (
+from umlbot.base.errors import ModelError
+from umlbot.base.files import (
     WriteError,
     decode_utf8,
     file_problem,
@@ -40,6 +38,8 @@ from umlbot.files import (
     os_problem,
     write_files_atomically,
 )
+from umlbot.compiler.api import CheckResult, check_model
+from umlbot.compiler.source import ACTIVITIES_DIR, MODEL_FILE, Unreadable, read_model_folder
 from umlbot.studio.edit import (
     EditError,
     Rename,
@@ -120,7 +120,7 @@ Content = bytes | Unreadable
 
 def model_files(root: Path) -> dict[str, Content]:
     """The files of the model folder `root` that the compiler reads, by relative path, as the
-    compiler reads them (`compiler.source.read_model_folder`): one it cannot read is there as
+    compiler reads them (`umlbot.compiler.source.read_model_folder`): one it cannot read is there as
     `Unreadable`, so the check names it as `umlbot check` does, and saving leaves it alone."""
     return read_model_folder(root)
 
@@ -179,7 +179,7 @@ def safe_path(root: Path, rel: str) -> Path:
 
 def write_inside(root: Path, files: dict[str, bytes | None]) -> None:
     """Write (bytes) or remove (None) the files `files` (relative paths) inside `root`, all or
-    none (`umlbot.files.write_files_atomically`), refused (ValueError) unless every path stays
+    none (`umlbot.base.files.write_files_atomically`), refused (ValueError) unless every path stays
     inside `root`. Raises `WriteError` when the disk refuses."""
     write_files_atomically({safe_path(root, rel): data for rel, data in files.items()})
 

@@ -5,8 +5,8 @@ from __future__ import annotations
 import threading
 from typing import Any
 
-from services.lgpio_connection import LgpioHandle
-from services.registry import DriverFactory
+from umlbot.base.registry import DriverFactory
+from umlbot.services.pins.lgpio import LgpioHandle
 from umlbot_buzzer.driver import BuzzerSettings
 
 

@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from services.mock_support import MockDriver, MockSettings
-from services.registry import DriverFactory
+from umlbot.base.registry import DriverFactory
+from umlbot.services.mock_support import MockDriver, MockSettings
 
 
 class MockBuzzer(MockDriver):

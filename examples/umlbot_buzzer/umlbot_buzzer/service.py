@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from services.component_service import ComponentService
+from umlbot.services.component_service import ComponentService
 from umlbot_buzzer.driver import DEFAULT_TONE_HZ, Buzzer
 
 

@@ -8,10 +8,10 @@ from __future__ import annotations
 
 from pydantic import BaseModel, ConfigDict
 
-from services.registry import DriverFactory
-from umlbot.errors import DriverError, SimError
-from umlbot.logs import get_logger
-from umlbot.sim.sharing import connect_world
+from umlbot.base.errors import DriverError, SimError
+from umlbot.base.logs import get_logger
+from umlbot.base.registry import DriverFactory
+from umlbot.services.simworld import connect_world
 
 log = get_logger("umlbot.buzzer.sim")
 

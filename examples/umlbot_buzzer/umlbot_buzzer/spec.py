@@ -6,7 +6,7 @@ import drivers or hardware modules.
 
 from __future__ import annotations
 
-from umlbot.library import ComponentPlugin, FeatureSpec, Implementation, KindSpec, Param, ServiceSpec
+from umlbot.base.library import ComponentPlugin, FeatureSpec, Implementation, KindSpec, Param, ServiceSpec
 
 #: A new component kind for the component diagram: something that makes a sound.
 SOUNDER = KindSpec("sounder", (

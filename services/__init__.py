@@ -1,1 +1,0 @@
-"""The robot's MQTT side: the shared bus (`services.bus`), the hardware services and the orchestrator."""

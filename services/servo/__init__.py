@@ -1,5 +1,0 @@
-"""The servo service: hobby servos (angle in degrees) served over the bus."""
-
-from services.servo.driver import Servo, ServoSettings
-
-__all__ = ["Servo", "ServoSettings"]

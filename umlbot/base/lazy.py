@@ -1,0 +1,65 @@
+"""Importing a library without the modules it imports only for features umlbot does not use.
+
+A service process should hold only what it runs (docs/performance.md, "Memory"): structlog
+imports asyncio, rich and greenlet, paho imports ssl and urllib.request (with http.client and
+email), each for a feature a plain-TCP service never touches. `import_lean` imports a library
+with such modules *deferred* (a stand-in module in `sys.modules` that imports the real one on the
+first attribute use: `ssl.create_default_context()` in paho's `tls_set` imports ssl then) or
+*blocked* (the library sees an ImportError and goes without, as it does when they are not
+installed). The stand-ins leave `sys.modules` when the import is done, so a later `import ssl`
+anywhere gets the real module.
+"""
+
+from __future__ import annotations
+
+import importlib
+import sys
+import types
+from collections.abc import Callable, Iterable
+from typing import Any
+
+
+class Deferred(types.ModuleType):
+    """Stands in for module `name` inside one library; imports the real one on first attribute use
+    (through the import system, with its locks), so the library works unchanged."""
+
+    def __getattr__(self, name: str) -> Any:
+        if sys.modules.get(self.__name__) is self:
+            raise AttributeError(f"{self.__name__}.{name} used while a library was being imported "
+                                 "with it deferred (umlbot.base.lazy)")
+        return getattr(importlib.import_module(self.__name__), name)
+
+
+def import_lean(module: str, deferred: Iterable[str] = (), blocked: Iterable[str] = ()) -> types.ModuleType:
+    """Import `module` with the modules in `deferred` replaced by `Deferred` stand-ins and those in
+    `blocked` made to raise ImportError, unless they are imported already (then the library gets
+    the real ones)."""
+    stand_ins: dict[str, types.ModuleType | None] = {}
+    for name in blocked:
+        if name not in sys.modules:
+            stand_ins[name] = None  # `import name` raises ImportError
+    for name in deferred:
+        if name not in sys.modules:
+            stand_ins[name] = Deferred(name)
+    sys.modules.update(stand_ins)  # type: ignore[arg-type]  # None blocks an import
+    try:
+        return importlib.import_module(module)
+    finally:
+        for name, stand_in in stand_ins.items():
+            if sys.modules.get(name) is stand_in:
+                del sys.modules[name]
+
+
+def lazy_attributes(package: str, table: dict[str, str]) -> Callable[[str], Any]:
+    """A module `__getattr__` (PEP 562) for a package's front door: `name` is imported from the
+    module `table[name]` on first use, so that a heavy part (the embedded broker, the sim's runner)
+    loads only in the processes that use it. Declare the same names under `TYPE_CHECKING` for the
+    type checker."""
+
+    def __getattr__(name: str) -> Any:
+        module = table.get(name)
+        if module is None:
+            raise AttributeError(f"module {package!r} has no attribute {name!r}")
+        return getattr(importlib.import_module(module), name)
+
+    return __getattr__

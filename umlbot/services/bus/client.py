@@ -1,0 +1,201 @@
+"""The client side of the bus: call component features and wait for their replies.
+
+A `BusClient` subscribes once to its own reply topic `umlbot/<robot>/_reply/<user>/<token>` and
+matches replies to calls by id, so any number of calls may be in flight from several threads or
+asyncio tasks at once. Calls fail fast with `NotConnected` while the broker is unreachable (also
+the calls that were waiting when the connection dropped) and with `CallTimeout` when no reply
+came in time; an error reply raises `RemoteError` with its code.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import itertools
+import json
+import secrets
+import threading
+import time
+from concurrent.futures import Future, InvalidStateError
+from concurrent.futures import TimeoutError as FutureTimeout
+from typing import Any
+
+from umlbot.base.errors import CallTimeout, NotConnected, RemoteError
+from umlbot.base.logs import get_logger
+from umlbot.base.topics import Topics
+from umlbot.services.bus.connection import BusConnection, Handler, Message
+from umlbot.services.bus.envelopes import dumps, is_timeout, parse_json
+from umlbot.services.bus.settings import BrokerSettings
+
+log = get_logger(__name__)
+
+
+class BusClient:
+    """Calls features of one robot's components; `start()`, `close()`, context manager."""
+
+    def __init__(
+        self,
+        settings: BrokerSettings,
+        robot: str,
+        role: str = "client",
+        *,
+        client_id: str | None = None,
+    ) -> None:
+        self.topics = Topics(robot)
+        self.robot = robot
+        self.connection = BusConnection(settings, role=role, robot=robot, client_id=client_id)
+        token = secrets.token_hex(8)  # not the client id: that one is never published
+        self.reply_topic = self.topics.reply(settings.username, token)
+        self._pending: dict[str, Future[dict[str, Any]]] = {}
+        self._pending_lock = threading.Lock()
+        self._ids = itertools.count(1)
+        self._id_prefix = token[:6] + "-"
+        self.connection._subscribe_inline(self.reply_topic, self._on_reply, qos=0)
+        self.connection._add_on_disconnect_inline(self._fail_pending)
+
+    @property
+    def client_id(self) -> str:
+        return self.connection.client_id
+
+    @property
+    def connected(self) -> bool:
+        return self.connection.connected
+
+    def wait_connected(self, timeout: float) -> bool:
+        return self.connection.wait_connected(timeout)
+
+    def start(self, timeout: float | None = 5.0) -> None:
+        """Connect; raises NotConnected when the broker is not reached within `timeout`."""
+        self.connection.start(timeout)
+
+    def close(self) -> None:
+        """Disconnect; calls still waiting fail with NotConnected. Safe to call twice."""
+        self.connection.close()
+        self._fail_pending()
+
+    def __enter__(self) -> BusClient:
+        self.start()
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()
+
+    # -- calls ----------------------------------------------------------------------------------
+
+    def _request(
+        self, component: str, feature: str, args: tuple[Any, ...], timeout_s: float,
+        ack_wait_s: float | None = None,
+    ) -> tuple[str, Future[dict[str, Any]]]:
+        if not self.connection.connected:
+            raise NotConnected(
+                f"cannot call {component}.{feature}: not connected to the MQTT broker at "
+                f"{self.connection.settings.url}"
+            )
+        request_id = f"{self._id_prefix}{next(self._ids)}"
+        future: Future[dict[str, Any]] = Future()
+        with self._pending_lock:
+            self._pending[request_id] = future
+        # the time-out goes with the request: a monitor reports it unanswered when this caller gives up
+        request: dict[str, Any] = {"id": request_id, "reply_to": self.reply_topic, "args": args}
+        if is_timeout(timeout_s):
+            request["timeout_s"] = timeout_s
+        payload = dumps(request).encode("utf-8")
+        try:
+            if ack_wait_s is None:
+                self.connection.publish(self.topics.call(component, feature), payload, qos=0)
+            else:
+                self.connection.publish(self.topics.call(component, feature), payload, qos=1,
+                                        wait_s=ack_wait_s)
+        except BaseException:
+            with self._pending_lock:
+                self._pending.pop(request_id, None)
+            raise
+        return request_id, future
+
+    def call(self, component: str, feature: str, *args: Any, timeout: float = 2.0,
+             acknowledged: bool = False) -> Any:
+        """Call `component.feature(*args)`; return its value.
+
+        Raises CallTimeout, RemoteError (with `.code`) or NotConnected. With `acknowledged`, the
+        request goes out at QoS 1 and waits (within `timeout`) for the broker's acknowledgement,
+        so that over MQTT 5 a refused publish (the broker's ACL) raises `BrokerRefused` at once
+        instead of ending as a time-out; it costs a round trip, so the orchestrator does not.
+        """
+        started = time.monotonic()
+        request_id, future = self._request(component, feature, args, timeout,
+                                           timeout if acknowledged else None)
+        try:
+            reply = future.result(max(0.0, timeout - (time.monotonic() - started)))
+        except FutureTimeout:
+            with self._pending_lock:
+                self._pending.pop(request_id, None)
+            raise CallTimeout(component, feature, timeout) from None
+        return _unwrap(reply, component, feature)
+
+    # the same signature as `call` on purpose, so the orchestrator can switch between them
+    async def acall(self, component: str, feature: str, *args: Any, timeout: float = 2.0) -> Any:  # noqa: ASYNC109
+        """The asyncio form of `call`: awaits the reply without blocking the event loop."""
+        import asyncio  # here: a hardware service never calls it, and asyncio costs it ~2 MB
+
+        request_id, future = self._request(component, feature, args, timeout)
+        try:
+            reply = await asyncio.wait_for(asyncio.wrap_future(future), timeout)
+        except TimeoutError:
+            with self._pending_lock:
+                self._pending.pop(request_id, None)
+            raise CallTimeout(component, feature, timeout) from None
+        finally:  # also when the awaiting task is cancelled: forget the call
+            with self._pending_lock:
+                self._pending.pop(request_id, None)
+        return _unwrap(reply, component, feature)
+
+    def send(self, component: str, feature: str, *args: Any) -> None:
+        """Fire-and-forget call: no reply is asked for; raises NotConnected when offline."""
+        self.connection.publish(self.topics.call(component, feature), {"args": list(args)}, qos=0)
+
+    # -- passthrough ----------------------------------------------------------------------------
+
+    def publish(self, topic: str, payload: Any, qos: int = 1, retain: bool = False) -> None:
+        """Publish on this client's connection (see `BusConnection.publish`)."""
+        self.connection.publish(topic, payload, qos=qos, retain=retain)
+
+    def subscribe(self, topic_filter: str, handler: Handler, qos: int = 1) -> None:
+        """Subscribe on this client's connection (see `BusConnection.subscribe`)."""
+        self.connection.subscribe(topic_filter, handler, qos=qos)
+
+    # -- replies (network thread: only resolves futures) ------------------------------------------
+
+    def _on_reply(self, message: Message) -> None:
+        try:
+            reply = parse_json(message.payload)
+        except ValueError:
+            log.warning("bad_reply", topic=message.topic, reason="not JSON")
+            return
+        if not isinstance(reply, dict):
+            return
+        request_id = reply.get("id")
+        with self._pending_lock:
+            future = self._pending.pop(request_id, None) if isinstance(request_id, str) else None
+        if future is not None:
+            with contextlib.suppress(InvalidStateError):  # cancelled by a timed-out acall
+                future.set_result(reply)
+
+    def _fail_pending(self) -> None:
+        with self._pending_lock:
+            pending, self._pending = self._pending, {}
+        for future in pending.values():
+            with contextlib.suppress(InvalidStateError):
+                future.set_exception(NotConnected("the connection to the MQTT broker was lost"))
+
+
+def _unwrap(reply: dict[str, Any], component: str, feature: str) -> Any:
+    if reply.get("ok") is True:
+        return reply.get("value")
+    error = reply.get("error")
+    if isinstance(error, dict):
+        code, text = str(error.get("code", "internal")), str(error.get("message", ""))
+        raise RemoteError(code, text, component, feature)
+    try:
+        text = json.dumps(reply)[:200]
+    except (ValueError, RecursionError):
+        text = "(not shown: nested too deeply)"
+    raise RemoteError("bad_reply", f"malformed reply: {text}", component, feature)
