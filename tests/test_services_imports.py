@@ -1,4 +1,4 @@
-"""What a hardware service process imports (issue "Memory": ≤ 40 MB resident per service).
+"""What a hardware service process imports (docs/performance.md, "Memory").
 
 A real `umlbot service` runs against Mosquitto, answers a good and a bad call (request validation
 and the warning log line run), and then lists its `sys.modules`: the libraries the service does
@@ -45,17 +45,16 @@ main()
 
 #: Imported by other commands only (compiler, simulator, studio, broker, monitor, orchestrator),
 #: by libraries only for features a service does not use (asyncio, rich and greenlet by structlog;
-#: urllib.request and http.client by paho, for proxies), or by the real GPIO drivers (the mock
-#: driver is running). Not ssl: it is deferred too, but paho names `ssl.SSLWantReadError` in the
-#: `except` clauses of its socket reads and writes, so the first read or write that raises (a
-#: full send buffer on a busy machine: BlockingIOError) loads it; whether that happened by the
-#: time of the dump is up to the machine's load.
+#: urllib.request and http.client by paho, for proxies; ssl by paho, for TLS, also where its socket
+#: reads and writes name `ssl.SSLWantReadError` in `except` clauses; hashlib by paho for WebSockets
+#: and secrets by pydantic for SecretStr), or by the real GPIO drivers (the mock driver is running).
 ABSENT = (
     "asyncio", "rich", "greenlet", "urllib.request", "http.client", "matplotlib", "numpy", "amqtt",
     "aiohttp", "umlbot.compiler.api", "umlbot.compiler.checker", "umlbot.compiler.source",
     "umlbot.compiler.expr_parser", "umlbot.compiler.compiled", "umlbot.compiler.render", "umlbot.sim",
     "umlbot.studio", "umlbot.services.orchestrator", "umlbot.monitor", "umlbot.services.bus.broker",
-    "pigpio", "lgpio",
+    "pigpio", "lgpio", "secrets", "hmac", "hashlib", "_hashlib",
+    "ssl", "_ssl",
 )
 #: What the service keeps on purpose: request validation, logging, the MQTT client, the CLI.
 PRESENT = ("pydantic", "umlbot.services.bus.envelopes", "structlog", "paho.mqtt.client", "click")

@@ -1,9 +1,9 @@
 """umlbot: build a robot from UML models.
 
-The package holds the command line (`umlbot.cli`), the error hierarchy (`umlbot.base.errors`), logging
-(`umlbot.base.logs`), the shared clock (`umlbot.base.clock`) and the simulator (`umlbot.sim`). The model
-compiler lives in the top-level package `compiler`, the MQTT bus, the hardware services and the
-orchestrator in `services`.
+The package stacks in floors (docs/architecture.md): the ground floor `umlbot.base` (errors, files,
+the component library, deployment, logs, clocks), the model compiler `umlbot.compiler`, the MQTT
+bus, hardware services and orchestrator `umlbot.services`, and the applications on top (the sim,
+the studio, the monitor and the command line `umlbot.cli`).
 """
 
 from umlbot.base.errors import ModelError, UmlbotError

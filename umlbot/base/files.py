@@ -15,7 +15,6 @@ import errno
 import json
 import math
 import os
-import secrets
 import stat
 import sys
 import tempfile
@@ -143,7 +142,7 @@ class _Kept:
 def _keep(path: Path) -> _Kept:
     if not os.path.lexists(path):
         return _Kept()
-    link = str(path.with_name(f".{path.name}.{secrets.token_hex(4)}.old"))
+    link = str(path.with_name(f".{path.name}.{os.urandom(4).hex()}.old"))
     try:
         os.link(path, link, follow_symlinks=False)
         return _Kept(link=link)

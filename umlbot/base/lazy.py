@@ -15,32 +15,51 @@ from __future__ import annotations
 import importlib
 import sys
 import types
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping
 from typing import Any
+
+
+class Unraised(Exception):
+    """What a `Deferred` module's *unraised* exception names stand for until the real module is
+    imported: nothing raises it, so an `except` clause naming it catches nothing — as it must,
+    since only objects of the real module (which is not loaded yet) raise the real exception."""
 
 
 class Deferred(types.ModuleType):
     """Stands in for module `name` inside one library; imports the real one on first attribute use
-    (through the import system, with its locks), so the library works unchanged."""
+    (through the import system, with its locks), so the library works unchanged.
+
+    `unraised` names exception classes that only the module's own objects raise (ssl's
+    `SSLWantReadError`: only an SSL socket raises it, and making one imports ssl). Until the real
+    module is imported by anyone, such a name gives `Unraised` instead of importing it: an
+    `except` clause that names it (paho's socket reads and writes) does not load the module."""
+
+    def __init__(self, name: str, unraised: Iterable[str] = ()) -> None:
+        super().__init__(name)
+        self._unraised = frozenset(unraised)
 
     def __getattr__(self, name: str) -> Any:
         if sys.modules.get(self.__name__) is self:
             raise AttributeError(f"{self.__name__}.{name} used while a library was being imported "
                                  "with it deferred (umlbot.base.lazy)")
+        if name in self._unraised and not isinstance(sys.modules.get(self.__name__), types.ModuleType):
+            return Unraised
         return getattr(importlib.import_module(self.__name__), name)
 
 
-def import_lean(module: str, deferred: Iterable[str] = (), blocked: Iterable[str] = ()) -> types.ModuleType:
+def import_lean(module: str, deferred: Iterable[str] = (), blocked: Iterable[str] = (),
+                unraised: Mapping[str, Iterable[str]] | None = None) -> types.ModuleType:
     """Import `module` with the modules in `deferred` replaced by `Deferred` stand-ins and those in
     `blocked` made to raise ImportError, unless they are imported already (then the library gets
-    the real ones)."""
+    the real ones). `unraised` maps a deferred module to its exception names that must not import
+    it (see `Deferred`)."""
     stand_ins: dict[str, types.ModuleType | None] = {}
     for name in blocked:
         if name not in sys.modules:
             stand_ins[name] = None  # `import name` raises ImportError
     for name in deferred:
         if name not in sys.modules:
-            stand_ins[name] = Deferred(name)
+            stand_ins[name] = Deferred(name, (unraised or {}).get(name, ()))
     sys.modules.update(stand_ins)  # type: ignore[arg-type]  # None blocks an import
     try:
         return importlib.import_module(module)

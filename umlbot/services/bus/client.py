@@ -12,7 +12,7 @@ from __future__ import annotations
 import contextlib
 import itertools
 import json
-import secrets
+import os
 import threading
 import time
 from concurrent.futures import Future, InvalidStateError
@@ -43,7 +43,7 @@ class BusClient:
         self.topics = Topics(robot)
         self.robot = robot
         self.connection = BusConnection(settings, role=role, robot=robot, client_id=client_id)
-        token = secrets.token_hex(8)  # not the client id: that one is never published
+        token = os.urandom(8).hex()  # not the client id: that one is never published
         self.reply_topic = self.topics.reply(settings.username, token)
         self._pending: dict[str, Future[dict[str, Any]]] = {}
         self._pending_lock = threading.Lock()

@@ -33,9 +33,13 @@ from umlbot.services.bus.settings import BrokerSettings, make_client_id
 if TYPE_CHECKING:
     import paho.mqtt.client as mqtt
 else:
-    # paho imports ssl (about 1.2 MB) for TLS, and urllib.request (2.6 MB with http.client) only to
-    # read proxy settings when PySocks is installed: both deferred until used (docs/performance.md)
-    mqtt = import_lean("paho.mqtt.client", deferred=("ssl", "urllib.request"))
+    # paho imports ssl (with OpenSSL's libssl and libcrypto, about 4 MB) for TLS, hashlib for
+    # WebSockets, and urllib.request (2.6 MB with http.client) only to read proxy settings when
+    # PySocks is installed: all deferred until used (docs/performance.md, "Memory"). Its socket
+    # reads and writes name ssl's SSLWantReadError/SSLWantWriteError in `except` clauses: those
+    # do not load ssl (only an SSL socket raises them, and making one imports ssl).
+    mqtt = import_lean("paho.mqtt.client", deferred=("ssl", "urllib.request", "hashlib"),
+                       unraised={"ssl": ("SSLWantReadError", "SSLWantWriteError")})
 
 log = get_logger(__name__)
 

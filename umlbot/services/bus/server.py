@@ -12,8 +12,8 @@ from __future__ import annotations
 import contextlib
 import contextvars
 import json
+import os
 import re
-import secrets
 import threading
 import time
 from collections.abc import Callable
@@ -212,7 +212,7 @@ class ComponentServer:
         self._published: bytes | None = None  # the payload of our last `online` status
         self._foreign_warned = -FOREIGN_STATUS_WARN_EVERY_S
         #: this server's name in its status and liveness answers (random: not the client id)
-        self.instance = secrets.token_hex(8)
+        self.instance = os.urandom(8).hex()
         self._status_seen = threading.Event()
         self._synced = threading.Event()  # our own message came back: the retained status is in
         self._alive_answer = threading.Event()

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import os
 import re
-import secrets
 import socket
 from pathlib import Path
 from typing import Final, Literal
@@ -174,7 +173,7 @@ def make_client_id(role: str, robot: str) -> str:
     umlbot never publishes it: statuses name an `instance` token, reply topics a token of their own.
     """
     host = _UNSAFE.sub("", socket.gethostname().split(".")[0])[:20] or "host"
-    suffix = secrets.token_hex(16)
+    suffix = os.urandom(16).hex()
     role_part = _UNSAFE.sub("_", role)[:32] or "client"
     robot_part = _UNSAFE.sub("_", robot)[:32] or "any"
     return f"umlbot-{role_part}-{robot_part}-{host}-{os.getpid()}-{suffix}"

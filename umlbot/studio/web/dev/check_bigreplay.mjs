@@ -1,10 +1,8 @@
 // Dev: a 100 000-event replay of the 2 000-node model: time to ready, scrub time (not shipped).
-import { chromium } from "playwright-core";
+import { openPage } from "./browser.mjs";
 
 const [url] = process.argv.slice(2);
-const browser = await chromium.launch({ executablePath: "/usr/bin/chromium", args: ["--no-sandbox", "--disable-gpu"] });
-const page = await browser.newPage({ viewport: { width: 1600, height: 1000 } });
-page.on("pageerror", (e) => console.log("pageerror:", e.message));
+const { browser, page } = await openPage({ width: 1600, height: 1000 });
 const t0 = Date.now();
 await page.goto(`${url}#diagram=activity-all`);
 await page.waitForFunction("window.__studio.ready === true", null, { timeout: 120000 });

@@ -5,22 +5,11 @@
 // Prints per edit the ms until the server answered and until the shown diagram drew the answer,
 // and the frame times meanwhile (p50/p99/max).
 import { readFileSync } from "node:fs";
-import { chromium } from "playwright-core";
+import { openPage } from "./browser.mjs";
 
 const [url, opsFile, out = "/tmp/check_edit.png"] = process.argv.slice(2);
 const edits = JSON.parse(readFileSync(opsFile, "utf8"));
-const browser = await chromium.launch({
-  executablePath: "/usr/bin/chromium",
-  args: [
-    "--no-sandbox",
-    "--disable-gpu",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--disable-sync",
-  ],
-});
-const page = await browser.newPage({ viewport: { width: 1600, height: 1000 } });
-page.on("pageerror", (e) => console.log("pageerror:", e.message));
+const { browser, page } = await openPage({ width: 1600, height: 1000 });
 await page.goto(url);
 await page.waitForFunction(
   "window.__studio && window.__studio.ready === true && window.__studio.edit && window.__studio.edit.drawn >= 0",

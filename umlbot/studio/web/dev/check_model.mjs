@@ -1,10 +1,8 @@
 // Dev: a `model` frame redraws and keeps the stats; a dropped connection reconnects (not shipped).
-import { chromium } from "playwright-core";
+import { openPage } from "./browser.mjs";
 
 const [url] = process.argv.slice(2);
-const browser = await chromium.launch({ executablePath: "/usr/bin/chromium", args: ["--no-sandbox", "--disable-gpu"] });
-const page = await browser.newPage({ viewport: { width: 1600, height: 950 } });
-page.on("pageerror", (e) => console.log("pageerror:", e.message));
+const { browser, page } = await openPage({ width: 1600, height: 950 });
 const states = [];
 await page.exposeFunction("__conn", (s) => states.push(s));
 await page.addInitScript(() => {

@@ -1,10 +1,8 @@
 // Dev: replay checks against dev/serve.mjs --mode replay (not shipped). node dev/check_replay.mjs URL
-import { chromium } from "playwright-core";
+import { openPage } from "./browser.mjs";
 
 const [url] = process.argv.slice(2);
-const browser = await chromium.launch({ executablePath: "/usr/bin/chromium", args: ["--no-sandbox", "--disable-gpu"] });
-const page = await browser.newPage({ viewport: { width: 1600, height: 950 } });
-page.on("pageerror", (e) => console.log("pageerror:", e.message));
+const { browser, page } = await openPage({ width: 1600, height: 950 });
 await page.goto(`${url}#diagram=activity-motion`);
 await page.waitForFunction("window.__studio.ready === true");
 await page.waitForTimeout(1500);

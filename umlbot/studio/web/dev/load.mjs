@@ -1,20 +1,9 @@
 // Dev: measure frames under load against dev/serve.mjs --rate N (not shipped).
 //   node dev/load.mjs URL seconds OUT.png
-import { chromium } from "playwright-core";
+import { openPage } from "./browser.mjs";
 
-const [url, seconds = "8", out = "/work/wtstudio/out/load.png"] = process.argv.slice(2);
-const browser = await chromium.launch({
-  executablePath: "/usr/bin/chromium",
-  args: [
-    "--no-sandbox",
-    "--disable-gpu",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--disable-sync",
-  ],
-});
-const page = await browser.newPage({ viewport: { width: 1600, height: 1000 } });
-page.on("pageerror", (e) => console.log("pageerror:", e.message));
+const [url, seconds = "8", out = "/tmp/load.png"] = process.argv.slice(2);
+const { browser, page } = await openPage({ width: 1600, height: 1000 });
 const t0 = Date.now();
 await page.goto(url);
 await page.waitForFunction("window.__studio && window.__studio.ready === true", null, { timeout: 120000 });

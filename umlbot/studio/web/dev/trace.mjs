@@ -1,18 +1,8 @@
 // Dev: a Chromium timeline summary under load (not shipped). node dev/trace.mjs URL seconds
-import { chromium } from "playwright-core";
+import { openPage } from "./browser.mjs";
 
 const [url, seconds = "4"] = process.argv.slice(2);
-const browser = await chromium.launch({
-  executablePath: "/usr/bin/chromium",
-  args: [
-    "--no-sandbox",
-    "--disable-gpu",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--disable-sync",
-  ],
-});
-const page = await browser.newPage({ viewport: { width: 1600, height: 1000 } });
+const { browser, page } = await openPage({ width: 1600, height: 1000 });
 await page.goto(url);
 await page.waitForFunction("window.__studio && window.__studio.ready === true", null, { timeout: 120000 });
 await page.waitForTimeout(3000);

@@ -1,9 +1,8 @@
 // Dev: screenshot a diagram zoomed by wheel steps (not shipped). node dev/zoomshot.mjs URL OUT steps
-import { chromium } from "playwright-core";
+import { openPage } from "./browser.mjs";
 
 const [url, out, steps = "3"] = process.argv.slice(2);
-const browser = await chromium.launch({ executablePath: "/usr/bin/chromium", args: ["--no-sandbox", "--disable-gpu"] });
-const page = await browser.newPage({ viewport: { width: 1600, height: 950 } });
+const { browser, page } = await openPage({ width: 1600, height: 950 });
 await page.goto(url);
 await page.waitForFunction("window.__studio.ready === true");
 await page.waitForTimeout(2500);
