@@ -16,10 +16,12 @@ import math
 import random
 import threading
 from dataclasses import dataclass, field
+from typing import Any
 
 from umlbot.base.clock import Clock
+from umlbot.base.errors import SimError
 from umlbot.base.logs import get_logger
-from umlbot.services.simworld import Side
+from umlbot.services.simworld import Side, StereoImages
 from umlbot.sim.geometry import Point, Pose, Segment, WallIndex, incidence, rectangle_corners
 from umlbot.sim.track import Track
 
@@ -179,6 +181,11 @@ class World:
         self._last_ping_s = -math.inf
         self._goal_reached = track.goal.contains(self._pose.x, self._pose.y)
         self._trace = _Trace()
+        #: the stereo camera's renderers by image size (made on first use: numpy), and a switch
+        #: that makes the camera stop delivering frames (a test of the fail-safe)
+        self._renderers: dict[tuple[int, int], Any] = {}
+        self._camera_seed = seed
+        self.camera_stopped = False
         self._trace.path.append((0.0, self._pose.x, self._pose.y))
         if self.hits_wall(self._pose):
             raise ValueError(f"track {track.name!r}: the car's start footprint overlaps a wall")
@@ -337,6 +344,31 @@ class World:
             if hit is not None and incidence(bearing + offset, hit[1]) <= steepest:
                 echoes.append((hit[0], bearing + offset))
         return min(echoes, default=None)
+
+    def render_stereo(self, width_px: int, height_px: int) -> StereoImages:
+        """The stereo camera's left and right images from where the car is now (`umlbot.sim.camera`).
+
+        The camera sits at the front of the car, looking straight ahead; `SimError` when it has
+        been stopped (`camera_stopped`).
+        """
+        if not (16 <= width_px <= 4096 and 16 <= height_px <= 4096):
+            raise ValueError(f"image size must be 16..4096 pixels a side, got {width_px}x{height_px}")
+        if self.camera_stopped:
+            raise SimError("the stereo camera delivers no frames (stopped)")
+        from umlbot.sim.camera import CameraRenderer, StereoRig
+
+        with self._lock:
+            self._sync()
+            pose, now = self._pose, self._time
+            renderer = self._renderers.get((width_px, height_px))
+            if renderer is None:
+                renderer = CameraRenderer(self._walls, StereoRig().scaled(width_px, height_px),
+                                          seed=self._camera_seed)
+                self._renderers[(width_px, height_px)] = renderer
+        left, right = renderer.render(pose)  # outside the lock: the other lanes go on
+        rig = renderer.rig
+        return StereoImages(now, width_px, height_px, rig.focal_px, rig.baseline_m,
+                            left.tobytes(), right.tobytes())
 
     # --- integration ---------------------------------------------------------------------------
 
