@@ -50,7 +50,7 @@ class StereoService(ComponentService):
         max_age = self._setting("frame_max_age_s", 0.05)
         now = self.camera.time_s()
         with self.lock:
-            if self._frame is not None and now - self._frame_at <= max_age:
+            if self._frame is not None and max_age > 0 and now - self._frame_at <= max_age:
                 return self._frame
         try:
             frame = self.camera.read_depth()
@@ -79,20 +79,25 @@ class StereoService(ComponentService):
         return round(statistics.median(values))
 
     def _nearest(self, frame: DepthFrame) -> tuple[int, int]:
-        """(cm, bearing) of the nearest surface: the smallest of the columns' 5-column medians."""
+        """(cm, bearing) of the nearest surface: the smallest of the columns' 5-column medians;
+        the bearing is the middle of the run of columns within 2 % of it."""
         if frame.problem is not None:
             return NO_READING, 0
-        best: tuple[float, float] | None = None
         cols, angles = frame.columns_cm, frame.angles_deg
+        smoothed: list[float | None] = []
         for i in range(len(cols)):
             window = [c for c in cols[max(0, i - 2): i + 3] if c is not None]
-            if len(window) >= 3:
-                cm = statistics.median(window)
-                if best is None or cm < best[0]:
-                    best = (cm, angles[i])
-        if best is None:
+            smoothed.append(statistics.median(window) if len(window) >= 3 else None)
+        known = [(cm, i) for i, cm in enumerate(smoothed) if cm is not None]
+        if not known:
             return NO_READING, 0
-        return round(best[0]), round(best[1])
+        best, at = min(known)
+        low = high = at
+        while low > 0 and (smoothed[low - 1] or math.inf) <= best * 1.02:
+            low -= 1
+        while high < len(cols) - 1 and (smoothed[high + 1] or math.inf) <= best * 1.02:
+            high += 1
+        return round(best), round((angles[low] + angles[high]) / 2)
 
     def _free_width(self, frame: DepthFrame) -> int:
         reach = self._setting("look_ahead_cm", 60.0)
