@@ -44,6 +44,7 @@ class DepthEngine:
 
     def __init__(self, calibration: Calibration, *, min_range_m: float = 0.24, max_range_cm: float = 400.0,
                  block_px: int = 5, texture_min: float = 10.0, band_deg: float = 3.0,
+                 view_deg: float = 10.0,
                  min_valid_rows: int = 3, max_spread: float = 0.06, swap_check: bool = True) -> None:
         cv2 = require_cv2()
         self._cv2 = cv2
@@ -87,7 +88,12 @@ class DepthEngine:
         self._cos = np.cos(self._column_angles)
         band = round(self.focal_px * math.tan(math.radians(band_deg)))
         centre = round(self.cy)
-        self._rows = slice(max(0, centre - band), min(height, centre + band + 1))
+        view = max(band + 8, round(self.focal_px * math.tan(math.radians(view_deg))))
+        #: the rows matched (the depth picture): the horizon +- view_deg, the walls' height
+        self._view = slice(max(0, centre - view), min(height, centre + view + 1))
+        #: the rows each column's distance is the median of, within the matched rows
+        self._rows = slice(max(0, centre - band) - self._view.start,
+                           min(height, centre + band + 1) - self._view.start)
 
     @property
     def angles_deg(self) -> np.ndarray:
@@ -112,9 +118,7 @@ class DepthEngine:
     def shift_px(self, left: np.ndarray, right: np.ndarray) -> tuple[float, float]:
         """The right image's overall horizontal shift against the left one (negative for a
         correctly ordered pair: things appear further left in the right image) and how sure."""
-        rows = left[self._rows.start - 8 if self._rows.start >= 8 else 0: self._rows.stop + 8]
-        rrows = right[self._rows.start - 8 if self._rows.start >= 8 else 0: self._rows.stop + 8]
-        a, b = rows.astype(np.float32), rrows.astype(np.float32)
+        a, b = left[self._view].astype(np.float32), right[self._view].astype(np.float32)
         window = self._cv2.createHanningWindow((a.shape[1], a.shape[0]), self._cv2.CV_32F)
         (dx, _dy), response = self._cv2.phaseCorrelate(a, b, window)
         return float(dx), float(response)
@@ -133,10 +137,10 @@ class DepthEngine:
                                   problem="cameras swapped? the right image is shifted to the right "
                                           "of the left one", compute_s=time.perf_counter() - started,
                                   extra={"shift_px": dx, "shift_response": response})
-        # the left-most `num_disparities` columns cannot be searched (their match would lie left
-        # of the right image): no reading there (padding them was tried: it gave false matches)
-        disparity = self._matcher.compute(lr, rr).astype(np.float32) / 16.0
-        gradient = np.abs(cv2.Sobel(lr, cv2.CV_32F, 1, 0, ksize=3))
+        lb, rb = np.ascontiguousarray(lr[self._view]), np.ascontiguousarray(rr[self._view])
+        disparity = self._matcher.compute(lb, rb).astype(np.float32) / 16.0
+        self._fill_left_strip(disparity, lb, rb)
+        gradient = np.abs(cv2.Sobel(lb, cv2.CV_32F, 1, 0, ksize=3))
         texture = cv2.blur(gradient, (7, 7))
         valid = (disparity > 0.5) & (texture >= self.texture_min)
         depth_m = np.where(valid, self.focal_px * self.baseline_m / np.maximum(disparity, 0.5), np.nan)
@@ -159,12 +163,35 @@ class DepthEngine:
         share = float(np.mean(valid))
         problem = None
         if not any(ok):
-            mean = float(np.mean(lr))
+            mean = float(np.mean(lb))
             problem = ("too dark to see" if mean < 25 else
                        "nothing to measure: no texture (plain surfaces) or everything out of range")
         image, size = self._depth_picture(depth_m)
         return DepthFrame(time_s, angles, columns, problem=problem, valid_share=share, depth_image=image,
                           depth_size=size, compute_s=time.perf_counter() - started)
+
+    def _fill_left_strip(self, disparity: np.ndarray, left: np.ndarray, right: np.ndarray) -> None:
+        """The left-most `num_disparities` columns of the left image cannot be searched (their
+        match could lie left of the right image), so the matcher leaves them blank. They are seen
+        from the right camera instead: the pair mirrored and swapped (the right image's left
+        part is then searchable), its disparities carried over to the left image's columns
+        (u_left = u_right + d; the nearest wins where two land on one column)."""
+        nd = self.num_disparities
+        width = left.shape[1]
+        span = min(width, 2 * nd + 24)
+        if span <= nd:
+            return
+        mirrored_left = np.ascontiguousarray(right[:, :span][:, ::-1])
+        mirrored_right = np.ascontiguousarray(left[:, :span][:, ::-1])
+        found = self._matcher.compute(mirrored_left, mirrored_right).astype(np.float32) / 16.0
+        rows, cols = np.nonzero(found[:, nd:] > 0.5)
+        d = found[rows, cols + nd]
+        u_left = np.rint((span - 1 - (cols + nd)) + d).astype(np.int64)
+        keep = (u_left >= 0) & (u_left < nd)
+        fill = np.full((left.shape[0], nd), -1.0, dtype=np.float32)
+        np.maximum.at(fill, (rows[keep], u_left[keep]), d[keep])
+        strip = disparity[:, :nd]
+        disparity[:, :nd] = np.where(strip > 0.5, strip, fill)
 
     def _depth_picture(self, depth_m: np.ndarray) -> tuple[bytes, tuple[int, int]]:
         """A small grey picture (near = bright, no reading = black), 80 pixels wide."""
