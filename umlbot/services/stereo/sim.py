@@ -1,7 +1,8 @@
 """The sim stereo camera: the simulated world renders the left and right images, OpenCV matches them.
 
-Settings: `width_px`, `height_px` (default 320 x 240), `calibration` (a calibration file; default:
-the simulated rig's ideal calibration, which the world reports with each picture),
+Settings: `width_px`, `height_px` (default 320 x 240), `sim_calibration` (a calibration file; by
+default the simulated rig's ideal calibration, which the world reports with each picture; the
+real camera's `calibration` is ignored here),
 `min_range_cm` (the nearest distance the matcher searches, default 24). The depth pipeline is
 exactly the real camera's (`umlbot.services.stereo.depth`).
 """
@@ -27,7 +28,7 @@ class SimStereoSettings(BaseModel):
 
     width_px: int = Field(default=320, ge=64, le=2048)
     height_px: int = Field(default=240, ge=48, le=2048)
-    calibration: str | None = Field(default=None, description="calibration file (default: ideal rig)")
+    sim_calibration: str | None = Field(default=None, description="calibration file (default: ideal rig)")
     min_range_cm: float = Field(default=24.0, ge=5, le=200)
 
 
@@ -87,7 +88,7 @@ class SimStereoCamera:
 
 def create(component: str, settings: SimStereoSettings) -> SimStereoCamera:
     """Build the sim camera of `component` against the world of this process."""
-    calibration = load_calibration(settings.calibration) if settings.calibration else None
+    calibration = load_calibration(settings.sim_calibration) if settings.sim_calibration else None
     try:
         world = connect_world()
     except SimError as exc:
