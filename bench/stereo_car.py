@@ -75,8 +75,8 @@ def main() -> int:
         table.append(line)
         print("  ".join(f"{k}={v}" for k, v in line.items()))
     stereo = [r for r in runs if r["model"] == "stereo_car"]
-    figures = {"success_rate": round(100.0 * sum(r["goal"] for r in stereo) / len(stereo), 1) if stereo else None,
-               "collisions": sum(r["collisions"] for r in stereo)}
+    rate = round(100.0 * sum(r["goal"] for r in stereo) / len(stereo), 1) if stereo else None
+    figures = {"success_rate": rate, "collisions": sum(r["collisions"] for r in stereo)}
     print(json.dumps({"runs": runs, "tracks": table, "stereo_car": figures}))
     return 0 if stereo and all(r["goal"] for r in stereo) else 1
 

@@ -9,6 +9,7 @@ exactly the real camera's (`umlbot.services.stereo.depth`).
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field
@@ -43,6 +44,7 @@ class SimStereoCamera:
         self._world = world
         self._calibration = calibration
         self._engine: DepthEngine | None = None
+        self._last: tuple[bytes, bytes, DepthFrame] | None = None
         self._closed = False
         #: wall seconds from the world's picture to the depth frame, of the last frame
         self.last_latency_s = 0.0
@@ -66,6 +68,11 @@ class SimStereoCamera:
             images = self._world.render_stereo(self.settings.width_px, self.settings.height_px)
         except SimError as exc:
             raise DriverError(f"{self.component}: {exc}") from exc
+        last = self._last
+        if last is not None and last[0] == images.left and last[1] == images.right:
+            # the same picture (the car stood still): the same depth, without matching again
+            self.last_latency_s = time.perf_counter() - started
+            return dataclasses.replace(last[2], time_s=images.time_s)
         shape = (images.height_px, images.width_px)
         left = np.frombuffer(images.left, dtype=np.uint8).reshape(shape)
         right = np.frombuffer(images.right, dtype=np.uint8).reshape(shape)
@@ -74,6 +81,7 @@ class SimStereoCamera:
         except ValueError as exc:
             raise DriverError(f"{self.component}: {exc}") from exc
         self.last_latency_s = time.perf_counter() - started
+        self._last = (images.left, images.right, frame)
         return frame
 
     def time_s(self) -> float:
