@@ -30,17 +30,16 @@ from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-import cv2
-
 from umlbot.base.library import BUILTIN
 from umlbot.services.stereo.calibration import ideal_calibration
-from umlbot.services.stereo.depth import DepthEngine
+from umlbot.services.stereo.depth import DepthEngine, require_cv2
 from umlbot.services.stereo.service import StereoService
 from umlbot.services.stereo.sim import SimStereoCamera, SimStereoSettings
 from umlbot.sim.geometry import Pose
 from umlbot.sim.track import find_track, load_track
 from umlbot.sim.world import World
 
+cv2: Any = require_cv2()
 PI4_RATIO = 6.0
 PI5_RATIO = 2.5
 
