@@ -16,6 +16,7 @@ component.
 
 from __future__ import annotations
 
+import base64
 import math
 import statistics
 from typing import Any
@@ -133,6 +134,10 @@ class StereoService(ComponentService):
             "fov_deg": [round(low, 1), round(high, 1)],
             "frame_time_s": round(frame.time_s, 3),
             "compute_ms": round(frame.compute_s * 1000, 1),
+            # a small grey picture of the depth for viewers (the studio's sim panel): near is
+            # bright, no reading black; row-major bytes, base64
+            "depth_image": base64.b64encode(frame.depth_image).decode() if frame.depth_image else None,
+            "depth_size": list(frame.depth_size),
         }
 
     def distance(self, angle_deg: int) -> int:
