@@ -5,7 +5,7 @@ camera) drive each track with seeds 0..N-1, the sonar noisy as in bench/sim.py (
 5 % lost echoes). One line per run, then one per track: goals, collisions and the mean distance
 driven by each car. The last line is JSON: {"runs": [{"model", "track", "seed", "goal",
 "collisions", "distance_m", "sim_s", "wall_s"}, ...], "tracks": [{"track", "robot_car_m",
-"stereo_car_m", "robot_car_goals", "stereo_car_goals", ...}], "stereo_car": {"success_rate",
+"angled", "stereo_car_m", "robot_car_goals", "stereo_car_goals", ...}], "stereo_car": {"success_rate",
 "collisions"}}. Exit status 1 when the stereo car missed a goal or collided.
 
     python bench/stereo_car.py                                     # bundled tracks, 5 seeds
@@ -25,10 +25,15 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from umlbot.base.logs import configure_logging
 from umlbot.sim import SimOptions, run_sim
-from umlbot.sim.track import tracks_dir
+from umlbot.sim.track import load_track, tracks_dir
 
 ROOT = Path(__file__).resolve().parent.parent
 MODELS = {"robot_car": ROOT / "models" / "robot_car", "stereo_car": ROOT / "models" / "stereo_car"}
+
+
+def is_angled(path: Path) -> bool:
+    """A track with a wall that is neither along x nor along y (a corridor at an angle)."""
+    return any(abs(w.a.x - w.b.x) > 1e-6 and abs(w.a.y - w.b.y) > 1e-6 for w in load_track(path).segments)
 
 
 def main() -> int:
@@ -59,14 +64,16 @@ def main() -> int:
                 row = {"model": model, "track": result.track, "seed": seed, "goal": result.ok,
                        "reason": result.reason, "collisions": result.collisions,
                        "distance_m": round(result.distance_m, 2), "sim_s": round(result.sim_s, 1),
-                       "wall_s": round(result.wall_s, 1)}
+                       "wall_s": round(result.wall_s, 1), "failure": result.failure}
+                why = row["reason"] + (f": {row['failure']}" if row["failure"] else "")
                 print(f"{model:10s} {row['track']:20s} seed={seed} goal={row['goal']!s:5s} "
                       f"collisions={row['collisions']} distance={row['distance_m']:5.2f} m "
-                      f"sim={row['sim_s']:6.1f}s wall={row['wall_s']:5.1f}s ({row['reason']})", flush=True)
+                      f"sim={row['sim_s']:6.1f}s wall={row['wall_s']:5.1f}s ({why})", flush=True)
                 runs.append(row)
     table = []
+    angled = {load_track(t).name for t in tracks if is_angled(t)}
     for track in dict.fromkeys(r["track"] for r in runs):
-        line: dict[str, Any] = {"track": track}
+        line: dict[str, Any] = {"track": track, "angled": track in angled}
         for model in models:
             mine = [r for r in runs if r["track"] == track and r["model"] == model]
             line[f"{model}_m"] = round(statistics.fmean(r["distance_m"] for r in mine), 2)
