@@ -78,11 +78,26 @@ def size_figures(width: int, height: int, repeat: int) -> dict[str, Any]:
                                 mode=cv2.STEREO_SGBM_MODE_SGBM_3WAY)
     raw_s = statistics.fmean(timed(lambda f=f: raw.compute(*f), repeat) for f in frames)
     depth_s = statistics.fmean(timed(lambda f=f: engine.compute(*f), repeat) for f in frames)
-    render_s = timed(lambda: world.render_stereo(width, height), repeat)
+    turn = iter(range(10**9))
+
+    def move() -> None:
+        # a new pose each time: a car standing still keeps its picture (and its depth)
+        world._pose = Pose(start.x, start.y + 0.001 * (next(turn) % 500), start.heading)
+
+    def render() -> None:
+        move()
+        world.render_stereo(width, height)
+
+    render_s = timed(render, repeat)
     camera = SimStereoCamera("Eye", world, SimStereoSettings(width_px=width, height_px=height))
     impl = next(i for i in BUILTIN.implementations if i.id == "stereo_camera")
     service = StereoService("Eye", impl, camera, {"frame_max_age_s": 0})
-    latency_s = timed(lambda: service.distance(0), repeat)
+
+    def answer() -> None:
+        move()
+        service.distance(0)
+
+    latency_s = timed(answer, repeat)
     depth_fps = 1.0 / depth_s
     return {
         "size": f"{width}x{height}",

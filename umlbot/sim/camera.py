@@ -4,7 +4,8 @@ Two ideal pinhole cameras (no lens distortion, parallel axes) sit side by side a
 the car, `baseline_m` apart, `height_m` above the floor, looking straight ahead. The walls are
 extruded to `wall_height_m` and painted with a texture the matcher can lock on to: a sum of
 sinusoids of random direction and wavelengths between 1.5 and 40 cm in (position along the wall,
-height), the same on every wall but shifted per wall. Each component is faded out where it is finer
+height), the same on every wall but shifted per wall, within `TEXTURE_DEG` of the horizon (where the
+depth pipeline looks; above and below, a wall is plain). Each component is faded out where it is finer
 than a pixel at that distance (procedural anti-aliasing), so far walls are smooth rather than
 noisy. The floor and the sky are plain: they give the matcher nothing, as plain surfaces do to a
 real camera. One ray is cast per column (numpy, every wall at once); the rows follow from the
@@ -27,6 +28,8 @@ from umlbot.sim.geometry import Pose, Segment
 #: how many sinusoids make the wall texture, and their wavelengths (metres)
 _TEXTURE_COMPONENTS = 24
 _WAVELENGTH_M = (0.015, 0.40)
+#: the walls are textured within this many degrees of the horizon (the depth pipeline matches +-10)
+TEXTURE_DEG = 16.0
 _SKY = 190.0
 _FLOOR = 70.0
 
@@ -125,6 +128,9 @@ class CameraRenderer:
         #: each column's angle from the optical axis, radians, positive = to the left
         self.column_angles = -np.arctan((u - r.cx) / r.focal_px)
         self._rows = (np.arange(r.height_px, dtype=np.float64) - r.cy) / r.focal_px  # down
+        band = round(r.focal_px * math.tan(math.radians(TEXTURE_DEG)))
+        centre = round(r.cy)
+        self._textured = slice(max(0, centre - band), min(r.height_px, centre + band + 1))
 
     def camera_origins(self, pose: Pose) -> tuple[tuple[float, float], tuple[float, float]]:
         """Where the left and the right camera are in the plane."""
@@ -158,15 +164,26 @@ class CameraRenderer:
         # a pixel's footprint on the wall (m), wider where the wall is seen obliquely
         footprint = safe_depth / r.focal_px / np.maximum(cos_inc, 0.15)
         image = np.where(self._rows[:, None] < 0, _SKY, _FLOOR) * np.ones((1, r.width_px))
+        wall = np.full((r.height_px, r.width_px), 128.0)
         if self.texture_gain > 0:
-            texture = np.zeros((r.height_px, r.width_px))
+            # textured only where the depth pipeline looks (the rows within TEXTURE_DEG of the
+            # horizon; it matches +-10 deg): that halves the work, the rest of a wall is plain
+            rows = self._textured
+            zt = z[rows].astype(np.float32)
+            st = s.astype(np.float32)[None, :]
+            texture = np.zeros(zt.shape, dtype=np.float32)
+            term = np.empty_like(texture)
             for ks, kz, phase, amplitude in _TEXTURE:
                 wavelength = 2 * math.pi / math.hypot(ks, kz)
-                fade = amplitude * np.exp(-((2.0 * footprint / wavelength) ** 2))  # per column
-                texture += fade[None, :] * np.cos(ks * s[None, :] + kz * z + phase)
-            wall = 128.0 + self.texture_gain * 16.0 * texture
-        else:
-            wall = np.full((r.height_px, r.width_px), 128.0)
+                fade = (amplitude * np.exp(-((2.0 * footprint / wavelength) ** 2))).astype(np.float32)
+                if float(fade.max()) < 0.01:
+                    continue  # finer than a pixel everywhere in this picture
+                np.multiply(zt, np.float32(kz), out=term)
+                term += st * np.float32(ks) + np.float32(phase)
+                np.cos(term, out=term)
+                term *= fade[None, :]
+                texture += term
+            wall[rows] = 128.0 + self.texture_gain * 16.0 * texture
         image = np.where(on_wall, wall, image) * self.brightness
         if r.noise_grey > 0:
             image = image + self._rng.normal(0.0, r.noise_grey, image.shape)

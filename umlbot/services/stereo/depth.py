@@ -39,6 +39,24 @@ def require_cv2() -> Any:
     return cv2
 
 
+def _column_quantiles(band: np.ndarray, counts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per column of `band` (NaN = no value): the median and the lower and upper quartiles of its
+    `counts` values (NaN where a column has none); one sort for all columns."""
+    ordered = np.sort(band, axis=0)  # NaNs sort last
+    columns = np.arange(band.shape[1])
+    last = np.maximum(counts - 1, 0)
+
+    def at(fraction: float) -> np.ndarray:
+        position = last * fraction
+        low = np.floor(position).astype(np.int64)
+        high = np.ceil(position).astype(np.int64)
+        weight = position - low
+        value = ordered[low, columns] * (1 - weight) + ordered[high, columns] * weight
+        return np.where(counts > 0, value, np.nan)
+
+    return at(0.5), at(0.25), at(0.75)
+
+
 class DepthEngine:
     """Rectify + match + summarise, for one calibration (one image size)."""
 
@@ -146,17 +164,12 @@ class DepthEngine:
         depth_m = np.where(valid, self.focal_px * self.baseline_m / np.maximum(disparity, 0.5), np.nan)
         band = depth_m[self._rows]
         counts = np.sum(~np.isnan(band), axis=0)
-        with np.errstate(all="ignore"):
-            import warnings
-
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore", RuntimeWarning)
-                median = np.nanmedian(band, axis=0)
-                q25, q75 = np.nanpercentile(band, [25, 75], axis=0)
+        median, q25, q75 = _column_quantiles(band, counts)
         ranges_cm = median / self._cos * 100.0
         # a surface the camera can see is upright, so the rows of one column agree; rows that do
         # not are matches found by chance (a surface nearer than the disparity range, glare)
-        spread = (q75 - q25) / median
+        with np.errstate(all="ignore"):
+            spread = (q75 - q25) / median
         ok = ((counts >= self.min_valid_rows) & np.isfinite(ranges_cm) & (spread <= self.max_spread)
               & (ranges_cm <= self.max_range_cm))
         columns = tuple(round(float(c), 1) if good else None for c, good in zip(ranges_cm, ok, strict=True))
