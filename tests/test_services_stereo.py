@@ -4,6 +4,7 @@ and the state that says so."""
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -96,3 +97,22 @@ def test_sim_camera_through_the_world_server() -> None:
             remote.close()
         finally:
             server.stop()
+
+
+def test_a_stopped_camera_fails_the_stereo_car_safe(broker: BrokerProcess) -> None:
+    """models/stereo_car on mock drivers: when the camera stops delivering frames, the call's error
+    reply ends the run in the orchestrator's fail-safe stop, motors stopped, as for any component."""
+    from orchestrator_support import rig, wait_for
+
+    model = Path(__file__).resolve().parent.parent / "models" / "stereo_car"
+    with rig(broker.url, model, settings={"Eye": {"mock_distance_cm": 150}}) as r:
+        running = r.start()
+        camera: MockStereoCamera = r.driver("Eye")
+        motors = ("LeftActuator", "RightActuator")
+        assert wait_for(lambda: camera.reads >= 2 and any(r.driver(m).running for m in motors), 15.0), \
+            running.orchestrator.failure
+        camera.set_stopped(True)
+        assert running.wait(20.0) == 1
+        failure = str(running.orchestrator.failure)
+        assert "Eye" in failure and "no frames" in failure, failure
+        assert not any(r.driver(m).running for m in motors)
