@@ -43,7 +43,8 @@ def test_calibrate_stereo_recovers_focal_length_and_baseline(tmp_path: Path) -> 
     folder = tmp_path / "pairs"
     folder.mkdir()
     for i, (rot, trans) in enumerate(board_poses()):
-        left, right = render_chessboard_pair(RIG, rot, trans, inner=INNER, square_m=SQUARE_M, seed=i)
+        left, right = render_chessboard_pair(RIG, rot, trans, inner=INNER, square_m=SQUARE_M, seed=i,
+                                             supersample=2)
         cv2.imwrite(str(folder / f"left{i:02d}.png"), left)
         cv2.imwrite(str(folder / f"right{i:02d}.png"), right)
     out = tmp_path / "stereo.json"
