@@ -136,3 +136,26 @@ def test_the_core_and_the_sim_do_not_import_opencv() -> None:
     code = ("import sys, umlbot.services.stereo.service, umlbot.services.stereo.mock, umlbot.sim.world, "
             "umlbot.cli; assert 'cv2' not in sys.modules, 'cv2 imported'")
     subprocess.run([sys.executable, "-c", code], check=True, timeout=60)
+
+
+def test_the_camera_sees_an_angled_wall_the_sonar_misses() -> None:
+    """A wall 1 m ahead of the car's centre at 60° to its path: the sonar's ping glances off (no
+    echo: its realism is unchanged), the camera measures it."""
+    from umlbot.services.stereo.sim import SimStereoCamera, SimStereoSettings
+    from umlbot.sim import World, parse_track
+
+    (wall,) = wall_ahead(1.0 - RIG.forward_m, 60)  # through (1.0, 0)
+    track = parse_track(f"""
+name: angled
+start: {{x: 0, y: 0, heading_deg: 0}}
+goal: {{x_min: -0.5, x_max: -0.3, y_min: -0.1, y_max: 0.1}}
+walls:
+  - [[{wall.a.x:.4f}, {wall.a.y:.4f}], [{wall.b.x:.4f}, {wall.b.y:.4f}]]
+""")
+    world = World(track)
+    assert world.read_sonar_cm() is None
+    frame = SimStereoCamera("Eye", world, SimStereoSettings()).read_depth()
+    truth_cm = CameraRenderer(track.segments, RIG).ground_truth_m(track.start.pose) * 100  # left camera
+    near_axis = [i for i, a in enumerate(frame.angles_deg) if abs(a) < 1]
+    seen = [(frame.columns_cm[i], truth_cm[i]) for i in near_axis if frame.columns_cm[i] is not None]
+    assert seen and all(abs(c - t) <= 0.03 * t for c, t in seen), seen
