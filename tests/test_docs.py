@@ -838,8 +838,11 @@ def _check_invocation(tokens: list[str], where: str, problems: list[str]) -> Non
         if re.fullmatch(r"[a-z][a-z-]*", name):
             problems.append(f"{where}: umlbot has no command {name!r}")
         return
-    options = options_of(command_of(name))
+    command = command_of(name)
     rest = tokens[i + 1:]
+    if isinstance(command, click.Group) and rest and rest[0] in command.commands:  # calibrate stereo
+        command, rest = command.commands[rest[0]], rest[1:]
+    options = options_of(command)
     for k, token in enumerate(rest):
         if token in STOP_TOKENS or token.startswith(("#", "(", "`")):
             break
@@ -1012,7 +1015,10 @@ def test_script_option_paragraphs_name_existing_options(key: tuple[str, str]) ->
 def test_every_option_named_anywhere_exists_somewhere(path: Path) -> None:
     known = set(options_of(cli)) | _script_options()
     for name in COMMANDS:
-        known |= set(options_of(command_of(name)))
+        command = command_of(name)
+        known |= set(options_of(command))
+        for sub in command.commands.values() if isinstance(command, click.Group) else ():
+            known |= set(options_of(sub))
     for options in OTHER_PROGRAMS_OPTIONS.values():
         known |= options
     named = {(where, option) for where, text in _command_lines(path)

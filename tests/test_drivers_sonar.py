@@ -15,7 +15,7 @@ import pytest
 
 from umlbot.base.errors import DriverError
 from umlbot.base.registry import create_driver
-from umlbot.services.simworld import Side, attach_local_world
+from umlbot.services.simworld import Side, StereoImages, attach_local_world
 from umlbot.services.sonar import DistanceSensor, HCSR04Settings
 from umlbot.services.sonar.lgpio import LgpioHCSR04
 from umlbot.services.sonar.mock import MockDistanceSensor, MockSonarSettings
@@ -75,6 +75,9 @@ class MovingWall:
 
     def time_s(self) -> float:
         return self.world.time_s()
+
+    def render_stereo(self, width_px: int, height_px: int) -> StereoImages:
+        return self.world.render_stereo(width_px, height_px)
 
 
 def _make_rig(name: str) -> Iterator[Rig]:

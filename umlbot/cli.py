@@ -35,6 +35,7 @@ COMMANDS: dict[str, str] = {
     "monitor": "Watch the robot's traffic live.",
     "studio": "Serve the browser studio: diagrams, the running robot live, trace replay.",
     "plugins": "List the installed component and driver plugins (entry points).",
+    "calibrate": "Calibrate a sensor: 'calibrate stereo' for a stereo camera (chessboard pairs).",
 }
 
 

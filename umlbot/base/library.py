@@ -198,16 +198,26 @@ SENSOR = KindSpec("sensor", (
     FeatureSpec("value", (), "int", "Read the sensor (a distance sensor: centimetres)."),
 ))
 
+CAMERA = KindSpec("camera", (
+    FeatureSpec("distance", (Param("angle_deg", "int", -30, 30, "°"),), "int",
+                "cm to the nearest surface in that direction (+ = left), -1 = no reading."),
+    FeatureSpec("nearest", (), "int", "cm to the nearest surface in view, -1 = no reading."),
+    FeatureSpec("nearestBearing", (), "int", "direction of the nearest surface in degrees (+ = left)."),
+    FeatureSpec("freeWidth", (), "int", "cm of free way straight ahead (0 = blocked or no reading)."),
+), "a camera that measures distances (a stereo pair)")
+
 
 #: umlbot's own kinds, service kinds and implementations, registered as the entry point `builtin`.
 BUILTIN = ComponentPlugin(
-    kinds=(SYSTEM, ACTUATOR, SENSOR),
+    kinds=(SYSTEM, ACTUATOR, SENSOR, CAMERA),
     services=(
         ServiceSpec("motor", "umlbot.services.motor.service:MotorService", "L298N motor channels",
                     stop_when_orchestrator_offline=True),
         ServiceSpec("sonar", "umlbot.services.sonar.service:SonarService", "HC-SR04 range finders"),
         ServiceSpec("servo", "umlbot.services.servo.service:ServoService", "hobby servos"),
         ServiceSpec("gpio", "umlbot.services.gpio.service:GpioService", "plain GPIO pins of the system"),
+        ServiceSpec("stereo", "umlbot.services.stereo.service:StereoService",
+                    "stereo cameras: depth by OpenCV (extra umlbot[stereo])"),
     ),
     implementations=(
         Implementation(
@@ -257,6 +267,17 @@ BUILTIN = ComponentPlugin(
             aliases=("CModelDistanceSensorHCSR",),
             settings_doc={"trigger": "GPIO of TRIG", "echo": "GPIO of ECHO", "samples": "median of N"},
             pin_keys=("trigger", "echo"),
+        ),
+        Implementation(
+            id="stereo_camera",
+            kind="camera",
+            aliases=("CModelStereoCamera",),
+            service="stereo",
+            features=CAMERA.pick("distance", "nearest", "nearestBearing", "freeWidth"),
+            title="stereo camera pair (two Pi camera modules or a USB stereo camera)",
+            settings_doc={"calibration": "the file 'umlbot calibrate stereo' wrote",
+                          "source": "picamera2 or opencv", "width_px": "image width",
+                          "height_px": "image height"},
         ),
     ),
 )

@@ -17,12 +17,13 @@ the drivers know nothing of the bus, and nothing of the sim's internals.
 
 from __future__ import annotations
 
+import base64
 import contextlib
 import json
 import os
 import socket
 import threading
-from typing import Any, Literal, Protocol
+from typing import Any, Literal, NamedTuple, Protocol
 
 from umlbot.base.errors import SimError
 
@@ -31,6 +32,19 @@ ENV_KEY = "UMLBOT_SIM_KEY"
 
 #: A side of the car: each motor channel drives one.
 Side = Literal["left", "right"]
+
+
+class StereoImages(NamedTuple):
+    """One picture of the simulated stereo camera: two 8-bit grey images (row-major bytes) and
+    the ideal rig that took them (focal length in pixels, baseline in metres)."""
+
+    time_s: float
+    width_px: int
+    height_px: int
+    focal_px: float
+    baseline_m: float
+    left: bytes
+    right: bytes
 
 
 class WorldHandle(Protocol):
@@ -50,6 +64,8 @@ class WorldHandle(Protocol):
     def read_sonar_cm(self) -> int | None: ...
 
     def time_s(self) -> float: ...
+
+    def render_stereo(self, width_px: int, height_px: int) -> StereoImages: ...
 
 
 _local: WorldHandle | None = None
@@ -153,6 +169,15 @@ class RemoteWorld:
 
     def time_s(self) -> float:
         return float(self._call("time_s"))
+
+    def render_stereo(self, width_px: int, height_px: int) -> StereoImages:
+        value = self._call("render_stereo", width_px=width_px, height_px=height_px)
+        try:
+            return StereoImages(float(value["time_s"]), int(value["width_px"]), int(value["height_px"]),
+                                float(value["focal_px"]), float(value["baseline_m"]),
+                                base64.b64decode(value["left"]), base64.b64decode(value["right"]))
+        except (KeyError, TypeError, ValueError) as exc:
+            raise SimError(f"simulated world sent a bad stereo picture: {exc}") from exc
 
     def close(self) -> None:
         """Drop the connection; idempotent (the next call reconnects)."""

@@ -5,6 +5,7 @@ defines, whose `RemoteWorld` is the client.
 
 from __future__ import annotations
 
+import base64
 import contextlib
 import hmac
 import json
@@ -70,6 +71,12 @@ def _dispatch(world: World, op: str, args: dict[str, Any]) -> Any:
         return world.servo_angle_deg()
     if op == "read_sonar_cm":
         return world.read_sonar_cm()
+    if op == "render_stereo":
+        width = int(_number(args, "width_px", required=True) or 0)
+        height = int(_number(args, "height_px", required=True) or 0)
+        images = world.render_stereo(width, height)
+        return {**images._asdict(), "left": base64.b64encode(images.left).decode(),
+                "right": base64.b64encode(images.right).decode()}
     if op == "time_s":
         return world.time_s()
     raise ValueError(f"unknown operation {op!r}"[:80])

@@ -16,10 +16,12 @@ import math
 import random
 import threading
 from dataclasses import dataclass, field
+from typing import Any
 
 from umlbot.base.clock import Clock
+from umlbot.base.errors import SimError
 from umlbot.base.logs import get_logger
-from umlbot.services.simworld import Side
+from umlbot.services.simworld import Side, StereoImages
 from umlbot.sim.geometry import Point, Pose, Segment, WallIndex, incidence, rectangle_corners
 from umlbot.sim.track import Track
 
@@ -179,6 +181,12 @@ class World:
         self._last_ping_s = -math.inf
         self._goal_reached = track.goal.contains(self._pose.x, self._pose.y)
         self._trace = _Trace()
+        #: the stereo camera's renderers by image size (made on first use: numpy), and a switch
+        #: that makes the camera stop delivering frames (a test of the fail-safe)
+        self._renderers: dict[tuple[int, int], Any] = {}
+        self._camera_seed = seed
+        self._last_picture: tuple[tuple[int, int], Pose, StereoImages] | None = None
+        self.camera_stopped = False
         self._trace.path.append((0.0, self._pose.x, self._pose.y))
         if self.hits_wall(self._pose):
             raise ValueError(f"track {track.name!r}: the car's start footprint overlaps a wall")
@@ -337,6 +345,38 @@ class World:
             if hit is not None and incidence(bearing + offset, hit[1]) <= steepest:
                 echoes.append((hit[0], bearing + offset))
         return min(echoes, default=None)
+
+    def render_stereo(self, width_px: int, height_px: int) -> StereoImages:
+        """The stereo camera's left and right images from where the car is now (`umlbot.sim.camera`).
+
+        The camera sits at the front of the car, looking straight ahead; `SimError` when it has
+        been stopped (`camera_stopped`). While the car stands still the picture is the same one
+        (no new sensor noise), so a driver can tell that nothing changed.
+        """
+        if not (16 <= width_px <= 4096 and 16 <= height_px <= 4096):
+            raise ValueError(f"image size must be 16..4096 pixels a side, got {width_px}x{height_px}")
+        if self.camera_stopped:
+            raise SimError("the stereo camera delivers no frames (stopped)")
+        from umlbot.sim.camera import CameraRenderer, StereoRig
+
+        with self._lock:
+            self._sync()
+            pose, now = self._pose, self._time
+            last = self._last_picture
+            if last is not None and last[0] == (width_px, height_px) and _same_place(last[1], pose):
+                return last[2]._replace(time_s=now)  # the car stood still: the same picture
+            renderer = self._renderers.get((width_px, height_px))
+            if renderer is None:
+                renderer = CameraRenderer(self._walls, StereoRig().scaled(width_px, height_px),
+                                          seed=self._camera_seed)
+                self._renderers[(width_px, height_px)] = renderer
+        left, right = renderer.render(pose)  # outside the lock: the other lanes go on
+        rig = renderer.rig
+        images = StereoImages(now, width_px, height_px, rig.focal_px, rig.baseline_m,
+                              left.tobytes(), right.tobytes())
+        with self._lock:
+            self._last_picture = ((width_px, height_px), pose, images)
+        return images
 
     # --- integration ---------------------------------------------------------------------------
 
@@ -501,6 +541,11 @@ class World:
     def collision_points(self) -> list[tuple[float, float]]:
         with self._lock:
             return list(self._trace.collision_points)
+
+
+def _same_place(a: Pose, b: Pose) -> bool:
+    """Within a camera pixel's worth: 0.5 mm and 0.05° (a stopped car's speed decays, never to 0)."""
+    return abs(a.x - b.x) < 5e-4 and abs(a.y - b.y) < 5e-4 and abs(a.heading - b.heading) < 1e-3
 
 
 class WorldLoop:

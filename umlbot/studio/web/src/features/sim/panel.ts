@@ -9,6 +9,8 @@ const PINGS_MAX = 400;
 export class SimPanel {
   root: HTMLElement;
   svg: SVGSVGElement | null = null;
+  /** the row that holds the track's picture, and beside it the camera's (depth.ts) */
+  body: HTMLElement | null = null;
   private car: SVGGElement | null = null;
   private pingsG: SVGGElement | null = null;
   private info: HTMLElement | null = null;
@@ -21,6 +23,7 @@ export class SimPanel {
   setTrack(track: TrackView | null): void {
     this.root.replaceChildren();
     this.svg = null;
+    this.body = null;
     this.car = null;
     this.pingsG = null;
     this.root.hidden = !track;
@@ -72,7 +75,10 @@ export class SimPanel {
       this.car,
     );
     this.svg = svg;
-    this.root.append(svg);
+    this.body = document.createElement("div");
+    this.body.className = "sim-body";
+    this.body.append(svg);
+    this.root.append(this.body);
   }
 
   push(msg: WorldMsg): void {
