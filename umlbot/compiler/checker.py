@@ -12,7 +12,7 @@ from collections import deque
 from dataclasses import dataclass, field
 from typing import Any, Literal, cast
 
-from umlbot.base.catalog import component_kinds, kind_features, resolve_implementation
+from umlbot.base.catalog import component_features, component_kinds, kind_features, resolve_implementation
 from umlbot.base.diagnostics import Diagnostics, Location
 from umlbot.base.errors import ConfigError, ModelError
 from umlbot.base.library import ComponentKind, FeatureSpec, Implementation
@@ -435,7 +435,7 @@ class _ExprChecker:
         impl = scope.impls.get(owner)
         if impl is None and scope.deployment_unread:
             self.unknown("deployment")  # the implementation's features and ranges; its kind's are checked
-        if feature not in kind_features(kind):
+        if feature not in kind_features(kind) and (impl is None or feature not in impl.features):
             # the features this component offers: its implementation's, else its kind's
             known = ", ".join(impl.features if impl is not None else kind_features(kind))
             raise self.fail(f"unknown feature '{feature}' of {kind} component '{owner}' "
@@ -581,6 +581,7 @@ class _Checker:
                              f"{_a(impl.kind)}", impl_loc)
                 continue
             else:
+                impl = component_features(impl, entry.settings)
                 self.scope.impls[name] = impl
                 for port, (feature, port_loc) in self.source.components[name].ports.items():
                     if feature in kind_features(kind) and feature not in impl.features:
