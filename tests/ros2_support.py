@@ -54,6 +54,7 @@ class FastDdsPeer:
         self.process = subprocess.Popen([str(exe), str(domain_id)], stdin=subprocess.PIPE,
                                         stdout=subprocess.PIPE, text=True)
         self.lines: queue.Queue[str] = queue.Queue()
+        self.backlog: list[str] = []
         threading.Thread(target=self._pump, daemon=True).start()
         self.expect("ready")
 
@@ -68,11 +69,22 @@ class FastDdsPeer:
         self.process.stdin.flush()
 
     def expect(self, prefix: str, timeout: float = 10.0) -> str:
+        """The first line starting with `prefix`; other lines stay for later `expect`s."""
+        for index, line in enumerate(self.backlog):
+            if line.startswith(prefix):
+                return self.backlog.pop(index)
         deadline = time.monotonic() + timeout
         while True:
-            line = self.lines.get(timeout=max(0.01, deadline - time.monotonic()))
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                raise TimeoutError(f"the Fast DDS peer said no {prefix!r} within {timeout} s")
+            try:
+                line = self.lines.get(timeout=remaining)
+            except queue.Empty:
+                continue
             if line.startswith(prefix):
                 return line
+            self.backlog.append(line)
 
     def subscribe(self, topic: str, typename: str) -> None:
         self.send(f"sub {dds_topic_name(topic)} {dds_type_name(typename)}")

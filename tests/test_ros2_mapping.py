@@ -147,3 +147,15 @@ def test_service_samples_carry_the_rmw_cyclonedds_header() -> None:
     assert raw.hex() == "00010000" + "0807060504030201" + "0900000000000000" + "01"
     body = types.store.deserialize_cdr(b"\x00\x01\x00\x00" + raw[20:], "std_srvs/srv/SetBool_Request")
     assert body.data is True
+
+
+def test_a_signal_mapping_is_checked_too(tmp_path: Path) -> None:
+    text = (Path(__file__).parent / "models" / "ros2_signals.yaml").read_text()
+    assert check_text(tmp_path, text).ok
+    bad = text.replace("type: std_msgs/msg/Float64, field: data}\n          done",
+                       "type: std_msgs/msg/Float64, field: value}\n          done")
+    assert bad != text
+    result = check_text(tmp_path, bad)
+    errors = [d for d in result.errors if "no field 'value' in 'std_msgs/msg/Float64'" in d.message]
+    assert errors and at(errors[0])[0] == position(bad, "go: {direction")[0], \
+        [str(d) for d in result.errors]

@@ -9,11 +9,12 @@ node, or in `umlbot sim`'s simulated world playing one.
 from __future__ import annotations
 
 import threading
-from typing import TypeVar
+from collections.abc import Callable
+from typing import Any, TypeVar
 
 from umlbot.base.registry import DriverFactory
 from umlbot.services.ros2 import dds
-from umlbot.services.ros2.mapping import Ros2Settings, ServiceCall, TopicRead, TopicWrite
+from umlbot.services.ros2.mapping import Ros2Settings, ServiceCall, SignalMap, TopicRead, TopicWrite
 from umlbot.services.ros2.msgtypes import Types
 
 E = TypeVar("E", dds.Subscription, dds.Publication, dds.ServiceClient)
@@ -42,6 +43,10 @@ class Ros2Node:
     def subscribe(self, read: TopicRead) -> dds.Subscription:
         return self._keep(dds.Subscription(self.builder, self.domain_id, read.topic, read.type,
                                            reliable=read.reliable))
+
+    def subscribe_signal(self, signal: SignalMap, on_sample: Callable[[Any], None]) -> dds.Subscription:
+        return self._keep(dds.Subscription(self.builder, self.domain_id, signal.topic, signal.type,
+                                           reliable=signal.reliable, on_sample=on_sample))
 
     def publisher(self, write: TopicWrite) -> dds.Publication:
         return self._keep(dds.Publication(self.builder, self.domain_id, write.topic, write.type))

@@ -24,6 +24,7 @@ SETTINGS_DOC = {
     "first_s": "ros2_range: wait this long for a first reading (2.0)",
     "timeout_s": "service calls: wait this long for a reply (2.0)",
     "features": "ros2: each feature's read / publish / call (docs/ros2.md)",
+    "signals": "signals of the model to or from ROS 2 topics (docs/ros2.md)",
 }
 
 #: A component that is a ROS 2 node: its features are named in the deployment.

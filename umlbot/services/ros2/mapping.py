@@ -204,6 +204,33 @@ def _check_param_fits(param: ParamDecl, base: str, path: str) -> None:
                          f"give it min and max within that range")
 
 
+class SignalMap(BaseModel):
+    """A signal of the model carried on a ROS 2 topic. `to_ros`: every occurrence on
+    `umlbot/<robot>/signal/<name>` (a send node's) is published on the topic; `from_ros`: every
+    message on the topic becomes an occurrence (an accept node takes it). The payload is the
+    value of `field`, or an object whose keys `fields` maps to field paths (`{path: key}`), or
+    null for neither."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    direction: Literal["to_ros", "from_ros"]
+    topic: str = Field(pattern=TOPIC)
+    type: str
+    field: str | None = None
+    fields: dict[str, str] = Field(default_factory=dict)
+    reliable: bool = True
+
+    @model_validator(mode="after")
+    def _check(self) -> SignalMap:
+        types = _types()
+        types.check_message(self.type)
+        if self.field is not None and self.fields:
+            raise ValueError("give 'field' (a value payload) or 'fields' (an object payload), not both")
+        for path in ([self.field] if self.field is not None else list(self.fields)):
+            types.scalar_field(self.type, path)
+        return self
+
+
 class Ros2Settings(BaseModel):
     """The settings of every ROS 2 component (the `ros2` service kind's driver `dds`)."""
 
@@ -220,6 +247,9 @@ class Ros2Settings(BaseModel):
     timeout_s: float = Field(default=2.0, gt=0, le=60, description="service calls")
     # the generic implementation's
     features: dict[str, FeatureMap] = Field(default_factory=dict)
+    # any ROS 2 component's
+    signals: dict[str, SignalMap] = Field(default_factory=dict,
+                                          description="signals of the model carried on ROS 2 topics")
 
     @model_validator(mode="before")
     @classmethod
@@ -265,8 +295,8 @@ def preset(impl_id: str, settings: Ros2Settings) -> dict[str, FeatureMap]:
         return {"trigger": FeatureMap(returns="bool", doc="Trigger; its success", call=ServiceCall(
             service=settings.service, type="std_srvs/srv/Trigger", reply="success",
             timeout_s=settings.timeout_s))}
-    if not settings.features:
-        raise ValueError("the generic ros2 implementation needs 'features'")
+    if not settings.features and not settings.signals:
+        raise ValueError("the generic ros2 implementation needs 'features' or 'signals'")
     return dict(settings.features)
 
 

@@ -18,19 +18,21 @@ or no reply is the error `timeout`.
 
 from __future__ import annotations
 
+import json
 import math
 import threading
 import time
 from collections.abc import Callable, Mapping
 from typing import Any
 
-from umlbot.base.errors import ConfigError
+from umlbot.base.errors import ConfigError, UmlbotError
 from umlbot.base.library import Implementation
 from umlbot.services.bus import Feature, FeatureError
 from umlbot.services.component_service import ComponentService
 from umlbot.services.ros2 import dds
 from umlbot.services.ros2.driver import Ros2Node
-from umlbot.services.ros2.mapping import FeatureMap, preset, scaled
+from umlbot.services.ros2.mapping import FeatureMap, SignalMap, TopicWrite, preset, scaled
+from umlbot.services.ros2.msgtypes import BASE_TYPES
 
 
 class Ros2Service(ComponentService):
@@ -51,6 +53,8 @@ class Ros2Service(ComponentService):
         self.node = node
         self._state: dict[str, Any] = {}
         self._calls: dict[str, Callable[..., Any]] = {}
+        #: signal name -> its ROS 2 writer (`to_ros`): `matched()` says how many readers it found
+        self.signal_writers: dict[str, dds.Publication] = {}
         for name, fmap in sorted(self.maps.items()):
             self._calls[name] = self._open(name, fmap)
 
@@ -124,6 +128,56 @@ class Ros2Service(ComponentService):
 
         return do_call
 
+    # -- signals ----------------------------------------------------------------------------------
+
+    def on_server(self, server: Any) -> None:
+        """Carry the mapped signals between `…/signal/<name>` and their ROS 2 topics."""
+        for name, signal in sorted(self.node.settings.signals.items()):
+            topic = server.topics.signal(name)
+            if signal.direction == "to_ros":
+                pub = self.node.publisher(TopicWrite(topic=signal.topic, type=signal.type))
+                self.signal_writers[name] = pub
+                server.connection.subscribe(topic, self._to_ros(name, signal, pub))
+            else:
+                self.node.subscribe_signal(signal, self._from_ros(name, signal, server, topic))
+
+    def _to_ros(self, name: str, signal: SignalMap, pub: dds.Publication) -> Callable[[Any], None]:
+        types = self.node.types
+
+        def forward(message: Any) -> None:
+            if message.retain:  # an old occurrence: signals are live traffic only
+                return
+            try:
+                payload = json.loads(message.payload) if message.payload.strip() else None
+                sample = pub.sample()
+                pairs = ([(signal.field, payload)] if signal.field is not None else
+                         [(path, _key(payload, key)) for path, key in signal.fields.items()])
+                for path, value in pairs:
+                    found = types.scalar_field(signal.type, path)
+                    dds.set_path(sample, path, _as_field(value, found.base or "string", path))
+                pub.write(sample)
+                self.log.debug("ros2_signal_sent", signal=name, topic=signal.topic, readers=pub.matched())
+            except (ValueError, TypeError) as exc:
+                self.log.warning("ros2_signal_refused", signal=name, topic=signal.topic, error=str(exc),
+                                 payload=message.payload[:80].decode("utf-8", "replace"))
+
+        return forward
+
+    def _from_ros(self, name: str, signal: SignalMap, server: Any, topic: str) -> Callable[[Any], None]:
+        def forward(sample: Any) -> None:
+            if signal.field is not None:
+                payload = dds.get_path(sample, signal.field)
+            elif signal.fields:
+                payload = {key: dds.get_path(sample, path) for path, key in signal.fields.items()}
+            else:
+                payload = None
+            try:
+                server.connection.publish(topic, json.dumps(payload), qos=1)
+            except (UmlbotError, ValueError) as exc:  # no broker now, or NaN: the occurrence is lost
+                self.log.warning("ros2_signal_lost", signal=name, error=str(exc))
+
+        return forward
+
     def _record(self, feature: str, value: Any, **more: Any) -> None:
         with self.lock:
             self._state[feature] = {"value": value, **more}
@@ -143,3 +197,22 @@ class Ros2Service(ComponentService):
         if stop is not None and stop.publish is not None and not stop.params and not self.node.closed:
             self._calls["stop"]()
             self.log.info("safe_stop", reason=reason)
+
+
+def _key(payload: Any, key: str) -> Any:
+    if not isinstance(payload, dict) or key not in payload:
+        raise ValueError(f"the payload has no key {key!r}")
+    return payload[key]
+
+
+def _as_field(value: Any, base: str, path: str) -> Any:
+    """A JSON value as a field of ROS type `base` takes it; ValueError when it does not fit."""
+    kind, low, high = BASE_TYPES[base]
+    if kind == "float" and isinstance(value, int | float) and not isinstance(value, bool):
+        value = float(value)
+    ok = {"bool": isinstance(value, bool), "str": isinstance(value, str),
+          "int": isinstance(value, int) and not isinstance(value, bool),
+          "float": isinstance(value, float)}[kind]
+    if not ok or (low is not None and value < low) or (high is not None and value > high):
+        raise ValueError(f"{value!r} does not fit field {path!r} ({base})")
+    return value
