@@ -8,11 +8,14 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import pytest
+
 from umlbot.record import SimRecording
 from umlbot.sim.runner import SimOptions, SimResult, run_sim
 from umlbot.sim.track import tracks_dir
 
 ROOT = Path(__file__).resolve().parents[1]
+WEB = ROOT / "umlbot" / "studio" / "web"
 MODEL = ROOT / "models" / "robot_car"
 TRACK = tracks_dir() / "s_bend.yaml"
 
@@ -23,6 +26,12 @@ class RecordedRun:
     jsonl: Path
     result: SimResult
     stats: Any
+
+
+@pytest.fixture(scope="session")
+def recorded(tmp_path_factory: pytest.TempPathFactory) -> RecordedRun:
+    """One recorded sim run for every recording test of the session."""
+    return record_sim(tmp_path_factory.mktemp("recorded"))
 
 
 def record_sim(folder: Path, speed: float = 20.0) -> RecordedRun:
@@ -65,3 +74,19 @@ def read_with_mcap(path: Path) -> Read:
 
 def jsonl_nodes(path: Path) -> list[tuple[int, str, str]]:
     return [(e["seq"], e["lane"], e["node"]) for e in map(json.loads, path.read_text().splitlines())]
+
+
+def read_with_node(path: Path, *topics: str) -> dict[str, Any]:
+    """Read a recording with Foxglove's npm packages (@mcap/core, @foxglove/rosmsg2-serialization):
+    umlbot/studio/web/test/interop/read_mcap.mjs, run by node."""
+    import shutil
+    import subprocess
+
+    node = shutil.which("node")
+    assert node is not None, "node is needed (make web installs the studio's npm packages)"
+    assert (WEB / "node_modules" / "@mcap" / "core").is_dir(), "run make web (npm ci) first"
+    done = subprocess.run([node, "test/interop/read_mcap.mjs", str(path), *topics], cwd=WEB,
+                          capture_output=True, text=True, timeout=60, check=False)
+    assert done.returncode == 0, done.stderr[-2000:]
+    result: dict[str, Any] = json.loads(done.stdout)
+    return result

@@ -16,16 +16,14 @@ from typing import Any
 
 import pytest
 import yaml
-from record_support import MODEL, ROOT, RecordedRun, jsonl_nodes, read_with_mcap, record_sim
+from record_support import MODEL, ROOT, RecordedRun, jsonl_nodes, read_with_mcap, read_with_node, recorded
 
 pytestmark = [pytest.mark.network]
 
 BASE = "/umlbot/car"
 
 
-@pytest.fixture(scope="module")
-def recorded(tmp_path_factory: pytest.TempPathFactory) -> RecordedRun:
-    return record_sim(tmp_path_factory.mktemp("recorded"))
+__all__ = ["recorded"]  # the session's recorded run (a fixture)
 
 
 @pytest.mark.timeout(120)
@@ -115,6 +113,27 @@ def test_rosbags_reads_the_file_as_a_rosbag2_mcap(recorded: RecordedRun) -> None
         assert decoded.header.frame_id == "world"
 
 
+@pytest.mark.timeout(90)
+def test_foxglove_npm_packages_read_and_decode_it(recorded: RecordedRun) -> None:
+    pose, trace, calls = f"{BASE}/sim/pose", f"{BASE}/orchestrator/trace", f"{BASE}/calls"
+    read = read_with_node(recorded.mcap, pose, trace, calls)
+    assert read["profile"] == "ros2" and read["done"] is True
+    _, counts, _, _ = read_with_mcap(recorded.mcap)
+    assert {topic: entry["count"] for topic, entry in read["topics"].items()} == dict(counts)
+    assert read["topics"][pose]["schema"] == "geometry_msgs/msg/PoseStamped"
+    assert read["topics"][f"{BASE}/sim/sonar"]["schema"] == "sensor_msgs/msg/Range"
+    final = recorded.result.final_pose
+    last = read["decoded"][pose][-1]["message"]
+    assert math.dist((last["pose"]["position"]["x"], last["pose"]["position"]["y"]), final[:2]) < 0.05
+    assert last["header"]["frame_id"] == "world"
+    nodes = sorted((int(m["message"]["seq"]), m["message"]["lane"], m["message"]["node"])  # uint64: text
+                   for m in read["decoded"][trace])
+    assert nodes == jsonl_nodes(recorded.jsonl)
+    duty = [m["message"] for m in read["decoded"][calls]
+            if m["message"]["component"] == "RightActuator" and m["message"]["feature"] == "dutycycle"]
+    assert duty and all(c["answered"] and c["ok"] for c in duty)
+
+
 def _limit_file_size(limit: int) -> None:  # runs in the child before exec
     signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # a write past the limit fails with EFBIG
     resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
@@ -140,4 +159,7 @@ def test_a_full_disk_ends_the_recording_cleanly_and_the_robot_drives_on(tmp_path
     assert out.read_bytes()[-8:] == b"\x89MCAP0\r\n"
     _, counts, messages, _ = read_with_mcap(out)
     assert sum(counts.values()) > 50
+    by_node = read_with_node(out)  # and Foxglove's stream reader reads it to its end too
+    assert by_node["done"] is True
+    assert {topic: entry["count"] for topic, entry in by_node["topics"].items()} == dict(counts)
     assert any(topic == f"{BASE}/orchestrator/trace" for topic, _, _ in messages)
