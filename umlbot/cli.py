@@ -35,6 +35,7 @@ COMMANDS: dict[str, str] = {
     "monitor": "Watch the robot's traffic live.",
     "studio": "Serve the browser studio: diagrams, the running robot live, trace replay.",
     "plugins": "List the installed component and driver plugins (entry points).",
+    "ros2-bridge": "Show the robot to ROS 2: status, states, trace; features as a ROS 2 service.",
 }
 
 
@@ -47,7 +48,7 @@ class LazyGroup(click.Group):
     def get_command(self, ctx: click.Context, cmd_name: str) -> click.Command | None:
         if cmd_name not in COMMANDS:
             return None
-        module = importlib.import_module(f"umlbot.commands.{cmd_name}")
+        module = importlib.import_module(f"umlbot.commands.{cmd_name.replace('-', '_')}")
         command: click.Command = module.command
         return with_log_options(command)
 

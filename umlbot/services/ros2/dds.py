@@ -181,11 +181,14 @@ def participant(domain_id: int = 0) -> Any:
         return _participants[domain_id]
 
 
-def qos(reliable: bool, depth: int = 10) -> Any:
-    """ROS 2's default QoS (keep last, volatile) with classic CDR, reliable or best effort."""
+def qos(reliable: bool, depth: int = 10, latched: bool = False) -> Any:
+    """ROS 2's default QoS (keep last, volatile) with classic CDR, reliable or best effort;
+    `latched`: transient local, the last sample kept for readers that come later (ROS 2's
+    "latched" topics; volatile readers match it too)."""
     reliability = (Policy.Reliability.Reliable(max_blocking_time=duration(milliseconds=100)) if reliable
                    else Policy.Reliability.BestEffort)
-    return Qos(reliability, Policy.History.KeepLast(depth), Policy.Durability.Volatile,
+    durability = Policy.Durability.TransientLocal if latched else Policy.Durability.Volatile
+    return Qos(reliability, Policy.History.KeepLast(1 if latched else depth), durability,
                Policy.DataRepresentation(use_cdrv0_representation=True))
 
 
@@ -256,14 +259,15 @@ class Subscription:
 class Publication:
     """A ROS 2 topic this process publishes (reliable: matches reliable and best-effort readers)."""
 
-    def __init__(self, builder: TypeBuilder, domain_id: int, topic: str, typename: str) -> None:
+    def __init__(self, builder: TypeBuilder, domain_id: int, topic: str, typename: str,
+                 latched: bool = False) -> None:
         from umlbot.services.ros2.msgtypes import dds_topic_name
 
         self.topic, self.typename = topic, typename
         self.builder = builder
         dp = participant(domain_id)
         self._topic = Topic(dp, dds_topic_name(topic), builder.cls(typename), qos=qos(True))
-        self._writer = DataWriter(dp, self._topic, qos=qos(True))
+        self._writer = DataWriter(dp, self._topic, qos=qos(True, latched=latched))
         self._lock = threading.Lock()
 
     def sample(self) -> Any:
@@ -358,11 +362,12 @@ class ServiceClient:
 
 
 class ServiceServer:
-    """Serves a ROS 2 service in rmw_cyclonedds' layout: `handler(request) -> response` (the
-    response a sample of `<srv>_Response` without the header; `response()` makes one)."""
+    """Serves a ROS 2 service in rmw_cyclonedds' layout: `handler(request) -> response` (a sample
+    of `<srv>_Response`, `response()` makes one; the header is copied from the request). The
+    handler runs on DDS's listener thread, or in `executor` when given (a handler that waits)."""
 
     def __init__(self, builder: TypeBuilder, domain_id: int, service: str, srv_type: str,
-                 handler: Callable[[Any], Any]) -> None:
+                 handler: Callable[[Any], Any], executor: Any = None) -> None:
         self.service, self.srv_type = service, srv_type
         self.builder = builder
         self.handler = handler
@@ -375,6 +380,7 @@ class ServiceServer:
         self._reader = DataReader(dp, self._req_topic, qos=qos(True),
                                   listener=Listener(on_data_available=self._available))
         self.served = 0
+        self.executor = executor
 
     def response(self) -> Any:
         return self.builder.default(self._rep_type, True)
@@ -388,14 +394,20 @@ class ServiceServer:
         for request in samples:
             if not isinstance(request, self._req_topic.data_type):
                 continue
-            try:
-                response = self.handler(request)
-            except Exception:
-                log.exception("ros2_service_handler_failed", service=self.service)
-                continue
+            if self.executor is not None:
+                self.executor.submit(self._serve, request)
+            else:
+                self._serve(request)
+
+    def _serve(self, request: Any) -> None:
+        try:
+            response = self.handler(request)
             response.rmw_guid, response.rmw_seq = request.rmw_guid, request.rmw_seq
             self._writer.write(response)
-            self.served += 1
+        except Exception:
+            log.exception("ros2_service_handler_failed", service=self.service)
+            return
+        self.served += 1
 
     def close(self) -> None:
         for entity in (self._reader, self._writer, self._rep_topic, self._req_topic):

@@ -1,10 +1,11 @@
 """ROS 2 message and service types: definitions, field paths and the values a field takes.
 
 Definitions come from rosbags' ROS 2 Humble store (`std_msgs`, `geometry_msgs`, `sensor_msgs`,
-`builtin_interfaces` …), from std_srvs (bundled here as `.srv` text: rosbags has no services)
-and from the user's `.msg`/`.srv` files (`msg_paths`: folders laid out as
-`<package>/msg/<Name>.msg` and `<package>/srv/<Name>.srv`). A service `pkg/srv/Name` is the two
-messages `pkg/srv/Name_Request` and `pkg/srv/Name_Response`, as ROS 2 names them.
+`builtin_interfaces` …), umlbot's own messages (`umlbot.base.rosmsg`), the services bundled
+here as `.srv` text (`std_srvs`, `umlbot_msgs/srv/CallFeature`: rosbags has no services) and
+the user's `.msg`/`.srv` files (`msg_paths`: folders laid out as `<package>/msg/<Name>.msg` and
+`<package>/srv/<Name>.srv`). A service `pkg/srv/Name` is the two messages
+`pkg/srv/Name_Request` and `pkg/srv/Name_Response`, as ROS 2 names them.
 """
 
 from __future__ import annotations
@@ -82,11 +83,18 @@ class Types:
             raise missing_extra("rosbags") from exc
         store = get_typestore(Stores.ROS2_HUMBLE)
         typs: dict[str, Any] = {}
-        bundled = resources.files("umlbot.services.ros2") / "srv"
-        for entry in sorted(bundled.iterdir(), key=lambda e: e.name):
-            if entry.name.endswith(".srv"):
-                typs |= _service_types(f"std_srvs/srv/{entry.name[:-4]}", entry.read_text("utf-8"),
-                                       get_types_from_msg)
+        from umlbot.base.rosmsg import message_definitions
+
+        for name, text in message_definitions().items():  # umlbot_msgs/msg/*
+            typs |= get_types_from_msg(text, name)
+        bundled = resources.files("umlbot.services.ros2") / "srv"  # srv/<package>/<Name>.srv
+        for package in sorted(bundled.iterdir(), key=lambda e: e.name):
+            if not package.is_dir():
+                continue
+            for entry in sorted(package.iterdir(), key=lambda e: e.name):
+                if entry.name.endswith(".srv"):
+                    typs |= _service_types(f"{package.name}/srv/{entry.name[:-4]}",
+                                           entry.read_text("utf-8"), get_types_from_msg)
         for folder in msg_paths:
             root = Path(folder)
             if not root.is_dir():
