@@ -86,7 +86,7 @@ def test_status_range_and_trace_reach_a_fast_dds_peer(
 def test_a_ros2_client_calls_features_through_the_bridge(mosquitto_broker: BrokerProcess) -> None:
     dep = deployment(DistanceRead={"mock_distances": [42]})
     settings = BrokerSettings.from_url(mosquitto_broker.url)
-    builder = dds.TypeBuilder(Types.load())
+    builder = dds.TypeBuilder.of(Types.load())
     with Ros2Bridge(settings, ROBOT, DOMAIN), running("sonar", dep, mosquitto_broker.url):
         caller = dds.ServiceClient(builder, DOMAIN, f"/umlbot/{ROBOT}/call", "umlbot_msgs/srv/CallFeature")
         try:

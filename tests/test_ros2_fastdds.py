@@ -173,7 +173,7 @@ import sys, time
 from umlbot.services.ros2.msgtypes import Types
 from umlbot.services.ros2 import dds
 domain, delay = int(sys.argv[1]), float(sys.argv[2])
-builder = dds.TypeBuilder(Types.load())
+builder = dds.TypeBuilder.of(Types.load())
 def set_bool(request):
     print("request", request.data, flush=True)
     time.sleep(delay)

@@ -122,7 +122,7 @@ GOLDEN: dict[str, tuple[dict[str, Any], str]] = {
 @pytest.mark.parametrize("typename", sorted(GOLDEN))
 def test_golden_cdr_bytes_agree_with_rosbags(typename: str) -> None:
     types = Types.load()
-    builder = dds.TypeBuilder(types)
+    builder = dds.TypeBuilder.of(types)
     values, golden = GOLDEN[typename]
     sample = builder.default(typename)
     for path, value in values.items():
@@ -140,7 +140,7 @@ def test_golden_cdr_bytes_agree_with_rosbags(typename: str) -> None:
 
 def test_service_samples_carry_the_rmw_cyclonedds_header() -> None:
     types = Types.load()
-    builder = dds.TypeBuilder(types)
+    builder = dds.TypeBuilder.of(types)
     request = builder.default("std_srvs/srv/SetBool_Request", header=True)
     request.rmw_guid, request.rmw_seq, request.data = 0x0102030405060708, 9, True
     raw = request.serialize(use_version_2=False)

@@ -524,7 +524,7 @@ class _Checker:
             kind: ComponentKind = comp.kind
             self.scope.kinds[name] = kind
             for port, (feature, loc) in comp.ports.items():
-                if feature not in kind_features(kind):
+                if feature not in kind_features(kind) and not self._features_from_settings(name):
                     self.d.error(f"port '{port}' names unknown feature '{feature}' of {kind} component "
                                  f"'{name}' (known: {', '.join(kind_features(kind))})", loc)
         for link in self.source.links:
@@ -539,6 +539,14 @@ class _Checker:
                 elif end.port not in comp_src.ports and end.component not in self.source.damage.ports:
                     self.d.error(f"link '{link.id}' names unknown port '{end.port}' of component "
                                  f"'{end.component}'", end.loc)
+
+    def _features_from_settings(self, name: str) -> bool:
+        """Whether the component's implementation takes its features from the deployment's
+        settings (a ROS 2 mapping): its ports are checked against them with the deployment."""
+        dep = self.source.deployment
+        entry = dep.deployment.components.get(name) if dep is not None and dep.deployment else None
+        impl = resolve_implementation(entry.impl) if entry is not None else None
+        return impl is not None and bool(impl.features_from)
 
     def check_deployment(self) -> None:
         dep = self.source.deployment
@@ -584,7 +592,8 @@ class _Checker:
                 impl = component_features(impl, entry.settings)
                 self.scope.impls[name] = impl
                 for port, (feature, port_loc) in self.source.components[name].ports.items():
-                    if feature in kind_features(kind) and feature not in impl.features:
+                    mapped = feature in kind_features(kind) or impl.features_from
+                    if mapped and feature not in impl.features:
                         self.d.error(f"implementation '{impl.id}' of '{name}' does not offer feature "
                                      f"'{feature}' (port '{port}')", port_loc)
             self.deployed[name] = impl

@@ -481,9 +481,15 @@ def run_sim(
     reason = "interrupted"
     failure: str | None = None
     actions_at_end = 0
+    ros2_drivers: Any = None
     try:
         if observe is not None:
             finish_observing = observe(world, url, deployment.robot)
+        if any(comp.implementation.service == "ros2" for comp in deployment.components.values()):
+            from umlbot.sim.ros2_world import Ros2WorldDrivers  # the world plays the ROS 2 drivers
+
+            ros2_drivers = Ros2WorldDrivers(world, deployment)
+            ros2_drivers.start()
         services.start()
         services.wait_online()
         # the world moves with the clock from now on: start-up time is not sim time
@@ -580,6 +586,8 @@ def run_sim(
                     orchestrator.request_exit("simulation ended")  # a second request ends the grace
                     orch_thread.join(timeout=5)
         services.stop()
+        if ros2_drivers is not None:
+            ros2_drivers.stop()
         if loop is not None:
             loop.stop()
         if finish_observing is not None:

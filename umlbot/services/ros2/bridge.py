@@ -58,7 +58,7 @@ class Ros2Bridge:
         self.call_timeout_s = call_timeout_s
         self.prefix = f"/umlbot/{robot}"
         self.types = Types.load()
-        self.builder = dds.TypeBuilder(self.types)
+        self.builder = dds.TypeBuilder.of(self.types)
         self.bus = BusClient(settings, robot, role="ros2-bridge")
         self._pubs: dict[str, dds.Publication] = {}
         self._lock = threading.Lock()

@@ -85,7 +85,18 @@ def _base(name: str, bound: int) -> Any:
 
 class TypeBuilder:
     """cyclonedds classes for ROS 2 message types (one per type name, made once), and default
-    samples of them (zeros, empty strings and sequences)."""
+    samples of them (zeros, empty strings and sequences). `TypeBuilder.of(types)` is shared: the
+    readers and writers of one topic in a process use the same class."""
+
+    _shared: dict[int, TypeBuilder] = {}
+
+    @classmethod
+    def of(cls, types: Types) -> TypeBuilder:
+        with _plock:
+            builder = cls._shared.get(id(types))
+            if builder is None:
+                builder = cls._shared[id(types)] = cls(types)
+            return builder
 
     def __init__(self, types: Types) -> None:
         require()
@@ -192,6 +203,23 @@ def qos(reliable: bool, depth: int = 10, latched: bool = False) -> Any:
                Policy.DataRepresentation(use_cdrv0_representation=True))
 
 
+_topics: dict[tuple[int, str], Any] = {}
+
+
+def shared_topic(dp: Any, name: str, cls: Any) -> Any:
+    """One Topic per participant and name (every reader and writer of it in this process uses
+    it: a topic's QoS must be the same for all of them); the QoS is on the readers and writers."""
+    key = (id(dp), name)
+    with _plock:
+        topic = _topics.get(key)
+        if topic is None:
+            topic = _topics[key] = Topic(dp, name, cls, qos=qos(True))
+        elif topic.data_type.__idl_typename__ != cls.__idl_typename__:
+            raise ValueError(f"topic {name} carries {topic.data_type.__idl_typename__} here, not "
+                             f"{cls.__idl_typename__}")
+        return topic
+
+
 @dataclass
 class Received:
     """The last sample a reader took, when (monotonic), and how many came."""
@@ -216,7 +244,7 @@ class Subscription:
         self._cond = threading.Condition()
         self._on_sample = on_sample
         dp = participant(domain_id)
-        self._topic = Topic(dp, dds_topic_name(topic), builder.cls(typename), qos=qos(reliable))
+        self._topic = shared_topic(dp, dds_topic_name(topic), builder.cls(typename))
         self._reader = DataReader(dp, self._topic, qos=qos(reliable),
                                   listener=Listener(on_data_available=self._available))
 
@@ -249,7 +277,7 @@ class Subscription:
             return self.last
 
     def close(self) -> None:
-        for entity in (self._reader, self._topic):
+        for entity in (self._reader,):  # the topic is shared (`shared_topic`)
             try:
                 entity.__del__()
             except Exception:  # already gone
@@ -266,23 +294,28 @@ class Publication:
         self.topic, self.typename = topic, typename
         self.builder = builder
         dp = participant(domain_id)
-        self._topic = Topic(dp, dds_topic_name(topic), builder.cls(typename), qos=qos(True))
+        self._topic = shared_topic(dp, dds_topic_name(topic), builder.cls(typename))
         self._writer = DataWriter(dp, self._topic, qos=qos(True, latched=latched))
         self._lock = threading.Lock()
 
     def sample(self) -> Any:
         return self.builder.default(self.typename)
 
-    def write(self, sample: Any) -> None:
+    def write(self, sample: Any, confirm_s: float = 0.0) -> bool:
+        """Write a sample; with `confirm_s`, wait that long at most until every matched reliable
+        reader has acknowledged it (False when one did not)."""
         with self._lock:
             self._writer.write(sample)
+            if confirm_s > 0:
+                return bool(self._writer.wait_for_acks(duration(seconds=confirm_s)))
+        return True
 
     def matched(self) -> int:
         """How many readers this writer has found."""
         return len(self._writer.get_matched_subscriptions())
 
     def close(self) -> None:
-        for entity in (self._writer, self._topic):
+        for entity in (self._writer,):
             try:
                 entity.__del__()
             except Exception:
@@ -304,8 +337,8 @@ class ServiceClient:
         name = service.lstrip("/")
         dp = participant(domain_id)
         self._req_type, self._rep_type = f"{srv_type}_Request", f"{srv_type}_Response"
-        self._req_topic = Topic(dp, f"rq/{name}Request", builder.cls(self._req_type, True), qos=qos(True))
-        self._rep_topic = Topic(dp, f"rr/{name}Reply", builder.cls(self._rep_type, True), qos=qos(True))
+        self._req_topic = shared_topic(dp, f"rq/{name}Request", builder.cls(self._req_type, True))
+        self._rep_topic = shared_topic(dp, f"rr/{name}Reply", builder.cls(self._rep_type, True))
         self._writer = DataWriter(dp, self._req_topic, qos=qos(True))
         self._reader = DataReader(dp, self._rep_topic, qos=qos(True),
                                   listener=Listener(on_data_available=self._available))
@@ -354,7 +387,7 @@ class ServiceClient:
             return self._replies.pop(seq)
 
     def close(self) -> None:
-        for entity in (self._reader, self._writer, self._rep_topic, self._req_topic):
+        for entity in (self._reader, self._writer):
             try:
                 entity.__del__()
             except Exception:
@@ -374,8 +407,8 @@ class ServiceServer:
         name = service.lstrip("/")
         dp = participant(domain_id)
         self._req_type, self._rep_type = f"{srv_type}_Request", f"{srv_type}_Response"
-        self._req_topic = Topic(dp, f"rq/{name}Request", builder.cls(self._req_type, True), qos=qos(True))
-        self._rep_topic = Topic(dp, f"rr/{name}Reply", builder.cls(self._rep_type, True), qos=qos(True))
+        self._req_topic = shared_topic(dp, f"rq/{name}Request", builder.cls(self._req_type, True))
+        self._rep_topic = shared_topic(dp, f"rr/{name}Reply", builder.cls(self._rep_type, True))
         self._writer = DataWriter(dp, self._rep_topic, qos=qos(True))
         self._reader = DataReader(dp, self._req_topic, qos=qos(True),
                                   listener=Listener(on_data_available=self._available))
@@ -410,7 +443,7 @@ class ServiceServer:
         self.served += 1
 
     def close(self) -> None:
-        for entity in (self._reader, self._writer, self._rep_topic, self._req_topic):
+        for entity in (self._reader, self._writer):
             try:
                 entity.__del__()
             except Exception:

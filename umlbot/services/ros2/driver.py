@@ -12,9 +12,17 @@ import threading
 from collections.abc import Callable
 from typing import Any, TypeVar
 
+from umlbot.base.errors import ConfigError
 from umlbot.base.registry import DriverFactory
 from umlbot.services.ros2 import dds
-from umlbot.services.ros2.mapping import Ros2Settings, ServiceCall, SignalMap, TopicRead, TopicWrite
+from umlbot.services.ros2.mapping import (
+    Ros2Settings,
+    ServiceCall,
+    SignalMap,
+    TopicRead,
+    TopicWrite,
+    effective_domain,
+)
 from umlbot.services.ros2.msgtypes import Types
 
 E = TypeVar("E", dds.Subscription, dds.Publication, dds.ServiceClient)
@@ -23,13 +31,19 @@ E = TypeVar("E", dds.Subscription, dds.Publication, dds.ServiceClient)
 class Ros2Node:
     """What a ROS 2 component opens on DDS; `close()` (idempotent) releases it all."""
 
-    def __init__(self, component: str, settings: Ros2Settings) -> None:
+    def __init__(self, component: str, settings: Ros2Settings, confirm: bool = False) -> None:
         dds.require()
         self.component = component
         self.settings = settings
-        self.domain_id = settings.domain_id
+        #: in `umlbot sim`: a publish returns once the simulated driver has it, and a read waits
+        #: for a reading taken after the call began (the sim's time stands still during a call)
+        self.confirm = confirm
+        try:
+            self.domain_id = effective_domain(settings.domain_id)
+        except ValueError as exc:
+            raise ConfigError(f"{component}: {exc}") from None
         self.types = Types.load(tuple(settings.msg_paths))
-        self.builder = dds.TypeBuilder(self.types)
+        self.builder = dds.TypeBuilder.of(self.types)
         dds.participant(self.domain_id)
         self._opened: list[dds.Subscription | dds.Publication | dds.ServiceClient] = []
         self._lock = threading.Lock()
@@ -68,4 +82,10 @@ def create(component: str, settings: Ros2Settings) -> Ros2Node:
     return Ros2Node(component, settings)
 
 
+def create_confirming(component: str, settings: Ros2Settings) -> Ros2Node:
+    return Ros2Node(component, settings, confirm=True)
+
+
 FACTORY = DriverFactory(Ros2Settings, create)
+#: `driver: sim`: the world of `umlbot sim` plays the ROS 2 drivers (umlbot.sim.ros2_world)
+SIM_FACTORY = DriverFactory(Ros2Settings, create_confirming)

@@ -28,6 +28,7 @@ features from a few settings; `ros2` (the generic one) takes them from `features
 from __future__ import annotations
 
 import math
+import os
 import threading
 from typing import Any, Literal
 
@@ -236,7 +237,8 @@ class Ros2Settings(BaseModel):
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
-    domain_id: int = Field(default=0, ge=0, le=232, description="ROS_DOMAIN_ID")
+    domain_id: int | None = Field(default=None, ge=0, le=232,
+                                  description="the ROS 2 domain (default: $ROS_DOMAIN_ID, else 0)")
     msg_paths: list[str] = Field(default_factory=list,
                                  description="folders of <package>/msg/*.msg and <package>/srv/*.srv")
     # the presets' settings
@@ -327,3 +329,15 @@ def scaled(value: Any, scale: float, returns: ValueType) -> Any:
 
 
 Action = Literal["read", "publish", "call"]
+
+
+def effective_domain(domain_id: int | None) -> int:
+    """The ROS 2 domain: the setting, else `ROS_DOMAIN_ID` from the environment, else 0."""
+    if domain_id is not None:
+        return domain_id
+    text = os.environ.get("ROS_DOMAIN_ID", "").strip()
+    if not text:
+        return 0
+    if not text.isdigit() or not 0 <= int(text) <= 232:
+        raise ValueError(f"ROS_DOMAIN_ID must be 0..232, got {text!r}")
+    return int(text)

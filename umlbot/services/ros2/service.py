@@ -34,6 +34,9 @@ from umlbot.services.ros2.driver import Ros2Node
 from umlbot.services.ros2.mapping import FeatureMap, SignalMap, TopicWrite, preset, scaled
 from umlbot.services.ros2.msgtypes import BASE_TYPES
 
+#: in the sim: how long a publish waits for the world's acknowledgement, a read for a new reading
+CONFIRM_S = 2.0
+
 
 class Ros2Service(ComponentService):
     """One ROS 2 component on the bus."""
@@ -66,7 +69,9 @@ class Ros2Service(ComponentService):
 
             def do_read() -> Any:
                 last = sub.last
-                if last.count == 0:
+                if self.node.confirm:  # the sim: a reading taken after the call began
+                    last = sub.wait(max(read.first_s, CONFIRM_S), after=last.count)
+                elif last.count == 0:
                     last = sub.wait(read.first_s)
                 if last.count == 0:
                     bad = f" ({last.bad} sample(s) could not be read: {last.error})" if last.bad else ""
@@ -99,7 +104,8 @@ class Ros2Service(ComponentService):
                 by_name = dict(zip(params, args, strict=True))
                 for path, param in write.fields.items():
                     dds.set_path(sample, path, by_name[param])
-                pub.write(sample)
+                if not pub.write(sample, CONFIRM_S if self.node.confirm else 0.0):
+                    self.log.warning("ros2_publish_unconfirmed", topic=write.topic, readers=pub.matched())
                 self._record(name, by_name or None)
 
             return do_publish
