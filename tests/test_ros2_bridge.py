@@ -65,11 +65,17 @@ def test_status_range_and_trace_reach_a_fast_dds_peer(
         assert json.loads(status.status_json) == {"state": "running", "model": "car"}
         assert status.stamp.sec > 1_700_000_000
 
-        rng = _until(peer, f"{base}/DistanceRead/range", "sensor_msgs/msg/Range",
-                     lambda: bus.call("DistanceRead", "value"))
-        assert rng.range == pytest.approx(1.23) and rng.header.frame_id == "DistanceRead"
+        sensor = host.drivers["DistanceRead"]
+        readings = iter([123, 124] * 50)  # the state is published when it changes
+
+        def ping() -> None:
+            sensor.set_distance(next(readings))
+            bus.call("DistanceRead", "value")
+
+        rng = _until(peer, f"{base}/DistanceRead/range", "sensor_msgs/msg/Range", ping)
+        assert round(rng.range * 100) in (123, 124) and rng.header.frame_id == "DistanceRead"
         assert (rng.min_range, rng.max_range) == (pytest.approx(0.02), pytest.approx(4.0))
-        host.drivers["DistanceRead"].set_distance(None)
+        sensor.set_distance(None)
         bus.call("DistanceRead", "value")  # no echo: REP 117's +inf
         rng = peer.next_message(f"{base}/DistanceRead/range", "sensor_msgs/msg/Range")
         while rng.range != float("inf"):
