@@ -21,12 +21,12 @@ import json
 import math
 import threading
 import time
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Future
 from typing import Any
 
-from umlbot.base.errors import BusError, CallTimeout, RemoteError
+from umlbot.base.errors import BusError, RemoteError
 from umlbot.base.logs import get_logger
-from umlbot.services.bus import BrokerSettings, BusClient, Message, parse_json
+from umlbot.services.bus import BrokerSettings, BusClient, Message, parse_json, reply_value
 from umlbot.services.ros2 import dds
 from umlbot.services.ros2.msgtypes import Types
 
@@ -35,6 +35,8 @@ log = get_logger("umlbot.ros2.bridge")
 #: what an HC-SR04 measures (SPEC §1): the Range message's limits and beam
 SONAR_MIN_M, SONAR_MAX_M, SONAR_FOV_RAD = 0.02, 4.0, math.radians(15)
 CALL_SERVICE_TYPE = "umlbot_msgs/srv/CallFeature"
+#: how often calls past their time-out are answered
+SWEEP_S = 0.05
 
 
 def _stamp(sample: Any, now: float) -> None:
@@ -51,7 +53,7 @@ class Ros2Bridge:
     service; `start()`/`stop()` (idempotent), or `with`."""
 
     def __init__(self, settings: BrokerSettings, robot: str, domain_id: int = 0,
-                 call_timeout_s: float = 2.0, workers: int = 4) -> None:
+                 call_timeout_s: float = 2.0) -> None:
         dds.require()
         self.robot = robot
         self.domain_id = domain_id
@@ -62,7 +64,11 @@ class Ros2Bridge:
         self.bus = BusClient(settings, robot, role="ros2-bridge")
         self._pubs: dict[str, dds.Publication] = {}
         self._lock = threading.Lock()
-        self._executor = ThreadPoolExecutor(workers, thread_name_prefix="ros2-bridge-call")
+        #: request id -> (deadline, ROS 2 request, component, feature) of calls in flight
+        self._calls: dict[str, tuple[float, Any, str, str]] = {}
+        self._calls_lock = threading.Lock()
+        self._stop = threading.Event()
+        self._sweeper = threading.Thread(target=self._sweep, name="ros2-bridge-sweeper", daemon=True)
         self._server: dds.ServiceServer | None = None
         self._started = self._stopped = False
         #: messages carried to ROS 2, by kind (status, state, range, trace)
@@ -80,9 +86,10 @@ class Ros2Bridge:
             if self._started:
                 return
             self._started = True
-        self._server = dds.ServiceServer(self.builder, self.domain_id, f"{self.prefix}/call",
-                                         CALL_SERVICE_TYPE, self._call, executor=self._executor)
         self.bus.start(timeout)
+        self._server = dds.ServiceServer(self.builder, self.domain_id, f"{self.prefix}/call",
+                                         CALL_SERVICE_TYPE, self._call)
+        self._sweeper.start()
         log.info("ros2_bridge_started", robot=self.robot, domain_id=self.domain_id,
                  call_service=f"{self.prefix}/call")
 
@@ -91,10 +98,12 @@ class Ros2Bridge:
             if self._stopped:
                 return
             self._stopped = True
-        self.bus.close()
+        self._stop.set()
         if self._server is not None:
             self._server.close()
-        self._executor.shutdown(wait=False, cancel_futures=True)
+        self.bus.close()
+        if self._sweeper.is_alive():
+            self._sweeper.join(timeout=2.0)
         for pub in self._pubs.values():
             pub.close()
         log.info("ros2_bridge_stopped", robot=self.robot)
@@ -205,20 +214,65 @@ class Ros2Bridge:
     # -- ROS 2 -> MQTT ------------------------------------------------------------------------------
 
     def _call(self, request: Any) -> Any:
-        """Serve `/umlbot/<robot>/call` (in the executor: it waits for the MQTT reply)."""
+        """A request on `/umlbot/<robot>/call` (on DDS's listener thread): the MQTT call goes out
+        at once and is answered from the reply's callback (or by the sweeper at its time-out);
+        no thread waits for it."""
         assert self._server is not None
-        response = self._server.response()
         try:
             args = json.loads(request.args_json) if request.args_json.strip() else []
             if not isinstance(args, list):
                 args = [args]
             timeout = request.timeout_s if request.timeout_s > 0 else self.call_timeout_s
-            value = self.bus.call(request.component, request.feature, *args, timeout=timeout)
-            response.ok, response.value_json = True, _json(value)
-        except RemoteError as exc:
-            response.error_code, response.error_message = exc.code, exc.message
-        except CallTimeout as exc:
-            response.error_code, response.error_message = "timeout", str(exc)
+            component, feature = str(request.component), str(request.feature)
+            request_id, future = self.bus.request(component, feature, *args, timeout=timeout)
         except (BusError, ValueError) as exc:
-            response.error_code, response.error_message = "bad_request", str(exc)
+            return self._response("bad_request", str(exc))
+        with self._calls_lock:
+            self._calls[request_id] = (time.monotonic() + timeout, request, component, feature)
+        future.add_done_callback(lambda done: self._answered(request_id, done))
+        return None
+
+    def _response(self, code: str = "", message: str = "", value: Any = None) -> Any:
+        assert self._server is not None
+        response = self._server.response()
+        if code:
+            response.error_code, response.error_message = code, message
+        else:
+            response.ok, response.value_json = True, _json(value)
         return response
+
+    def _finish(self, request_id: str, response: Any) -> None:
+        """Answer a call once: whoever comes first, the reply or the sweeper."""
+        with self._calls_lock:
+            entry = self._calls.pop(request_id, None)
+        if entry is not None and self._server is not None:
+            try:
+                self._server.respond(entry[1], response)
+            except Exception:  # DDS shutting down
+                log.debug("ros2_bridge_respond_failed", request_id=request_id)
+
+    def _answered(self, request_id: str, done: Future[dict[str, Any]]) -> None:
+        """The MQTT reply came (on the network thread: only a DDS write here)."""
+        with self._calls_lock:
+            entry = self._calls.get(request_id)
+        if entry is None:
+            return
+        _, _, component, feature = entry
+        try:
+            response = self._response(value=reply_value(done.result(), component, feature))
+        except RemoteError as exc:
+            response = self._response(exc.code, exc.message)
+        except Exception as exc:  # NotConnected: the broker went away
+            response = self._response("not_connected", str(exc))
+        self._finish(request_id, response)
+
+    def _sweep(self) -> None:
+        """Answer the calls whose time-out passed without a reply."""
+        while not self._stop.wait(SWEEP_S):
+            now = time.monotonic()
+            with self._calls_lock:
+                late = [(rid, entry) for rid, entry in self._calls.items() if entry[0] <= now]
+            for request_id, (_, _, component, feature) in late:
+                self.bus.forget(request_id)
+                self._finish(request_id, self._response(
+                    "timeout", f"no reply from {component}.{feature} within the call's time-out"))

@@ -397,7 +397,8 @@ class ServiceClient:
 class ServiceServer:
     """Serves a ROS 2 service in rmw_cyclonedds' layout: `handler(request) -> response` (a sample
     of `<srv>_Response`, `response()` makes one; the header is copied from the request). The
-    handler runs on DDS's listener thread, or in `executor` when given (a handler that waits)."""
+    handler runs on DDS's listener thread, or in `executor` when given (a handler that waits).
+    A handler that returns None answers later with `respond(request, response)`."""
 
     def __init__(self, builder: TypeBuilder, domain_id: int, service: str, srv_type: str,
                  handler: Callable[[Any], Any], executor: Any = None) -> None:
@@ -435,11 +436,15 @@ class ServiceServer:
     def _serve(self, request: Any) -> None:
         try:
             response = self.handler(request)
-            response.rmw_guid, response.rmw_seq = request.rmw_guid, request.rmw_seq
-            self._writer.write(response)
+            if response is not None:
+                self.respond(request, response)
         except Exception:
             log.exception("ros2_service_handler_failed", service=self.service)
-            return
+
+    def respond(self, request: Any, response: Any) -> None:
+        """Send the response to `request` (to the client that sent it, by its header)."""
+        response.rmw_guid, response.rmw_seq = request.rmw_guid, request.rmw_seq
+        self._writer.write(response)
         self.served += 1
 
     def close(self) -> None:
