@@ -159,3 +159,46 @@ def test_a_signal_mapping_is_checked_too(tmp_path: Path) -> None:
     errors = [d for d in result.errors if "no field 'value' in 'std_msgs/msg/Float64'" in d.message]
     assert errors and at(errors[0])[0] == position(bad, "go: {direction")[0], \
         [str(d) for d in result.errors]
+
+
+def test_the_users_own_message_types(tmp_path: Path) -> None:
+    folder = tmp_path / "defs" / "grip_msgs"
+    (folder / "msg").mkdir(parents=True)
+    (folder / "srv").mkdir()
+    (folder / "msg" / "Grip.msg").write_text("float32 width_m\nuint8 force\nstring mode\n")
+    (folder / "srv" / "Close.srv").write_text("uint8 force\n---\nbool done\nfloat32 width_m\n")
+    text = MODEL.replace("""        features:
+          open:""", f"""        msg_paths: [{tmp_path / 'defs'}]
+        features:
+          grip:
+            params: [{{name: force, type: int, min: 0, max: 100}}]
+            publish:
+              {{topic: /g, type: grip_msgs/msg/Grip, fields: {{force: force}}, constants: {{mode: soft}}}}
+          close:
+            params: [{{name: force, type: int, min: 0, max: 100}}]
+            returns: float
+            call: {{service: /g/close, type: grip_msgs/srv/Close, fields: {{force: force}}, reply: width_m}}
+          open:""")
+    result = check_text(tmp_path, text)
+    assert result.ok, [str(d) for d in result.diagnostics]
+    assert result.model is not None and result.model.components["Gripper"].features == [
+        "close", "count", "grip", "open", "width"]
+    bad = text.replace("reply: width_m", "reply: widht_m")
+    errors = check_text(tmp_path, bad).errors
+    assert any("no field 'widht_m' in 'grip_msgs/srv/Close_Response'" in d.message for d in errors), \
+        [d.message for d in errors]
+
+
+def test_without_the_extra_check_names_it(tmp_path: Path) -> None:
+    import subprocess
+    import sys
+
+    (tmp_path / "model.yaml").write_text(MODEL)
+    blocked = ("import sys; sys.modules['rosbags'] = None; sys.modules['cyclonedds'] = None; "
+               "from umlbot.cli import main; main()")
+    run = subprocess.run([sys.executable, "-c", blocked, "check", str(tmp_path / "model.yaml")],
+                         capture_output=True, text=True, timeout=60)
+    assert run.returncode == 1
+    assert "ROS 2 support is not installed (rosbags missing): pip install 'umlbot[ros2]'" in run.stdout
+    line = position(MODEL, "Base: {impl: ros2_twist")[0]
+    assert f"model.yaml:{line}:" in run.stdout, run.stdout

@@ -253,6 +253,11 @@ class Ros2Settings(BaseModel):
     signals: dict[str, SignalMap] = Field(default_factory=dict,
                                           description="signals of the model carried on ROS 2 topics")
 
+    @model_validator(mode="after")
+    def _extra_installed(self) -> Ros2Settings:
+        _types()  # the definitions load (rosbags installed, msg_paths readable) or say why not
+        return self
+
     @model_validator(mode="before")
     @classmethod
     def _paths_first(cls, data: Any) -> Any:
