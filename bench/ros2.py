@@ -47,7 +47,7 @@ from umlbot.services.ros2.msgtypes import Types, dds_topic_name
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
-from ros2_support import build_peer  # type: ignore[import-not-found]  # noqa: E402 - the tests' peer
+from ros2_support import build_peer  # type: ignore[import-not-found,unused-ignore]  # noqa: E402
 
 ROBOT = "bench"
 TIMEOUT_S = 5.0
