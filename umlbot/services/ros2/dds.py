@@ -23,6 +23,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+from umlbot.base.errors import ConfigError
 from umlbot.base.logs import get_logger
 from umlbot.services.ros2 import missing_extra
 from umlbot.services.ros2.msgtypes import ARRAY, BASE, NAME, SEQUENCE, Types, dds_type_name
@@ -215,8 +216,8 @@ def shared_topic(dp: Any, name: str, cls: Any) -> Any:
         if topic is None:
             topic = _topics[key] = Topic(dp, name, cls, qos=qos(True))
         elif topic.data_type.__idl_typename__ != cls.__idl_typename__:
-            raise ValueError(f"topic {name} carries {topic.data_type.__idl_typename__} here, not "
-                             f"{cls.__idl_typename__}")
+            raise ConfigError(f"topic {name} carries {topic.data_type.__idl_typename__} here, not "
+                              f"{cls.__idl_typename__}: one topic, one type")
         return topic
 
 
