@@ -132,7 +132,8 @@ def mosquitto() -> Iterator[int]:
     port = free_port()
     with tempfile.TemporaryDirectory() as tmp:
         config = Path(tmp) / "mosquitto.conf"
-        config.write_text(f"listener {port} 127.0.0.1\nallow_anonymous true\npersistence false\n")
+        config.write_text(f"listener {port} 127.0.0.1\nallow_anonymous true\npersistence false\n"
+                          "set_tcp_nodelay true\n")
         binary = shutil.which("mosquitto") or "/usr/sbin/mosquitto"
         proc = subprocess.Popen([binary, "-c", str(config)], stdout=subprocess.DEVNULL,
                                 stderr=subprocess.DEVNULL)
@@ -290,6 +291,7 @@ def main() -> None:
             while raw_pub.matched() == 0 and time.monotonic() < deadline:
                 time.sleep(0.05)
             counter = [0]
+            replied: list[float] = []  # publish_via_umlbot: until the MQTT reply
 
             def dds_raw() -> float:
                 started = time.perf_counter()
@@ -317,6 +319,7 @@ def main() -> None:
                 needle = twist_hex(builder, linear)[8:40]
                 started = time.perf_counter()
                 bus.call("Base", "drive", linear, 0.0, timeout=TIMEOUT_S)
+                replied.append(time.perf_counter() - started)
                 return peer.wait_for(needle) - started
 
             def publish_raw() -> float:
@@ -354,6 +357,8 @@ def main() -> None:
     def ratio(measured: str, *hops: str, q: str) -> float:
         return round(figures[measured][q] / sum(figures[h][q] for h in hops), 3)
 
+    figures["publish_via_umlbot_reply"] = {"p50_ms": round(percentile(replied, 50) * 1000, 4),
+                                           "p99_ms": round(percentile(replied, 99) * 1000, 4)}
     result = {
         "n": len(samples["bridge_call"]),
         "figures": figures,
