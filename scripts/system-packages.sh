@@ -3,7 +3,8 @@
 # Graphviz's `dot` (SVG diagrams), openssl (test certificates), systemd-analyze (unit checks),
 # systemd-nspawn and debootstrap (the units under a real systemd: `make test-systemd`),
 # chromium and chromium-driver (the studio's browser tests drive /usr/bin/chromium), nodejs and
-# npm (the studio page's TypeScript checks and unit tests), and
+# npm (the studio page's TypeScript checks and unit tests), eProsima Fast DDS with cmake, ninja
+# and g++ (the ROS 2 tests build a Fast DDS peer: libfastrtps-dev, libfastcdr-dev), and
 # python3-venv when $PYTHON (default python3) is Debian's own Python without it: there
 # `python3 -m venv` fails (no ensurepip). A pyenv or other Python has its own venv.
 #
@@ -66,6 +67,11 @@ find_missing() {
     have chromedriver || missing+=(chromium-driver)
     have node || missing+=(nodejs)
     have npm || missing+=(npm)
+    have cmake || missing+=(cmake)
+    have ninja || missing+=(ninja-build)
+    have g++ || missing+=(g++)
+    [ -f /usr/include/fastdds/dds/domain/DomainParticipant.hpp ] || missing+=(libfastrtps-dev)
+    [ -f /usr/include/fastcdr/Cdr.h ] || missing+=(libfastcdr-dev)
     local venv
     venv="$(venv_package)"
     [ -z "$venv" ] || missing+=("$venv")

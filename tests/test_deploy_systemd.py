@@ -32,6 +32,7 @@ VERIFIED = {
     "umlbot-broker.service": ["umlbot-broker.service"],
     "umlbot.target": ["umlbot.target"],
     "umlbot-service@.service": [f"umlbot-service@{kind}.service" for kind in KINDS],
+    "umlbot-ros2-bridge.service": ["umlbot-ros2-bridge.service"],
 }
 
 

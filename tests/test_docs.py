@@ -798,7 +798,7 @@ def command_of(name: str) -> click.Command:
     """The command as `umlbot` serves it (with the options every command gets: --log-level …)."""
     from umlbot.cli import with_log_options
 
-    module = importlib.import_module(f"umlbot.commands.{name}")
+    module = importlib.import_module(f"umlbot.commands.{name.replace('-', '_')}")
     command: click.Command = module.command
     return with_log_options(command)
 

@@ -45,12 +45,13 @@ def test_builtins_come_through_the_entry_points() -> None:
     lib = catalog()
     names = {ep.name: ep.value for ep in entry_points(group=COMPONENTS_GROUP) if ep.dist
              and ep.dist.metadata["Name"] == "umlbot"}
-    assert names == {"builtin": "umlbot.base.library:BUILTIN"}
+    assert names == {"builtin": "umlbot.base.library:BUILTIN", "ros2": "umlbot.services.ros2.library:ROS2"}
     assert lib.origin["impl:l298n"] == lib.origin["kind:actuator"] == lib.origin["service:motor"] == "umlbot"
     assert {(k, n) for (k, n), entry in lib.drivers.items() if entry.package == "umlbot"} == {
         (kind, name) for kind in ("motor", "sonar", "servo", "gpio")
         for name in ("pigpio", "lgpio", "mock", *(("sim",) if kind != "gpio" else ()))
-    } | {("stereo", name) for name in ("real", "pigpio", "lgpio", "mock", "sim")}
+    } | {("stereo", name) for name in ("real", "pigpio", "lgpio", "mock", "sim")} \
+      | {("ros2", name) for name in ("dds", "pigpio", "lgpio", "mock", "sim")}
 
 
 def _write_package(folder: Path, name: str, components: dict[str, str], drivers: dict[str, str]) -> None:
@@ -182,7 +183,7 @@ def test_an_installed_broken_package_is_reported_and_does_not_take_down_the_rest
                      "    Eye: {impl: warp9}\nlanes: []\n", encoding="utf-8")
     check = _umlbot("check", str(model), env=env)
     assert check.returncode == 1
-    assert ("error: unknown component kind 'warpdrive' (known: system, actuator, sensor, camera, sounder); "
+    assert ("error: unknown component kind 'warpdrive' (known: system, actuator, sensor, camera, ros2, sounder); "
             "skipped plugin packages: broken-plugins (see 'umlbot plugins')") in check.stdout, check.stdout
 
     line_deploy = tmp_path / "line.yaml"

@@ -36,6 +36,7 @@ COMMANDS: dict[str, str] = {
     "studio": "Serve the browser studio: diagrams, the running robot live, trace replay.",
     "plugins": "List the installed component and driver plugins (entry points).",
     "calibrate": "Calibrate a sensor: 'calibrate stereo' for a stereo camera (chessboard pairs).",
+    "ros2-bridge": "Show the robot to ROS 2: status, states, trace; features as a ROS 2 service.",
 }
 
 
@@ -48,7 +49,7 @@ class LazyGroup(click.Group):
     def get_command(self, ctx: click.Context, cmd_name: str) -> click.Command | None:
         if cmd_name not in COMMANDS:
             return None
-        module = importlib.import_module(f"umlbot.commands.{cmd_name}")
+        module = importlib.import_module(f"umlbot.commands.{cmd_name.replace('-', '_')}")
         command: click.Command = module.command
         return with_log_options(command)
 

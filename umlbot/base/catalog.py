@@ -7,6 +7,10 @@ where the rest of umlbot asks which ones exist.
 
 from __future__ import annotations
 
+import dataclasses
+import importlib
+from typing import Any
+
 from umlbot.base.library import ComponentKind, FeatureSpec, Implementation, ServiceKind, ServiceSpec
 from umlbot.base.plugins import Catalog
 from umlbot.base.plugins import catalog as load_catalog
@@ -52,3 +56,16 @@ def service_kinds() -> tuple[ServiceKind, ...]:
 def service_spec(kind: ServiceKind) -> ServiceSpec | None:
     """The service kind named `kind`, or None."""
     return catalog().services.get(kind)
+
+
+def component_features(impl: Implementation, settings: dict[str, Any]) -> Implementation:
+    """The implementation as one component deploys it: for one whose features depend on its
+    settings (`Implementation.features_from`, e.g. a ROS 2 mapping), those features; else itself."""
+    if not impl.features_from:
+        return impl
+    module, _, function = impl.features_from.partition(":")
+    try:
+        features = getattr(importlib.import_module(module), function)(impl, dict(settings))
+    except Exception:  # the settings check says what is wrong with them
+        return impl
+    return dataclasses.replace(impl, features=dict(features))

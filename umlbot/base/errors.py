@@ -111,3 +111,14 @@ class OrchestratorError(UmlbotError, RuntimeError):
 
 class SimError(UmlbotError, RuntimeError):
     """The simulator could not start or run (bad track file, world unreachable)."""
+
+
+class MissingExtra(UmlbotError, ImportError):
+    """An optional part of umlbot is used but its extra is not installed (`pip install umlbot[X]`)."""
+
+    def __init__(self, module: str, extra: str, what: str) -> None:
+        super().__init__(f"{what} need the Python package {module.split('.')[0]!r}, which is not "
+                         f"installed: pip install 'umlbot[{extra}]'")
+        self.module = module
+        self.extra = extra
+        self.what = what

@@ -170,6 +170,10 @@ class Implementation:
     pin_keys: tuple[str, ...] = ()
     #: settings keys that list GPIOs this part owns (`pins: [5, 6]`), as `pin_keys` for each one.
     pin_list_keys: tuple[str, ...] = ()
+    #: "module:function" `(impl, settings) -> {name: FeatureSpec}` when the features depend on
+    #: the deployment's settings (a ROS 2 mapping names them); they need not be features of the
+    #: kind, and `features` are what it offers when the settings say nothing usable.
+    features_from: str = ""
 
 
 @dataclass(frozen=True)

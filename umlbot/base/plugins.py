@@ -270,6 +270,8 @@ def _check_plugin(plugin: ComponentPlugin, lib: Catalog) -> list[str]:
         if impl.service not in services:
             problems.append(f"{where}: unknown service kind {impl.service!r} "
                             f"(known: {', '.join(sorted(services))})")
+        if isinstance(impl.features, dict) and impl.features_from:
+            continue  # its features depend on the deployment's settings (`component_features`)
         if not isinstance(impl.features, dict) or not impl.features:
             problems.append(f"{where}: features must be a non-empty mapping name -> FeatureSpec")
             continue

@@ -44,6 +44,9 @@ class RunFailed(click.ClickException):
               help="Seconds the lanes get to finish after an exit request [default: 2].")
 @click.option("--startup-timeout", "startup_timeout_s", type=seconds(), default=None,
               help="Seconds to wait for the used components to be online [default: 10].")
+@click.option("--record", "record_file", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              metavar="FILE.mcap", help="Record the run as a rosbag2-compatible MCAP file (wall time): "
+              "trace, calls, states, signals (docs/recording.md).")
 @click.option("--speed", type=Number(min=0, max=1000, min_open=True), default=1.0, hidden=True,
               help="Clock speed factor (for the simulator).")
 def command(
@@ -57,6 +60,7 @@ def command(
     grace_s: float | None,
     startup_timeout_s: float | None,
     speed: float,
+    record_file: Path | None,
 ) -> None:
     """Run the orchestrator on COMPILED (a file written by `umlbot compile`).
 
@@ -70,6 +74,13 @@ def command(
 
     model = load_compiled(compiled)
     settings = BrokerSettings.from_url(resolve_broker_url(broker_url), ca_file=ca_file)
+    recorder = None
+    if record_file is not None:
+        import time
+
+        from umlbot.record import open_file_recorder
+
+        recorder = open_file_recorder(record_file, robot or model.name, "wall", time.time, model.name)
     orchestrator = Orchestrator(
         model,
         settings,
@@ -80,7 +91,16 @@ def command(
         trace_file=trace_file,
         grace_s=DEFAULT_GRACE_S if grace_s is None else grace_s,
         startup_timeout_s=DEFAULT_STARTUP_TIMEOUT_S if startup_timeout_s is None else startup_timeout_s,
+        trace_listener=recorder.on_trace if recorder is not None else None,
     )
-    code = orchestrator.run_sync()
+    try:
+        if recorder is not None:
+            recorder.listen(settings, trace=False, timeout=None)
+        code = orchestrator.run_sync()
+    finally:
+        if recorder is not None:
+            from umlbot.commands.recording import report
+
+            report(record_file, recorder.close(), False)
     if code != EXIT_OK:
         raise RunFailed(f"fail-safe stop: {orchestrator.failure}")

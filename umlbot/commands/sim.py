@@ -7,6 +7,7 @@ import math
 import os
 import sys
 from pathlib import Path
+from typing import Any
 
 import click
 
@@ -50,10 +51,18 @@ DEFAULT_TRACK = "s_bend"  # the bundled track, wherever umlbot is run from
               help="Follow the run in umlbot studio (the page stays open after the run until Ctrl-C).")
 @click.option("--studio-port", type=click.IntRange(0, 65535), default=8080, show_default=True,
               help="Port of the studio page (0 = any free port).")
+@click.option("--record", "record_file", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              metavar="FILE.mcap", help="Record the run as a rosbag2-compatible MCAP file (sim time): "
+              "trace, calls, states, signals, pose, sonar, track (docs/recording.md).")
+@click.option("--foxglove", is_flag=True,
+              help="Serve the run live to Foxglove (WebSocket on 127.0.0.1, its URL is printed).")
+@click.option("--foxglove-port", type=click.IntRange(0, 65535), default=8765, show_default=True,
+              help="Port of the Foxglove server (0 = any free port).")
 def command(model: Path, track: Path | None, speed: float, broker_url: str | None, port: int | None,
             timeout_s: float, plot: Path | None, processes: bool, seed: int | None, noise_cm: float,
             drop_percent: float, max_collisions: int, as_json: bool, trace_file: Path | None,
-            studio: bool, studio_port: int) -> None:
+            studio: bool, studio_port: int, record_file: Path | None, foxglove: bool,
+            foxglove_port: int) -> None:
     """Run MODEL on a track: embedded broker, world, services, orchestrator; exit 0 only when the
     goal was reached without a collision."""
     from umlbot.base.logs import configure_logging
@@ -98,14 +107,27 @@ def command(model: Path, track: Path | None, speed: float, broker_url: str | Non
 
         follower = SimFollower(model, studio_port, announce=lambda url: click.echo(
             f"umlbot studio: {url}  (follows this run)", err=as_json))
+    recording = None
+    if record_file is not None or foxglove:
+        from umlbot.commands.recording import sim_recording
+
+        recording = sim_recording(model, record_file, foxglove, foxglove_port,
+                                  announce=lambda url: click.echo(f"foxglove: {url}", err=as_json))
+    observers = [o.observe for o in (follower, recording) if o is not None]
     with signals:  # while it starts, a signal interrupts it (the run is then "interrupted")
         try:
-            result = run_sim(options, show, signals.stop,
-                             observe=follower.observe if follower is not None else None)
+            result = run_sim(options, show, signals.stop, observe=_all(observers),
+                             trace_listener=recording.on_trace if recording is not None else None)
         except BaseException:
             if follower is not None:
                 follower.close()
+            if recording is not None:
+                recording.close()
             raise
+    if recording is not None:
+        from umlbot.commands.recording import report
+
+        report(record_file, recording.close(), as_json)
     if live:
         click.echo()
     if as_json:
@@ -125,6 +147,8 @@ def command(model: Path, track: Path | None, speed: float, broker_url: str | Non
             click.echo(f"  motors stopped  {result.stood_still}")
         if result.plot is not None:
             click.echo(f"  picture         {result.plot}")
+        if record_file is not None:
+            click.echo(f"  recording       {record_file}")
     if follower is not None:
         if result.reason != "interrupted":  # Ctrl-C during the run quits; after a run, look at it
             click.echo(f"umlbot studio: {follower.url}  (the run has ended; Ctrl-C to quit)", err=as_json)
@@ -133,3 +157,22 @@ def command(model: Path, track: Path | None, speed: float, broker_url: str | Non
                 after.stop.wait()
         follower.close()
     sys.exit(0 if result.ok else 1)
+
+
+def _all(observers: list[Any]) -> Any:
+    """One `run_sim` observe hook calling each of `observers` (None when there is none)."""
+    if not observers:
+        return None
+    if len(observers) == 1:
+        return observers[0]
+
+    def observe(*args: Any) -> Any:
+        finishers = [observer(*args) for observer in observers]
+
+        def finish() -> None:
+            for finisher in finishers:
+                finisher()
+
+        return finish
+
+    return observe

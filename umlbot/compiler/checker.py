@@ -12,7 +12,7 @@ from collections import deque
 from dataclasses import dataclass, field
 from typing import Any, Literal, cast
 
-from umlbot.base.catalog import component_kinds, kind_features, resolve_implementation
+from umlbot.base.catalog import component_features, component_kinds, kind_features, resolve_implementation
 from umlbot.base.diagnostics import Diagnostics, Location
 from umlbot.base.errors import ConfigError, ModelError
 from umlbot.base.library import ComponentKind, FeatureSpec, Implementation
@@ -435,7 +435,7 @@ class _ExprChecker:
         impl = scope.impls.get(owner)
         if impl is None and scope.deployment_unread:
             self.unknown("deployment")  # the implementation's features and ranges; its kind's are checked
-        if feature not in kind_features(kind):
+        if feature not in kind_features(kind) and (impl is None or feature not in impl.features):
             # the features this component offers: its implementation's, else its kind's
             known = ", ".join(impl.features if impl is not None else kind_features(kind))
             raise self.fail(f"unknown feature '{feature}' of {kind} component '{owner}' "
@@ -524,7 +524,7 @@ class _Checker:
             kind: ComponentKind = comp.kind
             self.scope.kinds[name] = kind
             for port, (feature, loc) in comp.ports.items():
-                if feature not in kind_features(kind):
+                if feature not in kind_features(kind) and not self._features_from_settings(name):
                     self.d.error(f"port '{port}' names unknown feature '{feature}' of {kind} component "
                                  f"'{name}' (known: {', '.join(kind_features(kind))})", loc)
         for link in self.source.links:
@@ -539,6 +539,14 @@ class _Checker:
                 elif end.port not in comp_src.ports and end.component not in self.source.damage.ports:
                     self.d.error(f"link '{link.id}' names unknown port '{end.port}' of component "
                                  f"'{end.component}'", end.loc)
+
+    def _features_from_settings(self, name: str) -> bool:
+        """Whether the component's implementation takes its features from the deployment's
+        settings (a ROS 2 mapping): its ports are checked against them with the deployment."""
+        dep = self.source.deployment
+        entry = dep.deployment.components.get(name) if dep is not None and dep.deployment else None
+        impl = resolve_implementation(entry.impl) if entry is not None else None
+        return impl is not None and bool(impl.features_from)
 
     def check_deployment(self) -> None:
         dep = self.source.deployment
@@ -581,9 +589,11 @@ class _Checker:
                              f"{_a(impl.kind)}", impl_loc)
                 continue
             else:
+                impl = component_features(impl, entry.settings)
                 self.scope.impls[name] = impl
                 for port, (feature, port_loc) in self.source.components[name].ports.items():
-                    if feature in kind_features(kind) and feature not in impl.features:
+                    mapped = feature in kind_features(kind) or impl.features_from
+                    if mapped and feature not in impl.features:
                         self.d.error(f"implementation '{impl.id}' of '{name}' does not offer feature "
                                      f"'{feature}' (port '{port}')", port_loc)
             self.deployed[name] = impl

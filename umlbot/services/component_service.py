@@ -79,6 +79,10 @@ class ComponentService:
     def safe_stop(self, reason: str) -> None:
         """Put the hardware in a safe state (motors: stopped). Default: nothing to do."""
 
+    def on_server(self, server: Any) -> None:
+        """The component's bus server (a `ComponentServer`), before it connects: for a service
+        that subscribes or publishes beyond its features (ROS 2 signals). Default: nothing."""
+
     def tick(self, now: float) -> None:
         """Called periodically by the host with `time.monotonic()` (motors: the watchdog)."""
 

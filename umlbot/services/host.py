@@ -178,6 +178,7 @@ class ServiceHost:
             server = ComponentServer(self.settings, self.robot, name, comp.implementation.id,
                                      service.features(), driver=self.chosen_drivers[name])
             service.publish_state = server.publish_state
+            service.on_server(server)
             # Re-publish the retained state after a reconnect (the broker may have restarted).
             server.connection.add_on_connect(service.changed)
             server.connection.add_on_disconnect(self._on_disconnect_of(service))

@@ -422,12 +422,14 @@ def run_sim(
     on_progress: Callable[[Progress], None] | None = None,
     stop: threading.Event | None = None,
     observe: Observer | None = None,
+    trace_listener: Callable[[dict[str, Any]], None] | None = None,
 ) -> SimResult:
     """Run one simulation to its end (see the module docstring); `stop` ends it early (Ctrl-C).
 
     `observe(world, broker_url, robot)` is called once the broker runs, before anything else
     starts (the studio follows the run this way); the function it returns is called when the run
-    has ended, before the broker stops.
+    has ended, before the broker stops. `trace_listener` gets every trace event of the run (on
+    the orchestrator's loop: it must not block), e.g. a recording's.
     """
     from umlbot.compiler.api import compile_model
     from umlbot.services.bus import BrokerSettings
@@ -479,9 +481,15 @@ def run_sim(
     reason = "interrupted"
     failure: str | None = None
     actions_at_end = 0
+    ros2_drivers: Any = None
     try:
         if observe is not None:
             finish_observing = observe(world, url, deployment.robot)
+        if any(comp.implementation.service == "ros2" for comp in deployment.components.values()):
+            from umlbot.sim.ros2_world import Ros2WorldDrivers  # the world plays the ROS 2 drivers
+
+            ros2_drivers = Ros2WorldDrivers(world, deployment)
+            ros2_drivers.start()
         services.start()
         services.wait_online()
         # the world moves with the clock from now on: start-up time is not sim time
@@ -491,9 +499,10 @@ def run_sim(
         # the world ends the run itself, at the sim time it happens, not when the runner looks
         world.halt_at_goal = True
         world.max_collisions = options.max_collisions
+        listener = watch.on_event if trace_listener is None else _both(watch.on_event, trace_listener)
         orchestrator = Orchestrator(
             compiled, BrokerSettings.from_url(url), robot=deployment.robot, clock=clock,
-            trace_listener=watch.on_event, handle_signals=False, trace_file=options.trace_file,
+            trace_listener=listener, handle_signals=False, trace_file=options.trace_file,
         )
         # a fail-safe stop halts the world at once, in the orchestrator's thread: its own stop
         # calls go through the broker and may time out while the car drives on
@@ -577,6 +586,8 @@ def run_sim(
                     orchestrator.request_exit("simulation ended")  # a second request ends the grace
                     orch_thread.join(timeout=5)
         services.stop()
+        if ros2_drivers is not None:
+            ros2_drivers.stop()
         if loop is not None:
             loop.stop()
         if finish_observing is not None:
@@ -607,6 +618,15 @@ def run_sim(
         result.plot = plot_run(world, options.plot)
     log.info("sim_finished", **result.as_dict())
     return result
+
+
+def _both(first: Callable[[dict[str, Any]], None],
+          second: Callable[[dict[str, Any]], None]) -> Callable[[dict[str, Any]], None]:
+    def both(event: dict[str, Any]) -> None:
+        first(event)
+        second(event)
+
+    return both
 
 
 def _catch_up(world: World) -> None:

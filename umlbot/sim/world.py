@@ -297,7 +297,7 @@ class World:
             self._sync()
             return self._servo.angle_deg
 
-    def read_sonar_cm(self) -> int | None:
+    def read_sonar_cm(self, charge: bool = True) -> int | None:
         """One HC-SR04 ping: whole centimetres within 2..400, or None when no echo returns.
 
         Each of `sonar_rays` rays across the beam ends at the first wall it meets; it echoes only
@@ -305,12 +305,14 @@ class World:
         more obliquely reflects the sound away). The nearest echo is the reading; then the
         optional noise, and with probability `sonar_drop` the echo is lost (seeded).
         With a clock that can be charged (`SimClock`), the ping takes its robot time: the wait for
-        the 60 ms ping interval, then the echo's flight (or the 38 ms time-out).
+        the 60 ms ping interval, then the echo's flight (or the 38 ms time-out). `charge=False`:
+        the reading at this moment, taking no robot time (a ROS 2 range driver that publishes on
+        its own, `umlbot.sim.ros2_world`).
         """
         with self._lock:
             self._sync()
             wait = self.car.sonar_interval_s - (self._time - self._last_ping_s)
-        if wait > 0:  # outside the lock: the other lanes' commands go on meanwhile
+        if wait > 0 and charge:  # outside the lock: the other lanes' commands go on meanwhile
             self._charge(wait)
         with self._lock:
             self._sync()
@@ -327,10 +329,12 @@ class World:
             hit = None
             if result is not None and echo is not None:
                 hit = Point(origin.x + echo[0] * math.cos(echo[1]), origin.y + echo[0] * math.sin(echo[1]))
-            self._trace.pings.append(Ping(self._time, origin, bearing, result, hit))
-            self._last_ping_s = self._time
+            if charge:  # a free-running driver's readings would crowd the trace's pings
+                self._trace.pings.append(Ping(self._time, origin, bearing, result, hit))
+                self._last_ping_s = self._time
         echo_s = self.car.sonar_timeout_s if result is None else 2 * result / 100.0 / SPEED_OF_SOUND_MPS
-        self._charge(echo_s)
+        if charge:
+            self._charge(echo_s)
         return result
 
     def _echo(self, origin: Point, bearing: float) -> tuple[float, float] | None:

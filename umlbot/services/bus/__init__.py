@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 
 from umlbot.base.lazy import lazy_attributes
 from umlbot.base.topics import Topics
-from umlbot.services.bus.client import BusClient
+from umlbot.services.bus.client import BusClient, reply_value
 from umlbot.services.bus.connection import BusConnection, Handler, Message, Will
 from umlbot.services.bus.envelopes import (
     ENVELOPE_KEYS,
@@ -82,6 +82,7 @@ __all__ = [
     "parse_json",
     "password_line",
     "redact_url",
+    "reply_value",
     "resolve_broker_url",
     "to_payload",
 ]

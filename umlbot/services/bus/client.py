@@ -131,6 +131,18 @@ class BusClient:
             raise CallTimeout(component, feature, timeout) from None
         return _unwrap(reply, component, feature)
 
+    def request(self, component: str, feature: str, *args: Any,
+                timeout: float = 2.0) -> tuple[str, Future[dict[str, Any]]]:
+        """Send a call without waiting: (request id, future of the raw reply envelope). The
+        future's callbacks run on the network thread (they must return at once); the caller
+        times the call out with `forget(request_id)`. `reply_value` unwraps a reply."""
+        return self._request(component, feature, args, timeout)
+
+    def forget(self, request_id: str) -> bool:
+        """Stop waiting for a request's reply; False when it had come (or was forgotten)."""
+        with self._pending_lock:
+            return self._pending.pop(request_id, None) is not None
+
     # the same signature as `call` on purpose, so the orchestrator can switch between them
     async def acall(self, component: str, feature: str, *args: Any, timeout: float = 2.0) -> Any:  # noqa: ASYNC109
         """The asyncio form of `call`: awaits the reply without blocking the event loop."""
@@ -199,3 +211,8 @@ def _unwrap(reply: dict[str, Any], component: str, feature: str) -> Any:
     except (ValueError, RecursionError):
         text = "(not shown: nested too deeply)"
     raise RemoteError("bad_reply", f"malformed reply: {text}", component, feature)
+
+
+def reply_value(reply: dict[str, Any], component: str, feature: str) -> Any:
+    """A reply envelope's value; `RemoteError` for an error reply (`BusClient.request`)."""
+    return _unwrap(reply, component, feature)

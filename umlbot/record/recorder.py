@@ -1,0 +1,305 @@
+"""The recorder: takes what the robot does without ever making it wait, and writes it in a thread.
+
+Producers (the bus dispatcher thread, the orchestrator's trace listener, the sim sampler) only put
+a tuple in a bounded queue (`put_nowait`: no lock held for long, no I/O, no parsing); when the
+queue is full the item is dropped and counted (`dropped`), the robot goes on. The writer thread
+does the rest: decodes the MQTT payloads (calls paired with their replies by `MonitorState`, the
+same decoder as the monitor's), makes the ROS 2 messages, serialises them to CDR once and hands
+them to every sink (the MCAP file, the live Foxglove server). A sink that fails (the disk is
+full) ends itself cleanly (`McapBag`); the recorder goes on for the other sinks and the robot
+never notices.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import queue
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Literal, Protocol
+
+from pydantic_core import from_json
+
+from umlbot.base import rosmsg
+from umlbot.base.logs import get_logger
+from umlbot.monitor import MonitorState
+from umlbot.record.messages import (
+    CALL,
+    JOINTS,
+    MARKERS,
+    ORCHESTRATOR,
+    POSE,
+    RANGE,
+    SIGNAL,
+    STATE,
+    STATUS,
+    TRACE,
+    Builder,
+    Topics,
+    to_ns,
+)
+from umlbot.services.bus import BrokerSettings, BusConnection, Message
+
+log = get_logger(__name__)
+
+#: items waiting for the writer thread at most; more are dropped (and counted).
+DEFAULT_MAX_QUEUE = 100_000
+#: the writer thread looks after the sinks (chunk flushes, unanswered calls) this often.
+TICK_S = 0.2
+
+ClockName = Literal["sim", "wall"]
+
+
+class Sink(Protocol):
+    """Where the recorder's messages go: an MCAP file, a live server."""
+
+    def write_cdr(self, topic: str, msgtype: str, data: bytes | memoryview, stamp_ns: int) -> None: ...
+
+    def tick(self) -> None: ...
+
+    def close(self) -> None: ...
+
+
+@dataclass(frozen=True)
+class RecordStats:
+    """How a recording went: messages made, items dropped (queue full), why a sink failed."""
+
+    messages: int
+    dropped: int
+    failed: str | None
+
+
+class Recorder:
+    """Writes the robot's traffic to `sinks` from its own thread (see the module docstring).
+
+    `now()` is the run's clock in seconds (`clock` says which: "sim" time in the sim, unix "wall"
+    time on a robot): MQTT messages are stamped with it when they arrive; trace events carry their
+    own times. A call's latency is wall time in both (sim time stands still during a call).
+    """
+
+    def __init__(self, robot: str, sinks: list[Sink], now: Callable[[], float] = time.time,
+                 max_queue: int = DEFAULT_MAX_QUEUE, clock: ClockName = "wall") -> None:
+        self.robot = robot
+        self.topics = Topics(robot)
+        self.store = rosmsg.typestore("record")
+        self.build = Builder(self.store)
+        self.sinks = list(sinks)
+        self.now = now
+        self.clock = clock
+        self._queue: queue.Queue[tuple[Any, ...]] = queue.Queue(max_queue)
+        self._calls = MonitorState()
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="umlbot-recorder", daemon=True)
+        self._connection: BusConnection | None = None
+        self._closed = False
+        #: messages handed to the sinks
+        self.messages = 0
+        #: items dropped because the queue was full
+        self.dropped = 0
+        self._thread.start()
+
+    # -- producers: never block -----------------------------------------------------------------
+
+    def _offer(self, item: tuple[Any, ...]) -> None:
+        try:
+            self._queue.put_nowait(item)
+        except queue.Full:
+            self.dropped += 1
+
+    def on_message(self, message: Message) -> None:
+        """A bus message of the robot (the bus dispatcher calls it)."""
+        self._offer(("mqtt", message.topic, message.payload, self.now(), time.time()))
+
+    def on_trace(self, event: dict[str, Any]) -> None:
+        """One trace event of the orchestrator (its `trace_listener`)."""
+        self._offer(("trace", event))
+
+    def offer(self, *item: Any) -> None:
+        """A sample of the sim: ("pose", t, x, y, heading), ("sonar", t, cm, x0, y0, angle), ("motors", t,
+        (duty_left, duty_right), (speed_left, speed_right)) or ("track", t, walls, goal)."""
+        self._offer(item)
+
+    def listen(self, settings: BrokerSettings, *, trace: bool, timeout: float | None = 10.0) -> None:
+        """Subscribe to `umlbot/<robot>/#` (its trace topic too only when `trace`: in `umlbot sim`
+        and `umlbot run` the trace comes from the orchestrator itself, complete)."""
+        self._with_trace = trace
+        connection = BusConnection(settings, "recorder", robot=self.robot)
+        connection.subscribe(f"umlbot/{self.robot}/#", self.on_message)
+        self._connection = connection
+        connection.start(timeout)
+        if timeout is not None:
+            connection.wait_subscribed(timeout)
+
+    def stop_listening(self) -> None:
+        """Unsubscribe and disconnect from the broker (before it stops); idempotent."""
+        connection, self._connection = self._connection, None
+        if connection is not None:
+            with contextlib.suppress(Exception):
+                connection.close()
+
+    # -- the writer thread ----------------------------------------------------------------------
+
+    def _run(self) -> None:
+        next_tick = time.monotonic() + TICK_S
+        while True:
+            try:
+                item = self._queue.get(timeout=TICK_S)
+            except queue.Empty:
+                item = None
+            if item is not None:
+                try:
+                    self._handle(item)
+                except Exception as exc:  # a recording must never take anything down
+                    log.warning("recording: item skipped", kind=item[0], error=str(exc))
+            elif self._stop.is_set():
+                return
+            if time.monotonic() >= next_tick:
+                next_tick = time.monotonic() + TICK_S
+                self._tick()
+
+    def _tick(self) -> None:
+        for event in self._calls.expire(time.time()):
+            self._call_event(event, None)
+        for sink in self.sinks:
+            try:
+                sink.tick()
+            except Exception as exc:
+                log.warning("recording: sink failed", sink=type(sink).__name__, error=str(exc))
+
+    def _emit(self, topic: str, msgtype: str, message: Any, stamp_ns: int) -> None:
+        data = self.store.serialize_cdr(message, msgtype)
+        self.messages += 1
+        for sink in self.sinks:
+            try:
+                sink.write_cdr(topic, msgtype, data, stamp_ns)
+            except Exception as exc:
+                log.warning("recording: sink failed", sink=type(sink).__name__, error=str(exc))
+
+    def _handle(self, item: tuple[Any, ...]) -> None:
+        kind = item[0]
+        if kind == "mqtt":
+            self._mqtt(item[1], item[2], item[3], item[4])
+        elif kind == "trace":
+            self._trace(item[1])
+        else:
+            self._sample(item)
+
+    def _sample(self, item: tuple[Any, ...]) -> None:
+        """A sample of the sim: its message, and to the sinks that draw a scene (`sample`)."""
+        kind, build, topics = item[0], self.build, self.topics
+        if kind == "pose":
+            _, at, x, y, heading = item
+            self._emit(topics.pose, POSE, build.pose(at, x, y, heading), to_ns(at))
+        elif kind == "sonar":
+            at, cm = item[1], item[2]
+            self._emit(topics.sonar, RANGE, build.sonar(at, cm), to_ns(at))
+        elif kind == "motors":
+            _, at, duty, speed = item
+            self._emit(topics.motors, JOINTS, build.motors(at, duty, speed), to_ns(at))
+        elif kind == "track":
+            _, at, walls, goal = item
+            self._emit(topics.track, MARKERS, build.track(at, walls, goal), to_ns(at))
+        for sink in self.sinks:
+            sample = getattr(sink, "sample", None)
+            if sample is not None:
+                try:
+                    sample(item)
+                except Exception as exc:
+                    log.warning("recording: sink failed", sink=type(sink).__name__, error=str(exc))
+
+    def _trace(self, event: dict[str, Any]) -> None:
+        message = self.build.trace(event)
+        self._emit(self.topics.trace, TRACE, message, to_ns(message.end))
+
+    def _mqtt(self, topic: str, payload: bytes, at: float, wall: float) -> None:
+        levels = topic.split("/")[2:]  # after umlbot/<robot>/
+        if not levels:
+            return
+        head, build, topics = levels[0], self.build, self.topics
+        if head == "_reply" or (len(levels) >= 3 and levels[1] == "call"):
+            for event in self._calls.observe(topic, payload, wall):
+                self._call_event(event, at)
+            return
+        if not payload:  # a cleared retained message
+            return
+        data = _json(payload)
+        if head == "orchestrator" and len(levels) == 2:
+            if levels[1] == "trace":
+                if getattr(self, "_with_trace", False):
+                    for event in data if isinstance(data, list) else [data]:
+                        if isinstance(event, dict):
+                            self._trace(event)
+            elif levels[1] == "status":
+                self._calls.observe(topic, payload, wall)  # it learns the run's call time-out
+                self._emit(topics.orchestrator, ORCHESTRATOR, build.orchestrator(at, data), to_ns(at))
+        elif head == "signal" and len(levels) >= 2:
+            name = "/".join(levels[1:])
+            self._emit(topics.signals, SIGNAL, build.signal(at, name, data), to_ns(at))
+        elif len(levels) == 2 and levels[1] == "status":
+            self._emit(topics.status(head), STATUS, build.status(at, head, data), to_ns(at))
+        elif len(levels) == 2 and levels[1] == "state":
+            self._emit(topics.state(head), STATE, build.state(at, head, data), to_ns(at))
+
+    def _call_event(self, event: Any, at: float | None) -> None:
+        """Record a call event of `MonitorState` (wall times); `at`: the run's time of the message
+        that finished it (None: a call that expired unanswered, now)."""
+        if event.type != "call" or event.component is None or event.feature is None:
+            return
+        if self.clock == "wall":  # stamped when requested: the reply's time less the latency
+            at = event.time - (event.latency_ms or 0.0) / 1000.0
+        elif at is None:
+            at = self.now()
+        message = self.build.call(at, event.component, event.feature, event.id, event.args, event.ok,
+                                  event.value, event.error, event.latency_ms)
+        self._emit(self.topics.calls, CALL, message, to_ns(at))
+
+    # -- the end --------------------------------------------------------------------------------
+
+    def close(self, timeout: float = 10.0) -> RecordStats:
+        """Stop listening, write what is queued (for at most `timeout` s), close the sinks."""
+        if not self._closed:
+            self._closed = True
+            self.stop_listening()
+            self._stop.set()
+            self._thread.join(timeout)
+            if self._thread.is_alive():
+                log.warning("recording: the writer did not finish in time", pending=self._queue.qsize())
+            for sink in self.sinks:
+                try:
+                    sink.close()
+                except Exception as exc:
+                    log.warning("recording: sink failed to close", sink=type(sink).__name__, error=str(exc))
+            if self.dropped:
+                log.warning("recording: items dropped (the writer fell behind)", dropped=self.dropped)
+        return self.stats
+
+    @property
+    def stats(self) -> RecordStats:
+        failed = next((f for f in (getattr(s, "failed", None) for s in self.sinks) if f), None)
+        return RecordStats(self.messages, self.dropped, failed)
+
+
+def _json(payload: bytes) -> Any:
+    try:
+        return from_json(payload)
+    except ValueError:
+        return payload.decode("utf-8", "replace")
+
+
+def open_file_recorder(path: str | Path, robot: str, clock: ClockName, now: Callable[[], float],
+                       model: str | None = None, extra_sinks: list[Sink] | None = None) -> Recorder:
+    """A recorder writing the rosbag2 MCAP file `path`; its metadata says which `clock` stamps it."""
+    from umlbot import __version__
+    from umlbot.record.bag import McapBag
+
+    custom = {"umlbot.clock": clock, "umlbot.robot": robot, "umlbot.version": __version__}
+    if model:
+        custom["umlbot.model"] = model
+    bag = McapBag(path, custom_data=custom)
+    return Recorder(robot, [bag, *(extra_sinks or [])], now, clock=clock)
+
+
+__all__ = ["CALL", "DEFAULT_MAX_QUEUE", "RecordStats", "Recorder", "Sink", "open_file_recorder"]
