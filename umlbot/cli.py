@@ -35,6 +35,7 @@ COMMANDS: dict[str, str] = {
     "monitor": "Watch the robot's traffic live.",
     "studio": "Serve the browser studio: diagrams, the running robot live, trace replay.",
     "plugins": "List the installed component and driver plugins (entry points).",
+    "record": "Record a running robot as a rosbag2-compatible MCAP file.",
 }
 
 

@@ -1,0 +1,136 @@
+"""`umlbot run --record` and `umlbot record` (from outside, over MQTT) of one run on a real
+Mosquitto; `umlbot monitor --replay` and the studio's replay read MCAP as they read JSON lines; a
+cut or damaged MCAP is one clear error line."""
+
+from __future__ import annotations
+
+import json
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import yaml
+from conftest import BrokerProcess
+from orchestrator_support import MODELS, rig, wait_for
+from record_support import RecordedRun, jsonl_nodes, read_with_mcap, recorded
+
+from umlbot.compiler.api import compile_model
+from umlbot.compiler.compiled import dump_compiled
+
+pytestmark = pytest.mark.network
+
+__all__ = ["recorded"]  # the session's recorded sim run (a fixture)
+
+
+def umlbot(*args: str) -> list[str]:
+    return [sys.executable, "-c", "from umlbot.cli import main; main()", *args]
+
+
+def _trace_nodes(path: Path, topic: str) -> list[tuple[int, str, str]]:
+    _, _, messages, _ = read_with_mcap(path)
+    return sorted((m.seq, m.lane, m.node) for t, m, _ in messages if t == topic)
+
+
+@pytest.mark.timeout(90)
+def test_run_records_and_record_records_the_same_run_from_outside(
+        mosquitto_broker: BrokerProcess, tmp_path: Path) -> None:
+    url = mosquitto_broker.url
+    compiled = tmp_path / "exit_loop.json"
+    compiled.write_bytes(dump_compiled(compile_model(MODELS / "exit_loop.yaml")))
+    outside, inside, trace = tmp_path / "outside.mcap", tmp_path / "run.mcap", tmp_path / "trace.jsonl"
+    record_log, run_log = tmp_path / "record.log", tmp_path / "run.log"
+    recorder = subprocess.Popen(umlbot("record", "--broker", url, "--robot", "test", "-o", str(outside)),
+                                stdout=subprocess.DEVNULL, stderr=record_log.open("wb"))
+    try:
+        assert wait_for(lambda: "recording umlbot/test/#" in record_log.read_text(), 30.0), \
+            record_log.read_text()
+        with rig(url, "exit_loop.yaml") as r:
+            run = subprocess.Popen(umlbot("run", str(compiled), "--broker", url, "--robot", "test",
+                                          "--trace", str(trace), "--record", str(inside)),
+                                   stdout=subprocess.DEVNULL, stderr=run_log.open("wb"))
+            try:
+                left = r.driver("LeftActuator")
+                assert wait_for(lambda: left.running, 20.0), run_log.read_text()
+                # some loops of the lane (msleep(20) each), then the end
+                assert wait_for(lambda: trace.exists() and len(trace.read_text().splitlines()) > 30, 20.0)
+                run.send_signal(signal.SIGTERM)
+                assert run.wait(15) == 0, run_log.read_text()
+            finally:
+                if run.poll() is None:
+                    run.kill()
+                    run.wait(5)
+        time.sleep(0.3)  # the last QoS 0 trace batch crosses the broker
+        recorder.send_signal(signal.SIGINT)
+        assert recorder.wait(15) == 0, record_log.read_text()
+    finally:
+        if recorder.poll() is None:
+            recorder.kill()
+            recorder.wait(5)
+    assert "Traceback" not in record_log.read_text() + run_log.read_text()
+    expected = jsonl_nodes(trace)
+    assert expected[-1][2] == "end"
+    topic = "/umlbot/test/orchestrator/trace"
+    assert _trace_nodes(inside, topic) == expected  # the orchestrator's own trace
+    assert _trace_nodes(outside, topic) == expected  # the trace topic over MQTT: nothing lost
+    for path in (inside, outside):
+        _, counts, messages, metadata = read_with_mcap(path)
+        info = yaml.safe_load(metadata["rosbag2"]["serialized_metadata"])
+        assert info["custom_data"]["umlbot.clock"] == "wall"
+        calls = [m for t, m, _ in messages if t == "/umlbot/test/calls"]
+        duty = [c for c in calls if c.component == "LeftActuator" and c.feature == "dutycycle"]
+        assert duty and duty[0].answered and json.loads(duty[0].args_json) == [50]
+        assert 0 <= duty[0].latency_ms < 2000
+        states = [m.state for t, m, _ in messages if t == "/umlbot/test/orchestrator/status"]
+        assert "running" in states
+        assert counts["/umlbot/test/LeftActuator/state"] >= 1
+        # wall time: the stamps are today's unix time, not sim seconds from 0
+        assert all(abs(log_ns / 1e9 - time.time()) < 600 for _, _, log_ns in messages)
+    assert "stopped" in [m.state for t, m, _ in read_with_mcap(outside)[2]
+                         if t == "/umlbot/test/orchestrator/status"]
+
+
+def _replay_json(path: Path) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(umlbot("monitor", "--replay", str(path), "--json", "--speed", "0"),
+                          capture_output=True, text=True, timeout=60, check=False)
+
+
+@pytest.mark.timeout(90)
+def test_monitor_and_studio_replay_mcap_as_they_replay_jsonl(recorded: RecordedRun) -> None:
+    from umlbot.studio.sources import replay_data
+
+    from_mcap, from_jsonl = _replay_json(recorded.mcap), _replay_json(recorded.jsonl)
+    assert from_mcap.returncode == 0, from_mcap.stderr
+    lines = from_mcap.stdout.splitlines()
+    assert len(lines) > 100
+    assert list(map(json.loads, lines)) == list(map(json.loads, from_jsonl.stdout.splitlines()))
+    studio_mcap = replay_data(recorded.mcap, "car", None)
+    studio_jsonl = replay_data(recorded.jsonl, "car", None)
+    assert studio_mcap["events"] == studio_jsonl["events"]
+    assert studio_mcap["notes"] == []
+
+
+@pytest.mark.timeout(60)
+def test_a_cut_mcap_is_one_clear_error_naming_where_it_broke(recorded: RecordedRun, tmp_path: Path) -> None:
+    data = recorded.mcap.read_bytes()
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(data[: len(data) // 2])
+    done = _replay_json(cut)
+    assert done.returncode == 1
+    assert "Traceback" not in done.stderr
+    lines = [line for line in done.stderr.splitlines() if line.strip()]
+    assert len(lines) == 1, done.stderr
+    assert f"{cut}: the MCAP file breaks off" in lines[0]
+    assert f"of {len(data) // 2}" in lines[0] and "trace events were read before it" in lines[0]
+
+    # a damaged record: the first chunk's length made absurd
+    header_length = int.from_bytes(data[9:17], "little")
+    chunk = 8 + 9 + header_length
+    assert data[chunk] == 0x06  # rosbags writes the first chunk right after the header
+    damaged = tmp_path / "damaged.mcap"
+    damaged.write_bytes(data[:chunk + 1] + b"\xff" * 8 + data[chunk + 9:])
+    done = _replay_json(damaged)
+    assert done.returncode == 1 and "Traceback" not in done.stderr
+    assert f"{damaged}: the MCAP file breaks off or is damaged after byte {chunk}" in done.stderr
