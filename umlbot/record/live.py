@@ -42,6 +42,8 @@ class FoxgloveLive:
         self.port: int = self.server.port
         self.url = f"ws://{host}:{self.port}"
         self.scene_topic = f"/umlbot/{ros_name(robot)}/sim/scene"
+        self.log_topic = f"/umlbot/{ros_name(robot)}/log"
+        self._log: Any = None
         self._channels: dict[str, Any] = {}
         self._scene: Any = None
         self._car = car
@@ -69,6 +71,21 @@ class FoxgloveLive:
         if not self.closed:
             self.closed = True
             self.server.stop()
+
+    def on_trace(self, event: Any) -> None:
+        """A trace event (a `umlbot_msgs/msg/TraceEvent`) also as a `foxglove.Log` line, for the
+        Log panel: `<lane>/<node> <detail> (<duration> ms)`."""
+        m = self.fox.messages
+        if self._log is None:
+            self._log = self.fox.channels.LogChannel(self.log_topic, context=self.context)
+        level = {"warning": m.LogLevel.Warning, "error": m.LogLevel.Error}.get(event.level, m.LogLevel.Info)
+        text = f"{event.node} {event.detail} ({event.duration_ms:g} ms)"
+        if event.error:
+            text += f": {event.error}"
+        elif event.value_json:
+            text += f" -> {event.value_json}"
+        self._log.log(m.Log(timestamp=_timestamp(m, event.end), level=level, message=text, name=event.lane),
+                      log_time=_ns(event.end))
 
     # -- the scene (sim samples, called by the recorder) ----------------------------------------
 

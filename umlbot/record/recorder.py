@@ -213,6 +213,13 @@ class Recorder:
     def _trace(self, event: dict[str, Any]) -> None:
         message = self.build.trace(event)
         self._emit(self.topics.trace, TRACE, message, to_ns(message.end))
+        for sink in self.sinks:  # a live view also shows the trace as log lines
+            on_trace = getattr(sink, "on_trace", None)
+            if on_trace is not None:
+                try:
+                    on_trace(message)
+                except Exception as exc:
+                    log.warning("recording: sink failed", sink=type(sink).__name__, error=str(exc))
 
     def _mqtt(self, topic: str, payload: bytes, at: float, wall: float) -> None:
         levels = topic.split("/")[2:]  # after umlbot/<robot>/
