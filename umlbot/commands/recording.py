@@ -16,7 +16,9 @@ def sim_recording(model: Path, record_file: Path | None, foxglove: bool, foxglov
     from umlbot.base import rosmsg
     from umlbot.record import SimRecording
 
-    rosmsg.typestore("record")  # MissingExtra now, not once the robot runs
+    # MissingExtra now, not once the robot runs
+    rosmsg.require("rosbags.typesys", "record", "Recordings (--record, --foxglove)")
+    rosmsg.typestore("record")
     extra_sinks = None
     if foxglove:
         from umlbot.record import live_sinks
