@@ -3,11 +3,12 @@
 Three parts, on a Mosquitto started by this script (`set_tcp_nodelay true`, as deployed):
 
 (a) `orchestrator`: the loop of `LeftActuator.dutycycle(50)` actions of bench/orchestrator.py
-    against a mock motor service in its own process, in rotating blocks of three variants: the raw
-    paho requester (the baseline), the model traced, and the model traced *and recorded* (a
-    `Recorder` in the orchestrator's process writing an MCAP file: the trace from the
-    orchestrator's listener, every call and reply from the bus, as `umlbot run --record` does).
-    p50/p99 of each and the ratios against raw (targets p50 <= 1.25x, p99 <= 1.5x).
+    against a mock motor service in its own process, in rotating blocks of four variants: the raw
+    paho requester (the baseline), the model traced (`umlbot run`), the model traced and recorded
+    as `umlbot run --record` does it (`recorded`: `umlbot record --until-stopped` as a process of
+    its own), and recorded by a `Recorder` inside the orchestrator's process (`inprocess`: the
+    trace from its listener, calls from the bus; what `--record` did first). p50/p99 of each and
+    the ratios against raw (targets p50 <= 1.25x, p99 <= 1.5x).
 (b) `size`: the reference car on the s_bend track in the simulator with `--record`: bytes per
     minute of sim time, and the messages per topic.
 (c) `throughput`: a publisher sends `--rate` trace events per second for `--seconds` to the trace
@@ -19,7 +20,7 @@ Three parts, on a Mosquitto started by this script (`set_tcp_nodelay true`, as d
 
 The last output line is one JSON object {"orchestrator": {…}, "size": {…}, "throughput": {…}}.
 
-    python bench/record.py [--n 2000] [--blocks 9] [--rate 2000] [--seconds 10]
+    python bench/record.py [--n 2000] [--blocks 12] [--rate 2000] [--seconds 10]
 """
 
 from __future__ import annotations
@@ -37,17 +38,28 @@ from orchestrator import LOOP, ROBOT, RawRequester, compile_text, motor_service,
 from rpc import _raw_client, percentile
 
 from umlbot.base.logs import configure_logging
-from umlbot.record import open_file_recorder
+from umlbot.record import RecorderProcess, open_file_recorder
 from umlbot.services.bus import BrokerSettings
 from umlbot.services.orchestrator import Orchestrator
 
 REPO = Path(__file__).resolve().parent.parent
 
 
-def _run(url: str, model: Any, recording: Path | None) -> list[float]:
-    """One run of the loop model, traced; recorded to `recording` when given. Its action latencies."""
+def _run(url: str, model: Any, recording: Path | None, own_process: bool = True) -> list[float]:
+    """One run of the loop model, traced; recorded to `recording` when given (by a process of its
+    own, or in this one). Its action latencies."""
     settings = BrokerSettings.from_url(url)
     recorder = None
+    if recording is not None and own_process:
+        process = RecorderProcess(url, ROBOT, recording, model=model.name)
+        process.start()
+        try:
+            latencies = _run(url, model, None)
+        finally:
+            code = process.stop()
+        if code != 0 or not recording.exists():
+            raise RuntimeError(f"the recorder failed ({code})")
+        return latencies
     if recording is not None:
         recorder = open_file_recorder(recording, ROBOT, "wall", time.time)
         recorder.listen(settings, trace=False)
@@ -69,7 +81,7 @@ def _run(url: str, model: Any, recording: Path | None) -> list[float]:
 def measure_orchestrator(url: str, n: int, blocks: int, folder: Path) -> dict[str, Any]:
     per_block = max(1, n // blocks)
     model = compile_text(LOOP.format(n=per_block))
-    samples: dict[str, list[float]] = {"raw": [], "traced": [], "recorded": []}
+    samples: dict[str, list[float]] = {"raw": [], "traced": [], "recorded": [], "inprocess": []}
     with motor_service(url):
         raw = RawRequester(url)
         try:
@@ -78,19 +90,19 @@ def measure_orchestrator(url: str, n: int, blocks: int, folder: Path) -> dict[st
             _run(url, compile_text(LOOP.format(n=100)), folder / "warm.mcap")
             variants = list(samples)
             for block in range(blocks):
-                for variant in variants[block % 3:] + variants[:block % 3]:
+                for variant in variants[block % 4:] + variants[:block % 4]:
                     if variant == "raw":
                         samples["raw"].extend(raw.round_trip() for _ in range(per_block))
                     else:
-                        recording = folder / f"block{block}.mcap" if variant == "recorded" else None
-                        samples[variant].extend(_run(url, model, recording))
+                        recording = None if variant == "traced" else folder / f"{variant}{block}.mcap"
+                        samples[variant].extend(_run(url, model, recording, variant == "recorded"))
         finally:
             raw.close()
     result: dict[str, Any] = {"n": len(samples["raw"])}
     for variant, values in samples.items():
         result[f"{variant}_p50_ms"] = round(percentile(values, 50) * 1000, 4)
         result[f"{variant}_p99_ms"] = round(percentile(values, 99) * 1000, 4)
-    for variant in ("traced", "recorded"):
+    for variant in ("traced", "recorded", "inprocess"):
         for q in ("p50", "p99"):
             result[f"ratio_{variant}_{q}"] = round(result[f"{variant}_{q}_ms"] / result[f"raw_{q}_ms"], 3)
     result["targets_met"] = result["ratio_recorded_p50"] <= 1.25 and result["ratio_recorded_p99"] <= 1.5
@@ -186,7 +198,7 @@ def measure_throughput(url: str, rate: float, seconds: float, folder: Path, tota
 def main() -> None:
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
     parser.add_argument("--n", type=int, default=2000, help="actions per variant")
-    parser.add_argument("--blocks", type=int, default=9, help="rotating measurement blocks")
+    parser.add_argument("--blocks", type=int, default=12, help="rotating measurement blocks")
     parser.add_argument("--rate", type=float, default=2000.0, help="trace events per second (throughput)")
     parser.add_argument("--seconds", type=float, default=10.0, help="seconds of trace load (throughput)")
     parser.add_argument("--writer-events", type=int, default=100_000, help="events for writer_events_per_s")

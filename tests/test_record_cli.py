@@ -134,3 +134,13 @@ def test_a_cut_mcap_is_one_clear_error_naming_where_it_broke(recorded: RecordedR
     done = _replay_json(damaged)
     assert done.returncode == 1 and "Traceback" not in done.stderr
     assert f"{damaged}: the MCAP file breaks off or is damaged after byte {chunk}" in done.stderr
+
+
+def test_run_record_without_the_trace_is_refused(tmp_path: Path) -> None:
+    compiled = tmp_path / "exit_loop.json"
+    compiled.write_bytes(dump_compiled(compile_model(MODELS / "exit_loop.yaml")))
+    done = subprocess.run(umlbot("run", str(compiled), "--no-trace", "--record", str(tmp_path / "r.mcap")),
+                          capture_output=True, text=True, timeout=60, check=False)
+    assert done.returncode == 2
+    assert "--record records the trace from MQTT: leave out --no-trace" in done.stderr
+    assert not (tmp_path / "r.mcap").exists()

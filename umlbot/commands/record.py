@@ -2,7 +2,8 @@
 
 Subscribes to `umlbot/<robot>/#` with a read-only connection and writes what it sees (the trace,
 calls with their replies and latency, component status and state, the orchestrator's status,
-signals), stamped with wall time, until Ctrl-C, SIGTERM or `--duration`.
+signals), stamped with wall time, until Ctrl-C, SIGTERM, `--duration`, or with `--until-stopped`
+the robot's orchestrator stopping. `umlbot run --record` runs it as its own process.
 """
 
 from __future__ import annotations
@@ -29,10 +30,14 @@ from umlbot.commands.options import seconds
               metavar="FILE.mcap", help="The recording to write (replaced when it exists).")
 @click.option("--duration", type=seconds(), default=None,
               help="Stop after this many seconds (default: until Ctrl-C or SIGTERM).")
+@click.option("--until-stopped", is_flag=True,
+              help="Also stop when the robot's orchestrator, seen running, stops (or fails).")
 @click.option("--connect-timeout", default=5.0, show_default=True, type=seconds(0.1),
               help="Seconds to wait for the broker connection.")
+@click.option("--model", "model_name", default=None, hidden=True, help="The model's name, for the metadata.")
 def command(robot: str, broker_url: str | None, ca_file: Path | None, output: Path,
-            duration: float | None, connect_timeout: float) -> None:
+            duration: float | None, until_stopped: bool, connect_timeout: float,
+            model_name: str | None) -> None:
     """Record ROBOT's traffic to a rosbag2-compatible MCAP file (docs/recording.md)."""
     from umlbot.base.topics import check_name
     from umlbot.commands.recording import report
@@ -42,13 +47,18 @@ def command(robot: str, broker_url: str | None, ca_file: Path | None, output: Pa
     check_name("robot id", robot)
     settings = BrokerSettings.from_url(resolve_broker_url(broker_url), ca_file=ca_file)
     with StopSignals() as signals:
-        recorder = open_file_recorder(output, robot, "wall", time.time)
+        recorder = open_file_recorder(output, robot, "wall", time.time, model_name)
         try:
             recorder.listen(settings, trace=True, timeout=connect_timeout)
             signals.running()
             click.echo(f"recording umlbot/{robot}/# from {settings.url} to {output} (Ctrl-C ends it)",
                        err=True)
-            signals.stop.wait(duration)
+            deadline = None if duration is None else time.monotonic() + duration
+            while not signals.stop.wait(0.05):
+                if until_stopped and recorder.orchestrator_ended.is_set():
+                    break
+                if deadline is not None and time.monotonic() >= deadline:
+                    break
         finally:
             stats = recorder.close()
     click.echo(f"{output}: {stats.messages} messages", err=True)

@@ -13,11 +13,12 @@ from umlbot.base.lazy import lazy_attributes
 if TYPE_CHECKING:
     from umlbot.record.bag import McapBag
     from umlbot.record.live import FoxgloveLive, live_sinks
+    from umlbot.record.process import RecorderProcess
     from umlbot.record.recorder import Recorder, RecordStats, open_file_recorder
     from umlbot.record.sim import SimRecording
 
-__all__ = ["FoxgloveLive", "McapBag", "RecordStats", "Recorder", "SimRecording", "live_sinks",
-           "open_file_recorder"]
+__all__ = ["FoxgloveLive", "McapBag", "RecordStats", "Recorder", "RecorderProcess", "SimRecording",
+           "live_sinks", "open_file_recorder"]
 
 __getattr__ = lazy_attributes(__name__, {
     "FoxgloveLive": "umlbot.record.live",
@@ -25,6 +26,7 @@ __getattr__ = lazy_attributes(__name__, {
     "McapBag": "umlbot.record.bag",
     "RecordStats": "umlbot.record.recorder",
     "Recorder": "umlbot.record.recorder",
+    "RecorderProcess": "umlbot.record.process",
     "open_file_recorder": "umlbot.record.recorder",
     "SimRecording": "umlbot.record.sim",
 })

@@ -143,7 +143,14 @@ class McapBag:
         if self.closed or self.failed is not None:
             return
         connection = self.channel(topic, msgtype)
-        self._writer.write(connection, max(0, stamp_ns), data)
+        # rosbags' Writer.write, without its search of every connection for this one (it is ours)
+        writer, stamp = self._writer, max(0, stamp_ns)
+        writer.storage.write(connection, stamp, data)
+        writer.counts[connection.id] += 1
+        if stamp < writer.min_timestamp:
+            writer.min_timestamp = stamp
+        if stamp > writer.max_timestamp:
+            writer.max_timestamp = stamp
         self.written += 1
         if self._chunk_opened is None:
             self._chunk_opened = self._clock()

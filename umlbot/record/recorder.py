@@ -99,6 +99,10 @@ class Recorder:
         self.messages = 0
         #: items dropped because the queue was full
         self.dropped = 0
+        #: set (by the writer thread, after everything before it is written) when the robot's
+        #: orchestrator, seen starting or running, says stopped, failed or offline
+        self.orchestrator_ended = threading.Event()
+        self._orchestrator_ran = False
         self._thread.start()
 
     # -- producers: never block -----------------------------------------------------------------
@@ -241,7 +245,12 @@ class Recorder:
                             self._trace(event)
             elif levels[1] == "status":
                 self._calls.observe(topic, payload, wall)  # it learns the run's call time-out
-                self._emit(topics.orchestrator, ORCHESTRATOR, build.orchestrator(at, data), to_ns(at))
+                message = build.orchestrator(at, data)
+                self._emit(topics.orchestrator, ORCHESTRATOR, message, to_ns(at))
+                if message.state in ("starting", "running"):
+                    self._orchestrator_ran = True
+                elif message.state in ("stopped", "failed", "offline") and self._orchestrator_ran:
+                    self.orchestrator_ended.set()
         elif head == "signal" and len(levels) >= 2:
             name = "/".join(levels[1:])
             self._emit(topics.signals, SIGNAL, build.signal(at, name, data), to_ns(at))
