@@ -49,7 +49,12 @@ def command(robot: str, broker_url: str | None, ca_file: Path | None, output: Pa
     with StopSignals() as signals:
         recorder = open_file_recorder(output, robot, "wall", time.time, model_name)
         try:
-            recorder.listen(settings, trace=True, timeout=connect_timeout)
+            try:
+                recorder.listen(settings, trace=True, timeout=connect_timeout)
+            except BaseException:
+                recorder.close()
+                output.unlink(missing_ok=True)  # nothing was recorded: no file
+                raise
             signals.running()
             click.echo(f"recording umlbot/{robot}/# from {settings.url} to {output} (Ctrl-C ends it)",
                        err=True)

@@ -94,6 +94,7 @@ class Recorder:
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="umlbot-recorder", daemon=True)
         self._connection: BusConnection | None = None
+        self._with_trace = False  # record the trace topic too (`listen(trace=True)`)
         self._closed = False
         #: messages handed to the sinks
         self.messages = 0
@@ -239,7 +240,7 @@ class Recorder:
         data = _json(payload)
         if head == "orchestrator" and len(levels) == 2:
             if levels[1] == "trace":
-                if getattr(self, "_with_trace", False):
+                if self._with_trace:
                     for event in data if isinstance(data, list) else [data]:
                         if isinstance(event, dict):
                             self._trace(event)
