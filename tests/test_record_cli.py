@@ -15,7 +15,7 @@ import pytest
 import yaml
 from conftest import BrokerProcess
 from orchestrator_support import MODELS, rig, wait_for
-from record_support import RecordedRun, jsonl_nodes, read_with_mcap, recorded
+from record_support import ROOT, RecordedRun, jsonl_nodes, read_with_mcap, recorded
 
 from umlbot.compiler.api import compile_model
 from umlbot.compiler.compiled import dump_compiled
@@ -144,3 +144,20 @@ def test_run_record_without_the_trace_is_refused(tmp_path: Path) -> None:
     assert done.returncode == 2
     assert "--record records the trace from MQTT: leave out --no-trace" in done.stderr
     assert not (tmp_path / "r.mcap").exists()
+
+
+@pytest.mark.parametrize("command", ["sim", "run", "record"])
+def test_an_unwritable_recording_is_one_line_before_anything_runs(command: str, tmp_path: Path) -> None:
+    a_file = tmp_path / "a_file"
+    a_file.write_text("x")
+    out = str(a_file / "run.mcap")
+    compiled = tmp_path / "exit_loop.json"
+    compiled.write_bytes(dump_compiled(compile_model(MODELS / "exit_loop.yaml")))
+    args = {"sim": ["sim", str(ROOT / "models" / "robot_car"), "--port", "0", "--record", out],
+            "run": ["run", str(compiled), "--broker", "mqtt://127.0.0.1:1", "--record", out],
+            "record": ["record", "--robot", "car", "--broker", "mqtt://127.0.0.1:1", "-o", out]}[command]
+    began = time.monotonic()
+    done = subprocess.run(umlbot(*args), capture_output=True, text=True, timeout=60, check=False)
+    assert done.returncode == 1
+    assert done.stderr.strip() == f"error: cannot write the recording {out}: a part of its folder is a file"
+    assert time.monotonic() - began < 30  # refused at once: no broker was waited for

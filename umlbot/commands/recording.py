@@ -19,6 +19,10 @@ def sim_recording(model: Path, record_file: Path | None, foxglove: bool, foxglov
     # MissingExtra now, not once the robot runs
     rosmsg.require("rosbags.typesys", "record", "Recordings (--record, --foxglove)")
     rosmsg.typestore("record")
+    if record_file is not None:
+        from umlbot.record import check_writable
+
+        check_writable(record_file)
     extra_sinks = None
     if foxglove:
         from umlbot.record import live_sinks

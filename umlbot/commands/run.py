@@ -79,9 +79,10 @@ def command(
         if no_trace:
             raise click.UsageError("--record records the trace from MQTT: leave out --no-trace")
         from umlbot.base import rosmsg
-        from umlbot.record import RecorderProcess
+        from umlbot.record import RecorderProcess, check_writable
 
         rosmsg.require("rosbags.typesys", "record", "Recordings (--record)")  # before anything runs
+        check_writable(record_file)
         recorder = RecorderProcess(resolve_broker_url(broker_url), robot or model.name, record_file,
                                    ca_file, model.name)
     orchestrator = Orchestrator(
