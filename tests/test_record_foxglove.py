@@ -85,3 +85,18 @@ def test_the_layout_in_docs_is_the_one_umlbot_makes() -> None:
     for topic in ("/umlbot/car/sim/scene", "/umlbot/car/sim/sonar.range", "/umlbot/car/sim/motors.effort[0]",
                   "/umlbot/car/calls", "/umlbot/car/log"):
         assert topic in text
+
+
+def test_a_taken_foxglove_port_is_one_line_before_the_run(tmp_path: Path) -> None:
+    import socket
+
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        argv = [sys.executable, "-c", "from umlbot.cli import main; main()", "sim", str(MODEL), "--port", "0",
+                "--foxglove", "--foxglove-port", str(port)]
+        done = subprocess.run(argv, capture_output=True, text=True, timeout=60, cwd=ROOT, check=False)
+    assert done.returncode == 1
+    assert done.stderr.strip() == (f"error: cannot start the Foxglove server on 127.0.0.1:{port}: Address already "
+                                   "in use (--foxglove-port 0 picks a free port)")

@@ -25,8 +25,9 @@ def sim_recording(model: Path, record_file: Path | None, foxglove: bool, foxglov
         check_writable(record_file)
     extra_sinks = None
     if foxglove:
-        from umlbot.record import live_sinks
+        from umlbot.record import check_port, live_sinks
 
+        check_port(foxglove_port)
         extra_sinks = live_sinks(foxglove_port, announce)
     return SimRecording(record_file, model=model.name, extra_sinks=extra_sinks)
 

@@ -15,6 +15,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from umlbot.base import rosmsg
+from umlbot.base.errors import ConfigError
 from umlbot.base.logs import get_logger
 from umlbot.record.messages import ros_name
 
@@ -37,8 +38,12 @@ class FoxgloveLive:
         self.fox = rosmsg.require("foxglove", "record", "The live Foxglove server")
         self.store = rosmsg.typestore("record")
         self.context = self.fox.Context()
-        self.server = self.fox.start_server(name=f"umlbot {robot}", host=host, port=port,
-                                            context=self.context)
+        try:
+            self.server = self.fox.start_server(name=f"umlbot {robot}", host=host, port=port,
+                                                context=self.context)
+        except RuntimeError as exc:  # the SDK's FoxgloveError
+            raise ConfigError(f"cannot start the Foxglove server on {host}:{port}: {exc} "
+                              "(--foxglove-port 0 picks a free port)") from None
         self.port: int = self.server.port
         self.url = f"ws://{host}:{self.port}"
         self.scene_topic = f"/umlbot/{ros_name(robot)}/sim/scene"
@@ -154,6 +159,20 @@ def _ns(seconds: float) -> int:
 def _timestamp(m: Any, seconds: float) -> Any:
     ns = _ns(seconds)
     return m.Timestamp(ns // 1_000_000_000, ns % 1_000_000_000)
+
+
+def check_port(port: int, host: str = DEFAULT_HOST) -> None:
+    """ConfigError now when the Foxglove server's port is taken (before the run starts)."""
+    import socket
+
+    if port == 0:
+        return
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
+        try:
+            probe.bind((host, port))
+        except OSError as exc:
+            raise ConfigError(f"cannot start the Foxglove server on {host}:{port}: {exc.strerror or exc} "
+                              "(--foxglove-port 0 picks a free port)") from None
 
 
 def live_sinks(port: int, announce: Callable[[str], None]) -> Callable[[World, str], list[Any]]:
