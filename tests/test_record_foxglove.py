@@ -98,5 +98,5 @@ def test_a_taken_foxglove_port_is_one_line_before_the_run(tmp_path: Path) -> Non
                 "--foxglove", "--foxglove-port", str(port)]
         done = subprocess.run(argv, capture_output=True, text=True, timeout=60, cwd=ROOT, check=False)
     assert done.returncode == 1
-    assert done.stderr.strip() == (f"error: cannot start the Foxglove server on 127.0.0.1:{port}: Address already "
-                                   "in use (--foxglove-port 0 picks a free port)")
+    assert done.stderr.strip() == (f"error: cannot start the Foxglove server on 127.0.0.1:{port}: "
+                                   "Address already in use (--foxglove-port 0 picks a free port)")
