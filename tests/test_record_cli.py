@@ -1,6 +1,5 @@
 """`umlbot run --record` and `umlbot record` (from outside, over MQTT) of one run on a real
-Mosquitto; `umlbot monitor --replay` and the studio's replay read MCAP as they read JSON lines; a
-cut or damaged MCAP is one clear error line."""
+Mosquitto, and recordings that cannot be made: one clear line before anything runs."""
 
 from __future__ import annotations
 
@@ -15,15 +14,12 @@ import pytest
 import yaml
 from conftest import BrokerProcess
 from orchestrator_support import MODELS, rig, wait_for
-from record_support import ROOT, RecordedRun, jsonl_nodes, read_with_mcap, recorded
+from record_support import ROOT, jsonl_nodes, read_with_mcap
 
 from umlbot.compiler.api import compile_model
 from umlbot.compiler.compiled import dump_compiled
 
 pytestmark = pytest.mark.network
-
-__all__ = ["recorded"]  # the session's recorded sim run (a fixture)
-
 
 def umlbot(*args: str) -> list[str]:
     return [sys.executable, "-c", "from umlbot.cli import main; main()", *args]
@@ -90,50 +86,6 @@ def test_run_records_and_record_records_the_same_run_from_outside(
         assert all(abs(log_ns / 1e9 - time.time()) < 600 for _, _, log_ns in messages)
     assert "stopped" in [m.state for t, m, _ in read_with_mcap(outside)[2]
                          if t == "/umlbot/test/orchestrator/status"]
-
-
-def _replay_json(path: Path) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(umlbot("monitor", "--replay", str(path), "--json", "--speed", "0"),
-                          capture_output=True, text=True, timeout=60, check=False)
-
-
-@pytest.mark.timeout(90)
-def test_monitor_and_studio_replay_mcap_as_they_replay_jsonl(recorded: RecordedRun) -> None:
-    from umlbot.studio.sources import replay_data
-
-    from_mcap, from_jsonl = _replay_json(recorded.mcap), _replay_json(recorded.jsonl)
-    assert from_mcap.returncode == 0, from_mcap.stderr
-    lines = from_mcap.stdout.splitlines()
-    assert len(lines) > 100
-    assert list(map(json.loads, lines)) == list(map(json.loads, from_jsonl.stdout.splitlines()))
-    studio_mcap = replay_data(recorded.mcap, "car", None)
-    studio_jsonl = replay_data(recorded.jsonl, "car", None)
-    assert studio_mcap["events"] == studio_jsonl["events"]
-    assert studio_mcap["notes"] == []
-
-
-@pytest.mark.timeout(60)
-def test_a_cut_mcap_is_one_clear_error_naming_where_it_broke(recorded: RecordedRun, tmp_path: Path) -> None:
-    data = recorded.mcap.read_bytes()
-    cut = tmp_path / "cut.mcap"
-    cut.write_bytes(data[: len(data) // 2])
-    done = _replay_json(cut)
-    assert done.returncode == 1
-    assert "Traceback" not in done.stderr
-    lines = [line for line in done.stderr.splitlines() if line.strip()]
-    assert len(lines) == 1, done.stderr
-    assert f"{cut}: the MCAP file breaks off" in lines[0]
-    assert f"of {len(data) // 2}" in lines[0] and "trace events were read before it" in lines[0]
-
-    # a damaged record: the first chunk's length made absurd
-    header_length = int.from_bytes(data[9:17], "little")
-    chunk = 8 + 9 + header_length
-    assert data[chunk] == 0x06  # rosbags writes the first chunk right after the header
-    damaged = tmp_path / "damaged.mcap"
-    damaged.write_bytes(data[:chunk + 1] + b"\xff" * 8 + data[chunk + 9:])
-    done = _replay_json(damaged)
-    assert done.returncode == 1 and "Traceback" not in done.stderr
-    assert f"{damaged}: the MCAP file breaks off or is damaged after byte {chunk}" in done.stderr
 
 
 def test_run_record_without_the_trace_is_refused(tmp_path: Path) -> None:
