@@ -106,3 +106,42 @@ def test_names_that_are_no_ros_names_are_made_ones(name: str) -> None:
     topic = Topics(name).trace
     assert all(part and (part[0].isalpha() or part[0] == "_") for part in topic.split("/")[1:])
     assert set(topic) <= set("/_abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789")
+
+
+class FullAfter:
+    """A file whose writes fail with ENOSPC once `limit` bytes are written (a disk that fills up
+    in the middle of a chunk; the kernel's own refusal is tested in test_record_mcap.py)."""
+
+    def __init__(self, path: Path, limit: int) -> None:
+        from umlbot.record.bag import WholeFile
+
+        self.inner = WholeFile(path)
+        self.limit = limit
+
+    def write(self, data: bytes | bytearray | memoryview) -> int:
+        if self.inner.tell() + len(data) > self.limit:
+            raise OSError(28, "No space left on device")
+        return self.inner.write(data)
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.inner, name)
+
+
+@pytest.mark.parametrize("flush_every_s", [0.0, 3600.0], ids=["small-chunks", "full-chunks-only"])
+def test_a_disk_that_fills_up_mid_chunk_leaves_a_readable_file(tmp_path: Path, flush_every_s: float) -> None:
+    from umlbot.record import McapBag
+
+    path = tmp_path / "full.mcap"
+    limit = 1_500_000  # past the first full (1 MiB) chunk of rosbags, inside the second
+    bag = McapBag(path, file=FullAfter(path, limit), flush_every_s=flush_every_s)  # type: ignore[arg-type]
+    recorder = Recorder("bot", [bag])
+    for seq in range(1, 30_001):
+        recorder.on_trace({"lane": "L", "node": f"n{seq}", "kind": "action", "start": T0 + seq,
+                           "end": T0 + seq, "duration_ms": 0.1, "detail": "x" * 60, "seq": seq})
+    stats = recorder.close(timeout=120)
+    assert stats.failed is not None and "No space left on device" in stats.failed
+    assert path.stat().st_size <= limit
+    messages = read_with_mcap(path)[2]
+    seqs = [m.seq for _, m, _ in messages]
+    assert seqs == list(range(1, len(seqs) + 1))  # whole chunks, in order, nothing half-written
+    assert 1000 < len(seqs) < 30_000

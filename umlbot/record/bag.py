@@ -155,7 +155,11 @@ class McapBag:
         connection = self.channel(topic, msgtype)
         # rosbags' Writer.write, without its search of every connection for this one (it is ours)
         writer, stamp = self._writer, max(0, stamp_ns)
-        writer.storage.write(connection, stamp, data)
+        try:
+            writer.storage.write(connection, stamp, data)  # writes a chunk to the file when full
+        except OSError as exc:
+            self._fail(exc)
+            return
         writer.counts[connection.id] += 1
         if stamp < writer.min_timestamp:
             writer.min_timestamp = stamp
