@@ -71,6 +71,7 @@ bench: $(STAMP)
 	$(BIN)/python bench/studio.py
 	$(BIN)/python bench/memory.py
 	$(BIN)/python bench/chaos.py
+	$(BIN)/python bench/record.py
 
 # Rebuild the studio page from its sources (needs Node.js and npm; the built page is committed).
 studio:

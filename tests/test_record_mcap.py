@@ -1,6 +1,8 @@
 """`umlbot sim --record`: a rosbag2 MCAP file read back by readers that share no code with the
-writer (Python `mcap` + `mcap-ros2-support`; rosbags' own reader), the same node sequence as the
-JSON-lines trace of the same run, and a disk that fills up ending the recording cleanly."""
+writer (Python `mcap` + `mcap-ros2-support`; rosbags' own reader; Foxglove's npm packages), the
+same node sequence as the JSON-lines trace of the same run, a disk that fills up ending the
+recording cleanly; `umlbot monitor --replay` and the studio's replay read MCAP as they read JSON
+lines, and a cut or damaged MCAP is one clear error line."""
 
 from __future__ import annotations
 
@@ -21,6 +23,7 @@ from record_support import MODEL, ROOT, RecordedRun, jsonl_nodes, read_with_mcap
 pytestmark = [pytest.mark.network]
 
 BASE = "/umlbot/car"
+UMLBOT = [sys.executable, "-c", "from umlbot.cli import main; main()"]
 
 
 __all__ = ["recorded"]  # the session's recorded run (a fixture)
@@ -132,6 +135,50 @@ def test_foxglove_npm_packages_read_and_decode_it(recorded: RecordedRun) -> None
     duty = [m["message"] for m in read["decoded"][calls]
             if m["message"]["component"] == "RightActuator" and m["message"]["feature"] == "dutycycle"]
     assert duty and all(c["answered"] and c["ok"] for c in duty)
+
+
+def _replay_json(path: Path) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([*UMLBOT, "monitor", "--replay", str(path), "--json", "--speed", "0"],
+                          capture_output=True, text=True, timeout=60, check=False)
+
+
+@pytest.mark.timeout(90)
+def test_monitor_and_studio_replay_mcap_as_they_replay_jsonl(recorded: RecordedRun) -> None:
+    from umlbot.studio.sources import replay_data
+
+    from_mcap, from_jsonl = _replay_json(recorded.mcap), _replay_json(recorded.jsonl)
+    assert from_mcap.returncode == 0, from_mcap.stderr
+    lines = from_mcap.stdout.splitlines()
+    assert len(lines) > 100
+    assert list(map(json.loads, lines)) == list(map(json.loads, from_jsonl.stdout.splitlines()))
+    studio_mcap = replay_data(recorded.mcap, "car", None)
+    studio_jsonl = replay_data(recorded.jsonl, "car", None)
+    assert studio_mcap["events"] == studio_jsonl["events"]
+    assert studio_mcap["notes"] == []
+
+
+@pytest.mark.timeout(60)
+def test_a_cut_mcap_is_one_clear_error_naming_where_it_broke(recorded: RecordedRun, tmp_path: Path) -> None:
+    data = recorded.mcap.read_bytes()
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(data[: len(data) // 2])
+    done = _replay_json(cut)
+    assert done.returncode == 1
+    assert "Traceback" not in done.stderr
+    lines = [line for line in done.stderr.splitlines() if line.strip()]
+    assert len(lines) == 1, done.stderr
+    assert f"{cut}: the MCAP file breaks off" in lines[0]
+    assert f"of {len(data) // 2}" in lines[0] and "trace events were read before it" in lines[0]
+
+    # a damaged record: the first chunk's length made absurd
+    header_length = int.from_bytes(data[9:17], "little")
+    chunk = 8 + 9 + header_length
+    assert data[chunk] == 0x06  # rosbags writes the first chunk right after the header
+    damaged = tmp_path / "damaged.mcap"
+    damaged.write_bytes(data[:chunk + 1] + b"\xff" * 8 + data[chunk + 9:])
+    done = _replay_json(damaged)
+    assert done.returncode == 1 and "Traceback" not in done.stderr
+    assert f"{damaged}: the MCAP file breaks off or is damaged after byte {chunk}" in done.stderr
 
 
 def _limit_file_size(limit: int) -> None:  # runs in the child before exec

@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -56,3 +57,27 @@ def test_core_import_does_not_import_rosbags() -> None:
             "print(sorted(n for n in sys.modules if n.split('.')[0] in ('rosbags', 'mcap', 'foxglove')))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=60)
     assert out.stdout.strip() == "[]"
+
+
+def test_the_core_commands_do_not_import_the_record_extra() -> None:
+    code = ("import sys\n"
+            "import umlbot.cli, umlbot.commands.sim, umlbot.commands.run, umlbot.commands.monitor\n"
+            "import umlbot.commands.record, umlbot.monitor, umlbot.record, umlbot.studio.sources\n"
+            "extra = ('rosbags', 'mcap', 'mcap_ros2', 'foxglove')\n"
+            "print(sorted(n for n in sys.modules if n.split('.')[0] in extra))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=60)
+    assert out.stdout.strip() == "[]"
+
+
+def test_record_without_the_extra_is_one_clear_line(tmp_path: Path) -> None:
+    # rosbags made unimportable in the child: as on an install without umlbot[record]
+    code = ("import sys; sys.modules['rosbags'] = None\n"
+            "from umlbot.cli import main; main()")
+    model = Path(__file__).resolve().parents[1] / "models" / "robot_car"
+    done = subprocess.run([sys.executable, "-c", code, "sim", str(model), "--port", "0",
+                           "--record", str(tmp_path / "run.mcap")],
+                          capture_output=True, text=True, timeout=60, check=False)
+    assert done.returncode != 0
+    assert "Traceback" not in done.stderr
+    assert "pip install 'umlbot[record]'" in done.stderr
+    assert not (tmp_path / "run.mcap").exists()

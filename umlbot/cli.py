@@ -37,6 +37,7 @@ COMMANDS: dict[str, str] = {
     "plugins": "List the installed component and driver plugins (entry points).",
     "calibrate": "Calibrate a sensor: 'calibrate stereo' for a stereo camera (chessboard pairs).",
     "ros2-bridge": "Show the robot to ROS 2: status, states, trace; features as a ROS 2 service.",
+    "record": "Record a running robot as a rosbag2-compatible MCAP file.",
 }
 
 

@@ -16,11 +16,18 @@ def sim_recording(model: Path, record_file: Path | None, foxglove: bool, foxglov
     from umlbot.base import rosmsg
     from umlbot.record import SimRecording
 
-    rosmsg.typestore("record")  # MissingExtra now, not once the robot runs
+    # MissingExtra now, not once the robot runs
+    rosmsg.require("rosbags.typesys", "record", "Recordings (--record, --foxglove)")
+    rosmsg.typestore("record")
+    if record_file is not None:
+        from umlbot.record import check_writable
+
+        check_writable(record_file)
     extra_sinks = None
     if foxglove:
-        from umlbot.record import live_sinks
+        from umlbot.record import check_port, live_sinks
 
+        check_port(foxglove_port)
         extra_sinks = live_sinks(foxglove_port, announce)
     return SimRecording(record_file, model=model.name, extra_sinks=extra_sinks)
 

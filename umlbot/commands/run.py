@@ -76,11 +76,15 @@ def command(
     settings = BrokerSettings.from_url(resolve_broker_url(broker_url), ca_file=ca_file)
     recorder = None
     if record_file is not None:
-        import time
+        if no_trace:
+            raise click.UsageError("--record records the trace from MQTT: leave out --no-trace")
+        from umlbot.base import rosmsg
+        from umlbot.record import RecorderProcess, check_writable
 
-        from umlbot.record import open_file_recorder
-
-        recorder = open_file_recorder(record_file, robot or model.name, "wall", time.time, model.name)
+        rosmsg.require("rosbags.typesys", "record", "Recordings (--record)")  # before anything runs
+        check_writable(record_file)
+        recorder = RecorderProcess(resolve_broker_url(broker_url), robot or model.name, record_file,
+                                   ca_file, model.name)
     orchestrator = Orchestrator(
         model,
         settings,
@@ -91,16 +95,13 @@ def command(
         trace_file=trace_file,
         grace_s=DEFAULT_GRACE_S if grace_s is None else grace_s,
         startup_timeout_s=DEFAULT_STARTUP_TIMEOUT_S if startup_timeout_s is None else startup_timeout_s,
-        trace_listener=recorder.on_trace if recorder is not None else None,
     )
     try:
         if recorder is not None:
-            recorder.listen(settings, trace=False, timeout=None)
+            recorder.start()  # subscribed before the orchestrator says anything
         code = orchestrator.run_sync()
     finally:
         if recorder is not None:
-            from umlbot.commands.recording import report
-
-            report(record_file, recorder.close(), False)
+            recorder.stop()
     if code != EXIT_OK:
         raise RunFailed(f"fail-safe stop: {orchestrator.failure}")

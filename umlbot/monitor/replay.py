@@ -1,5 +1,6 @@
 """Reading a recorded trace for replay: JSON lines, each one `TraceEvent` object (what
-`umlbot run --trace FILE` writes) or a JSON array of them (a copy of the trace topic's messages)."""
+`umlbot run --trace FILE` writes) or a JSON array of them (a copy of the trace topic's messages),
+or an MCAP recording (`--record FILE.mcap`, told by its first bytes: `umlbot.monitor.mcap_trace`)."""
 
 from __future__ import annotations
 
@@ -14,6 +15,7 @@ from pydantic_core import from_json
 from umlbot.base.errors import ConfigError, ModelError
 from umlbot.base.files import decode_utf8
 from umlbot.base.logs import get_logger
+from umlbot.monitor.mcap_trace import is_mcap, read_mcap_trace
 from umlbot.monitor.state import MonitorEvent, MonitorState, first_problem, trace_items
 from umlbot.services.bus import TraceEvent
 
@@ -21,13 +23,17 @@ log = get_logger(__name__)
 
 
 def read_trace(path: str | Path, notes: list[str] | None = None) -> Iterator[TraceEvent]:
-    """The events of a trace file in order; a bad line raises ConfigError naming file and line.
+    """The events of a trace file (JSON lines or MCAP) in order; a bad line raises ConfigError naming
+    file and line (an MCAP file: the byte where it breaks).
 
     A last line after the first that is cut off (no newline at its end and not a whole event: the
     run was killed, or it is still writing) ends the trace instead: the events before it are read, and a note
     saying so is appended to `notes` (logged as a warning when `notes` is None).
     """
     file = Path(path)
+    if is_mcap(file):
+        yield from read_mcap_trace(file)
+        return
     try:
         handle = file.open("rb")  # bytes: a line that is not UTF-8 is named with its bad byte
     except OSError as exc:

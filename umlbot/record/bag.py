@@ -14,6 +14,7 @@ summary, which every MCAP reader reads to its end (`failed` says why; later writ
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
 import tempfile
 import time
@@ -25,6 +26,8 @@ from pathlib import Path
 from typing import Any
 
 from umlbot.base import rosmsg
+from umlbot.base.errors import ConfigError
+from umlbot.base.files import os_problem
 from umlbot.base.logs import get_logger
 
 log = get_logger(__name__)
@@ -36,8 +39,16 @@ ROSBAG2_VERSION = 9
 MAGIC = b"\x89MCAP0\r\n"
 
 
-class BagWriteError(OSError):
-    """The recording's file could not be written (disk full, file too large, I/O error)."""
+def check_writable(path: Path) -> None:
+    """Raise ConfigError now when `path` cannot be written (before a run starts, not in it)."""
+    existed = path.exists()
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        os.close(os.open(path, os.O_WRONLY | os.O_CREAT, 0o644))
+    except OSError as exc:
+        raise ConfigError(f"cannot write the recording {path}: {_why(exc)}") from None
+    if not existed:
+        path.unlink()
 
 
 def _classes() -> tuple[type[Any], type[Any]]:
@@ -98,12 +109,11 @@ class McapBag:
         self.store = rosmsg.typestore("record")
         _, writer_class = _classes()
         if file is None:
-            self.path.parent.mkdir(parents=True, exist_ok=True)
             try:
+                self.path.parent.mkdir(parents=True, exist_ok=True)
                 file = WholeFile(self.path)
             except OSError as exc:
-                raise BagWriteError(exc.errno, f"cannot write recording {self.path}: "
-                                               f"{exc.strerror or exc}") from exc
+                raise ConfigError(f"cannot write the recording {self.path}: {_why(exc)}") from None
         self._file = file
         self._scratch = tempfile.TemporaryDirectory(prefix="umlbot-bag-")
         self._writer = writer_class(file, self.path, Path(self._scratch.name))
@@ -143,7 +153,18 @@ class McapBag:
         if self.closed or self.failed is not None:
             return
         connection = self.channel(topic, msgtype)
-        self._writer.write(connection, max(0, stamp_ns), data)
+        # rosbags' Writer.write, without its search of every connection for this one (it is ours)
+        writer, stamp = self._writer, max(0, stamp_ns)
+        try:
+            writer.storage.write(connection, stamp, data)  # writes a chunk to the file when full
+        except OSError as exc:
+            self._fail(exc)
+            return
+        writer.counts[connection.id] += 1
+        if stamp < writer.min_timestamp:
+            writer.min_timestamp = stamp
+        if stamp > writer.max_timestamp:
+            writer.max_timestamp = stamp
         self.written += 1
         if self._chunk_opened is None:
             self._chunk_opened = self._clock()
@@ -201,6 +222,12 @@ class McapBag:
             with contextlib.suppress(OSError):
                 self._file.close()
             self._scratch.cleanup()
+
+
+def _why(exc: OSError) -> str:
+    if exc.errno in (errno.EEXIST, errno.ENOTDIR):  # mkdir of a folder that is a file
+        return "a part of its folder is a file"
+    return os_problem(exc)
 
 
 class WholeFile:

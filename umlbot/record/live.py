@@ -15,6 +15,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from umlbot.base import rosmsg
+from umlbot.base.errors import ConfigError
 from umlbot.base.logs import get_logger
 from umlbot.record.messages import ros_name
 
@@ -37,11 +38,17 @@ class FoxgloveLive:
         self.fox = rosmsg.require("foxglove", "record", "The live Foxglove server")
         self.store = rosmsg.typestore("record")
         self.context = self.fox.Context()
-        self.server = self.fox.start_server(name=f"umlbot {robot}", host=host, port=port,
-                                            context=self.context)
+        try:
+            self.server = self.fox.start_server(name=f"umlbot {robot}", host=host, port=port,
+                                                context=self.context)
+        except RuntimeError as exc:  # the SDK's FoxgloveError
+            raise ConfigError(f"cannot start the Foxglove server on {host}:{port}: {exc} "
+                              "(--foxglove-port 0 picks a free port)") from None
         self.port: int = self.server.port
         self.url = f"ws://{host}:{self.port}"
         self.scene_topic = f"/umlbot/{ros_name(robot)}/sim/scene"
+        self.log_topic = f"/umlbot/{ros_name(robot)}/log"
+        self._log: Any = None
         self._channels: dict[str, Any] = {}
         self._scene: Any = None
         self._car = car
@@ -69,6 +76,21 @@ class FoxgloveLive:
         if not self.closed:
             self.closed = True
             self.server.stop()
+
+    def on_trace(self, event: Any) -> None:
+        """A trace event (a `umlbot_msgs/msg/TraceEvent`) also as a `foxglove.Log` line, for the
+        Log panel: `<lane>/<node> <detail> (<duration> ms)`."""
+        m = self.fox.messages
+        if self._log is None:
+            self._log = self.fox.channels.LogChannel(self.log_topic, context=self.context)
+        level = {"warning": m.LogLevel.Warning, "error": m.LogLevel.Error}.get(event.level, m.LogLevel.Info)
+        text = f"{event.node} {event.detail} ({event.duration_ms:g} ms)"
+        if event.error:
+            text += f": {event.error}"
+        elif event.value_json:
+            text += f" -> {event.value_json}"
+        self._log.log(m.Log(timestamp=_timestamp(m, event.end), level=level, message=text, name=event.lane),
+                      log_time=_ns(event.end))
 
     # -- the scene (sim samples, called by the recorder) ----------------------------------------
 
@@ -137,6 +159,20 @@ def _ns(seconds: float) -> int:
 def _timestamp(m: Any, seconds: float) -> Any:
     ns = _ns(seconds)
     return m.Timestamp(ns // 1_000_000_000, ns % 1_000_000_000)
+
+
+def check_port(port: int, host: str = DEFAULT_HOST) -> None:
+    """ConfigError now when the Foxglove server's port is taken (before the run starts)."""
+    import socket
+
+    if port == 0:
+        return
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
+        try:
+            probe.bind((host, port))
+        except OSError as exc:
+            raise ConfigError(f"cannot start the Foxglove server on {host}:{port}: {exc.strerror or exc} "
+                              "(--foxglove-port 0 picks a free port)") from None
 
 
 def live_sinks(port: int, announce: Callable[[str], None]) -> Callable[[World, str], list[Any]]:

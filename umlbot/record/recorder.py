@@ -94,11 +94,16 @@ class Recorder:
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="umlbot-recorder", daemon=True)
         self._connection: BusConnection | None = None
+        self._with_trace = False  # record the trace topic too (`listen(trace=True)`)
         self._closed = False
         #: messages handed to the sinks
         self.messages = 0
         #: items dropped because the queue was full
         self.dropped = 0
+        #: set (by the writer thread, after everything before it is written) when the robot's
+        #: orchestrator, seen starting or running, says stopped, failed or offline
+        self.orchestrator_ended = threading.Event()
+        self._orchestrator_ran = False
         self._thread.start()
 
     # -- producers: never block -----------------------------------------------------------------
@@ -213,6 +218,13 @@ class Recorder:
     def _trace(self, event: dict[str, Any]) -> None:
         message = self.build.trace(event)
         self._emit(self.topics.trace, TRACE, message, to_ns(message.end))
+        for sink in self.sinks:  # a live view also shows the trace as log lines
+            on_trace = getattr(sink, "on_trace", None)
+            if on_trace is not None:
+                try:
+                    on_trace(message)
+                except Exception as exc:
+                    log.warning("recording: sink failed", sink=type(sink).__name__, error=str(exc))
 
     def _mqtt(self, topic: str, payload: bytes, at: float, wall: float) -> None:
         levels = topic.split("/")[2:]  # after umlbot/<robot>/
@@ -228,13 +240,18 @@ class Recorder:
         data = _json(payload)
         if head == "orchestrator" and len(levels) == 2:
             if levels[1] == "trace":
-                if getattr(self, "_with_trace", False):
+                if self._with_trace:
                     for event in data if isinstance(data, list) else [data]:
                         if isinstance(event, dict):
                             self._trace(event)
             elif levels[1] == "status":
                 self._calls.observe(topic, payload, wall)  # it learns the run's call time-out
-                self._emit(topics.orchestrator, ORCHESTRATOR, build.orchestrator(at, data), to_ns(at))
+                message = build.orchestrator(at, data)
+                self._emit(topics.orchestrator, ORCHESTRATOR, message, to_ns(at))
+                if message.state in ("starting", "running"):
+                    self._orchestrator_ran = True
+                elif message.state in ("stopped", "failed", "offline") and self._orchestrator_ran:
+                    self.orchestrator_ended.set()
         elif head == "signal" and len(levels) >= 2:
             name = "/".join(levels[1:])
             self._emit(topics.signals, SIGNAL, build.signal(at, name, data), to_ns(at))
