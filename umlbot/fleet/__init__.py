@@ -18,20 +18,24 @@ from umlbot.fleet.config import (
     hub_conf,
     robot_user,
 )
+from umlbot.fleet.simfleet import CarResult, SimFleet, robot_ids
 
 __all__ = [
     "INBOUND",
     "LINK_TOPIC",
     "OPERATOR",
     "VIEWER",
+    "CarResult",
     "Hub",
     "LocalFleet",
     "Mosquitto",
+    "SimFleet",
     "bridge_conf",
     "check_robot_id",
     "find_mosquitto",
     "free_port",
     "hub_acl",
     "hub_conf",
+    "robot_ids",
     "robot_user",
 ]

@@ -136,7 +136,9 @@ class LocalFleet:
     """A hub Mosquitto and one leaf Mosquitto per robot, bridged, on loopback (no TLS, no users:
     a machine's own loopback; a real hub is set up with deploy/fleet.py, see docs/fleet.md)."""
 
-    def __init__(self, robots: list[str], workdir: Path | None = None, hub_port: int | None = None) -> None:
+    def __init__(self, robots: list[str], workdir: Path | None = None, hub_port: int | None = None,
+                 bridge_port: int | None = None) -> None:
+        """`bridge_port`: where the bridges connect instead of the hub's port (a link in between)."""
         if len(set(robots)) != len(robots):
             raise ConfigError("robot ids must differ")
         for robot in robots:
@@ -148,7 +150,7 @@ class LocalFleet:
         self.workdir = workdir
         self.hub = Mosquitto("hub", hub_port or free_port(),
                              "allow_anonymous true\npersistence false\nset_tcp_nodelay true\n", workdir)
-        hub = Hub("127.0.0.1", self.hub.port, tls=False)
+        hub = Hub("127.0.0.1", bridge_port or self.hub.port, tls=False)
         self.leaves = {
             robot: Mosquitto(f"leaf-{robot}", free_port(),
                              "allow_anonymous true\npersistence false\nset_tcp_nodelay true\n"
