@@ -1,0 +1,105 @@
+// The fleet view (`umlbot studio MODEL --broker HUB --fleet`): every robot seen on the hub, with
+// its orchestrator's state, the nodes it runs, its faults and its components; a click follows
+// that robot live in the diagrams. It polls `GET /api/fleet` once a second; a studio without
+// `--fleet` answers 404 and the feature stays away.
+
+import { el } from "../../core/dom";
+import type { Studio } from "../../core/studio";
+import { type FleetSnapshot, fleetRows, hubLine } from "./rows";
+
+const POLL_MS = 1000;
+const STYLE = `
+#fleet { border-bottom: 1px solid #ddd; padding: 4px 6px; max-height: 45vh; overflow: auto; }
+#fleet .hub { font-size: 12px; margin: 2px 0 4px; }
+#fleet .hub[data-connected="false"] { color: #b00020; font-weight: bold; }
+#fleet table { border-collapse: collapse; width: 100%; font-size: 11px; }
+#fleet td, #fleet th { padding: 1px 3px; text-align: left; vertical-align: top; white-space: nowrap; }
+#fleet td.running, #fleet td.faults { max-width: 0; width: 40%; overflow: hidden; text-overflow: ellipsis; }
+#fleet tbody tr { cursor: pointer; }
+#fleet tbody tr:hover { background: #eef3ff; }
+#fleet tr[data-followed="true"] { background: #dfe9ff; font-weight: bold; }
+#fleet tr[data-healthy="false"] td.faults { color: #b00020; }
+`;
+
+export function install(studio: Studio): void {
+  studio.bus.on("studio.start", () => {
+    void start();
+  });
+}
+
+async function fetchSnapshot(): Promise<FleetSnapshot | null> {
+  const response = await fetch("api/fleet", { cache: "no-store" });
+  if (response.status === 404) return null;
+  if (!response.ok) throw new Error(`fleet: HTTP ${response.status}`);
+  return (await response.json()) as FleetSnapshot;
+}
+
+async function start(): Promise<void> {
+  let first: FleetSnapshot | null;
+  try {
+    first = await fetchSnapshot();
+  } catch {
+    return;
+  }
+  if (first === null) return;
+  el("style", {}, document.head, STYLE);
+  const sidebar = document.querySelector("#sidebar");
+  const panel = el("section", { id: "fleet", "aria-label": "fleet" });
+  sidebar?.prepend(panel);
+  el("div", { class: "panel-title" }, panel, "Fleet");
+  const hub = el("div", { class: "hub", role: "status" }, panel);
+  const table = el("table", { id: "fleet-robots" }, panel);
+  const head = el("tr", {}, el("thead", {}, table));
+  for (const title of ["robot", "orchestrator", "running", "faults", "components"]) el("th", {}, head, title);
+  head.lastElementChild?.replaceChildren("parts");
+  const body = el("tbody", {}, table);
+  let followed: string | null = first.followed;
+
+  const draw = (snapshot: FleetSnapshot): void => {
+    const t0 = performance.now();
+    hub.textContent = hubLine(snapshot.hub, snapshot.robots.length);
+    hub.dataset.connected = String(snapshot.hub.connected);
+    followed = snapshot.followed ?? followed;
+    const rows = fleetRows(snapshot);
+    body.replaceChildren();
+    for (const row of rows) {
+      const tr = el("tr", { "data-robot": row.robot, "data-healthy": String(row.healthy) }, body);
+      tr.dataset.followed = String(row.robot === followed);
+      el("td", { class: "robot" }, tr, row.robot);
+      el("td", { class: "state" }, tr, row.state);
+      el("td", { class: "running", title: row.running }, tr, row.running);
+      el("td", { class: "faults", title: row.faults }, tr, row.faults);
+      el("td", { class: "components" }, tr, row.components);
+      tr.addEventListener("click", () => {
+        void followRobot(row.robot);
+      });
+    }
+    panel.dataset.drawMs = (performance.now() - t0).toFixed(2);
+  };
+
+  const followRobot = async (robot: string): Promise<void> => {
+    const response = await fetch("api/fleet/follow", {
+      method: "POST",
+      headers: { "Content-Type": "application/json" },
+      body: JSON.stringify({ robot }),
+    });
+    if (response.ok) {
+      followed = robot;
+      for (const tr of body.querySelectorAll("tr")) {
+        (tr as HTMLElement).dataset.followed = String((tr as HTMLElement).dataset.robot === robot);
+      }
+    }
+  };
+
+  draw(first);
+  window.setInterval(() => {
+    fetchSnapshot()
+      .then((snapshot) => {
+        if (snapshot) draw(snapshot);
+      })
+      .catch(() => {
+        hub.textContent = "the studio does not answer";
+        hub.dataset.connected = "false";
+      });
+  }, POLL_MS);
+}
