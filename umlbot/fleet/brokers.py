@@ -137,8 +137,9 @@ class LocalFleet:
     a machine's own loopback; a real hub is set up with deploy/fleet.py, see docs/fleet.md)."""
 
     def __init__(self, robots: list[str], workdir: Path | None = None, hub_port: int | None = None,
-                 bridge_port: int | None = None) -> None:
-        """`bridge_port`: where the bridges connect instead of the hub's port (a link in between)."""
+                 bridge_port: int | None = None, hub_extra: str = "") -> None:
+        """`bridge_port`: where the bridges connect instead of the hub's port (a link in between);
+        `hub_extra`: more lines for the hub's configuration (bench/fleet.py: `sys_interval 1`)."""
         if len(set(robots)) != len(robots):
             raise ConfigError("robot ids must differ")
         for robot in robots:
@@ -149,7 +150,8 @@ class LocalFleet:
             workdir = Path(self._tmp.name)
         self.workdir = workdir
         self.hub = Mosquitto("hub", hub_port or free_port(),
-                             "allow_anonymous true\npersistence false\nset_tcp_nodelay true\n", workdir)
+                             "allow_anonymous true\npersistence false\nset_tcp_nodelay true\n" + hub_extra,
+                             workdir)
         hub = Hub("127.0.0.1", bridge_port or self.hub.port, tls=False)
         self.leaves = {
             robot: Mosquitto(f"leaf-{robot}", free_port(),
