@@ -282,7 +282,11 @@ def fake_fleet(port: int, robots: int, trace_rate: float, stop: threading.Event)
     client.loop_stop()
 
 
-def measure_studio(robots: int, trace_rate: float, seconds: float, workdir: Path) -> dict[str, Any]:
+def measure_studio(
+    robots: int, trace_rate: float, seconds: float, workdir: Path, fleet: bool
+) -> dict[str, Any]:
+    """The page's frames for `seconds` under the hub's traffic; `fleet=False` is the baseline: the
+    same page and traffic without the fleet view."""
     from playwright.sync_api import sync_playwright
 
     hub = Mosquitto(
@@ -302,7 +306,7 @@ def measure_studio(robots: int, trace_rate: float, seconds: float, workdir: Path
             str(REPO / "models" / "robot_car"),
             "--broker",
             hub.url,
-            "--fleet",
+            *(["--fleet"] if fleet else []),
             "--port",
             "0",
         ],
@@ -326,9 +330,13 @@ def measure_studio(robots: int, trace_rate: float, seconds: float, workdir: Path
                 page = browser.new_page(viewport={"width": 1600, "height": 1000})
                 page.add_init_script(FRAMES)
                 page.goto(url)
-                page.wait_for_function(
-                    f"document.querySelectorAll('#fleet-robots tbody tr').length === {robots}", timeout=60_000
-                )
+                page.wait_for_function("window.__studio && window.__studio.ready === true", timeout=60_000)
+                if fleet:
+                    page.wait_for_function(
+                        f"document.querySelectorAll('#fleet-robots tbody tr').length === {robots}",
+                        timeout=60_000,
+                    )
+                time.sleep(2.0)  # the diagram's first layout is done
                 page.evaluate("window.__frames = []; window.__longTasks = []")
                 draws: list[float] = []
                 end = time.monotonic() + seconds
@@ -341,7 +349,8 @@ def measure_studio(robots: int, trace_rate: float, seconds: float, workdir: Path
                 long_tasks: list[float] = page.evaluate("window.__longTasks")
                 rows = page.evaluate("document.querySelectorAll('#fleet-robots tbody tr').length")
                 (REPO / "out").mkdir(exist_ok=True)
-                page.screenshot(path=str(REPO / "out" / "bench-fleet-view.png"))
+                if fleet:
+                    page.screenshot(path=str(REPO / "out" / "bench-fleet-view.png"))
             finally:
                 browser.close()
         ordered = sorted(frames)
@@ -411,8 +420,11 @@ def main() -> int:
             ok = ok and at50["p50_ratio"] <= TARGETS["p50_ratio_at_50"]
     if "studio" in parts:
         with tempfile.TemporaryDirectory() as tmp:
+            result["studio_baseline"] = measure_studio(
+                args.studio_robots, args.trace_rate, args.seconds, Path(tmp), fleet=False
+            )
             studio = result["studio"] = measure_studio(
-                args.studio_robots, args.trace_rate, args.seconds, Path(tmp)
+                args.studio_robots, args.trace_rate, args.seconds, Path(tmp), fleet=True
             )
         ok = ok and studio["max_frame_ms"] is not None and studio["max_frame_ms"] <= TARGETS["max_frame_ms"]
     result["load_avg"] = [round(x, 2) for x in os.getloadavg()]

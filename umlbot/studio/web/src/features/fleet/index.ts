@@ -55,24 +55,41 @@ async function start(): Promise<void> {
   const body = el("tbody", {}, table);
   let followed: string | null = first.followed;
 
+  // one row a robot, kept from poll to poll: a cell is written only when its text changed
+  const shown = new Map<string, { tr: HTMLTableRowElement; cells: HTMLTableCellElement[] }>();
+  const columns = ["robot", "state", "running", "faults", "components"] as const;
+
   const draw = (snapshot: FleetSnapshot): void => {
     const t0 = performance.now();
-    hub.textContent = hubLine(snapshot.hub, snapshot.robots.length);
+    const line = hubLine(snapshot.hub, snapshot.robots.length);
+    if (hub.textContent !== line) hub.textContent = line;
     hub.dataset.connected = String(snapshot.hub.connected);
     followed = snapshot.followed ?? followed;
     const rows = fleetRows(snapshot);
-    body.replaceChildren();
+    let before: Element | null = body.firstElementChild;
     for (const row of rows) {
-      const tr = el("tr", { "data-robot": row.robot, "data-healthy": String(row.healthy) }, body);
-      tr.dataset.followed = String(row.robot === followed);
-      el("td", { class: "robot" }, tr, row.robot);
-      el("td", { class: "state" }, tr, row.state);
-      el("td", { class: "running", title: row.running }, tr, row.running);
-      el("td", { class: "faults", title: row.faults }, tr, row.faults);
-      el("td", { class: "components" }, tr, row.components);
-      tr.addEventListener("click", () => {
-        void followRobot(row.robot);
+      let entry = shown.get(row.robot);
+      if (entry === undefined) {
+        const tr = el("tr", { "data-robot": row.robot });
+        const cells = columns.map((c) => el("td", { class: c }, tr));
+        tr.addEventListener("click", () => {
+          void followRobot(row.robot);
+        });
+        entry = { tr, cells };
+        shown.set(row.robot, entry);
+      }
+      const { tr, cells } = entry;
+      columns.forEach((column, i) => {
+        const text = row[column];
+        if (cells[i].textContent !== text) {
+          cells[i].textContent = text;
+          if (column === "running" || column === "faults") cells[i].title = text;
+        }
       });
+      tr.dataset.healthy = String(row.healthy);
+      tr.dataset.followed = String(row.robot === followed);
+      if (tr !== before) body.insertBefore(tr, before);
+      else before = before.nextElementSibling;
     }
     panel.dataset.drawMs = (performance.now() - t0).toFixed(2);
   };
