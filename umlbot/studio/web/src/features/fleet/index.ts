@@ -9,16 +9,22 @@ import { type FleetSnapshot, fleetRows, hubLine } from "./rows";
 
 const POLL_MS = 1000;
 const STYLE = `
-#fleet { border-bottom: 1px solid #ddd; padding: 4px 6px; max-height: 45vh; overflow: auto; }
-#fleet .hub { font-size: 12px; margin: 2px 0 4px; }
+#fleet { border-bottom: 1px solid #ddd; padding: 4px 6px; max-height: 45vh; overflow: auto; contain: content; }
+#fleet .hub { font-size: 12px; margin: 2px 0 4px; overflow-wrap: anywhere; }
 #fleet .hub[data-connected="false"] { color: #b00020; font-weight: bold; }
-#fleet table { border-collapse: collapse; width: 100%; font-size: 11px; }
-#fleet td, #fleet th { padding: 1px 3px; text-align: left; vertical-align: top; white-space: nowrap; }
-#fleet td.running, #fleet td.faults { max-width: 0; width: 40%; overflow: hidden; text-overflow: ellipsis; }
-#fleet tbody tr { cursor: pointer; }
+#fleet table { border-collapse: collapse; width: 100%; font-size: 12px; }
+#fleet thead { display: none; }
+#fleet tbody tr { display: grid; grid-template-columns: auto 1fr auto; column-gap: 6px; cursor: pointer;
+  padding: 2px 3px; border-bottom: 1px solid #eee; }
+#fleet td { padding: 0; white-space: nowrap; overflow: hidden; text-overflow: ellipsis; }
+#fleet td.robot { font-weight: 600; }
+#fleet td.components { grid-row: 1; grid-column: 3; color: #555; }
+#fleet td.running, #fleet td.faults { grid-column: 1 / -1; font-size: 11px; color: #555; }
+#fleet td.running::before { content: "▸ "; }
+#fleet td.faults::before { content: "faults: "; }
 #fleet tbody tr:hover { background: #eef3ff; }
-#fleet tr[data-followed="true"] { background: #dfe9ff; font-weight: bold; }
-#fleet tr[data-healthy="false"] td.faults { color: #b00020; }
+#fleet tr[data-followed="true"] { background: #dfe9ff; }
+#fleet tr[data-healthy="false"] td.faults { color: #b00020; font-weight: 600; }
 `;
 
 export function install(studio: Studio): void {
