@@ -168,3 +168,36 @@ def test_install_writes_a_bridge_that_works_over_tls(hub: HubSetup, tmp_path: Pa
         assert local.received("umlbot/alpha/Sensor/status", 0.5) == []
     finally:
         leaf.stop()
+
+
+def test_the_bridge_works_on_a_robot_broker_with_users(hub: HubSetup, tmp_path: Path) -> None:
+    """A robot installed with --secure (every client logs in, the ACL of deploy/mosquitto): its
+    broker's bridge still carries the status out and the hub's requests in."""
+    from secured_brokers import make_auth, mosquitto_config
+
+    from umlbot.fleet import Hub, bridge_conf
+
+    passwords = make_auth(tmp_path / "auth")
+    port = free_port()
+    secured = mosquitto_config(port, tmp_path / "auth" / "mosquitto.passwd")
+    # Mosquitto() adds the listener and the user to run as
+    secured = "\n".join(line for line in secured.splitlines()
+                         if line != f"listener {port} 127.0.0.1" and not line.startswith("user ")) + "\n"
+    user, password = credentials(hub.out / "robot-alpha.hub")
+    bridge = bridge_conf("alpha", Hub("127.0.0.1", hub.tls_port, True, user, password, hub.ca))
+    leaf = Mosquitto("leaf-secured", port, secured + bridge, tmp_path)
+    viewer = hub.client("viewer.env")
+    assert viewer.subscribe("umlbot/alpha/#")
+    operator = hub.client("operator.env")
+    leaf.start()
+    try:
+        viewer.wait_for("umlbot/alpha/_bridge/connected", "1", timeout=15)
+        motor = connect_client(port, "umlbot-motor", passwords["motor"])
+        assert motor.accepted
+        assert motor.subscribe("umlbot/alpha/LeftActuator/call/#")
+        motor.publish("umlbot/alpha/LeftActuator/status", '{"state":"online"}', retain=True)
+        viewer.wait_for("umlbot/alpha/LeftActuator/status", '{"state":"online"}')
+        operator.publish("umlbot/alpha/LeftActuator/call/dutycycle", "35")
+        motor.wait_for("umlbot/alpha/LeftActuator/call/dutycycle", "35")
+    finally:
+        leaf.stop()
