@@ -15,7 +15,7 @@ STATUS = '{"state":"online","impl":"l298n","features":["dutycycle"]}'
 def monitor(url: str, robot: str) -> set[str]:
     done = subprocess.run(
         [sys.executable, "-c", "from umlbot.cli import main; main()", "monitor", "--broker", url,
-         "--robot", robot, "--json", "--duration", "2"],
+         "--robot", robot, "--json", "--duration", "1"],
         capture_output=True, text=True, timeout=60, check=False,
     )
     assert done.returncode == 0, done.stderr[-2000:]
