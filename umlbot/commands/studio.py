@@ -38,7 +38,8 @@ if TYPE_CHECKING:
               "the page is read-only then: no editing, no Run).")
 @click.option("--fleet", is_flag=True,
               help="A fleet hub: list every robot seen on the broker (status, running nodes, faults, "
-              "components); click one to follow it live (--robot: the one followed first).")
+              "components); click one to follow it live (--robot: the one followed first; "
+              "--robot '*' is --fleet too).")
 @click.option("--open", "open_browser", is_flag=True, help="Open the page in the default browser.")
 def command(model: Path, broker_url: str | None, ca_file: Path | None, robot: str | None,
             replay_file: Path | None, host: str, port: int, allow_remote: bool, fleet: bool,
@@ -64,6 +65,8 @@ def command(model: Path, broker_url: str | None, ca_file: Path | None, robot: st
         raise click.BadParameter(f"{model} does not exist (a new model folder needs {needs})",
                                  param_hint="'MODEL'")
     check_bind(host, allow_remote)
+    if robot is not None and robot.strip() == "*":  # every robot on the broker: the fleet view
+        fleet, robot = True, None
     if fleet and replay_file is not None:
         raise click.UsageError("--fleet follows robots on a broker: not with --replay")
     api: EditApi | None = None
