@@ -99,7 +99,8 @@ def bridge_conf(robot: str, hub: Hub) -> str:
         "bridge_protocol_version mqttv311",
         "notifications true",
         f"notification_topic {prefix}{LINK_TOPIC}",
-        "restart_timeout 1 10",
+        # back-off between attempts capped at 3 s: the hub sees a robot again within 3 s of its return
+        "restart_timeout 1 3",
         "keepalive_interval 10",
         "start_type automatic",
     ]
