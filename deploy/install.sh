@@ -42,6 +42,10 @@ usage: install.sh [options]
                       /etc/umlbot/<role>.env, Mosquitto's conf.d/umlbot.conf, umlbot.passwd and
                       umlbot.acl, and the embedded broker's password and ACL files (needs
                       --deployment)
+  --hub URL           bridge this robot's Mosquitto to a fleet hub (mqtts://hub:8883): writes
+                      Mosquitto's conf.d/umlbot-bridge.conf (deploy/fleet.py bridge; docs/fleet.md)
+  --hub-credentials F the robot-<id>.hub file `deploy/fleet.py hub` made for this robot
+  --hub-ca FILE       the CA certificate of the hub's TLS certificate (needed for mqtts://)
   --no-venv           do not create the virtual environment (one exists, or a test); implied
                       by --root
   --no-enable         install the units but do not enable them
@@ -68,6 +72,9 @@ ENABLE=1
 START=0
 PYTHON=python3
 PLUGINS=()
+HUB=""
+HUB_CREDENTIALS=""
+HUB_CA=""
 
 while [ $# -gt 0 ]; do
     case "$1" in
@@ -82,6 +89,9 @@ while [ $# -gt 0 ]; do
         --services) SERVICES="$2"; GIVEN+="services "; shift 2 ;;
         --plugin) PLUGINS+=("$2"); shift 2 ;;
         --embedded-broker) EMBEDDED_BROKER=1; shift ;;
+        --hub) HUB="$2"; shift 2 ;;
+        --hub-credentials) HUB_CREDENTIALS="$2"; shift 2 ;;
+        --hub-ca) HUB_CA="$2"; shift 2 ;;
         --secure) SECURE=1; shift ;;
         --no-venv) VENV=0; shift ;;
         --no-enable) ENABLE=0; shift ;;
@@ -144,6 +154,18 @@ if [ -n "$ROOT" ] && [ "$VENV" -eq 1 ]; then
     VENV=0
 fi
 if [ "$SECURE" -eq 1 ] && [ -z "$DEPLOYMENT" ]; then die "--secure needs --deployment"; fi
+if [ -n "$HUB" ]; then
+    case "$HUB" in
+        mqtts://*@*|mqtt://*@*) die "--hub takes no user:password (it would show in the process list): give --hub-credentials FILE" ;;
+        mqtts://?*) [ -n "$HUB_CA" ] || die "--hub mqtts://… needs --hub-ca FILE (the CA of the hub's certificate)" ;;
+        mqtt://?*) ;;
+        *) die "bad hub URL '$HUB' (mqtts://host[:port])" ;;
+    esac
+    [ -z "$HUB_CREDENTIALS" ] || [ -f "$HUB_CREDENTIALS" ] || die "hub credentials $HUB_CREDENTIALS not found"
+    [ -z "$HUB_CA" ] || [ -f "$HUB_CA" ] || die "hub CA certificate $HUB_CA not found"
+elif [ -n "$HUB_CREDENTIALS$HUB_CA" ]; then
+    die "--hub-credentials and --hub-ca go with --hub URL"
+fi
 case "$BROKER" in
     *@*) if [ "$SECURE" -eq 1 ]; then die "--secure makes the credentials: give --broker without user:password"; fi ;;
 esac
@@ -260,7 +282,9 @@ done
 for f in "$SOURCE"/deploy/amqtt/*; do
     if [ -f "$f" ]; then install -m 0644 "$f" "$DEST/share/amqtt/$(basename "$f")"; fi
 done
-if [ -f "$SOURCE/deploy/broker_auth.py" ]; then install -m 0755 "$SOURCE/deploy/broker_auth.py" "$DEST/share/broker_auth.py"; fi
+for script in broker_auth.py fleet.py; do
+    if [ -f "$SOURCE/deploy/$script" ]; then install -m 0755 "$SOURCE/deploy/$script" "$DEST/share/$script"; fi
+done
 
 # 4. Mosquitto, always: send small packets at once (see umlbot-nodelay.conf). Then broker users
 #    and ACLs (--secure): per-role env files with each role's own MQTT user.
@@ -294,6 +318,24 @@ if [ "$SECURE" -eq 1 ]; then
     chmod 0640 "$AUTH/amqtt.passwd"
     BROKER_ARGS="$BROKER_ARGS --passwd $ETC_PATH/auth/amqtt.passwd --acl $ETC_PATH/auth/amqtt-acl.yaml"
     say "broker users written to /etc/umlbot/auth (operator.env and monitor.env are for people)"
+fi
+
+# 4b. The bridge to a fleet hub (--hub): umlbot/<robot>/# goes out, requests come in (docs/fleet.md).
+#     The file holds the robot's hub password: 0640, group mosquitto.
+if [ -n "$HUB" ]; then
+    bridge_args=(--robot "$ROBOT" --hub "$HUB" --out "$ROOT/etc/mosquitto/conf.d/umlbot-bridge.conf")
+    if [ -n "$HUB_CA" ]; then
+        install -d -m 0755 "$ROOT/etc/mosquitto/certs"
+        install -m 0644 "$HUB_CA" "$ROOT/etc/mosquitto/certs/umlbot-hub-ca.crt"
+        bridge_args+=(--hub-ca /etc/mosquitto/certs/umlbot-hub-ca.crt)
+    fi
+    if [ -n "$HUB_CREDENTIALS" ]; then bridge_args+=(--hub-credentials "$HUB_CREDENTIALS"); fi
+    (cd "$SOURCE" && "$PY" "$SOURCE/deploy/fleet.py" bridge "${bridge_args[@]}") || die "cannot write the bridge configuration"
+    chmod 0640 "$ROOT/etc/mosquitto/conf.d/umlbot-bridge.conf"
+    if [ -z "$ROOT" ] && getent group mosquitto >/dev/null 2>&1; then
+        chgrp mosquitto "$ROOT/etc/mosquitto/conf.d/umlbot-bridge.conf"
+    fi
+    say "bridge to the hub $HUB written to /etc/mosquitto/conf.d/umlbot-bridge.conf (robot $ROBOT)"
 fi
 
 # 5. /etc/umlbot/umlbot.env (it may hold credentials: root:umlbot 0640). Made on the first run; an

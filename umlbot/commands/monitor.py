@@ -27,7 +27,8 @@ REFRESH_S = 0.25
 @click.command(name="monitor")
 @click.option("--robot", default=lambda: os.environ.get("UMLBOT_ROBOT") or None,
               show_default="$UMLBOT_ROBOT, else every robot",
-              help="Robot id to watch (topics umlbot/<robot>/#).")
+              help="Robot id to watch (topics umlbot/<robot>/#); '*' for every robot on the broker (a fleet "
+              "hub), or a comma-separated list (car1,car2).")
 @click.option("--broker", "broker_url", default=None, metavar="URL",
               help="Broker URL, e.g. mqtt://user:pass@host:1883 "
               "(default: $UMLBOT_BROKER or mqtt://127.0.0.1:1883).")
@@ -74,6 +75,8 @@ def command(
     state = MonitorState(call_timeout_s=call_timeout)
     with StopSignals() as signals:
         if replay_file is not None:
+            if robot and ("," in robot or "*" in robot):
+                raise click.UsageError("--replay plays one robot's trace: give --robot one id (or none)")
             _check_trace(replay_file)  # before the view is drawn: a bad file is only its error line
             signals.running()
             # a trace file does not say whose it is: without --robot its events name no robot

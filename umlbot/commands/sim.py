@@ -43,6 +43,13 @@ DEFAULT_TRACK = "s_bend"  # the bundled track, wherever umlbot is run from
               help="Percentage of sonar pings whose echo is lost.")
 @click.option("--max-collisions", type=click.IntRange(min=1), default=1, show_default=True,
               help="Stop after this many collisions.")
+@click.option("--robot", default=None, metavar="ID",
+              help="Robot id in the topics (default: the model's name); with --robots the prefix of the ids.")
+@click.option("--robots", type=click.IntRange(min=1), default=None, metavar="N",
+              help="A fleet on this machine: N cars (robot ids <robot or model name>1..N), each with its own "
+              "Mosquitto bridged to a hub Mosquitto (see docs/fleet.md).")
+@click.option("--hub-port", type=click.IntRange(0, 65535), default=0, show_default=True,
+              help="With --robots: the hub's port on 127.0.0.1 (0 = any free port).")
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as one JSON object.")
 @click.option("--trace", "trace_file", type=click.Path(dir_okay=False, path_type=Path), default=None,
               metavar="FILE", help="Also write every trace event to FILE (JSON lines, sim time): "
@@ -60,9 +67,9 @@ DEFAULT_TRACK = "s_bend"  # the bundled track, wherever umlbot is run from
               help="Port of the Foxglove server (0 = any free port).")
 def command(model: Path, track: Path | None, speed: float, broker_url: str | None, port: int | None,
             timeout_s: float, plot: Path | None, processes: bool, seed: int | None, noise_cm: float,
-            drop_percent: float, max_collisions: int, as_json: bool, trace_file: Path | None,
-            studio: bool, studio_port: int, record_file: Path | None, foxglove: bool,
-            foxglove_port: int) -> None:
+            drop_percent: float, max_collisions: int, robot: str | None, robots: int | None, hub_port: int,
+            as_json: bool, trace_file: Path | None, studio: bool, studio_port: int,
+            record_file: Path | None, foxglove: bool, foxglove_port: int) -> None:
     """Run MODEL on a track: embedded broker, world, services, orchestrator; exit 0 only when the
     goal was reached without a collision."""
     from umlbot.base.logs import configure_logging
@@ -73,10 +80,24 @@ def command(model: Path, track: Path | None, speed: float, broker_url: str | Non
         "UMLBOT_LOG_LEVEL"
     ):
         configure_logging("WARNING")
+    if robots is not None:
+        refused = [name for name, given in (("--broker", broker_url), ("--port", port), ("--plot", plot),
+                                            ("--trace", trace_file), ("--studio", studio),
+                                            ("--record", record_file), ("--foxglove", foxglove)) if given]
+        if refused:
+            raise click.UsageError(
+                f"--robots runs its own brokers and many cars: not with {', '.join(refused)}")
+        sim_args = ["--track", str(find_track(track or DEFAULT_TRACK)), "--speed", str(speed),
+                    "--timeout", str(timeout_s), "--noise", str(noise_cm), "--drop", str(drop_percent),
+                    "--max-collisions", str(max_collisions)]
+        sim_args += ["--seed", str(seed)] if seed is not None else []
+        sim_args += ["--processes"] if processes else []
+        _run_fleet(model, robots, robot, hub_port, sim_args, as_json)
+        return
     options = SimOptions(
         model=model, track=find_track(track or DEFAULT_TRACK), speed=speed, broker_url=broker_url,
         port=port, timeout_s=timeout_s, plot=plot, processes=processes, seed=seed, sonar_noise_cm=noise_cm,
-        sonar_drop=drop_percent / 100.0, max_collisions=max_collisions, trace_file=trace_file,
+        sonar_drop=drop_percent / 100.0, max_collisions=max_collisions, trace_file=trace_file, robot=robot,
     )
     live = sys.stdout.isatty() and not as_json
     announced: list[str] = []
@@ -176,3 +197,37 @@ def _all(observers: list[Any]) -> Any:
         return finish
 
     return observe
+
+
+def _run_fleet(model: Path, count: int, prefix: str | None, hub_port: int, sim_args: list[str],
+               as_json: bool) -> None:
+    """`--robots N`: the fleet on this machine; exit 0 only when every car succeeded."""
+    from umlbot.compiler.api import compile_model
+    from umlbot.fleet import CarResult, SimFleet, robot_ids
+
+    robots = robot_ids(prefix or compile_model(model).name, count)
+    fleet = SimFleet(model, robots, sim_args, hub_port or None)
+
+    def report(result: CarResult) -> None:
+        if as_json:
+            return
+        s = result.summary or {}
+        why = s.get("failure") or s.get("reason") or result.stderr_tail[-300:]
+        verdict = "ok" if result.ok else f"FAILED ({why})"
+        click.echo(f"{result.robot:>10}: {s.get('reason', '-')}, {s.get('actions', 0)} actions, "
+                   f"p50 {s.get('action_p50_ms')} ms: {verdict}")
+
+    signals = StopSignals()
+    with signals:
+        signals.running()
+        with fleet:
+            if not as_json:
+                click.echo(f"hub {fleet.hub_url}  (watch: umlbot studio --broker {fleet.hub_url}; "
+                           f"umlbot monitor --broker {fleet.hub_url} --robot '*')")
+                for robot in robots:
+                    click.echo(f"{robot:>10}: leaf broker {fleet.fleet.leaf_url(robot)}")
+            results = fleet.wait(signals.stop, report)
+    if as_json:
+        click.echo(json.dumps({"hub": fleet.hub_url, "robots": {
+            r.robot: {"exit_code": r.exit_code, "summary": r.summary} for r in results.values()}}))
+    sys.exit(0 if all(r.ok for r in results.values()) else 1)

@@ -12,6 +12,7 @@ from umlbot.base.stopsignals import StopSignals
 
 if TYPE_CHECKING:
     from umlbot.studio.api import EditApi
+    from umlbot.studio.fleet import FleetWatch
     from umlbot.studio.workspace import Workspace
 
 
@@ -35,9 +36,13 @@ if TYPE_CHECKING:
 @click.option("--allow-remote", is_flag=True,
               help="Allow --host to be a non-loopback address (anyone who reaches it sees the robot; "
               "the page is read-only then: no editing, no Run).")
+@click.option("--fleet", is_flag=True,
+              help="A fleet hub: list every robot seen on the broker (status, running nodes, faults, "
+              "components); click one to follow it live (--robot: the one followed first; "
+              "--robot '*' is --fleet too).")
 @click.option("--open", "open_browser", is_flag=True, help="Open the page in the default browser.")
 def command(model: Path, broker_url: str | None, ca_file: Path | None, robot: str | None,
-            replay_file: Path | None, host: str, port: int, allow_remote: bool,
+            replay_file: Path | None, host: str, port: int, allow_remote: bool, fleet: bool,
             open_browser: bool) -> None:
     """Serve the studio for MODEL: its diagrams, the robot's running nodes live, or a replay.
 
@@ -60,6 +65,10 @@ def command(model: Path, broker_url: str | None, ca_file: Path | None, robot: st
         raise click.BadParameter(f"{model} does not exist (a new model folder needs {needs})",
                                  param_hint="'MODEL'")
     check_bind(host, allow_remote)
+    if robot is not None and robot.strip() == "*":  # every robot on the broker: the fleet view
+        fleet, robot = True, None
+    if fleet and replay_file is not None:
+        raise click.UsageError("--fleet follows robots on a broker: not with --replay")
     api: EditApi | None = None
     if editable:
         from umlbot.studio.api import EditApi
@@ -103,6 +112,19 @@ def command(model: Path, broker_url: str | None, ca_file: Path | None, robot: st
                     raise
 
             api.on_name = follow_name
+    watch: FleetWatch | None = None
+    if fleet and source is not None:
+        from umlbot.studio.fleet import FleetWatch
+
+        follower_ = source
+
+        def follow_robot(name: str) -> None:  # a robot clicked in the fleet view
+            follower_.follow(name)
+            data.robot = name
+
+        watch = FleetWatch(settings, redact_url(url), follow_robot)
+        server.extra_routes.append(watch.routes)
+        what = f"every robot on {redact_url(url)} (fleet view), following {data.robot}"
     errors = sum(1 for d in data.diagnostics if d["severity"] == "error")
     studio = StudioThread(server)
     with StopSignals() as signals:
@@ -110,6 +132,8 @@ def command(model: Path, broker_url: str | None, ca_file: Path | None, robot: st
         try:
             if source is not None:
                 source.start()
+            if watch is not None:
+                watch.start()
             signals.running()
             click.echo(f"umlbot studio: {page}  ({what}; Ctrl-C to quit)")
             if editable and workspace.empty:
@@ -133,6 +157,8 @@ def command(model: Path, broker_url: str | None, ca_file: Path | None, robot: st
                 webbrowser.open(page)
             signals.stop.wait()
         finally:
+            if watch is not None:
+                watch.close()
             if source is not None:
                 source.close()
             studio.stop()

@@ -19,6 +19,15 @@ def topic_filter(robot: str | None) -> str:
     return f"umlbot/{check_name('robot id', robot)}/#" if robot else "umlbot/+/#"
 
 
+def topic_filters(robots: str | None) -> list[str]:
+    """The filters of `--robot`: every robot for None, '' or '*'; else one per robot of a
+    comma-separated list (`car1,car2`)."""
+    if not robots or robots.strip() == "*":
+        return [topic_filter(None)]
+    names = [name.strip() for name in robots.split(",") if name.strip()]
+    return [topic_filter(name) for name in dict.fromkeys(names)] or [topic_filter(None)]
+
+
 class LiveMonitor:
     """Feeds `state` from the broker; `on_event` runs on the bus dispatcher thread.
 
@@ -32,9 +41,12 @@ class LiveMonitor:
         self.state = state or MonitorState()
         self.lock = threading.Lock()
         self._on_event = on_event
-        self._connection = BusConnection(settings, "monitor", robot=robot or "any")
-        self._filter = topic_filter(robot)
-        self._connection.subscribe(self._filter, self._handle)
+        self._filters = topic_filters(robot)
+        single = robot is not None and "," not in robot and "*" not in robot and robot.strip() != ""
+        name = robot.strip() if robot is not None and single else "any"
+        self._connection = BusConnection(settings, "monitor", robot=name)
+        for topic in self._filters:
+            self._connection.subscribe(topic, self._handle)
 
     @property
     def connected(self) -> bool:
@@ -62,10 +74,11 @@ class LiveMonitor:
         if timeout is None:
             return
         self._connection.wait_subscribed(timeout)
-        refused = self._connection.refused_subscriptions.get(self._filter)
-        if refused is not None:
-            raise BrokerRefused(f"the subscription to {self._filter} (may this user read the robot's "
-                                "topics? see docs/security.md)", refused)
+        for topic in self._filters:
+            refused = self._connection.refused_subscriptions.get(topic)
+            if refused is not None:
+                raise BrokerRefused(f"the subscription to {topic} (may this user read the robot's "
+                                    "topics? see docs/security.md)", refused)
 
     def tick(self, now: float | None = None) -> None:
         """Report calls that stayed unanswered (call it about once a second)."""

@@ -119,6 +119,8 @@ class SimOptions:
     #: refuse a track whose goal a car of this width cannot reach (`umlbot.sim.reach`); off only
     #: for runs that must not end at the goal (tests of the time-out and collision paths)
     check_goal: bool = True
+    #: the robot id in the topics (default: the model's name); a fleet runs each car as its own robot
+    robot: str | None = None
 
 
 @dataclass(frozen=True)
@@ -235,8 +237,9 @@ def sim_driver(service: str) -> str:
                    f"{', '.join(known)}); umlbot sim cannot run its components")
 
 
-def sim_deployment(compiled: Any) -> Any:
-    """The deployment the services run with in the simulator: each component on `sim_driver`."""
+def sim_deployment(compiled: Any, robot: str | None = None) -> Any:
+    """The deployment the services run with in the simulator: each component on `sim_driver`;
+    the robot id is `robot`, or the model's name."""
     from umlbot.base.deployment import ComponentDeployment, Deployment
 
     components = {
@@ -244,7 +247,7 @@ def sim_deployment(compiled: Any) -> Any:
                                   settings=dict(comp.settings))
         for name, comp in compiled.components.items()
     }
-    return Deployment(robot=compiled.name, driver="sim", components=components)
+    return Deployment(robot=robot or compiled.name, driver="sim", components=components)
 
 
 def mock_components(deployment: Any) -> dict[str, str]:
@@ -462,7 +465,7 @@ def run_sim(
     except ValueError as exc:
         raise SimError(f"{options.track}: {exc}") from exc
     compiled = compile_model(options.model)
-    deployment = sim_deployment(compiled)
+    deployment = sim_deployment(compiled, options.robot)
     on_mock = mock_components(deployment)
     if on_mock:
         log.info("sim_mock_drivers", components=on_mock,

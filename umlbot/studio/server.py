@@ -117,6 +117,8 @@ class StudioServer:
     tick: Callable[[], None] | None = None
     #: the editing requests (`/api/*`), when the studio edits a model folder.
     api: EditRoutes | None = None
+    #: more routes: each is called with the app and this server (the fleet view's `/api/fleet`).
+    extra_routes: list[Callable[[web.Application, StudioServer], None]] = field(default_factory=list)
     #: the command's option that sets `port` (named when the port is taken).
     port_option: str = "--port"
     #: characters of JSON one page may have waiting before it is dropped (`Page`).
@@ -135,6 +137,8 @@ class StudioServer:
         app.router.add_static("/static/", static_dir(), follow_symlinks=False)
         if self.api is not None:
             self.api.routes(app, self)
+        for add_routes in self.extra_routes:
+            add_routes(app, self)
         return app
 
     async def start(self) -> str:

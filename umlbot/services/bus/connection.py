@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING, Any
 from paho.mqtt.enums import CallbackAPIVersion, MQTTErrorCode, MQTTProtocolVersion
 from paho.mqtt.packettypes import PacketTypes
 from paho.mqtt.properties import Properties
+from paho.mqtt.subscribeoptions import SubscribeOptions
 
 from umlbot.base.errors import BrokerRefused, BusError, ConfigError, LoginRefused, NotConnected
 from umlbot.base.lazy import import_lean
@@ -535,9 +536,19 @@ class BusConnection:
             self._route_cache.clear()
             if not already and self._connected.is_set():
                 # under the lock, so that the SUBACK cannot be handled before its mid is noted
-                rc, mid = self._client.subscribe(subscription.topic_filter, subscription.qos)
+                wanted = [(subscription.topic_filter, self._options(subscription.qos))]
+                rc, mid = self._client.subscribe(wanted)
                 if rc == mqtt.MQTT_ERR_SUCCESS and mid is not None:
                     self._pending_subacks[mid] = [subscription.topic_filter]
+
+    def _options(self, qos: int) -> Any:
+        """A subscription's options: over MQTT 5, Retain As Published, so that a handler sees a
+        message that was retained as retained even when the broker passes it on live (a Mosquitto
+        bridge hands the hub's retained messages to the robot's broker that way on every
+        reconnect: a stale request must still look stale)."""
+        if self._mqtt5:
+            return SubscribeOptions(qos=qos, retainAsPublished=True)
+        return qos
 
     def unsubscribe(self, topic_filter: str) -> None:
         """Drop every handler of this filter and tell the broker."""
@@ -600,7 +611,7 @@ class BusConnection:
             callbacks = list(self._on_connect)
             self._pending_subacks.clear()
             if filters:
-                rc, mid = client.subscribe([(f, q) for f, q in filters.items()])
+                rc, mid = client.subscribe([(f, self._options(q)) for f, q in filters.items()])
                 if rc == mqtt.MQTT_ERR_SUCCESS and mid is not None:
                     self._pending_subacks[mid] = list(filters)
         self.counters.connects += 1

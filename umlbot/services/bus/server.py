@@ -367,6 +367,10 @@ class ComponentServer:
         correlation = message.correlation_data
         request_id: str | int | None = _correlation_id(correlation)
         reply_to: str | None = None
+        if message.retain:  # a request kept by a broker (or a fleet hub, across its bridge) is stale:
+            # it would run again on every (re)subscription
+            log.warning("ignoring a retained request", topic=message.topic)
+            return
         if feature_name == ALIVE_PROBE:  # another server checks whether we are alive: yes
             self._answer_alive(message)
             return

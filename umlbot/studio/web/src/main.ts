@@ -13,6 +13,7 @@ import { install as connection } from "./features/connection";
 import { install as diagnostics } from "./features/diagnostics";
 import { install as diagrams } from "./features/diagrams";
 import { install as editing } from "./features/editing";
+import { install as fleet } from "./features/fleet";
 import { install as follow } from "./features/follow";
 import { install as history } from "./features/history";
 import { install as keyboard } from "./features/keyboard";
@@ -33,6 +34,7 @@ import { install as status } from "./features/status";
 const features: Feature[] = [
   // watching
   connection,
+  fleet,
   session,
   diagrams,
   diagnostics,
