@@ -183,7 +183,8 @@ def test_an_installed_broken_package_is_reported_and_does_not_take_down_the_rest
                      "    Eye: {impl: warp9}\nlanes: []\n", encoding="utf-8")
     check = _umlbot("check", str(model), env=env)
     assert check.returncode == 1
-    assert ("error: unknown component kind 'warpdrive' (known: system, actuator, sensor, camera, ros2, sounder); "
+    assert ("error: unknown component kind 'warpdrive' "
+            "(known: system, actuator, sensor, camera, ros2, sounder); "
             "skipped plugin packages: broken-plugins (see 'umlbot plugins')") in check.stdout, check.stdout
 
     line_deploy = tmp_path / "line.yaml"
