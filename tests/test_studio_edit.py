@@ -729,7 +729,7 @@ def test_a_plugins_part_gets_its_settings_from_its_hardware_driver(car: tuple[Pa
 
 def test_studio_on_a_new_folder_offers_and_writes_the_starter(tmp_path: Path) -> None:
     folder = tmp_path / "my_robot"
-    with studio(["studio", str(folder), "--port", "0"], tmp_path) as proc:
+    with studio(["studio", "--new", str(folder), "--port", "0"], tmp_path) as proc:
         # the terminal says there is no model there yet and what the page offers
         proc.wait_line("offers a starter model")
         said = f"umlbot studio: {folder} does not exist yet: the page offers a starter model"
@@ -761,7 +761,7 @@ def test_the_robot_followed_is_the_models_name_once_it_is_created_or_renamed(
     # in the studio is followed under its own name from then on, and the page is told
     raw = raw_client(mosquitto_broker)
     folder = tmp_path / "newbot"
-    with studio(["studio", str(folder), "--port", "0"], tmp_path, mosquitto_broker.url) as proc:
+    with studio(["studio", "--new", str(folder), "--port", "0"], tmp_path, mosquitto_broker.url) as proc:
         hello = read_frames(proc.url, lambda f: len(f) >= 1)[0]
         assert hello["robot"] == "car"  # nothing to name it after yet
         token = hello["edit"]["token"]
@@ -793,7 +793,7 @@ def test_the_robot_followed_is_the_models_name_once_it_is_created_or_renamed(
         assert read_frames(proc.url, lambda f: len(f) >= 1)[0]["robot"] == "otherbot"
     # a robot id given with --robot stays
     other = tmp_path / "fixed"
-    with studio(["studio", str(other), "--port", "0", "--robot", "car7"], tmp_path,
+    with studio(["studio", "--new", str(other), "--port", "0", "--robot", "car7"], tmp_path,
                 mosquitto_broker.url) as proc:
         hello = read_frames(proc.url, lambda f: len(f) >= 1)[0]
         status, _ = _post(proc.url, "new", {"token": hello["edit"]["token"], "name": "mybot"})

@@ -145,7 +145,7 @@ def test_build_the_stop_lane_from_an_empty_folder_save_check_and_sim(
     folder = tmp_path / "models" / "my_robot"  # does not exist yet: the studio offers a starter model
     folder.parent.mkdir()
     errors: list[str] = []
-    with studio(["studio", str(folder), "--port", "0"], tmp_path) as proc:
+    with studio(["studio", "--new", str(folder), "--port", "0"], tmp_path) as proc:
         page = open_page(browser, proc.url, errors)
         form = page.locator("#new-model-form")
         expect(form).to_be_visible()
@@ -229,7 +229,7 @@ def complete_car(folder: Path) -> None:
 
 def test_a_model_created_in_the_page_is_followed_under_its_own_name(browser: Browser, tmp_path: Path) -> None:
     errors: list[str] = []
-    with studio(["studio", str(tmp_path / "newbot"), "--port", "0"], tmp_path) as proc:
+    with studio(["studio", "--new", str(tmp_path / "newbot"), "--port", "0"], tmp_path) as proc:
         page = open_page(browser, proc.url, errors)
         # nothing named yet: no robot name is made up, and there is nothing to undo, save or run
         expect(page.locator("#title")).to_have_text("new model")
@@ -269,7 +269,7 @@ def test_a_decisions_second_output_asks_for_its_guard_instead_of_making_one_up(
         browser: Browser, tmp_path: Path) -> None:
     folder = tmp_path / "bot"
     errors: list[str] = []
-    with studio(["studio", str(folder), "--port", "0"], tmp_path) as proc:
+    with studio(["studio", "--new", str(folder), "--port", "0"], tmp_path) as proc:
         page = open_page(browser, proc.url, errors)
         page.locator('#new-model-form [name="model-name"]').fill("bot")
         page.locator("#new-model").click()
@@ -312,7 +312,7 @@ def test_completions_answered_late_for_older_text_do_not_rewrite_what_was_typed(
     # (it once was, and Enter then spliced the first completion in front of the guard).
     folder = tmp_path / "bot"
     errors: list[str] = []
-    with studio(["studio", str(folder), "--port", "0"], tmp_path) as proc:
+    with studio(["studio", "--new", str(folder), "--port", "0"], tmp_path) as proc:
         page = open_page(browser, proc.url, errors)
         page.locator('#new-model-form [name="model-name"]').fill("bot")
         page.locator("#new-model").click()
@@ -467,7 +467,12 @@ def test_run_drives_the_edited_model_in_the_simulator_and_the_page_follows_it(
         set_value(page, "RaspberryPI", "set_speed", "80")  # an unsaved edit: Run runs the working copy
         page.locator("#track").select_option("corridor")
         page.locator("#run-speed").select_option("1")
+        # Follow turned off by hand (clicking nodes turns it off too) comes back on with Run
+        if page.locator("#follow").get_attribute("aria-pressed") == "true":
+            page.locator("#follow").click()
+        expect(page.locator("#follow")).to_have_attribute("aria-pressed", "false")
         page.locator("#run").click()
+        expect(page.locator("#follow")).to_have_attribute("aria-pressed", "true")
         expect(page.locator('#notice[data-kind="run"]')).to_contain_text("corridor at 1\u00d7")
         expect(page.locator("#sim svg")).to_be_visible()
         expect(page.locator('g.node.active[data-lane="RaspberryPI"]')).to_have_count(1)

@@ -279,7 +279,7 @@ def test_an_empty_folder_shows_the_library_says_why_parts_wait_and_labels_the_na
         browser: Browser, tmp_path: Path) -> None:
     folder = tmp_path / "bot"
     errors: list[str] = []
-    with studio(["studio", str(folder), "--port", "0"], tmp_path) as proc:
+    with studio(["studio", "--new", str(folder), "--port", "0"], tmp_path) as proc:
         proc.wait_line("does not exist yet: the page offers a starter model")  # the terminal says it too
         page = open_page(browser, proc.url, errors)
         palette = page.locator("#palette")

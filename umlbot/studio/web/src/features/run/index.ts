@@ -38,6 +38,7 @@ export function install({ bus, store, api }: Studio): void {
     if (!a) return;
     setRunning(true);
     bus.emit("live.reset");
+    bus.emit("follow.set", true); // a run is to be watched: Follow turned off by clicking comes back on
     bus.request("notice.show", {
       kind: "run",
       text: `Running the edited model in the simulator on ${trackSel.value} at ${speed}× (${speedWords(speed)}).`,
