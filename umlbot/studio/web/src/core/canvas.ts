@@ -72,6 +72,10 @@ export class Canvas {
 
   /** Show the whole diagram; `readable`: when that is too small to read, a readable part from the top. */
   fit(v: DiagramView, readable = true): void {
+    // measured now: the size the observer last said may be older than the page's layout (a
+    // diagram opened at a stale, wider size was cut at the right edge)
+    this.width = this.el.clientWidth || this.width;
+    this.height = this.el.clientHeight || this.height;
     v.view = fitView(this.size(), v, readable);
     this.apply(v);
   }

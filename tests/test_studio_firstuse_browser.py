@@ -1,0 +1,137 @@
+"""What a new user of umlbot studio hit on a laptop (issue 28 §5), read from the drawn page.
+
+Debian's Chromium driven by Playwright at 1 280 × 720: the ⋔ mark of a node that calls an activity
+beside (not over) its figures, the Calls panel's words whole, the component diagram whole, the
+clock the figures are in. Screenshots under out/.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+from playwright.sync_api import Browser, Page, expect
+from robot_run import CAR_MODEL
+from studio_support import chromium, shot, studio
+
+WAIT_MS = 30_000
+
+
+@pytest.fixture(scope="module")
+def browser() -> Iterator[Browser]:
+    with chromium() as launched:
+        yield launched
+
+
+def open_page(browser: Browser, url: str, errors: list[str], width: int = 1280, height: int = 720) -> Page:
+    page = browser.new_page(viewport={"width": width, "height": height})
+    page.on("pageerror", lambda exc: errors.append(str(exc)))
+    page.goto(url)
+    page.set_default_timeout(WAIT_MS)
+    page.wait_for_function("window.__studio && window.__studio.ready === true")
+    return page
+
+
+def show(page: Page, diagram: str) -> None:
+    page.locator(f'#diagram-list [data-diagram="{diagram}"]').click()
+    expect(page.locator(f'svg[data-diagram="{diagram}"]')).to_be_visible()
+
+
+def trace_line(node: str, kind: str, end: float, ms: float, **extra: Any) -> str:
+    event = {"lane": "RaspberryPI", "node": node, "kind": kind, "start": end - ms / 1000, "end": end,
+             "duration_ms": ms, "level": "info", "detail": node, **extra}
+    return json.dumps(event) + "\n"
+
+
+def write_trace(path: Path) -> Path:
+    t0 = 1_800_000_000.0
+    text = trace_line("start", "start", t0, 0.0)
+    for i in range(1, 40):  # a lane call with long figures ("×39 · 123.457 ms · p50 … · p99 …")
+        text += trace_line("stop_step", "action", t0 + i, 100.0 + i * 0.5123, detail="Stop")
+    # feature calls: their rows in the Calls panel (constant arguments, an expression, a value)
+    text += trace_line("look_ahead", "action", t0 + 41, 0.091)
+    text += trace_line("left_power", "action", t0 + 42, 170.25)
+    text += trace_line("ping_ahead", "datastore", t0 + 43, 12.5, value=42)
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+def boxes_overlap(a: dict[str, float], b: dict[str, float]) -> bool:
+    return not (a["x"] + a["width"] <= b["x"] or b["x"] + b["width"] <= a["x"]
+                or a["y"] + a["height"] <= b["y"] or b["y"] + b["height"] <= a["y"])
+
+
+def test_the_call_mark_sits_beside_the_figures_and_the_calls_panel_keeps_words_whole(
+        browser: Browser, tmp_path: Path) -> None:
+    trace = write_trace(tmp_path / "run.jsonl")
+    errors: list[str] = []
+    with studio(["studio", str(CAR_MODEL), "--replay", str(trace), "--port", "0"], tmp_path) as proc:
+        page = open_page(browser, proc.url, errors)
+        show(page, "activity-main")
+        page.locator("#replay-time").evaluate(
+            "(el) => { el.value = el.max; el.dispatchEvent(new Event('input')); }")
+        node = page.locator('g.node.calls[data-lane="RaspberryPI"][data-node="stop_step"]')
+        expect(node).to_have_attribute("data-count", "39")
+        node.scroll_into_view_if_needed()
+        page.evaluate("""() => { const g = document.querySelector(
+            'g.node.calls[data-lane="RaspberryPI"][data-node="stop_step"]');
+            g.closest('g.lane')?.classList.remove('culled'); }""")
+        stats = node.locator("text.stats")
+        expect(stats).to_contain_text("p99")
+        rake = page.evaluate("""() => {
+          const g = document.querySelector('g.node.calls[data-lane="RaspberryPI"][data-node="stop_step"]');
+          const r = g.querySelector('path.rake').getBBox(), s = g.querySelector('text.stats').getBBox();
+          const box = g.querySelector('.shape').getBBox();
+          return { rake: { x: r.x, y: r.y, width: r.width, height: r.height },
+                   stats: { x: s.x, y: s.y, width: s.width, height: s.height },
+                   node: { x: box.x, y: box.y, width: box.width, height: box.height } };
+        }""")
+        assert not boxes_overlap(rake["rake"], rake["stats"]), rake  # "p99 …" is not covered
+        assert rake["stats"]["x"] >= rake["node"]["x"], rake  # and the figures stay in the node
+        # the Calls panel at 1 280 px: each call on one line, a replay's text in words, latencies whole
+        rows = page.locator("#calls tbody tr")
+        expect(rows).to_have_count(3)
+        shot(page, "studio-firstuse-calls-1280.png")
+        cells = page.evaluate("""() => [...document.querySelectorAll('#calls tbody tr')].slice(0, 3).map((tr) =>
+          [...tr.cells].map((td) => {
+            const lines = new Set([...document.createRange().getClientRects ? (() => {
+              const range = document.createRange(); range.selectNodeContents(td);
+              return [...range.getClientRects()].map((r) => Math.round(r.top)); })() : []]);
+            return { cls: td.className.split(' ')[0], text: td.textContent, lines: lines.size,
+                     whole: td.scrollWidth <= td.clientWidth + 1,
+                     inside: td.getBoundingClientRect().right <= innerWidth + 0.5 };
+          }))""")
+        for row in cells:
+            by = {c["cls"]: c for c in row}
+            assert all(c["whole"] and c["inside"] for c in row), row
+            assert by["latency"]["lines"] <= 1 and by["time"]["lines"] <= 1, row
+            # a replay's call text wraps only between words, never inside one
+            words = by["args"]["text"].split()
+            assert by["args"]["lines"] <= len(words), row
+        texts = {c["cls"]: c["text"] for row in cells for c in row}
+        assert "LeftActuator.dutycycle(speed_percent)" in [c["text"] for row in cells for c in row], cells
+        assert texts
+        calls = [c for row in cells for c in row if c["cls"] == "call"]
+        assert all(c["lines"] == 1 for c in calls), calls  # "Sensor.angle", "DistanceRead.value": one line
+        assert errors == [], errors
+        page.close()
+
+
+def test_the_component_diagram_opens_whole_on_a_laptop(browser: Browser, tmp_path: Path) -> None:
+    errors: list[str] = []
+    with studio(["studio", str(CAR_MODEL), "--port", "0"], tmp_path) as proc:
+        page = open_page(browser, proc.url, errors)
+        show(page, "components")
+        canvas = page.locator("#canvas").bounding_box()
+        assert canvas
+        boxes = page.evaluate("""() => [...document.querySelectorAll('svg[data-diagram="components"] g.component')]
+          .map((g) => { const r = g.getBoundingClientRect(); return [g.dataset.component, r.left, r.right]; })""")
+        assert len(boxes) == 5, boxes
+        for name, left, right in boxes:
+            assert canvas["x"] <= left and right <= canvas["x"] + canvas["width"], (name, left, right, canvas)
+        shot(page, "studio-firstuse-components-1280.png")
+        assert errors == [], errors
+        page.close()
