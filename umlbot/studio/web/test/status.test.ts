@@ -41,3 +41,16 @@ test("the broker pill says whose broker, and when it is tried again", () => {
   );
   assert.equal(brokerView({ type: "broker", time: 0, url, connected: false }, false, 0, 0).state, "connecting");
 });
+
+test("a simulated run's broker that closed with the run is said to have ended, not to be lost", () => {
+  const url = "mqtt://127.0.0.1:40000";
+  const ended = brokerView(
+    { type: "broker", time: 0, url, connected: false, problem: null, ended: "the run has ended: the simulator and its broker are closed" },
+    false,
+    0,
+    0,
+  );
+  assert.equal(ended.state, "ended");
+  assert.equal(ended.text, "broker: the run has ended");
+  assert.ok(!ended.text.includes("retrying"));
+});

@@ -119,6 +119,8 @@ export interface MonitorEvent {
   problem?: string | null;
   attempts?: number;
   retry_in_s?: number;
+  /** the broker is gone for good and not retried (why: "the run has ended: …") */
+  ended?: string;
   /** a broker event's origin: "run", the simulator's own broker of a studio Run */
   source?: string;
 }

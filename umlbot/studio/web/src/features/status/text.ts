@@ -54,6 +54,10 @@ export function brokerView(
         : `connected to ${e.url ?? "the broker"}`,
     };
   }
+  if (e.ended) {
+    // a simulated run's broker closed with the run: nothing is wrong, nothing is retried
+    return { state: "ended", text: `${who}: the run has ended`, title: `${e.url ?? "the broker"}: ${e.ended}` };
+  }
   let text = `${who} ${e.url ?? ""}: ${e.problem ?? "connecting…"}`;
   if (e.problem) {
     const left = Math.max(0, Math.ceil((retryAt - now) / 1000));
