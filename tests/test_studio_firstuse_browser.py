@@ -1,6 +1,6 @@
 """What a new user of umlbot studio hit on a laptop (issue 28 §5), read from the drawn page.
 
-Debian's Chromium driven by Playwright at 1 280 × 720: the ⋔ mark of a node that calls an activity
+Debian's Chromium driven by Playwright at 1 280 x 720: the ⋔ mark of a node that calls an activity
 beside (not over) its figures, the Calls panel's words whole, the component diagram whole, the
 clock the figures are in. Screenshots under out/.
 """
@@ -49,7 +49,7 @@ def trace_line(node: str, kind: str, end: float, ms: float, **extra: Any) -> str
 def write_trace(path: Path) -> Path:
     t0 = 1_800_000_000.0
     text = trace_line("start", "start", t0, 0.0)
-    for i in range(1, 40):  # a lane call with long figures ("×39 · 123.457 ms · p50 … · p99 …")
+    for i in range(1, 40):  # a lane call with long figures (39 runs, p50 and p99 of ~110 ms)
         text += trace_line("stop_step", "action", t0 + i, 100.0 + i * 0.5123, detail="Stop")
     # feature calls: their rows in the Calls panel (constant arguments, an expression, a value)
     text += trace_line("look_ahead", "action", t0 + 41, 0.091)
@@ -95,11 +95,11 @@ def test_the_call_mark_sits_beside_the_figures_and_the_calls_panel_keeps_words_w
         rows = page.locator("#calls tbody tr")
         expect(rows).to_have_count(3)
         shot(page, "studio-firstuse-calls-1280.png")
-        cells = page.evaluate("""() => [...document.querySelectorAll('#calls tbody tr')].slice(0, 3).map((tr) =>
+        cells = page.evaluate("""() => [...document.querySelectorAll('#calls tbody tr')].map((tr) =>
           [...tr.cells].map((td) => {
-            const lines = new Set([...document.createRange().getClientRects ? (() => {
-              const range = document.createRange(); range.selectNodeContents(td);
-              return [...range.getClientRects()].map((r) => Math.round(r.top)); })() : []]);
+            const range = document.createRange();
+            range.selectNodeContents(td);
+            const lines = new Set([...range.getClientRects()].map((r) => Math.round(r.top)));
             return { cls: td.className.split(' ')[0], text: td.textContent, lines: lines.size,
                      whole: td.scrollWidth <= td.clientWidth + 1,
                      inside: td.getBoundingClientRect().right <= innerWidth + 0.5 };
@@ -116,6 +116,7 @@ def test_the_call_mark_sits_beside_the_figures_and_the_calls_panel_keeps_words_w
         assert texts
         calls = [c for row in cells for c in row if c["cls"] == "call"]
         assert all(c["lines"] == 1 for c in calls), calls  # "Sensor.angle", "DistanceRead.value": one line
+        expect(page.locator("#clock-note")).to_have_text("⏱ node times: the recorded run's clock")
         assert errors == [], errors
         page.close()
 
@@ -127,8 +128,11 @@ def test_the_component_diagram_opens_whole_on_a_laptop(browser: Browser, tmp_pat
         show(page, "components")
         canvas = page.locator("#canvas").bounding_box()
         assert canvas
-        boxes = page.evaluate("""() => [...document.querySelectorAll('svg[data-diagram="components"] g.component')]
-          .map((g) => { const r = g.getBoundingClientRect(); return [g.dataset.component, r.left, r.right]; })""")
+        boxes = page.evaluate("""() => [...document.querySelectorAll(
+            'svg[data-diagram="components"] g.component')].map((g) => {
+              const r = g.getBoundingClientRect();
+              return [g.dataset.component, r.left, r.right];
+            })""")
         assert len(boxes) == 5, boxes
         for name, left, right in boxes:
             assert canvas["x"] <= left and right <= canvas["x"] + canvas["width"], (name, left, right, canvas)
