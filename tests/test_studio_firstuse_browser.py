@@ -139,3 +139,27 @@ def test_the_component_diagram_opens_whole_on_a_laptop(browser: Browser, tmp_pat
         shot(page, "studio-firstuse-components-1280.png")
         assert errors == [], errors
         page.close()
+
+
+def test_a_progress_indication_shows_until_the_first_diagram_is_drawn(browser: Browser, tmp_path: Path) -> None:
+    errors: list[str] = []
+    with studio(["studio", str(CAR_MODEL), "--port", "0"], tmp_path) as proc:
+        page = browser.new_page(viewport={"width": 1280, "height": 720})
+        page.on("pageerror", lambda exc: errors.append(str(exc)))
+        page.set_default_timeout(WAIT_MS)
+        held: list[Any] = []
+        # the script is held back (a slow machine): the page says it is opening the model meanwhile
+        page.route("**/static/studio.js", lambda route: held.append(route))
+        page.goto(proc.url, wait_until="commit")
+        progress = page.locator("#canvas-progress")
+        expect(progress).to_be_visible()
+        expect(progress).to_contain_text("Opening the model")
+        expect(progress.locator(".spinner")).to_be_visible()
+        page.wait_for_function("() => true")
+        assert held, "the script was asked for"
+        held[0].continue_()
+        page.wait_for_function("window.__studio && window.__studio.ready === true")
+        expect(progress).to_be_hidden()
+        expect(page.locator('svg[data-diagram="activity-main"] g.node').first).to_be_visible()
+        assert errors == [], errors
+        page.close()
