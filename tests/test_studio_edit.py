@@ -1360,3 +1360,23 @@ def test_a_pin_wired_twice_is_said_at_the_setting_with_umlbot_checks_line(car: t
     assert status == 200, answer
     assert [(d["component"], d["field"]) for d in answer["diagnostics"] if "'Pan'" in d["message"]] == [
         ("Pan", "settings.gpio")]
+
+
+def test_set_text_replaces_a_files_whole_text_and_is_undone_like_any_edit(tmp_path: Path) -> None:
+    # the page's text view of a file with a YAML syntax error applies what the person typed
+    root = tmp_path / "car"
+    shutil.copytree(CAR_MODEL, root)
+    measure = root / "activities" / "measure.yaml"
+    good = measure.read_text(encoding="utf-8")
+    measure.write_text(good.replace("kind: start}", "kind: start", 1), encoding="utf-8")
+    ws = Workspace(root)
+    assert any("invalid YAML" in d["message"] for d in ws.answer()["diagnostics"])
+    answer = ws.edit(ws.version, [{"op": "set_text", "file": "activities/measure.yaml", "text": good}])
+    assert answer["compiled"] and answer["diagnostics"] == [], answer["diagnostics"]
+    assert ws.files["activities/measure.yaml"] == good.encode("utf-8")
+    ws.undo()
+    assert "invalid YAML" in ws.answer()["diagnostics"][0]["message"]
+    with pytest.raises(EditError, match="does not exist"):
+        ws.edit(ws.version, [{"op": "set_text", "file": "activities/nothing.yaml", "text": "x"}])
+    with pytest.raises(EditError, match="needs 'text'"):
+        ws.edit(ws.version, [{"op": "set_text", "file": "activities/measure.yaml"}])

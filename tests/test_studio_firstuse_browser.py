@@ -8,6 +8,7 @@ clock the figures are in. Screenshots under out/.
 from __future__ import annotations
 
 import json
+import shutil
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -141,7 +142,8 @@ def test_the_component_diagram_opens_whole_on_a_laptop(browser: Browser, tmp_pat
         page.close()
 
 
-def test_a_progress_indication_shows_until_the_first_diagram_is_drawn(browser: Browser, tmp_path: Path) -> None:
+def test_a_progress_indication_shows_until_the_first_diagram_is_drawn(
+        browser: Browser, tmp_path: Path) -> None:
     errors: list[str] = []
     with studio(["studio", str(CAR_MODEL), "--port", "0"], tmp_path) as proc:
         page = browser.new_page(viewport={"width": 1280, "height": 720})
@@ -161,5 +163,51 @@ def test_a_progress_indication_shows_until_the_first_diagram_is_drawn(browser: B
         page.wait_for_function("window.__studio && window.__studio.ready === true")
         expect(progress).to_be_hidden()
         expect(page.locator('svg[data-diagram="activity-main"] g.node').first).to_be_visible()
+        assert errors == [], errors
+        page.close()
+
+
+def test_a_yaml_syntax_error_shows_the_file_marked_and_its_text_is_fixed_in_the_page(
+        browser: Browser, tmp_path: Path) -> None:
+    folder = tmp_path / "car"
+    shutil.copytree(CAR_MODEL, folder)
+    measure = folder / "activities" / "measure.yaml"
+    good = measure.read_text(encoding="utf-8")
+    lines = good.splitlines(keepends=True)
+    bad_line = next(i for i, line in enumerate(lines) if "{id:" in line) + 1
+    lines[bad_line - 1] = lines[bad_line - 1].replace("}", "", 1)  # a mapping left open
+    measure.write_text("".join(lines), encoding="utf-8")
+    errors: list[str] = []
+    with studio(["studio", str(folder), "--port", "0"], tmp_path) as proc:
+        page = open_page(browser, proc.url, errors)
+        entry = page.locator('#broken-files li[data-file="activities/measure.yaml"] button')
+        expect(entry).to_be_visible()
+        expect(entry).to_contain_text("cannot be read")
+        entry.click()
+        view = page.locator("#text-fix")
+        expect(view).to_be_visible()
+        expect(page.locator("#text-fix-title")).to_have_text("activities/measure.yaml")
+        expect(page.locator("#text-fix-problem")).to_contain_text("line ")
+        text = page.locator("#text-fix-text")
+        assert text.input_value() == "".join(lines)
+        # the marked line is the one the checker names, drawn over that line of the text
+        line = int(view.get_attribute("data-line") or "0")
+        assert line >= bad_line, (line, bad_line)
+        mark = page.locator("#text-fix-mark").bounding_box()
+        area = text.bounding_box()
+        assert mark and area and area["y"] <= mark["y"] <= area["y"] + area["height"], (mark, area)
+        # the caret is on that line
+        caret_line = text.evaluate("(t) => t.value.slice(0, t.selectionStart).split('\\n').length")
+        assert caret_line == line
+        shot(page, "studio-firstuse-yaml-error.png")
+        # fixed in the page: the file reads again, its diagram is back, the text view closes
+        text.fill(good)
+        page.locator("#text-fix-apply").click()
+        expect(view).to_be_hidden()
+        expect(page.locator("#broken-files li")).to_have_count(0)
+        expect(page.locator('#diagram-list [data-diagram="activity-measure"]')).to_be_visible()
+        page.locator("#save").click()
+        expect(page.locator("#save")).to_have_attribute("data-dirty", "false")
+        assert measure.read_text(encoding="utf-8") == good
         assert errors == [], errors
         page.close()

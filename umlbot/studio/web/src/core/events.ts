@@ -64,6 +64,8 @@ export interface StudioEvents {
   "diagnostics.set": (list: Diagnostic[]) => void;
   /** the problems listed now */
   "diagnostics.changed": (list: Diagnostic[]) => void;
+  /** open the text of model file `file` (relative path) that cannot be read as YAML, to fix it */
+  "file.fix": (file: string) => void;
 
   // ---- the view
   "view.fit": () => void;

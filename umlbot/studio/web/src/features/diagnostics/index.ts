@@ -34,7 +34,9 @@ export function install({ bus, store, renderer }: Studio): void {
       } else if (d.lane && store.laneDiagram.has(d.lane)) {
         li.dataset.diagram = store.laneDiagram.get(d.lane)!; // a problem of the lane itself: its diagram
       }
+      if (!at && d.relpath && d.message.startsWith("invalid YAML")) li.dataset.file = d.relpath; // its text opens
       li.addEventListener("click", () => {
+        if (li.dataset.file) bus.emit("file.fix", li.dataset.file);
         if (!li.dataset.diagram) return;
         bus.emit("diagram.select", li.dataset.diagram);
         if (li.dataset.lane && li.dataset.node) bus.emit("view.reveal", li.dataset.lane, li.dataset.node);
