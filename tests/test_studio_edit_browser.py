@@ -483,6 +483,10 @@ def test_run_drives_the_edited_model_in_the_simulator_and_the_page_follows_it(
         page.locator("#stop").click()
         expect(page.locator("#stop")).to_be_disabled()
         expect(page.locator('#notice[data-kind="run-ended"]')).to_be_visible()  # said once, at its end
+        # the terminal: one plain line for the run, no log lines of its services and orchestrator
+        proc.wait_line("umlbot studio: run on corridor at 1x: stopped from the page (")
+        assert [line for line in proc.lines if "run on" in line] == [proc.lines[-1]], proc.lines
+        assert not [line for line in proc.log_text().splitlines() if line.startswith("{")], proc.log_text()
         assert (folder / "activities" / "main.yaml").read_bytes() == (
             CAR_MODEL / "activities" / "main.yaml").read_bytes()
         # the orchestrator's status pill carries its whole text as a tooltip (it may be cut short)

@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from conftest import BrokerProcess
 from playwright.sync_api import Browser, Page, expect
 from robot_run import CAR_MODEL
 from studio_support import chromium, shot, studio
@@ -211,3 +212,38 @@ def test_a_yaml_syntax_error_shows_the_file_marked_and_its_text_is_fixed_in_the_
         assert measure.read_text(encoding="utf-8") == good
         assert errors == [], errors
         page.close()
+
+
+def test_a_motor_stopped_by_its_watchdog_is_marked_on_its_component_and_stays(
+        browser: Browser, mosquitto_broker: BrokerProcess, raw_client: Any, tmp_path: Path) -> None:
+    robot = "stopcar"  # a robot of its own: the broker keeps retained states between tests
+    raw = raw_client(mosquitto_broker)
+    topic = f"umlbot/{robot}/LeftActuator/state"
+    errors: list[str] = []
+    try:
+        with studio(["studio", str(CAR_MODEL), "--port", "0", "--robot", robot], tmp_path,
+                    mosquitto_broker.url) as proc:
+            page = open_page(browser, proc.url, errors)
+            show(page, "components")
+            expect(page.locator("#broker-status")).to_have_text("broker connected")
+            raw.publish(topic, json.dumps({"enabled": False, "clockwise": True, "dutycycle": 70,
+                                           "running": False, "stop_reason": "watchdog"}), retain=True)
+            left = page.locator('g.component[data-component="LeftActuator"]')
+            expect(left).to_have_attribute("data-stop-reason", "watchdog")
+            expect(left.locator("text.state tspan.stop")).to_have_text("⚠ safety stop: watchdog ")
+            right = page.locator('g.component[data-component="RightActuator"]')
+            expect(right).not_to_have_attribute("data-stop-reason", "watchdog")
+            shot(page, "studio-firstuse-safety-stop.png")
+            # a page opened later (after the run) still shows it: it is the motor's retained state
+            again = open_page(browser, proc.url, errors)
+            show(again, "components")
+            expect(again.locator('g.component[data-component="LeftActuator"]')).to_have_attribute(
+                "data-stop-reason", "watchdog")
+            # running again clears it
+            raw.publish(topic, json.dumps({"enabled": True, "running": True, "stop_reason": None}), retain=True)
+            expect(left).not_to_have_attribute("data-stop-reason", "watchdog")
+            assert errors == [], errors
+            again.close()
+            page.close()
+    finally:
+        raw.publish(topic, b"", retain=True)

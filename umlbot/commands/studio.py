@@ -49,10 +49,16 @@ def command(model: Path, broker_url: str | None, ca_file: Path | None, robot: st
     page offers a starter model.
     Runs until Ctrl-C or SIGTERM.
     """
+    from umlbot.base.logs import configure_logging
     from umlbot.services.bus import BrokerSettings, redact_url, resolve_broker_url
     from umlbot.studio.server import StudioServer, StudioThread, check_bind, is_loopback
     from umlbot.studio.sources import RobotFollower, replay_data, studio_data
 
+    # the terminal says what a person needs (the URL, one line per Run, problems); the services
+    # and the orchestrator of a Run log their INFO only when asked for (--log-level)
+    if click.get_current_context().find_root().params.get("log_level") is None and not os.environ.get(
+            "UMLBOT_LOG_LEVEL"):
+        configure_logging("WARNING")
     # a page others can reach is read-only: its write token would be theirs too (docs/studio.md)
     remote = not is_loopback(host)
     check_model_path(model, new_model)
@@ -75,6 +81,7 @@ def command(model: Path, broker_url: str | None, ca_file: Path | None, robot: st
         server = StudioServer(data, host=host, port=port, allow_remote=allow_remote)
         api = EditApi(workspace)
         server.api = api
+        api.on_run_end = click.echo  # one line per Run, as the URL line
         data.edit = api.hello
     else:
         from umlbot.compiler.api import check_model

@@ -154,6 +154,10 @@ export interface RunInfo {
     sim_s?: number;
     distance_m?: number;
     failure?: string | null;
+    /** why the motors stopped before the run's end, in words (null: nothing stopped them) */
+    stood_still?: string | null;
+    /** component -> the safety stop its service made (watchdog, orchestrator unresponsive, …) */
+    safety_stops?: Record<string, string>;
   };
 }
 
