@@ -240,7 +240,8 @@ def test_a_motor_stopped_by_its_watchdog_is_marked_on_its_component_and_stays(
             expect(again.locator('g.component[data-component="LeftActuator"]')).to_have_attribute(
                 "data-stop-reason", "watchdog")
             # running again clears it
-            raw.publish(topic, json.dumps({"enabled": True, "running": True, "stop_reason": None}), retain=True)
+            running = {"enabled": True, "running": True, "stop_reason": None}
+            raw.publish(topic, json.dumps(running), retain=True)
             expect(left).not_to_have_attribute("data-stop-reason", "watchdog")
             assert errors == [], errors
             again.close()
