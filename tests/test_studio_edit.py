@@ -1385,8 +1385,9 @@ def test_set_text_replaces_a_files_whole_text_and_is_undone_like_any_edit(tmp_pa
 def test_a_run_is_told_to_the_terminal_in_one_plain_line_with_why_the_motors_stood_still() -> None:
     from umlbot.studio.run import run_line
 
-    line = run_line("corridor", 2.0, {"reason": "goal", "goal_reached": True, "sim_s": 12.34, "distance_m": 2.5,
-                                      "collisions": 0, "failure": None, "stood_still": None})
+    ended = {"reason": "goal", "goal_reached": True, "sim_s": 12.34, "distance_m": 2.5, "collisions": 0,
+             "failure": None, "stood_still": None}
+    line = run_line("corridor", 2.0, ended)
     assert line == "umlbot studio: run on corridor at 2x: the car reached the goal (12.3 s simulated, 2.50 m)"
     stopped = run_line("s_bend", 1.0, {"reason": "timeout", "sim_s": 60.0, "distance_m": 0.4,
                                        "stood_still": "LeftActuator: watchdog"})
