@@ -139,6 +139,26 @@ def test_the_component_diagram_opens_whole_on_a_laptop(browser: Browser, tmp_pat
         for name, left, right in boxes:
             assert canvas["x"] <= left and right <= canvas["x"] + canvas["width"], (name, left, right, canvas)
         shot(page, "studio-firstuse-components-1280.png")
+        # the five motion lanes do not fit a laptop's canvas readably: the edge says which go on
+        show(page, "activity-motion")
+        right = page.locator("#lanes-right")
+        expect(right).to_be_visible()
+        expect(right).to_contain_text("Stop")
+        off = (right.get_attribute("data-lanes") or "").split(",")
+        heads = page.evaluate("""() => [...document.querySelectorAll(
+            'svg[data-diagram="activity-motion"] g.lane')]
+            .filter((g) => !g.classList.contains('culled')).map((g) => g.dataset.lane)""")
+        assert off and set(off) <= {"MoveForward", "MoveBackward", "TurnLeft", "TurnRight", "Stop"}, off
+        shot(page, "studio-firstuse-motion-1280.png")
+        for _ in range(len(off)):  # each click brings the next lane in; then none is left off
+            right.click()
+        expect(right).to_be_hidden()
+        expect(page.locator("#lanes-left")).to_be_visible()
+        lane = 'svg[data-diagram="activity-motion"] g.lane[data-lane="Stop"] .lane-bg'
+        stop = page.locator(lane).bounding_box()
+        assert stop and stop["x"] + stop["width"] <= canvas["x"] + canvas["width"] + 1, (stop, canvas)
+        expect(page.locator("#follow")).to_have_attribute("aria-pressed", "false")  # moved by hand
+        assert heads, heads
         assert errors == [], errors
         page.close()
 
