@@ -378,7 +378,7 @@ def test_a_bad_guard_shows_the_checkers_message_on_its_node_and_undo_removes_it(
         code, lines = check_lines(copy, tmp_path)
         assert code != 0 and lines
         expected = sorted(line.replace(str(copy), str(folder)) for line in lines)
-        assert sorted(page.locator("#diagnostics li").all_text_contents()) == expected
+        assert sorted(page.locator("#diagnostics li .text").all_text_contents()) == expected
         assert decision.get_attribute("data-message") in expected
         shot(page, "studio-edit-bad-guard.png")
 

@@ -8,6 +8,7 @@ clock the figures are in. Screenshots under out/.
 from __future__ import annotations
 
 import json
+import re
 import shutil
 from collections.abc import Iterator
 from pathlib import Path
@@ -268,3 +269,32 @@ def test_a_motor_stopped_by_its_watchdog_is_marked_on_its_component_and_stays(
             page.close()
     finally:
         raw.publish(topic, b"", retain=True)
+
+
+def test_a_problem_is_said_in_a_modellers_words_with_its_line_one_click_away(
+        browser: Browser, tmp_path: Path) -> None:
+    folder = tmp_path / "car"
+    shutil.copytree(CAR_MODEL, folder)
+    motion = folder / "activities" / "motion.yaml"
+    motion.write_text(motion.read_text(encoding="utf-8").replace("      - {id: end, kind: end}\n", "", 1),
+                      encoding="utf-8")
+    errors: list[str] = []
+    with studio(["studio", str(folder), "--port", "0"], tmp_path) as proc:
+        page = open_page(browser, proc.url, errors)
+        problem = page.locator("#diagnostics li", has_text="needs an end")
+        expect(problem.locator(".plain")).to_have_text("Swimlane MoveForward needs an end: add an end node.")
+        # the checker's own message stays beside it, as `umlbot check` prints it
+        expect(problem.locator(".text")).to_contain_text("error: swimlane 'MoveForward' has no end node")
+        where = problem.locator("button.where")
+        expect(where).to_have_text(re.compile(r"^activities/motion\.yaml:\d+$"))
+        line = int((where.text_content() or "").rsplit(":", 1)[1])
+        where.click()
+        view = page.locator("#text-fix")
+        expect(view).to_be_visible()
+        expect(view).to_have_attribute("data-line", str(line))
+        expect(page.locator("#text-fix-problem")).to_contain_text("needs an end")
+        shot(page, "studio-firstuse-plain-words.png")
+        page.keyboard.press("Escape")
+        expect(view).to_be_hidden()
+        assert errors == [], errors
+        page.close()

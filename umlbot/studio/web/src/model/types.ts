@@ -72,6 +72,8 @@ export interface Diagnostic {
   line: number;
   column: number;
   text: string;
+  /** the message in words a modeller knows (the checker's own is `message`, `text`) */
+  plain?: string;
   relpath?: string;
   lane?: string | null;
   node?: string | null;

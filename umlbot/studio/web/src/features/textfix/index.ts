@@ -1,7 +1,8 @@
 // A model file the compiler cannot read as YAML (a syntax error) is not lost from the page: the
 // sidebar lists it under the diagrams, and its text opens over the canvas with the line of the
 // error marked and the caret at the error; the person fixes the text there and applies it (an
-// edit like any other: undo takes it back, Save writes it).
+// edit like any other: undo takes it back, Save writes it). A problem's `file:line` in the
+// Diagnostics opens any model file so, at that line.
 
 import { $, el } from "../../core/dom";
 import type { Studio } from "../../core/studio";
@@ -18,6 +19,7 @@ export function install({ bus, store }: Studio): void {
   const apply = $<HTMLButtonElement>("#text-fix-apply");
   const close = $<HTMLButtonElement>("#text-fix-close");
   let shown: BrokenFile | null = null;
+  let fixing = false; // the file shown cannot be read (not only a line looked at)
   let broken: BrokenFile[] = [];
 
   /** The marked line's bar follows the text's scrolling (and the gutter with it). */
@@ -35,7 +37,8 @@ export function install({ bus, store }: Studio): void {
     view.dataset.file = b.file;
     view.dataset.line = String(b.line);
     title.textContent = b.file;
-    where.textContent = `line ${b.line}, column ${b.column}: ${b.problem}. Fix the text here, then apply it.`;
+    const fix = broken.some((x) => x.file === b.file) ? " Fix the text here, then apply it." : "";
+    where.textContent = `line ${b.line}, column ${b.column}: ${b.problem.replace(/\.$/, "")}.${fix}`;
     gutter.textContent = lineNumbers(area.value);
     for (const s of gutter.querySelectorAll(".err")) s.classList.remove("err");
     place();
@@ -52,6 +55,7 @@ export function install({ bus, store }: Studio): void {
       return;
     }
     view.hidden = false;
+    fixing = broken.some((x) => x.file === b.file);
     area.value = text;
     markError(b);
     const at = offsetOf(text, b.line, b.column);
@@ -78,7 +82,7 @@ export function install({ bus, store }: Studio): void {
       el("span", { class: "sub" }, btn, `cannot be read: line ${b.line} — fix it here`);
       btn.addEventListener("click", () => void open(b));
     }
-    if (shown) {
+    if (shown && fixing) {
       const still = broken.find((b) => b.file === shown!.file);
       if (still) markError(still);
       else {
@@ -112,8 +116,9 @@ export function install({ bus, store }: Studio): void {
     broken = brokenFiles(list);
     render();
   });
-  bus.on("file.fix", (file) => {
-    const b = broken.find((x) => x.file === file);
-    if (b) void open(b);
+  bus.on("file.show", (file, line = 1, column = 1, problem = "") => {
+    // a file that cannot be read: its first problem; any other: the line asked for
+    const b = broken.find((x) => x.file === file) ?? { file, line, column, problem };
+    void open(b);
   });
 }
