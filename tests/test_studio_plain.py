@@ -25,7 +25,7 @@ def _template(node: ast.expr) -> str | None:
     if isinstance(node, ast.Constant) and isinstance(node.value, str):
         return node.value
     if isinstance(node, ast.JoinedStr):
-        return "".join(v.value if isinstance(v, ast.Constant) else "x1" for v in node.values)
+        return "".join(str(v.value) if isinstance(v, ast.Constant) else "x1" for v in node.values)
     if isinstance(node, ast.BinOp) and isinstance(node.op, ast.Add):
         a, b = _template(node.left), _template(node.right)
         return None if a is None or b is None else a + b
