@@ -298,3 +298,40 @@ def test_a_problem_is_said_in_a_modellers_words_with_its_line_one_click_away(
         expect(view).to_be_hidden()
         assert errors == [], errors
         page.close()
+
+
+def test_a_flow_is_drawn_by_dragging_from_a_nodes_output_port_to_another_node(
+        browser: Browser, tmp_path: Path) -> None:
+    folder = tmp_path / "car"
+    shutil.copytree(CAR_MODEL, folder)
+    errors: list[str] = []
+    with studio(["studio", str(folder), "--port", "0"], tmp_path) as proc:
+        page = open_page(browser, proc.url, errors, 1600, 1000)
+        show(page, "activity-motion")
+        lane = 'svg.diagram g.node[data-lane="MoveForward"]'
+        source = page.locator(f'{lane}[data-node="left_forward"]')
+        target = page.locator(f'{lane}[data-node="left_on"]')
+        skipped = f'svg.diagram g.edge[data-lane="MoveForward"][data-source="left_forward"][data-target="{{}}"]'
+        expect(page.locator(skipped.format("right_forward"))).to_have_count(1)
+        source.hover()
+        port = source.locator("circle.port-out").bounding_box()
+        goal = target.bounding_box()
+        assert port and goal
+        actions = 0
+        page.mouse.move(port["x"] + port["width"] / 2, port["y"] + port["height"] / 2)
+        page.mouse.down()
+        actions += 1
+        page.mouse.move(goal["x"] + goal["width"] / 2, goal["y"] + goal["height"] / 2, steps=8)
+        expect(target).to_have_class(re.compile(r"(^|\s)drop-target(\s|$)"))
+        page.mouse.up()
+        page.wait_for_function("window.__studio.edit.busy === false")
+        # one drag made the flow: left_forward now leads to left_on (its `next`)
+        expect(page.locator(skipped.format("left_on"))).to_have_count(1)
+        expect(page.locator(skipped.format("right_forward"))).to_have_count(0)
+        assert actions == 1
+        page.locator("#save").click()
+        expect(page.locator("#save")).to_have_attribute("data-dirty", "false")
+        text = (folder / "activities" / "motion.yaml").read_text(encoding="utf-8")
+        assert "{id: left_forward, kind: action, call: LeftActuator.direction(true), next: left_on}" in text, text
+        assert errors == [], errors
+        page.close()

@@ -390,6 +390,10 @@ export class Renderer {
       // (14 x 14 units: big enough to see and to click at the zoom a diagram opens at)
       svgEl("path", { class: "rake", d: `M${X(w - 17)},${Y(h - 5)} v-14 M${X(w - 24)},${Y(h - 5)} v-7 h14 v7` }, g);
     }
+    if (n.kind !== "end") {
+      // the output port (edit mode shows it): drag from it to another node to connect them
+      svgEl("circle", { class: "port-out", cx: X(w / 2), cy: Y(h), r: 6 }, g);
+    }
     let value: SVGTextElement | null = null;
     if (n.kind === "datastore") value = svgEl("text", { class: "value", x: X(w / 2), y: Y(47) }, g, "—");
     let stats: SVGTextElement;
