@@ -311,7 +311,8 @@ def test_a_flow_is_drawn_by_dragging_from_a_nodes_output_port_to_another_node(
         lane = 'svg.diagram g.node[data-lane="MoveForward"]'
         source = page.locator(f'{lane}[data-node="left_forward"]')
         target = page.locator(f'{lane}[data-node="left_on"]')
-        skipped = f'svg.diagram g.edge[data-lane="MoveForward"][data-source="left_forward"][data-target="{{}}"]'
+        skipped = ('svg.diagram g.edge[data-lane="MoveForward"][data-source="left_forward"]'
+                   '[data-target="{}"]')
         expect(page.locator(skipped.format("right_forward"))).to_have_count(1)
         source.hover()
         port = source.locator("circle.port-out").bounding_box()
@@ -332,6 +333,7 @@ def test_a_flow_is_drawn_by_dragging_from_a_nodes_output_port_to_another_node(
         page.locator("#save").click()
         expect(page.locator("#save")).to_have_attribute("data-dirty", "false")
         text = (folder / "activities" / "motion.yaml").read_text(encoding="utf-8")
-        assert "{id: left_forward, kind: action, call: LeftActuator.direction(true), next: left_on}" in text, text
+        wired = "{id: left_forward, kind: action, call: LeftActuator.direction(true), next: left_on}"
+        assert wired in text, text
         assert errors == [], errors
         page.close()
