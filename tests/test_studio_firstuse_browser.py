@@ -337,3 +337,38 @@ def test_a_flow_is_drawn_by_dragging_from_a_nodes_output_port_to_another_node(
         assert wired in text, text
         assert errors == [], errors
         page.close()
+
+
+def test_a_palette_item_dropped_onto_a_flow_goes_between_and_enter_adds_after_the_selected(
+        browser: Browser, tmp_path: Path) -> None:
+    folder = tmp_path / "car"
+    shutil.copytree(CAR_MODEL, folder)
+    errors: list[str] = []
+    with studio(["studio", str(folder), "--port", "0"], tmp_path) as proc:
+        page = open_page(browser, proc.url, errors, 1600, 1000)
+        show(page, "activity-motion")
+        flow = 'svg.diagram g.edge[data-lane="MoveForward"][data-source="{}"][data-target="{}"]'
+        hit = page.locator(flow.format("start", "left_forward") + " path.hit").bounding_box()
+        item = page.locator('#palette .item[data-kind="action"]').bounding_box()
+        assert hit and item
+        page.mouse.move(item["x"] + item["width"] / 2, item["y"] + item["height"] / 2)
+        page.mouse.down()
+        page.mouse.move(hit["x"] + hit["width"] / 2, hit["y"] + hit["height"] / 2, steps=10)
+        page.mouse.up()
+        page.wait_for_function("window.__studio.edit.busy === false")
+        # one drag: the new action sits between start and left_forward, wired both ways
+        expect(page.locator(flow.format("start", "action1"))).to_have_count(1)
+        expect(page.locator(flow.format("action1", "left_forward"))).to_have_count(1)
+        expect(page.locator(flow.format("start", "left_forward"))).to_have_count(0)
+        # by keyboard: a node selected, a palette item focused (its focus is seen), Enter
+        page.locator('svg.diagram g.node[data-lane="MoveForward"][data-node="left_on"]').click()
+        store = page.locator('#palette .item[data-kind="datastore"]')
+        store.focus()
+        outline = store.evaluate("(e) => getComputedStyle(e).outlineStyle")
+        assert outline != "none", outline
+        page.keyboard.press("Enter")
+        page.wait_for_function("window.__studio.edit.busy === false")
+        expect(page.locator(flow.format("left_on", "datastore1"))).to_have_count(1)
+        expect(page.locator(flow.format("datastore1", "right_on"))).to_have_count(1)
+        assert errors == [], errors
+        page.close()
