@@ -372,3 +372,33 @@ def test_a_palette_item_dropped_onto_a_flow_goes_between_and_enter_adds_after_th
         expect(page.locator(flow.format("datastore1", "right_on"))).to_have_count(1)
         assert errors == [], errors
         page.close()
+
+
+def test_a_new_lane_starts_wired_and_a_selected_flow_goes_with_delete(
+        browser: Browser, tmp_path: Path) -> None:
+    folder = tmp_path / "car"
+    shutil.copytree(CAR_MODEL, folder)
+    errors: list[str] = []
+    with studio(["studio", str(folder), "--port", "0"], tmp_path) as proc:
+        page = open_page(browser, proc.url, errors, 1600, 1000)
+        page.locator('#palette [name="lane-name"]').fill("Blink")
+        page.locator('#palette [data-action="add-lane"]').click()
+        page.wait_for_function("window.__studio.edit.busy === false")
+        wired = page.locator('svg.diagram g.edge[data-lane="Blink"][data-source="start"][data-target="end"]')
+        expect(wired).to_have_count(1)  # start -> end from the first moment
+        # an action added after the start (selected), then its flow to the end selected and deleted
+        page.locator('svg.diagram g.node[data-lane="Blink"][data-node="start"]').click()
+        page.locator('#palette .item[data-kind="action"]').click()
+        page.wait_for_function("window.__studio.edit.busy === false")
+        flow = page.locator('svg.diagram g.edge[data-lane="Blink"][data-source="action1"][data-target="end"]')
+        expect(flow).to_have_count(1)
+        at = flow.locator("path.hit").evaluate("""(p) => {
+          const m = p.getPointAtLength(p.getTotalLength() / 2), c = p.getScreenCTM();
+          return [m.x * c.a + m.y * c.c + c.e, m.x * c.b + m.y * c.d + c.f]; }""")
+        page.mouse.click(at[0], at[1])
+        expect(flow).to_have_class(re.compile(r"(^|\s)selected(\s|$)"))
+        page.keyboard.press("Delete")
+        page.wait_for_function("window.__studio.edit.busy === false")
+        expect(flow).to_have_count(0)
+        assert errors == [], errors
+        page.close()
