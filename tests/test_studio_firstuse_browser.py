@@ -119,7 +119,7 @@ def test_the_call_mark_sits_beside_the_figures_and_the_calls_panel_keeps_words_w
         assert texts
         calls = [c for row in cells for c in row if c["cls"] == "call"]
         assert all(c["lines"] == 1 for c in calls), calls  # "Sensor.angle", "DistanceRead.value": one line
-        expect(page.locator("#clock-note")).to_have_text("⏱ node times: the recorded run's clock")
+        expect(page.locator("#clock-note")).to_have_text("node times: the recorded run's clock")
         assert errors == [], errors
         page.close()
 
@@ -400,5 +400,45 @@ def test_a_new_lane_starts_wired_and_a_selected_flow_goes_with_delete(
         page.keyboard.press("Delete")
         page.wait_for_function("window.__studio.edit.busy === false")
         expect(flow).to_have_count(0)
+        assert errors == [], errors
+        page.close()
+
+
+def test_the_running_node_off_the_canvas_is_marked_on_its_edge(browser: Browser, tmp_path: Path) -> None:
+    trace = write_trace(tmp_path / "run.jsonl")
+    errors: list[str] = []
+    with studio(["studio", str(CAR_MODEL), "--replay", str(trace), "--port", "0"], tmp_path) as proc:
+        page = open_page(browser, proc.url, errors)
+        show(page, "activity-main")
+        slider = page.locator("#replay-time")
+
+        def scrub(to: str) -> None:
+            slider.evaluate(f"(el) => {{ el.value = {to}; el.dispatchEvent(new Event('input')); }}")
+
+        scrub("el.max")
+        marker = page.locator("#running-marker")
+        expect(marker).to_be_hidden()  # followed: in view
+        canvas = page.locator("#canvas").bounding_box()
+        assert canvas
+        # panned by hand far from it: Follow goes off, and the edge says where the robot is
+        page.keyboard.press("l")
+        x, y = canvas["x"] + 300, canvas["y"] + 60
+        for _ in range(4):  # (within the window: the page gets every move)
+            page.mouse.move(x, y)
+            page.mouse.down()
+            page.mouse.move(x + 20, y + 500, steps=5)
+            page.mouse.up()
+        expect(page.locator("#follow")).to_have_attribute("aria-pressed", "false")
+        scrub("el.max - 0.5")
+        scrub("el.max")
+        expect(page.locator('g.node.active[data-lane="RaspberryPI"]')).to_have_attribute("data-node", "ping_ahead")
+        expect(marker).to_be_visible()
+        expect(marker).to_have_text(re.compile(r"^[↑↓←→] running: ping_ahead$"))
+        box = marker.bounding_box()
+        assert box and canvas["y"] <= box["y"] <= canvas["y"] + canvas["height"], (box, canvas)
+        shot(page, "studio-firstuse-running-marker.png")
+        marker.click()  # follows again: the node is shown, the marker goes
+        expect(page.locator("#follow")).to_have_attribute("aria-pressed", "true")
+        expect(marker).to_be_hidden()
         assert errors == [], errors
         page.close()

@@ -32,6 +32,11 @@ test("the lanes mostly off the canvas are named at the edge they are off, neares
     shown.left.map((s) => s.name),
     ["MoveForward"],
   );
+  // one lane wider than the canvas, filling it: it is not "off"
+  assert.deepEqual(offside([{ name: "RaspberryPI", x: 0, w: 1600 }], { x: -700, y: 0, k: 1 }, 750), {
+    left: [],
+    right: [],
+  });
   // all of it in view: nothing to say
   assert.deepEqual(offside(lanes, { x: 0, y: 0, k: 0.38 }, 750), { left: [], right: [] });
 });

@@ -27,7 +27,7 @@ export function offside(spans: Span[], view: View, W: number): Offside {
     const a = view.x + s.x * view.k;
     const b = a + s.w * view.k;
     const shown = Math.max(0, Math.min(b, W) - Math.max(a, 0));
-    if (shown >= SHOWN_PART * (b - a)) continue;
+    if (shown >= SHOWN_PART * Math.min(b - a, W)) continue; // (a lane wider than the canvas: half the canvas)
     if ((a + b) / 2 < W / 2) left.push(s);
     else right.push(s);
   }

@@ -73,7 +73,7 @@ export function brokerView(
 export function clockNote(mode: "live" | "replay", sim: boolean): { text: string; title: string } {
   if (mode === "replay") {
     return {
-      text: "⏱ node times: the recorded run's clock",
+      text: "node times: the recorded run's clock",
       title:
         "The durations under the nodes and the Calls panel's latencies are those the trace recorded: " +
         "simulated time when it was recorded in the simulator, the robot's clock otherwise.",
@@ -81,7 +81,7 @@ export function clockNote(mode: "live" | "replay", sim: boolean): { text: string
   }
   if (sim) {
     return {
-      text: "⏱ node times: simulated time · calls: wall clock",
+      text: "node times: simulated time · calls: wall clock",
       title:
         "The durations under the nodes are the simulated car's time, the same at any run speed: a call " +
         "to a simulated part takes none of it (0 ms), a msleep(1500) takes 1.5 s. The Calls panel's " +
@@ -89,7 +89,7 @@ export function clockNote(mode: "live" | "replay", sim: boolean): { text: string
     };
   }
   return {
-    text: "⏱ node times: the robot's clock · calls: wall clock",
+    text: "node times: the robot's clock · calls: wall clock",
     title:
       "The durations under the nodes come from the robot's own trace (start to end of each node); the " +
       "Calls panel's latencies are wall-clock milliseconds, as the studio saw each request and its reply.",
