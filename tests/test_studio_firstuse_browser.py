@@ -443,3 +443,35 @@ def test_the_running_node_off_the_canvas_is_marked_on_its_edge(browser: Browser,
         expect(marker).to_be_hidden()
         assert errors == [], errors
         page.close()
+
+
+def test_crossings_and_label_problems_after_edits_equal_those_after_a_reload(
+        browser: Browser, tmp_path: Path) -> None:
+    folder = tmp_path / "car"
+    shutil.copytree(CAR_MODEL, folder)
+    errors: list[str] = []
+    with studio(["studio", str(folder), "--port", "0"], tmp_path) as proc:
+        page = open_page(browser, proc.url, errors, 1600, 1000)
+        show(page, "activity-main")
+
+        def quality() -> dict[str, int]:
+            page.wait_for_function("window.__studio.quality('activity-main') !== null")
+            result: dict[str, int] = page.evaluate("window.__studio.quality('activity-main')")
+            return result
+
+        opened = quality()
+        assert opened["flows"] > 100, opened
+        print("QUALITY activity-main at opening:", opened)
+        # a scripted sequence of edits: a value changed twice
+        for value in ("80", "75"):
+            page.locator('svg.diagram g.node[data-lane="RaspberryPI"][data-node="set_speed"]').click()
+            page.locator('#props input[name="value"]').fill(value)
+            page.locator('#props input[name="value"]').press("Enter")
+            page.wait_for_function("window.__studio.edit.busy === false")
+        edited = quality()
+        page.reload()
+        page.wait_for_function("window.__studio && window.__studio.ready === true")
+        show(page, "activity-main")
+        assert quality() == edited == opened, (opened, edited)
+        assert errors == [], errors
+        page.close()

@@ -6,6 +6,7 @@ import { $ } from "../../core/dom";
 import { wheelZoom, zoomedAt } from "../../core/geometry";
 import type { Studio } from "../../core/studio";
 import { installEdges } from "./edges";
+import { measureQuality } from "./quality";
 import { reveal } from "./reveal";
 
 const CLICK_SLOP_PX = 3;
@@ -23,6 +24,10 @@ export function install(studio: Studio): void {
   bus.on("view.fit", fit);
   bus.on("view.reveal", (lane, node) => reveal(studio, lane, node));
   hooks.reveal = (lane, node) => reveal(studio, lane, node);
+  hooks.quality = (id) => {
+    const v = canvas.views.get(id);
+    return v ? measureQuality(v.viewport) : null;
+  };
 
   el.addEventListener(
     "wheel",
