@@ -475,3 +475,28 @@ def test_crossings_and_label_problems_after_edits_equal_those_after_a_reload(
         assert quality() == edited == opened, (opened, edited)
         assert errors == [], errors
         page.close()
+
+
+AXE = (Path(__file__).resolve().parent.parent / "umlbot" / "studio" / "web" / "node_modules" / "axe-core"
+       / "axe.min.js")
+
+
+def test_no_serious_or_critical_accessibility_violations(browser: Browser, tmp_path: Path) -> None:
+    # axe-core (an npm devDependency of the page, installed by `make web`), injected by Playwright
+    assert AXE.is_file(), "run `make web` (npm ci) first: axe-core is a devDependency of the page"
+    folder = tmp_path / "car"
+    shutil.copytree(CAR_MODEL, folder)
+    errors: list[str] = []
+    with studio(["studio", str(folder), "--port", "0"], tmp_path) as proc:
+        page = open_page(browser, proc.url, errors)
+        page.add_script_tag(path=str(AXE))
+        found: list[str] = []
+        for diagram in ("activity-main", "components"):
+            show(page, diagram)
+            result = page.evaluate("() => axe.run(document, {resultTypes: ['violations']})")
+            found += [f"{diagram}: {v['impact']} {v['id']}: {v['help']} "
+                      f"{[n['target'] for n in v['nodes'][:3]]}"
+                      for v in result["violations"] if v["impact"] in ("serious", "critical")]
+        assert found == [], "\n".join(found)
+        assert errors == [], errors
+        page.close()

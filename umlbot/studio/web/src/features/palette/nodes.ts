@@ -57,7 +57,11 @@ export function drawNodes(studio: Studio, p: HTMLElement, m: ModelView, choice: 
   const dl = el("datalist", { id: "lane-options" }, form);
   const used = new Set(m.diagrams.flatMap((d) => d.lanes.map((l) => l.name)));
   for (const c of m.components) if (!used.has(c.name)) el("option", { value: c.name }, dl);
-  const file = el("select", { name: "lane-file", title: "where the lane is written" }, form);
+  const file = el(
+    "select",
+    { name: "lane-file", title: "where the lane is written", "aria-label": "file of the new swimlane" },
+    form,
+  );
   el("option", { value: "" }, file, "in a new file");
   // only the files a lane can be added to (the server says which: a `lanes:` list)
   for (const f of edit.info.lane_files ?? []) el("option", { value: f }, file, `in ${f}`);
