@@ -176,7 +176,7 @@ def main() -> int:
 def shoot(browser: Browser, work: Path, broker_url: str, out: Path) -> int:
     """The tutorial in `work`, its screenshots into `out`; 1 when the page reported an error."""
     errors: list[str] = []
-    with studio(["studio", "my_robot", "--port", "0"], work, broker_url=broker_url) as proc:
+    with studio(["studio", "--new", "my_robot", "--port", "0"], work, broker_url=broker_url) as proc:
         page = browser.new_page(viewport={"width": WIDTH, "height": HEIGHT})
         page.on("pageerror", lambda exc: errors.append(str(exc)))
         page.goto(proc.url)

@@ -452,6 +452,16 @@ def test_a_page_opened_after_a_sim_run_draws_where_the_run_ended(browser: Browse
         assert where is not None
         assert math.hypot(float(where[1]) - x0, float(where[2]) - y0) > 0.5
         assert page.locator("#sim .ping").count() > 0
+        # the figures say their clock: the nodes' simulated time (0 ms for a call), the calls' wall clock
+        expect(page.locator("#clock-note")).to_have_text("node times: simulated time · calls: wall clock")
+        clock = page.locator("#clock-note")
+        expect(clock).to_have_attribute("title", re.compile(r"takes none of it \(0 ms\)"))
+        # a good run's broker closed with the run: the toolbar says the run ended, not red "lost"
+        pill = page.locator("#broker-status")
+        expect(pill).to_have_attribute("data-state", "ended")
+        expect(pill).to_have_text("broker: the run has ended")
+        page.wait_for_timeout(1500)  # and stays so (nothing is retried)
+        expect(pill).to_have_attribute("data-state", "ended")
         page.close()
     finally:
         proc.stop()

@@ -131,7 +131,7 @@ def test_new_nodes_show_what_is_written_and_lanes_go_only_where_a_lane_list_is(
         browser: Browser, tmp_path: Path) -> None:
     errors: list[str] = []
     lane = "RaspberryPI"
-    with studio(["studio", str(tmp_path / "bot"), "--port", "0"], tmp_path) as proc:
+    with studio(["studio", "--new", str(tmp_path / "bot"), "--port", "0"], tmp_path) as proc:
         page = open_page(browser, proc.url, errors)
         new_model(page, "bot")
         show(page, "activity-main")
@@ -186,7 +186,7 @@ def test_new_nodes_show_what_is_written_and_lanes_go_only_where_a_lane_list_is(
 def test_a_link_added_in_the_page_goes_around_the_components_and_keeps_the_port_labels_readable(
         browser: Browser, tmp_path: Path) -> None:
     errors: list[str] = []
-    with studio(["studio", str(tmp_path / "buggy"), "--port", "0"], tmp_path) as proc:
+    with studio(["studio", "--new", str(tmp_path / "buggy"), "--port", "0"], tmp_path) as proc:
         page = open_page(browser, proc.url, errors)
         new_model(page, "buggy")
         show(page, "components")
@@ -217,7 +217,7 @@ def test_a_dragged_node_and_nodes_added_after_it_never_overlap_and_no_flow_runs_
         browser: Browser, tmp_path: Path) -> None:
     errors: list[str] = []
     lane = "RaspberryPI"
-    with studio(["studio", str(tmp_path / "buggy"), "--port", "0"], tmp_path) as proc:
+    with studio(["studio", "--new", str(tmp_path / "buggy"), "--port", "0"], tmp_path) as proc:
         page = open_page(browser, proc.url, errors)
         new_model(page, "buggy")
         show(page, "activity-main")

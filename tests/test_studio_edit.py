@@ -729,7 +729,7 @@ def test_a_plugins_part_gets_its_settings_from_its_hardware_driver(car: tuple[Pa
 
 def test_studio_on_a_new_folder_offers_and_writes_the_starter(tmp_path: Path) -> None:
     folder = tmp_path / "my_robot"
-    with studio(["studio", str(folder), "--port", "0"], tmp_path) as proc:
+    with studio(["studio", "--new", str(folder), "--port", "0"], tmp_path) as proc:
         # the terminal says there is no model there yet and what the page offers
         proc.wait_line("offers a starter model")
         said = f"umlbot studio: {folder} does not exist yet: the page offers a starter model"
@@ -761,7 +761,7 @@ def test_the_robot_followed_is_the_models_name_once_it_is_created_or_renamed(
     # in the studio is followed under its own name from then on, and the page is told
     raw = raw_client(mosquitto_broker)
     folder = tmp_path / "newbot"
-    with studio(["studio", str(folder), "--port", "0"], tmp_path, mosquitto_broker.url) as proc:
+    with studio(["studio", "--new", str(folder), "--port", "0"], tmp_path, mosquitto_broker.url) as proc:
         hello = read_frames(proc.url, lambda f: len(f) >= 1)[0]
         assert hello["robot"] == "car"  # nothing to name it after yet
         token = hello["edit"]["token"]
@@ -793,7 +793,7 @@ def test_the_robot_followed_is_the_models_name_once_it_is_created_or_renamed(
         assert read_frames(proc.url, lambda f: len(f) >= 1)[0]["robot"] == "otherbot"
     # a robot id given with --robot stays
     other = tmp_path / "fixed"
-    with studio(["studio", str(other), "--port", "0", "--robot", "car7"], tmp_path,
+    with studio(["studio", "--new", str(other), "--port", "0", "--robot", "car7"], tmp_path,
                 mosquitto_broker.url) as proc:
         hello = read_frames(proc.url, lambda f: len(f) >= 1)[0]
         status, _ = _post(proc.url, "new", {"token": hello["edit"]["token"], "name": "mybot"})
@@ -1360,3 +1360,37 @@ def test_a_pin_wired_twice_is_said_at_the_setting_with_umlbot_checks_line(car: t
     assert status == 200, answer
     assert [(d["component"], d["field"]) for d in answer["diagnostics"] if "'Pan'" in d["message"]] == [
         ("Pan", "settings.gpio")]
+
+
+def test_set_text_replaces_a_files_whole_text_and_is_undone_like_any_edit(tmp_path: Path) -> None:
+    # the page's text view of a file with a YAML syntax error applies what the person typed
+    root = tmp_path / "car"
+    shutil.copytree(CAR_MODEL, root)
+    measure = root / "activities" / "measure.yaml"
+    good = measure.read_text(encoding="utf-8")
+    measure.write_text(good.replace("kind: start}", "kind: start", 1), encoding="utf-8")
+    ws = Workspace(root)
+    assert any("invalid YAML" in d["message"] for d in ws.answer()["diagnostics"])
+    answer = ws.edit(ws.version, [{"op": "set_text", "file": "activities/measure.yaml", "text": good}])
+    assert answer["compiled"] and answer["diagnostics"] == [], answer["diagnostics"]
+    assert ws.files["activities/measure.yaml"] == good.encode("utf-8")
+    ws.undo()
+    assert "invalid YAML" in ws.answer()["diagnostics"][0]["message"]
+    with pytest.raises(EditError, match="does not exist"):
+        ws.edit(ws.version, [{"op": "set_text", "file": "activities/nothing.yaml", "text": "x"}])
+    with pytest.raises(EditError, match="needs 'text'"):
+        ws.edit(ws.version, [{"op": "set_text", "file": "activities/measure.yaml"}])
+
+
+def test_a_run_is_told_to_the_terminal_in_one_plain_line_with_why_the_motors_stood_still() -> None:
+    from umlbot.studio.run import run_line
+
+    ended = {"reason": "goal", "goal_reached": True, "sim_s": 12.34, "distance_m": 2.5, "collisions": 0,
+             "failure": None, "stood_still": None}
+    line = run_line("corridor", 2.0, ended)
+    assert line == "umlbot studio: run on corridor at 2x: the car reached the goal (12.3 s simulated, 2.50 m)"
+    stopped = run_line("s_bend", 1.0, {"reason": "timeout", "sim_s": 60.0, "distance_m": 0.4,
+                                       "stood_still": "LeftActuator: watchdog"})
+    assert stopped.endswith("time is up: the goal was not reached (60.0 s simulated, 0.40 m); "
+                            "motors stopped: LeftActuator: watchdog")
+    assert "\n" not in stopped

@@ -145,7 +145,7 @@ def test_build_the_stop_lane_from_an_empty_folder_save_check_and_sim(
     folder = tmp_path / "models" / "my_robot"  # does not exist yet: the studio offers a starter model
     folder.parent.mkdir()
     errors: list[str] = []
-    with studio(["studio", str(folder), "--port", "0"], tmp_path) as proc:
+    with studio(["studio", "--new", str(folder), "--port", "0"], tmp_path) as proc:
         page = open_page(browser, proc.url, errors)
         form = page.locator("#new-model-form")
         expect(form).to_be_visible()
@@ -229,7 +229,7 @@ def complete_car(folder: Path) -> None:
 
 def test_a_model_created_in_the_page_is_followed_under_its_own_name(browser: Browser, tmp_path: Path) -> None:
     errors: list[str] = []
-    with studio(["studio", str(tmp_path / "newbot"), "--port", "0"], tmp_path) as proc:
+    with studio(["studio", "--new", str(tmp_path / "newbot"), "--port", "0"], tmp_path) as proc:
         page = open_page(browser, proc.url, errors)
         # nothing named yet: no robot name is made up, and there is nothing to undo, save or run
         expect(page.locator("#title")).to_have_text("new model")
@@ -269,7 +269,7 @@ def test_a_decisions_second_output_asks_for_its_guard_instead_of_making_one_up(
         browser: Browser, tmp_path: Path) -> None:
     folder = tmp_path / "bot"
     errors: list[str] = []
-    with studio(["studio", str(folder), "--port", "0"], tmp_path) as proc:
+    with studio(["studio", "--new", str(folder), "--port", "0"], tmp_path) as proc:
         page = open_page(browser, proc.url, errors)
         page.locator('#new-model-form [name="model-name"]').fill("bot")
         page.locator("#new-model").click()
@@ -312,7 +312,7 @@ def test_completions_answered_late_for_older_text_do_not_rewrite_what_was_typed(
     # (it once was, and Enter then spliced the first completion in front of the guard).
     folder = tmp_path / "bot"
     errors: list[str] = []
-    with studio(["studio", str(folder), "--port", "0"], tmp_path) as proc:
+    with studio(["studio", "--new", str(folder), "--port", "0"], tmp_path) as proc:
         page = open_page(browser, proc.url, errors)
         page.locator('#new-model-form [name="model-name"]').fill("bot")
         page.locator("#new-model").click()
@@ -378,7 +378,7 @@ def test_a_bad_guard_shows_the_checkers_message_on_its_node_and_undo_removes_it(
         code, lines = check_lines(copy, tmp_path)
         assert code != 0 and lines
         expected = sorted(line.replace(str(copy), str(folder)) for line in lines)
-        assert sorted(page.locator("#diagnostics li").all_text_contents()) == expected
+        assert sorted(page.locator("#diagnostics li .text").all_text_contents()) == expected
         assert decision.get_attribute("data-message") in expected
         shot(page, "studio-edit-bad-guard.png")
 
@@ -467,7 +467,12 @@ def test_run_drives_the_edited_model_in_the_simulator_and_the_page_follows_it(
         set_value(page, "RaspberryPI", "set_speed", "80")  # an unsaved edit: Run runs the working copy
         page.locator("#track").select_option("corridor")
         page.locator("#run-speed").select_option("1")
+        # Follow turned off by hand (clicking nodes turns it off too) comes back on with Run
+        if page.locator("#follow").get_attribute("aria-pressed") == "true":
+            page.locator("#follow").click()
+        expect(page.locator("#follow")).to_have_attribute("aria-pressed", "false")
         page.locator("#run").click()
+        expect(page.locator("#follow")).to_have_attribute("aria-pressed", "true")
         expect(page.locator('#notice[data-kind="run"]')).to_contain_text("corridor at 1\u00d7")
         expect(page.locator("#sim svg")).to_be_visible()
         expect(page.locator('g.node.active[data-lane="RaspberryPI"]')).to_have_count(1)
@@ -478,6 +483,10 @@ def test_run_drives_the_edited_model_in_the_simulator_and_the_page_follows_it(
         page.locator("#stop").click()
         expect(page.locator("#stop")).to_be_disabled()
         expect(page.locator('#notice[data-kind="run-ended"]')).to_be_visible()  # said once, at its end
+        # the terminal: one plain line for the run, no log lines of its services and orchestrator
+        proc.wait_line("umlbot studio: run on corridor at 1x: stopped from the page (")
+        assert [line for line in proc.lines if "run on" in line] == [proc.lines[-1]], proc.lines
+        assert not [line for line in proc.log_text().splitlines() if line.startswith("{")], proc.log_text()
         assert (folder / "activities" / "main.yaml").read_bytes() == (
             CAR_MODEL / "activities" / "main.yaml").read_bytes()
         # the orchestrator's status pill carries its whole text as a tooltip (it may be cut short)

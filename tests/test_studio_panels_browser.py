@@ -244,7 +244,7 @@ def test_a_pin_wired_twice_and_a_builtins_name_are_said_at_their_fields_as_umlbo
         expect(at_field).to_have_text(line)
         expect(at_field).to_be_in_viewport()  # the panel shows it (it was scrolled to its Apply button)
         expect(page.locator('#props [name="setting-in1"]')).to_have_attribute("aria-invalid", "true")
-        assert line in page.locator("#diagnostics li").all_text_contents()
+        assert line in page.locator("#diagnostics li .text").all_text_contents()
         shot(page, "studio-shared-pin.png")
         page.keyboard.press("Control+z")
         settled(page)
@@ -279,7 +279,7 @@ def test_an_empty_folder_shows_the_library_says_why_parts_wait_and_labels_the_na
         browser: Browser, tmp_path: Path) -> None:
     folder = tmp_path / "bot"
     errors: list[str] = []
-    with studio(["studio", str(folder), "--port", "0"], tmp_path) as proc:
+    with studio(["studio", "--new", str(folder), "--port", "0"], tmp_path) as proc:
         proc.wait_line("does not exist yet: the page offers a starter model")  # the terminal says it too
         page = open_page(browser, proc.url, errors)
         palette = page.locator("#palette")

@@ -222,7 +222,7 @@ def test_a_studio_others_can_reach_is_read_only(tmp_path: Path) -> None:
         assert "read-only: the page can be reached from other machines" in proc.log_text()
     assert {p: p.read_bytes() for p in folder.rglob("*") if p.is_file()} == before
     # and a new model cannot be started there
-    result = subprocess.run(umlbot_argv("studio", str(tmp_path / "new"), "--host", "0.0.0.0",
+    result = subprocess.run(umlbot_argv("studio", "--new", str(tmp_path / "new"), "--host", "0.0.0.0",
                                         "--allow-remote", "--port", "0"),
                             capture_output=True, text=True, timeout=60, check=False)
     assert result.returncode == 2 and "needs a loopback --host" in result.stderr, result.stderr
@@ -330,10 +330,42 @@ def test_a_host_name_that_does_not_resolve_is_one_line_without_the_port_hint(tmp
 
 
 def test_a_missing_model_is_a_usage_error(tmp_path: Path) -> None:
-    # (a missing folder whose parent exists is a new model: tests/test_studio_edit.py)
+    # (a new model is asked for with --new: tests/test_studio_edit.py)
     result = subprocess.run(umlbot_argv("studio", str(tmp_path / "no" / "nothing")), capture_output=True,
                             text=True, timeout=60, check=False)
     assert result.returncode == 2 and "does not exist" in result.stderr
+    result = subprocess.run(umlbot_argv("studio", "--new", str(tmp_path / "no" / "nothing")),
+                            capture_output=True, text=True, timeout=60, check=False)
+    assert result.returncode == 2 and "needs an existing parent folder" in result.stderr, result.stderr
+
+
+def run_studio_briefly(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(umlbot_argv("studio", *args, "--port", "0"), capture_output=True, text=True,
+                          timeout=60, check=False)
+
+
+def test_a_path_that_is_no_model_is_an_error_that_says_how_to_start_a_new_model(tmp_path: Path) -> None:
+    # a typo of a model folder: not a new model there, but the folder meant, and how to ask for one
+    models = tmp_path / "models"
+    shutil.copytree(CAR_MODEL, models / "robot_car")
+    result = run_studio_briefly(str(models / "robot_cr"))
+    assert result.returncode == 2, result.stderr
+    assert f"did you mean {models / 'robot_car'}?" in result.stderr, result.stderr
+    assert f"umlbot studio --new {models / 'robot_cr'}" in result.stderr, result.stderr
+    assert not (models / "robot_cr").exists()
+    # a file that is no model (README.md) is not served as a model with one error
+    readme = tmp_path / "README.md"
+    readme.write_text("# hello\n", encoding="utf-8")
+    result = run_studio_briefly(str(readme))
+    assert result.returncode == 2 and "is not a model" in result.stderr, result.stderr
+    # a folder holding other things (the repository's root)
+    (tmp_path / "notes.txt").write_text("x", encoding="utf-8")
+    result = run_studio_briefly(str(tmp_path))
+    assert result.returncode == 2 and "holds no model" in result.stderr, result.stderr
+    assert f"umlbot studio --new {tmp_path}" in result.stderr, result.stderr
+    # --new on a model refuses rather than hide it
+    result = run_studio_briefly("--new", str(models / "robot_car"))
+    assert result.returncode == 2 and "already holds a model" in result.stderr, result.stderr
 
 
 def test_a_page_opened_after_a_sim_run_gets_its_last_world(tmp_path: Path) -> None:

@@ -60,6 +60,9 @@ class LazyGroup(click.Group):
 
 
 LOG_LEVELS = ("DEBUG", "INFO", "WARNING", "ERROR")
+#: commands a person runs and reads: their logs are plain sentences on any stderr, JSON only when
+#: asked for (--log-json); the services' and the orchestrator's stay JSON when not on a terminal.
+PERSON_COMMANDS = frozenset({"check", "compile", "render", "sim", "studio"})
 
 
 def _log_level_option(**kwargs: Any) -> click.Option:
@@ -70,7 +73,8 @@ def _log_level_option(**kwargs: Any) -> click.Option:
 
 def _log_json_option(**kwargs: Any) -> click.Option:
     return click.Option(["--log-json/--no-log-json"], default=None,
-                        help="JSON log lines (default: when not a terminal).", **kwargs)
+                        help="JSON log lines (default: when not a terminal, except for check, compile, "
+                        "render, sim and studio: plain sentences; env UMLBOT_LOG_JSON=1).", **kwargs)
 
 
 def _remember(ctx: click.Context, param: click.Parameter, value: Any) -> None:
@@ -92,7 +96,8 @@ def with_log_options(command: click.Command) -> click.Command:
         @functools.wraps(original)
         def run(*args: Any, **kwargs: Any) -> Any:
             root = click.get_current_context().find_root()
-            configure_logging(root.params.get("log_level"), root.params.get("log_json"))
+            configure_logging(root.params.get("log_level"), root.params.get("log_json"),
+                              person=command.name in PERSON_COMMANDS)
             return original(*args, **kwargs)
 
         command.callback = run

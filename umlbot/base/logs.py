@@ -1,4 +1,5 @@
-"""Logging, configured once: human-readable on a terminal, JSON lines otherwise."""
+"""Logging, configured once: human-readable on a terminal, JSON lines otherwise (plain sentences for
+a command a person runs, unless JSON is asked for)."""
 
 from __future__ import annotations
 
@@ -23,10 +24,27 @@ import structlog  # noqa: E402  # already imported, lean
 _configured = False
 
 
-def configure_logging(level: str | None = None, json: bool | None = None) -> None:
+def plain_sentence(logger: Any, method: str, event: dict[str, Any]) -> str:
+    """A log event as a person reads it on a stderr that is not a terminal (under `make`, in an
+    editor's console): `warning: default broker port taken, using a free one (port 1883, …)` —
+    no timestamp, no logger name, no colour codes."""
+    level = str(event.pop("level", method))
+    message = str(event.pop("event", ""))
+    for key in ("timestamp", "logger", "logger_name"):
+        event.pop(key, None)
+    rest = event.pop("exception", None)
+    details = ", ".join(f"{key} {value}" for key, value in event.items())
+    line = f"{level}: {message}" + (f" ({details})" if details else "")
+    return f"{line}\n{rest}" if rest else line
+
+
+def configure_logging(level: str | None = None, json: bool | None = None, person: bool = False) -> None:
     """Configure structlog and the stdlib root logger; later calls only change the level.
 
-    `level` defaults to `UMLBOT_LOG_LEVEL` or INFO; `json` defaults to "stderr is not a terminal".
+    `level` defaults to `UMLBOT_LOG_LEVEL` or INFO; `json` defaults to "stderr is not a terminal",
+    except for a command a person runs (`person`: `umlbot sim`, `umlbot studio`, …), whose logs
+    are JSON only when asked for (`--log-json`, `UMLBOT_LOG_JSON=1`): on a stderr that is not a
+    terminal they are plain sentences (`plain_sentence`).
     """
     global _configured
     level_name = (level or os.environ.get("UMLBOT_LOG_LEVEL") or "INFO").upper()
@@ -35,8 +53,11 @@ def configure_logging(level: str | None = None, json: bool | None = None) -> Non
         logging.getLogger().setLevel(numeric)
         return
     _configured = True
+    terminal = sys.stderr.isatty()
+    if json is None and os.environ.get("UMLBOT_LOG_JSON", "").strip().lower() in ("1", "true", "yes"):
+        json = True
     if json is None:
-        json = not sys.stderr.isatty()
+        json = not terminal and not person
     shared: list[Any] = [
         structlog.contextvars.merge_contextvars,
         structlog.stdlib.add_log_level,
@@ -44,7 +65,8 @@ def configure_logging(level: str | None = None, json: bool | None = None) -> Non
         structlog.processors.TimeStamper(fmt="iso", utc=True),
     ]
     renderer: Any = (
-        structlog.processors.JSONRenderer() if json else structlog.dev.ConsoleRenderer(colors=True)
+        structlog.processors.JSONRenderer() if json
+        else structlog.dev.ConsoleRenderer(colors=True) if terminal else plain_sentence
     )
     structlog.configure(
         processors=[*shared, structlog.stdlib.ProcessorFormatter.wrap_for_formatter],

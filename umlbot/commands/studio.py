@@ -41,21 +41,32 @@ if TYPE_CHECKING:
               "components); click one to follow it live (--robot: the one followed first; "
               "--robot '*' is --fleet too).")
 @click.option("--open", "open_browser", is_flag=True, help="Open the page in the default browser.")
+@click.option("--new", "new_model", is_flag=True,
+              help="MODEL is a new model: a folder that does not exist yet (or an empty one); the page "
+              "offers a starter model there.")
 def command(model: Path, broker_url: str | None, ca_file: Path | None, robot: str | None,
             replay_file: Path | None, host: str, port: int, allow_remote: bool, fleet: bool,
-            open_browser: bool) -> None:
+            open_browser: bool, new_model: bool) -> None:
     """Serve the studio for MODEL: its diagrams, the robot's running nodes live, or a replay.
 
     The model is compiled by the studio; when it does not compile, the page lists the problems.
-    A model folder can be edited in the page (a new or empty folder is offered a starter model).
+    A model folder can be edited in the page; with --new, MODEL is a new (or empty) folder and the
+    page offers a starter model.
     Runs until Ctrl-C or SIGTERM.
     """
+    from umlbot.base.logs import configure_logging
     from umlbot.services.bus import BrokerSettings, redact_url, resolve_broker_url
     from umlbot.studio.server import StudioServer, StudioThread, check_bind, is_loopback
     from umlbot.studio.sources import RobotFollower, replay_data, studio_data
 
+    # the terminal says what a person needs (the URL, one line per Run, problems); the services
+    # and the orchestrator of a Run log their INFO only when asked for (--log-level)
+    if click.get_current_context().find_root().params.get("log_level") is None and not os.environ.get(
+            "UMLBOT_LOG_LEVEL"):
+        configure_logging("WARNING")
     # a page others can reach is read-only: its write token would be theirs too (docs/studio.md)
     remote = not is_loopback(host)
+    check_model_path(model, new_model)
     editable = (replay_file is None and not remote
                 and (model.is_dir() or (not model.exists() and model.parent.is_dir())))
     if not model.exists() and not editable:
@@ -79,6 +90,7 @@ def command(model: Path, broker_url: str | None, ca_file: Path | None, robot: st
         server = StudioServer(data, host=host, port=port, allow_remote=allow_remote)
         api = EditApi(workspace)
         server.api = api
+        api.on_run_end = click.echo  # one line per Run, as the URL line
         data.edit = api.hello
     else:
         from umlbot.compiler.api import check_model
@@ -164,6 +176,49 @@ def command(model: Path, broker_url: str | None, ca_file: Path | None, robot: st
             studio.stop()
             if editable:
                 keep_unsaved(workspace)
+
+
+def check_model_path(model: Path, new_model: bool) -> None:
+    """MODEL is a model (a folder with its files, or one .yaml file), or, with --new, a folder that
+    does not exist yet or is empty: anything else is a usage error saying what was found and how to
+    ask for a new model (a typo in a path must not start a new model there)."""
+    from umlbot.studio.workspace import model_files
+
+    new_hint = f"to start a new model there, run: umlbot studio --new {model}"
+    if new_model:
+        if model.is_file() or (model.is_dir() and model_files(model)):
+            raise click.BadParameter(f"{model} already holds a model: --new starts one in a new or "
+                                     "empty folder (leave --new out to open this one)", param_hint="'MODEL'")
+        if not model.exists() and not model.parent.is_dir():
+            raise click.BadParameter(f"{model} does not exist and neither does its folder "
+                                     f"{model.parent}: a new model folder needs an existing parent folder",
+                                     param_hint="'MODEL'")
+        return
+    if model.is_file():
+        if model.suffix in (".yaml", ".yml"):
+            return
+        raise click.BadParameter(f"{model} is not a model: a model is a folder holding model.yaml "
+                                 "(e.g. models/robot_car), or one .yaml file", param_hint="'MODEL'")
+    if model.is_dir():
+        if model_files(model):
+            return
+        raise click.BadParameter(f"{model} holds no model (no model.yaml in it); {new_hint}",
+                                 param_hint="'MODEL'")
+    guess = close_sibling(model)
+    also = f" (did you mean {guess}?)" if guess is not None else ""
+    raise click.BadParameter(f"{model} does not exist{also}; {new_hint}", param_hint="'MODEL'")
+
+
+def close_sibling(model: Path) -> Path | None:
+    """The folder beside `model` whose name is closest to its name, if one is close (a typo)."""
+    import difflib
+
+    try:
+        names = [p.name for p in model.parent.iterdir() if p.is_dir()]
+    except OSError:
+        return None
+    found = difflib.get_close_matches(model.name, names, n=1, cutoff=0.75)
+    return model.parent / found[0] if found else None
 
 
 def keep_unsaved(workspace: Workspace) -> None:

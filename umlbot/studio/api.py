@@ -48,10 +48,12 @@ class EditApi:
         #: called with the model's name when the model on disk gets another one (the robot id
         #: follows it when neither --robot nor $UMLBOT_ROBOT chose one); on a worker thread.
         self.on_name: Callable[[str], None] | None = None
+        #: called with one plain line when a Run ends (the terminal's account of it); on a worker thread.
+        self.on_run_end: Callable[[str], None] | None = None
 
     def routes(self, app: web.Application, server: StudioServer) -> None:
         self.server = server
-        self.run = StudioRun(server.hub, self.broadcast)
+        self.run = StudioRun(server.hub, self.broadcast, say=lambda line: self._say_run(line))
         app.router.add_get("/api/library", self._library)
         app.router.add_get("/api/files", self._files)
         app.router.add_get("/api/tracks", self._tracks)
@@ -105,6 +107,10 @@ class EditApi:
         lane = body.get("lane")
         return complete(self.workspace.answer_cache.get("model"), lane if isinstance(lane, str) else None,
                         text, cursor, field if isinstance(field, str) else None)
+
+    def _say_run(self, line: str) -> None:
+        if self.on_run_end is not None:
+            self.on_run_end(line)
 
     def _sim(self) -> StudioRun:
         assert self.run is not None

@@ -80,6 +80,7 @@ class Op(BaseModel):
     positions: dict[str, list[float] | None] | None = None
     new_id: str | None = None
     new_name: str | None = None
+    text: str | None = None
 
 
 def parse_ops(raw: Any) -> list[Op]:
@@ -1023,7 +1024,27 @@ def _rename_deployment_key(p: _Patches, t: Text, root: yaml.MappingNode, old: st
         p.scalar(t, knode, [(0, len(old), new)])
 
 
+#: the most a file's text set in the page may hold (a model file is small; the compiler's own
+#: limit on a file's size reports anything bigger).
+MAX_TEXT_CHARS = 2_000_000
+
+
+def set_text(e: Edits, op: Op) -> None:
+    """Replace the whole text of an existing model file (the page's text view of a file the
+    compiler cannot read, e.g. a YAML syntax error): what the person typed, as typed."""
+    rel = _need(op.file, "file", op)
+    if op.text is None:
+        raise EditError("set_text needs 'text': the file's new text")
+    if len(op.text) > MAX_TEXT_CHARS:
+        raise EditError(f"{rel}: the text is too long ({len(op.text)} characters; at most {MAX_TEXT_CHARS})")
+    e._refuse_unreadable(rel)
+    if e.files.get(rel) is None:
+        raise EditError(f"{rel} does not exist")
+    e.put(Text(op.text, rel))
+
+
 OPS: dict[str, Callable[[Edits, Op], None]] = {
+    "set_text": set_text,
     "add_component": add_component,
     "remove_component": remove_component,
     "set_deployment": set_deployment,

@@ -45,7 +45,10 @@ class SimFollower:
     def finish(self) -> None:
         """The run ended: stop following (the page keeps what it has)."""
         for source in self._sources:
-            source.close()
+            if isinstance(source, BrokerSource):  # its broker is gone with the run: not lost
+                source.close(ended="the run has ended: the simulator and its broker are closed")
+            else:
+                source.close()
         self._sources = []
 
     def close(self) -> None:

@@ -97,9 +97,13 @@ def model_view(model: CompiledModel) -> dict[str, Any]:
 
 def diagnostic_view(diagnostic: Diagnostic) -> dict[str, Any]:
     """One compiler problem, with the `file:line:col: severity: message` text `umlbot check` prints."""
+    from umlbot.studio.plain import plain_message
+
     loc = diagnostic.location
     return {"severity": diagnostic.severity, "message": diagnostic.message, "file": loc.file,
-            "line": loc.line, "column": loc.column, "text": str(diagnostic)}
+            "line": loc.line, "column": loc.column, "text": str(diagnostic),
+            # the same in words a modeller knows (the page shows it; the CLI keeps the message)
+            "plain": plain_message(diagnostic.message) or diagnostic.message}
 
 
 # --- the model as written (the editor's view: also when it does not compile) ------------------------

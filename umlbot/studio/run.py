@@ -50,16 +50,49 @@ def resolve_track(track: Any, model_root: Path) -> Path:
     return path
 
 
+def run_line(track: str, speed: float, result: dict[str, Any]) -> str:
+    """A Run of the studio in one plain line for its terminal: where, how it ended, the figures,
+    and why the motors stood still when a safety stop stopped them."""
+    reason = result.get("reason")
+    how = {
+        "goal": "the car reached the goal",
+        "collision": "stopped: the car hit a wall",
+        "timeout": "time is up: the goal was not reached",
+        "interrupted": "stopped from the page",
+        "orchestrator ended": "the model came to its end",
+        "failed": "could not start",
+    }.get(str(reason), f"ended ({reason})")
+    figures = []
+    if result.get("sim_s") is not None:
+        figures.append(f"{result['sim_s']:.1f} s simulated")
+    if result.get("distance_m") is not None:
+        figures.append(f"{result['distance_m']:.2f} m")
+    if result.get("collisions"):
+        figures.append(f"{result['collisions']} collision(s)")
+    line = f"umlbot studio: run on {track} at {speed:g}x: {how}"
+    if figures:
+        line += f" ({', '.join(figures)})"
+    if result.get("failure"):
+        line += f": {result['failure']}"
+    if result.get("stood_still"):
+        line += f"; motors stopped: {result['stood_still']}"
+    return line
+
+
 class StudioRun:
     """Runs the working copy in the simulator, one run at a time; frames go through `broadcast`."""
 
-    def __init__(self, hub: Hub, broadcast: Callable[[dict[str, Any]], None]) -> None:
+    def __init__(self, hub: Hub, broadcast: Callable[[dict[str, Any]], None],
+                 say: Callable[[str], None] | None = None) -> None:
         self.hub = hub
         self.broadcast = broadcast
+        #: told one plain line per run, at its end (the studio's terminal)
+        self.say = say
         self._thread: threading.Thread | None = None
         self._stop = threading.Event()
         self._sources: list[BrokerSource | WorldSource] = []
         self.last: dict[str, Any] | None = None
+        self._track_name = ""
         #: the run going on, for a page that opens during it (hello.edit.run).
         self.current: dict[str, Any] = {"running": False}
 
@@ -77,6 +110,7 @@ class StudioRun:
             target.parent.mkdir(parents=True, exist_ok=True)
             target.write_bytes(data)
         self._stop = threading.Event()
+        self._track_name = track.stem
         self._thread = threading.Thread(target=self._run, args=(folder, model, track, speed),
                                         name="studio-run", daemon=True)
         self._thread.start()
@@ -124,13 +158,18 @@ class StudioRun:
                          "collisions": result.collisions, "sim_s": round(result.sim_s, 2),
                          "distance_m": round(result.distance_m, 2), "failure": result.failure,
                          # why the motors stopped before the end (the page may show it)
-                         "stood_still": result.stood_still}
+                         "stood_still": result.stood_still,
+                         # component -> the safety stop its service made (watchdog, …)
+                         "safety_stops": dict(result.safety_stops)}
         except Exception as exc:  # a bad model or track: tell the page, never crash the studio
             log.warning("studio run failed", error=str(exc))
             self.last = {"reason": "failed", "failure": str(exc)}
         finally:
             self._finish()
             shutil.rmtree(folder, ignore_errors=True)
+        if self.say is not None:
+            with contextlib.suppress(Exception):
+                self.say(run_line(self._track_name, speed, self.last))
         # the track stays, so a page opening after the run draws it with the run's last world
         self.current = {"running": False, "result": self.last,
                         **({"track": self.current["track"]} if "track" in self.current else {})}

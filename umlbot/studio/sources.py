@@ -146,6 +146,7 @@ class BrokerSource:
         state = MonitorState(fallback_call_timeout_s=call_timeout_s or DEFAULT_CALL_TIMEOUT_S)
         self.monitor: LiveMonitor = LiveMonitor(settings, robot, self._on_event, state=state)
         self._broker_seen: tuple[object, ...] | None = None
+        self._ended = False
         #: `broker` events say where they come from when it is not the robot's broker ("run":
         #: the simulator's own broker of a studio *Run*).
         self._origin = {"source": origin} if origin else {}
@@ -160,6 +161,8 @@ class BrokerSource:
 
     def tick(self) -> None:
         """Report calls that stayed unanswered and a change of the broker connection."""
+        if self._ended:
+            return
         self.monitor.tick()
         self.report_broker()
 
@@ -171,8 +174,14 @@ class BrokerSource:
             self._broker_seen = seen
             self.hub.push({"type": "broker", "time": time.time(), "url": self.url, **status, **self._origin})
 
-    def close(self) -> None:
+    def close(self, ended: str | None = None) -> None:
+        """Stop following; `ended`: why the broker is gone for good (a simulated run ended), said to
+        the page in place of the lost connection (which it is not: nothing is retried)."""
+        self._ended = self._ended or ended is not None
         self.monitor.close()
+        if ended is not None:
+            self.hub.push({"type": "broker", "time": time.time(), "url": self.url, "connected": False,
+                           "problem": None, "ended": ended, **self._origin})
 
 
 class RobotFollower:

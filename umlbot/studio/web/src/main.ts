@@ -30,6 +30,7 @@ import { install as selection } from "./features/selection";
 import { install as session } from "./features/session";
 import { install as sim } from "./features/sim";
 import { install as status } from "./features/status";
+import { install as textfix } from "./features/textfix";
 
 const features: Feature[] = [
   // watching
@@ -54,6 +55,7 @@ const features: Feature[] = [
   save,
   newModel,
   palette,
+  textfix,
   // after a frame's drawing, in this order
   follow,
   sim,

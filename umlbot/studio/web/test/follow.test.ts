@@ -1,6 +1,6 @@
 import assert from "node:assert/strict";
 import { test } from "node:test";
-import { centredOn, FOLLOW_PAN_MS, inView, isFar, lastRan, panAt } from "../src/features/follow/decide";
+import { centredOn, FOLLOW_PAN_MS, inView, isFar, lastRan, markerSpot, panAt } from "../src/features/follow/decide";
 import { ModelIndex, StudioState } from "../src/model/state";
 import { trace, twoDiagrams } from "./fixtures";
 
@@ -40,4 +40,13 @@ test("a short pan is eased from where the view was to the node, and ends there",
   assert.ok(panAt(p, 1000 + FOLLOW_PAN_MS / 10).x < 20); // eased: slow at the start
   assert.deepEqual(panAt(p, 1000 + FOLLOW_PAN_MS), { x: 200, y: 0, done: true });
   assert.deepEqual(panAt(p, 99_999), { x: 200, y: 0, done: true });
+});
+
+test("the marker of a node off the canvas sits on the edge towards it and points at it", () => {
+  const size = { W: 800, H: 600 };
+  const below = markerSpot({ x: 0, y: 0, k: 1 }, { x: 100, y: 2000, w: 100, h: 40 }, size);
+  assert.deepEqual(below, { left: 150, top: 576, arrow: "↓" });
+  const left = markerSpot({ x: 0, y: 0, k: 1 }, { x: -500, y: 200, w: 100, h: 40 }, size);
+  assert.equal(left.arrow, "←");
+  assert.equal(left.left, 24);
 });

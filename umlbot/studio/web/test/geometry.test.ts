@@ -9,6 +9,7 @@ import {
   OPEN_K,
   panToShow,
   READABLE_K,
+  WIDE_K,
   wheelZoom,
   zoomedAt,
 } from "../src/core/geometry";
@@ -39,6 +40,19 @@ test("a wide diagram that is readable at the canvas's width opens at that width"
   const v = fitView(canvas, { width: 1200, height: 3000 }, true);
   assert.equal(v.k, (1000 - 32) / 1200);
   assert.equal(v.y, 16);
+});
+
+test("a short diagram too wide to be read whole opens whole down to WIDE_K, not cut at its right edge", () => {
+  // five lanes of 256 on a laptop's canvas (750 px): whole at 0.56
+  const laptop = { W: 750, H: 650 };
+  const v = fitView(laptop, { width: 1280, height: 400 }, true);
+  assert.equal(v.k, (750 - 32) / 1280);
+  assert.ok(v.k >= WIDE_K && v.k < READABLE_K);
+  assert.ok(v.x >= 0 && v.x + 1280 * v.k <= laptop.W);
+  // wider still: readable from the start node, as before
+  assert.equal(fitView(laptop, { width: 2000, height: 400 }, true).k, OPEN_K);
+  // a tall one whose height does not fit is not shrunk below READABLE_K for it
+  assert.equal(fitView(laptop, { width: 1280, height: 4000 }, true).k, OPEN_K);
 });
 
 test("after an edit a diagram that fits is moved into view; one grown a little is zoomed out to fit", () => {

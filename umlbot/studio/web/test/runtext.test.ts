@@ -1,7 +1,7 @@
 import assert from "node:assert/strict";
 import { test } from "node:test";
-
-import { runEndText, speedWords } from "../src/features/run/text";
+import { runEndText, speedWords, standStillText } from "../src/features/run/text";
+import { safetyStop } from "../src/model/safety";
 
 test("the end of a run is said in plain words", () => {
   const base = { goal_reached: false, collisions: 0, sim_s: 5.62, distance_m: 0.98 };
@@ -42,4 +42,31 @@ test("a run's speed in words", () => {
   assert.equal(speedWords(1), "real time");
   assert.equal(speedWords(0.5), "half as fast as real time");
   assert.equal(speedWords(10), "10 times as fast as real time");
+});
+
+test("a run that ended with the car standing still says why: each safety stop in words", () => {
+  const r = {
+    reason: "timeout",
+    sim_s: 30,
+    stood_still: "LeftActuator: watchdog; RightActuator: watchdog",
+    safety_stops: { RightActuator: "watchdog", LeftActuator: "orchestrator unresponsive" },
+  };
+  assert.equal(
+    standStillText(r),
+    "The car stood still because a safety stop stopped its motors: LeftActuator: the running model " +
+      "stopped answering, so it stopped itself; RightActuator: no command came in time, so its watchdog stopped it.",
+  );
+  // the deadman of the simulated world is said by the run's own words
+  assert.match(
+    standStillText({ reason: "timeout", stood_still: "the left motor's driver stopped renewing it" }),
+    /renewing/,
+  );
+  assert.equal(standStillText({ reason: "goal", goal_reached: true }), "");
+});
+
+test("a component's retained state says its safety stop", () => {
+  assert.equal(safetyStop({ enabled: false, stop_reason: "watchdog" }), "watchdog");
+  assert.equal(safetyStop({ enabled: true, stop_reason: null }), null);
+  assert.equal(safetyStop([1, 2]), null);
+  assert.equal(safetyStop(undefined), null);
 });

@@ -1,6 +1,6 @@
 import assert from "node:assert/strict";
 import { test } from "node:test";
-import { brokerView, gapsText, orchestratorText } from "../src/features/status/text";
+import { brokerView, clockNote, gapsText, orchestratorText } from "../src/features/status/text";
 
 test("the orchestrator pill says its state, detail and exit payload", () => {
   assert.equal(orchestratorText({ state: "running", detail: "" }, undefined), "orchestrator: running");
@@ -40,4 +40,33 @@ test("the broker pill says whose broker, and when it is tried again", () => {
     `broker ${url}: refused, retrying…`,
   );
   assert.equal(brokerView({ type: "broker", time: 0, url, connected: false }, false, 0, 0).state, "connecting");
+});
+
+test("a simulated run's broker that closed with the run is said to have ended, not to be lost", () => {
+  const url = "mqtt://127.0.0.1:40000";
+  const ended = brokerView(
+    {
+      type: "broker",
+      time: 0,
+      url,
+      connected: false,
+      problem: null,
+      ended: "the run has ended: the simulator and its broker are closed",
+    },
+    false,
+    0,
+    0,
+  );
+  assert.equal(ended.state, "ended");
+  assert.equal(ended.text, "broker: the run has ended");
+  assert.ok(!ended.text.includes("retrying"));
+});
+
+test("the figures say which clock they are in: simulated time on the nodes in the sim, wall clock for calls", () => {
+  const sim = clockNote("live", true);
+  assert.match(sim.text, /simulated time/);
+  assert.match(sim.text, /calls: wall clock/);
+  assert.match(sim.title, /0 ms/); // why a node that only calls shows 0 ms
+  assert.match(clockNote("live", false).text, /robot's clock/);
+  assert.match(clockNote("replay", true).text, /recorded run/);
 });

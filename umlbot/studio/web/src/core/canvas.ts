@@ -17,6 +17,8 @@ export class Canvas {
   private pending: DiagramView | null = null;
   private width = 0;
   private height = 0;
+  /** Called after each view change of a drawing (the lane-edge hints follow it). */
+  readonly applied: ((v: DiagramView) => void)[] = [];
 
   constructor(el: HTMLDivElement) {
     this.el = el;
@@ -53,6 +55,12 @@ export class Canvas {
     const { W } = this.size();
     this.pending = this.lanes.cull(v, W, newLanes) ? v : null;
     this.lanes.stickHeads(v, W);
+    for (const f of this.applied) f(v);
+  }
+
+  /** The swimlanes of `v`: name and place (diagram units), from their attributes (no layout). */
+  laneSpans(v: DiagramView): { name: string; x: number; w: number }[] {
+    return this.lanes.spansOf(v);
   }
 
   /** Lanes of the shown view are still to be drawn (`drawPendingLane` on the next frames). */
@@ -72,6 +80,10 @@ export class Canvas {
 
   /** Show the whole diagram; `readable`: when that is too small to read, a readable part from the top. */
   fit(v: DiagramView, readable = true): void {
+    // measured now: the size the observer last said may be older than the page's layout (a
+    // diagram opened at a stale, wider size was cut at the right edge)
+    this.width = this.el.clientWidth || this.width;
+    this.height = this.el.clientHeight || this.height;
     v.view = fitView(this.size(), v, readable);
     this.apply(v);
   }

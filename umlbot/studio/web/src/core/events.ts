@@ -64,6 +64,9 @@ export interface StudioEvents {
   "diagnostics.set": (list: Diagnostic[]) => void;
   /** the problems listed now */
   "diagnostics.changed": (list: Diagnostic[]) => void;
+  /** open the text of model file `file` (relative path) at `line`:`column`, that line marked with
+   * `problem` (a file that cannot be read as YAML: its first problem, to fix it there) */
+  "file.show": (file: string, line?: number, column?: number, problem?: string) => void;
 
   // ---- the view
   "view.fit": () => void;

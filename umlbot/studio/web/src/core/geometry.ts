@@ -34,6 +34,9 @@ export const LOD_MID = 0.45;
 export const LOD_FAR = 0.3;
 export const READABLE_K = 0.65; // 11 px texts at >= 7 px
 export const OPEN_K = 0.8;
+/** A short, wide diagram (the car's five motion lanes, its components on a laptop's canvas) opens
+ * whole down to this zoom (11 px texts at 6 px) rather than cut at the right edge. */
+export const WIDE_K = 0.55;
 export const MIN_K = 0.02;
 export const MAX_K = 8;
 
@@ -44,7 +47,9 @@ export function fitView({ W, H }: Size, d: Extent, readable: boolean): View {
   let k = Math.min((W - 2 * pad) / d.width, (H - 2 * pad) / d.height, 1.25);
   let y = (H - d.height * k) / 2;
   let x = (W - d.width * k) / 2;
-  if (readable && k < READABLE_K) {
+  const kW = (W - 2 * pad) / d.width;
+  const wideOnly = kW <= (H - 2 * pad) / d.height; // the width is what does not fit
+  if (readable && k < READABLE_K && !(wideOnly && k >= WIDE_K)) {
     const kWidth = (W - 2 * pad) / d.width;
     k = kWidth >= READABLE_K ? Math.min(kWidth, 1) : OPEN_K;
     y = d.height * k > H - 2 * pad ? pad : (H - d.height * k) / 2;

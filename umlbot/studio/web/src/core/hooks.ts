@@ -24,6 +24,8 @@ export interface StudioHooks {
   durationCounters: () => number;
   /** centre a node */
   reveal: (lane: string, node: string) => void;
+  /** how clean diagram `id` is drawn: flow crossings and guard labels overlapped or struck */
+  quality: (id: string) => { crossings: number; labels: number; flows: number } | null;
 }
 
 export interface EditHooks {
@@ -67,6 +69,7 @@ export function createHooks(): StudioHooks {
     hellos: 0,
     durationCounters: () => 0,
     reveal: () => undefined,
+    quality: () => null,
   };
   window.__studio = hooks;
   return hooks;

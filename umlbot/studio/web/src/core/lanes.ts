@@ -58,6 +58,17 @@ export class Lanes {
     return span;
   }
 
+  /** Every swimlane of `v`: its name and place (diagram units). */
+  spansOf(v: DiagramView): { name: string; x: number; w: number }[] {
+    const out: { name: string; x: number; w: number }[] = [];
+    for (const g of v.viewport.children) {
+      if (!g.classList.contains("lane")) continue;
+      const span = this.spanOf(g);
+      out.push({ name: g.getAttribute("data-lane") ?? "", x: span.x, w: span.w });
+    }
+    return out;
+  }
+
   /** A node's box in diagram units, from its data attributes and its lane's (no layout); null for
    * anything else. */
   nodeBox(el: Element): Box | null {

@@ -89,6 +89,14 @@ const STATS_W = () => textWidth(STATS_SAMPLE, SMALL_PX);
 export const STATS2_SAMPLE = "p50 888.8 · p99 888.8";
 const STATS2_W = () => textWidth(STATS2_SAMPLE, SMALL_PX) + 4;
 
+/** Room on the right of an action that may call a virtual lane, for its ⋔ mark (the stats are
+ * centred left of it, so the mark never covers "p99 …"). */
+export const RAKE_W = 26;
+/** Whether an action's text is a bare name (`Stop`, `Stop()`): how a virtual lane is called. */
+export function mayCallLane(n: ModelNode): boolean {
+  return n.kind === "action" && /^[A-Za-z_]\w*(\(\s*\))?$/.test(n.label);
+}
+
 export function nodeSize(n: ModelNode): { w: number; h: number; statsInside: boolean } {
   const lw = textWidth(n.label, LABEL_PX);
   const sw = STATS_W();
@@ -108,7 +116,7 @@ export function nodeSize(n: ModelNode): { w: number; h: number; statsInside: boo
     case "accept":
       return { w: Math.max(lw + 56, sw + 36), h: 50, statsInside: true };
     default:
-      return { w: Math.max(lw + 28, sw + 20), h: 50, statsInside: true };
+      return { w: Math.max(lw + 28, sw + 20) + (mayCallLane(n) ? RAKE_W : 0), h: 50, statsInside: true };
   }
 }
 
@@ -262,7 +270,7 @@ async function layoutLane(lane: ModelLane, hints?: Hints): Promise<LaneGeom> {
     const s = sizes.get(c.id)!;
     const x = c.x ?? 0;
     const y = c.y ?? 0;
-    let statsX = x + s.w / 2;
+    let statsX = x + (s.w - (mayCallLane(n) ? RAKE_W : 0)) / 2;
     let statsY = y + s.h - 9;
     if (!s.statsInside) {
       // ELK reserved room for the stats on the right (an outside node label); place them there.
@@ -976,9 +984,12 @@ async function layoutComponentsNow(model: ModelView, userPositions: Positions): 
   });
   let width = Math.max(out.width ?? 300, orchW + 60);
   let height = out.height ?? 200;
+  // the components with their ports' labels, and a margin (no more: a wider extent opened the
+  // diagram smaller than needed, or cut at the canvas's right edge)
   for (const c of components) {
-    width = Math.max(width, c.x + c.w + 200);
-    height = Math.max(height, c.y + c.h + 30);
+    const e = elkBoxes.find((b) => b.id === c.name)?.extent;
+    width = Math.max(width, c.x + Math.max(c.w, e ? e.x + e.w : 0) + 30);
+    height = Math.max(height, c.y + Math.max(c.h, e ? e.y + e.h : 0) + 30);
   }
   for (const l of links) {
     for (const p of l.points) {

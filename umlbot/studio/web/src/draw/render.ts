@@ -2,6 +2,7 @@
 // attribute/class/text changes on the existing elements (never a redraw), once per frame.
 
 import { percentiles } from "../model/durations";
+import { safetyStop } from "../model/safety";
 import type { ComponentState, Level, NodeStats, StudioState } from "../model/state";
 import { edgeKey, nextNodes, nodeKey, TRAIL } from "../model/state";
 import type { ModelComponent, ModelView } from "../model/types";
@@ -389,6 +390,10 @@ export class Renderer {
       // (14 x 14 units: big enough to see and to click at the zoom a diagram opens at)
       svgEl("path", { class: "rake", d: `M${X(w - 17)},${Y(h - 5)} v-14 M${X(w - 24)},${Y(h - 5)} v-7 h14 v7` }, g);
     }
+    if (n.kind !== "end") {
+      // the output port (edit mode shows it): drag from it to another node to connect them
+      svgEl("circle", { class: "port-out", cx: X(w / 2), cy: Y(h), r: 6 }, g);
+    }
     let value: SVGTextElement | null = null;
     if (n.kind === "datastore") value = svgEl("text", { class: "value", x: X(w / 2), y: Y(47) }, g, "—");
     let stats: SVGTextElement;
@@ -649,18 +654,29 @@ export class Renderer {
         : `implementation ${m.impl}, ${m.service} service, driver ${m.driver} (as the deployment says; the service has not said which it runs)`;
     }
     while (ce.state.firstChild) ce.state.firstChild.remove();
+    // a safety stop its service made (a motor's `stop_reason`: watchdog, …) is marked on the
+    // component until the motor runs again: why the car stood still, after the run too
+    const stop = safetyStop(cs?.retained);
+    g.classList.toggle("safety-stop", stop !== null);
+    if (stop !== null) g.setAttribute("data-stop-reason", stop);
+    else g.removeAttribute("data-stop-reason");
     if (cs?.hasRetained) {
       g.setAttribute("data-retained", json(cs.retained));
       const r = cs.retained;
       let lines: string[];
       if (r && typeof r === "object" && !Array.isArray(r)) {
-        lines = Object.entries(r as Record<string, unknown>).map(([k, v]) => `${k}: ${json(v)}`);
+        lines = Object.entries(r as Record<string, unknown>)
+          .filter(([k]) => !(stop !== null && k === "stop_reason"))
+          .map(([k, v]) => `${k}: ${json(v)}`);
+        if (stop !== null) lines.unshift(`⚠ safety stop: ${stop}`); // first, where it is seen
       } else lines = [json(r)];
       if (lines.length > COMP_STATE_LINES) {
         lines = lines.slice(0, COMP_STATE_LINES - 1).concat([`… ${lines.length - COMP_STATE_LINES + 1} more`]);
       }
       lines.forEach((line, i) => {
-        svgEl("tspan", { x: 12, dy: i === 0 ? 0 : 15 }, ce.state, clip(line, 40) + (i < lines.length - 1 ? " " : ""));
+        const attrs: Record<string, string | number> = { x: 12, dy: i === 0 ? 0 : 15 };
+        if (i === 0 && stop !== null) attrs.class = "stop";
+        svgEl("tspan", attrs, ce.state, clip(line, 40) + (i < lines.length - 1 ? " " : ""));
       });
     } else {
       g.removeAttribute("data-retained");

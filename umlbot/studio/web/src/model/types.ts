@@ -72,6 +72,8 @@ export interface Diagnostic {
   line: number;
   column: number;
   text: string;
+  /** the message in words a modeller knows (the checker's own is `message`, `text`) */
+  plain?: string;
   relpath?: string;
   lane?: string | null;
   node?: string | null;
@@ -119,6 +121,8 @@ export interface MonitorEvent {
   problem?: string | null;
   attempts?: number;
   retry_in_s?: number;
+  /** the broker is gone for good and not retried (why: "the run has ended: …") */
+  ended?: string;
   /** a broker event's origin: "run", the simulator's own broker of a studio Run */
   source?: string;
 }
@@ -152,6 +156,10 @@ export interface RunInfo {
     sim_s?: number;
     distance_m?: number;
     failure?: string | null;
+    /** why the motors stopped before the run's end, in words (null: nothing stopped them) */
+    stood_still?: string | null;
+    /** component -> the safety stop its service made (watchdog, orchestrator unresponsive, …) */
+    safety_stops?: Record<string, string>;
   };
 }
 

@@ -1,11 +1,13 @@
 // Connect and drag on the canvas (edit mode): a press on a node drags or selects it, or — after
-// "Connect to…" — connects the node chosen before to it; a press on a component drags or selects
+// "Connect to…" — connects the node chosen before to it; a drag from a node's output port to
+// another node connects them (a decision then asks for the new way's guard); a press on a component drags or selects
 // it; on a flow or a swimlane's header, selects it. Anything else is the canvas's (panning).
 
 import { findLane, type Selection } from "../../core/selection";
 import type { Studio } from "../../core/studio";
 import type { Op } from "../../model/types";
 import { dragComponent, dragNode } from "./move";
+import { dragFlow } from "./wire";
 
 export function install(studio: Studio): void {
   const { bus, store, canvas } = studio;
@@ -46,6 +48,20 @@ export function install(studio: Studio): void {
     if (nodeG) {
       const lane = nodeG.getAttribute("data-lane")!;
       const id = nodeG.getAttribute("data-node")!;
+      if (target.classList.contains("port-out") && !from) {
+        // a flow drawn from the node's output port: dropped on a node of its lane, it connects them
+        dragFlow(canvas.el, ev, target, (to) => {
+          if (!to) return;
+          if (to.lane !== lane) {
+            bus.request("notice.show", {
+              kind: "error",
+              text: "A flow stays inside its swimlane: connect nodes of the same lane.",
+              hideAfterMs: 5000,
+            });
+          } else if (to.id !== id) void connect(lane, id, to.id);
+        });
+        return true;
+      }
       if (from) {
         const start = from;
         cancel();

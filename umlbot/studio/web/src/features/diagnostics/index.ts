@@ -1,7 +1,7 @@
 // The Diagnostics panel: the compiler's problems, listed and marked on their nodes; a click shows
 // the node (its diagram, centred).
 
-import { $ } from "../../core/dom";
+import { $, el } from "../../core/dom";
 import type { Studio } from "../../core/studio";
 import { nodeKey } from "../../model/state";
 import type { Diagnostic } from "../../model/types";
@@ -19,7 +19,18 @@ export function install({ bus, store, renderer }: Studio): void {
     for (const d of list) {
       const li = document.createElement("li");
       li.className = d.severity;
-      li.textContent = d.text;
+      // the problem in a modeller's words, where it is (a click shows that line of the file), and
+      // the checker's own message as `umlbot check` prints it
+      if (d.plain && d.plain !== d.message) el("span", { class: "plain" }, li, d.plain);
+      if (d.relpath && d.line > 0) {
+        const where = el("button", { type: "button", class: "where", title: "Show this line of the file" }, li);
+        where.textContent = `${d.relpath}:${d.line}`;
+        where.addEventListener("click", (ev) => {
+          ev.stopPropagation();
+          bus.emit("file.show", d.relpath!, d.line, d.column, d.plain ?? d.message);
+        });
+      }
+      el("span", { class: "text" }, li, d.text);
       listEl.append(li);
       const at =
         d.lane !== undefined
@@ -34,7 +45,9 @@ export function install({ bus, store, renderer }: Studio): void {
       } else if (d.lane && store.laneDiagram.has(d.lane)) {
         li.dataset.diagram = store.laneDiagram.get(d.lane)!; // a problem of the lane itself: its diagram
       }
+      if (!at && d.relpath && d.message.startsWith("invalid YAML")) li.dataset.file = d.relpath; // its text opens
       li.addEventListener("click", () => {
+        if (li.dataset.file) bus.emit("file.show", li.dataset.file, d.line, d.column, d.plain ?? d.message);
         if (!li.dataset.diagram) return;
         bus.emit("diagram.select", li.dataset.diagram);
         if (li.dataset.lane && li.dataset.node) bus.emit("view.reveal", li.dataset.lane, li.dataset.node);

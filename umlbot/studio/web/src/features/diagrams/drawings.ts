@@ -14,6 +14,8 @@ import { diagramIds, diagramInHash, firstDiagram } from "./which";
 
 export class Drawings {
   private messageEl = $<HTMLElement>("#canvas-message");
+  /** what the page is doing until the first diagram is drawn (shown by index.html from the start) */
+  private progressEl = $<HTMLElement>("#canvas-progress");
   /** bumped by each model: a layout of an older one is dropped */
   private generation = 0;
   /** drawings shown until their redraw is ready */
@@ -58,6 +60,7 @@ export class Drawings {
       this.messageEl.textContent = "The model does not compile: see the diagnostics.";
       bus.emit("model.missing", this.messageEl);
       this.messageEl.hidden = false;
+      this.progressEl.hidden = true;
       hooks.ready = true;
       return;
     }
@@ -70,6 +73,13 @@ export class Drawings {
       }
     }
     const first = firstDiagram(m, diagramInHash(location.hash), canvas.current);
+    if (!hooks.ready) {
+      const d = m.diagrams.find((x) => `${x.id}` === first);
+      const nodes = d ? d.lanes.reduce((n, l) => n + l.nodes.length, 0) : 0;
+      this.progressEl.querySelector(".what")!.textContent = d
+        ? `Laying out ${d.title} (${nodes} node${nodes === 1 ? "" : "s"})…`
+        : "Laying out the components…";
+    }
     const was = canvas.current;
     canvas.current = "";
     this.select(first, !(fromEditor && first === was));
@@ -138,6 +148,7 @@ export class Drawings {
         );
         if (id === first) {
           // ready once the frame that first paints it is over
+          this.progressEl.hidden = true;
           requestAnimationFrame(() =>
             requestAnimationFrame(() => {
               hooks.ready = true;
@@ -146,7 +157,10 @@ export class Drawings {
         }
       } catch (err) {
         console.error(`studio: layout of ${id} failed`, err);
-        if (id === first) hooks.ready = true;
+        if (id === first) {
+          this.progressEl.hidden = true;
+          hooks.ready = true;
+        }
       }
     }
   }

@@ -68,3 +68,17 @@ export function panAt(p: Pan, now: number): { x: number; y: number; done: boolea
   const e = t * t * (3 - 2 * t);
   return { x: p.x0 + (p.x1 - p.x0) * e, y: p.y0 + (p.y1 - p.y0) * e, done: t >= 1 };
 }
+
+/** Where the marker of a node off the canvas goes: on the canvas's edge towards the node (px,
+ * clamped inside the canvas), with an arrow that points at it. */
+export function markerSpot({ x, y, k }: View, box: Box, { W, H }: Size): { left: number; top: number; arrow: string } {
+  const cx = x + (box.x + box.w / 2) * k;
+  const cy = y + (box.y + box.h / 2) * k;
+  const pad = 24;
+  const left = Math.min(Math.max(cx, pad), W - pad);
+  const top = Math.min(Math.max(cy, pad), H - pad);
+  const dx = cx < 0 ? -1 : cx > W ? 1 : 0;
+  const dy = cy < 0 ? -1 : cy > H ? 1 : 0;
+  const arrow = dy < 0 ? "↑" : dy > 0 ? "↓" : dx < 0 ? "←" : "→";
+  return { left, top, arrow };
+}

@@ -7,10 +7,49 @@
 import { $ } from "../../core/dom";
 import type { Studio } from "../../core/studio";
 import type { DiagramView } from "../../draw/render";
-import { centredOn, FOLLOW_EVERY_MS, FOLLOW_NEW_LANE_MS, inView, isFar, lastRan, type Pan, panAt } from "./decide";
+import {
+  centredOn,
+  FOLLOW_EVERY_MS,
+  FOLLOW_NEW_LANE_MS,
+  inView,
+  isFar,
+  lastRan,
+  markerSpot,
+  type Pan,
+  panAt,
+} from "./decide";
 
 export function install({ bus, store, hooks, canvas, renderer, frames }: Studio): void {
   const btn = $<HTMLButtonElement>("#follow");
+  // the node that ran last, when Follow is off and it is off the canvas: a marker on the edge
+  // towards it; a click follows the robot again (and so shows it)
+  const marker = $<HTMLButtonElement>("#running-marker");
+  // (once a drawn frame: one node's box from its attributes, no layout)
+  const markRunning = (): void => {
+    if (hooks.follow) {
+      marker.hidden = true;
+      return;
+    }
+    const v = canvas.shown();
+    const key = v?.view ? lastRan(store.model, canvas.current, store.live) : null;
+    const g = key ? renderer.nodeEls.get(key)?.g : null;
+    const box = g ? canvas.nodeBox(g) : null;
+    const size = canvas.size();
+    if (!v?.view || !g || !box || inView(v.view, box, size, 0)) {
+      marker.hidden = true;
+      return;
+    }
+    const spot = markerSpot(v.view, box, size);
+    const name = g.getAttribute("data-node") ?? "";
+    marker.hidden = false;
+    marker.textContent = `${spot.arrow} running: ${name}`;
+    marker.dataset.node = name;
+    marker.title = `${name} ran last; it is off the canvas. Click to follow the robot again (l).`;
+    marker.style.left = `${spot.left}px`;
+    marker.style.top = `${spot.top}px`;
+  };
+  marker.addEventListener("pointerdown", (ev) => ev.stopPropagation());
+  marker.addEventListener("click", () => set(true));
   let due = false; // nodes ran (or the view changed) since the last look
   let lookedAt = 0;
   let newLaneAt = 0;
@@ -77,7 +116,11 @@ export function install({ bus, store, hooks, canvas, renderer, frames }: Studio)
   bus.on("follow.due", () => {
     due = true;
   });
-  bus.on("frame.drawn", () => step(performance.now()));
+  bus.on("frame.drawn", () => {
+    const now = performance.now();
+    step(now);
+    markRunning();
+  });
   bus.on("frame.busy", () => (pan !== null || canvas.lanesPending || (hooks.follow && due) ? true : undefined));
   set(true); // live and replay both start following
 }

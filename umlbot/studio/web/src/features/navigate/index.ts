@@ -5,6 +5,8 @@
 import { $ } from "../../core/dom";
 import { wheelZoom, zoomedAt } from "../../core/geometry";
 import type { Studio } from "../../core/studio";
+import { installEdges } from "./edges";
+import { measureQuality } from "./quality";
 import { reveal } from "./reveal";
 
 const CLICK_SLOP_PX = 3;
@@ -18,9 +20,14 @@ export function install(studio: Studio): void {
     if (v) canvas.fit(v, false);
   };
   $<HTMLButtonElement>("#fit").addEventListener("click", fit);
+  installEdges(studio);
   bus.on("view.fit", fit);
   bus.on("view.reveal", (lane, node) => reveal(studio, lane, node));
   hooks.reveal = (lane, node) => reveal(studio, lane, node);
+  hooks.quality = (id) => {
+    const v = canvas.views.get(id);
+    return v ? measureQuality(v.viewport) : null;
+  };
 
   el.addEventListener(
     "wheel",

@@ -3,7 +3,7 @@
 /** Notices that wait for the user's decision (their buttons are the way out). */
 const DECISION_NOTICES = new Set(["conflict", "recovery"]);
 /** Notices that only pass by: a run's, a hint. */
-const PASSING_NOTICES = new Set(["run", "run-goal", "run-ended", "hint"]);
+const PASSING_NOTICES = new Set(["run", "run-goal", "run-ended", "run-stopped", "hint"]);
 
 /** A notice of `kind` may be shown in place of the one shown (`shown`: its kind, null when none
  * is): a passing notice never replaces one that waits for the user's decision (a conflict with the

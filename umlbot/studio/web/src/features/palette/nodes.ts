@@ -4,7 +4,7 @@
 import { el } from "../../core/dom";
 import type { Studio } from "../../core/studio";
 import type { ModelView, Op } from "../../model/types";
-import { dragKind } from "./drag";
+import { addToSelected, dragKind } from "./drag";
 
 /** Where the last swimlane was added (the form offers it again). */
 export interface LaneFileChoice {
@@ -22,12 +22,24 @@ export function drawNodes(studio: Studio, p: HTMLElement, m: ModelView, choice: 
   for (const [kind, info] of Object.entries(edit.library?.node_kinds ?? {})) {
     const item = el(
       "div",
-      { class: `item node-kind kind-${kind}`, "data-kind": kind, tabindex: "0", title: info.doc ?? kind },
+      {
+        class: `item node-kind kind-${kind}`,
+        "data-kind": kind,
+        tabindex: "0",
+        role: "button",
+        title: `${info.doc ?? kind} (Enter adds it after the selected node)`,
+      },
       grid,
     );
     el("i", { class: "icon" }, item);
     el("span", {}, item, kind);
     item.addEventListener("pointerdown", (ev) => dragKind(studio, ev, kind));
+    item.addEventListener("keydown", (ev) => {
+      if (ev.key !== "Enter" && ev.key !== " ") return;
+      ev.preventDefault();
+      ev.stopPropagation();
+      addToSelected(studio, kind);
+    });
   }
   el("div", { class: "panel-title" }, p, "Swimlanes");
   const form = el("form", { class: "add-lane" }, p);
@@ -45,7 +57,11 @@ export function drawNodes(studio: Studio, p: HTMLElement, m: ModelView, choice: 
   const dl = el("datalist", { id: "lane-options" }, form);
   const used = new Set(m.diagrams.flatMap((d) => d.lanes.map((l) => l.name)));
   for (const c of m.components) if (!used.has(c.name)) el("option", { value: c.name }, dl);
-  const file = el("select", { name: "lane-file", title: "where the lane is written" }, form);
+  const file = el(
+    "select",
+    { name: "lane-file", title: "where the lane is written", "aria-label": "file of the new swimlane" },
+    form,
+  );
   el("option", { value: "" }, file, "in a new file");
   // only the files a lane can be added to (the server says which: a `lanes:` list)
   for (const f of edit.info.lane_files ?? []) el("option", { value: f }, file, `in ${f}`);

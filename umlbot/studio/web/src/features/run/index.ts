@@ -4,7 +4,7 @@
 import { $, el } from "../../core/dom";
 import type { Studio } from "../../core/studio";
 import type { RunMsg } from "../../model/types";
-import { runEndText, speedWords } from "./text";
+import { runEndText, speedWords, standStillText } from "./text";
 
 export function install({ bus, store, api }: Studio): void {
   const runBtn = $<HTMLButtonElement>("#run");
@@ -38,6 +38,7 @@ export function install({ bus, store, api }: Studio): void {
     if (!a) return;
     setRunning(true);
     bus.emit("live.reset");
+    bus.emit("follow.set", true); // a run is to be watched: Follow turned off by clicking comes back on
     bus.request("notice.show", {
       kind: "run",
       text: `Running the edited model in the simulator on ${trackSel.value} at ${speed}× (${speedWords(speed)}).`,
@@ -66,8 +67,15 @@ export function install({ bus, store, api }: Studio): void {
       }
       if (seen) return;
     }
-    const kind = r?.goal_reached ? "run-goal" : "run-ended";
-    if (msg.state === "ended" && r && bus.request("notice.show", { kind, text: runEndText(r), hideAfterMs: 10000 })) {
+    const stood = r ? standStillText(r) : "";
+    const kind = stood ? "run-stopped" : r?.goal_reached ? "run-goal" : "run-ended";
+    // why the car stood still stays until it is closed: it is what the run is to be read for
+    const notice = {
+      kind,
+      text: r ? `${runEndText(r)}${stood ? ` ${stood}` : ""}` : "",
+      hideAfterMs: stood ? 0 : 10000,
+    };
+    if (msg.state === "ended" && r && bus.request("notice.show", notice)) {
       try {
         localStorage.setItem(key, stamp); // said: a reload does not say it again
       } catch {

@@ -12,6 +12,33 @@ export function speedWords(speed: number): string {
   return `${speed} × real time`;
 }
 
+/** A motor service's safety stop (its `stop_reason`) in a modeller's words. */
+export function safetyStopWords(reason: string): string {
+  switch (reason) {
+    case "watchdog":
+      return "no command came in time, so its watchdog stopped it";
+    case "orchestrator unresponsive":
+      return "the running model stopped answering, so it stopped itself";
+    case "orchestrator offline":
+      return "the running model went away, so it stopped itself";
+    case "deadman":
+      return "its driver stopped renewing it, so the deadman stopped it";
+    default:
+      return `it stopped itself (${reason})`;
+  }
+}
+
+/** Why the car stood still: each motor that a safety stop stopped ("" when none did). */
+export function standStillText(r: NonNullable<RunMsg["result"]>): string {
+  const stops = Object.entries(r.safety_stops ?? {}).sort(([a], [b]) => a.localeCompare(b));
+  if (stops.length) {
+    return `The car stood still because a safety stop stopped its motors: ${stops
+      .map(([component, reason]) => `${component}: ${safetyStopWords(reason)}`)
+      .join("; ")}.`;
+  }
+  return r.stood_still ? `The car stood still because its motors were stopped: ${r.stood_still}.` : "";
+}
+
 /** How a run ended: what happened, then how long the car drove in the simulation, how far, and
  * whether it hit anything. */
 export function runEndText(r: NonNullable<RunMsg["result"]>): string {

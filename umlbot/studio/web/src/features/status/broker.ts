@@ -44,7 +44,7 @@ export class BrokerPill {
   private draw(): void {
     const run = this.runActive && this.run !== null;
     const seen = run ? this.run : this.robot;
-    const connected = !!seen?.e.connected;
+    const connected = !!seen?.e.connected || !!seen?.e.ended; // (ended: nothing is retried)
     // while it is not connected the pill counts down to the next attempt, every second
     if (!connected && seen && !this.timer) this.timer = window.setInterval(() => this.draw(), 1000);
     if ((connected || !seen) && this.timer) {

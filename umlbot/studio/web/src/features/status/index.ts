@@ -1,15 +1,24 @@
 // The toolbar's status: the orchestrator's state, what was lost on the way (gaps in the stream,
-// events the server dropped, trace events lost), the studio's connection to the broker.
+// events the server dropped, trace events lost), the studio's connection to the broker; and, under
+// the legend, which clock the figures on the nodes and in the Calls panel are in.
 
 import { $ } from "../../core/dom";
 import type { Studio } from "../../core/studio";
 import { BrokerPill } from "./broker";
-import { type Gaps, gapsText, orchestratorText } from "./text";
+import { clockNote, type Gaps, gapsText, orchestratorText } from "./text";
 
 export function install({ bus, store }: Studio): void {
   const orchEl = $<HTMLElement>("#orchestrator-status");
   const gapsEl = $<HTMLElement>("#gaps");
+  const clockEl = $<HTMLElement>("#clock-note");
   const broker = new BrokerPill();
+  let sim = false;
+  const drawClock = (): void => {
+    const note = clockNote(store.mode, sim);
+    clockEl.textContent = note.text;
+    clockEl.title = note.title;
+    clockEl.dataset.clock = store.mode === "replay" ? "trace" : sim ? "sim" : "robot";
+  };
   const counts = { gaps: 0, lostFrames: 0, dropped: 0 };
   let expectSeq = 0;
 
@@ -37,6 +46,8 @@ export function install({ bus, store }: Studio): void {
     counts.lostFrames = 0;
     counts.dropped = 0;
     broker.reset(!!hello.edit?.run?.running);
+    sim = !!(hello.track || hello.edit?.run);
+    drawClock();
   });
   bus.on("server.events", (msg) => {
     if (expectSeq && msg.seq !== expectSeq) {
@@ -47,11 +58,18 @@ export function install({ bus, store }: Studio): void {
     counts.dropped += msg.dropped ?? 0;
     if (store.mode === "live") for (const e of msg.events) if (e.type === "broker") broker.show(e);
   });
-  bus.on("server.run", (msg) => broker.setRunActive(msg.state === "running"));
+  bus.on("server.run", (msg) => {
+    broker.setRunActive(msg.state === "running");
+    if (msg.state === "running" && !sim) {
+      sim = true; // a Run of the editor: the figures are the simulated car's from now on
+      drawClock();
+    }
+  });
   bus.on("frame.render", (full) => {
     if (!store.live.dirtyOrch && !full) return;
     drawOrchestrator();
     drawGaps();
   });
   drawGaps();
+  drawClock();
 }

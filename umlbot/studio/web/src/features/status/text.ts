@@ -54,6 +54,10 @@ export function brokerView(
         : `connected to ${e.url ?? "the broker"}`,
     };
   }
+  if (e.ended) {
+    // a simulated run's broker closed with the run: nothing is wrong, nothing is retried
+    return { state: "ended", text: `${who}: the run has ended`, title: `${e.url ?? "the broker"}: ${e.ended}` };
+  }
   let text = `${who} ${e.url ?? ""}: ${e.problem ?? "connecting…"}`;
   if (e.problem) {
     const left = Math.max(0, Math.ceil((retryAt - now) / 1000));
@@ -61,4 +65,33 @@ export function brokerView(
     if ((e.attempts ?? 0) > 1) text += ` (attempt ${e.attempts})`;
   }
   return { state: e.problem ? "failed" : "connecting", text, title: text }; // the toolbar may cut it short
+}
+
+/** Which clock the figures are in: the nodes' durations (from the trace events' own start and end)
+ * and the Calls panel's latencies (request to reply, as the studio saw them). `sim`: the robot is
+ * the simulator's (`umlbot sim --studio`, a Run of the editor), whose nodes run on simulated time. */
+export function clockNote(mode: "live" | "replay", sim: boolean): { text: string; title: string } {
+  if (mode === "replay") {
+    return {
+      text: "node times: the recorded run's clock",
+      title:
+        "The durations under the nodes and the Calls panel's latencies are those the trace recorded: " +
+        "simulated time when it was recorded in the simulator, the robot's clock otherwise.",
+    };
+  }
+  if (sim) {
+    return {
+      text: "node times: simulated time · calls: wall clock",
+      title:
+        "The durations under the nodes are the simulated car's time, the same at any run speed: a call " +
+        "to a simulated part takes none of it (0 ms), a msleep(1500) takes 1.5 s. The Calls panel's " +
+        "latencies are wall-clock milliseconds, as the studio saw each request and its reply.",
+    };
+  }
+  return {
+    text: "node times: the robot's clock · calls: wall clock",
+    title:
+      "The durations under the nodes come from the robot's own trace (start to end of each node); the " +
+      "Calls panel's latencies are wall-clock milliseconds, as the studio saw each request and its reply.",
+  };
 }
