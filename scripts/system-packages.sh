@@ -66,6 +66,12 @@ find_missing() {
     have chromedriver || missing+=(chromium-driver)
     have node || missing+=(nodejs)
     have npm || missing+=(npm)
+    # `umlbot generate cpp` builds (issue 29): a C++17 compiler, CMake, Ninja, libmosquitto, nlohmann-json
+    have g++ || missing+=(g++)
+    have cmake || missing+=(cmake)
+    have ninja || missing+=(ninja-build)
+    [ -f /usr/include/mosquitto.h ] || missing+=(libmosquitto-dev)
+    [ -f /usr/include/nlohmann/json.hpp ] || missing+=(nlohmann-json3-dev)
     local venv
     venv="$(venv_package)"
     [ -z "$venv" ] || missing+=("$venv")

@@ -35,6 +35,7 @@ COMMANDS: dict[str, str] = {
     "monitor": "Watch the robot's traffic live.",
     "studio": "Serve the browser studio: diagrams, the running robot live, trace replay.",
     "plugins": "List the installed component and driver plugins (entry points).",
+    "generate": "Generate the model's swimlanes as a C++17 CMake project (`generate cpp`).",
 }
 
 
