@@ -45,8 +45,7 @@ from umlbot.compiler.expr import (
     Ref,
     Unary,
 )
-from umlbot.services.orchestrator.engine import used_components
-from umlbot.services.orchestrator.orchestrator import heartbeat_period_s
+from umlbot.services.orchestrator import heartbeat_period_s, used_components
 
 #: the runtime's files, copied into every project (package data of umlbot.codegen)
 RUNTIME_FILES = ("umlbot_runtime.hpp", "umlbot_runtime.cpp")
@@ -254,7 +253,8 @@ class _LaneWriter:
                 else:
                     guard = self.expr(branch.guard, branch.line or line)
                     out.append(f"  if (truthy({guard})) return {target};")
-            out += ["  return -1;", "});", "if (node < 0) return Outcome::Stopped;  // no guard holds, no else",
+            out += ["  return -1;", "});",
+                    "if (node < 0) return Outcome::Stopped;  // no guard holds, no else",
                     f"prev = {n};", "continue;"]
             return out
         if isinstance(node, ForkNode):
@@ -262,15 +262,18 @@ class _LaneWriter:
             return [f"return act.fork({n}, {{{targets}}});  // joined at {node.join}"]
         if isinstance(node, JoinNode):
             incoming = ", ".join(self.nodes[t] for t in node.incoming)
-            return [f"if (!act.arrive({n}, prev, {{{incoming}}})) return Outcome::Stopped;  // not the last flow",
+            wait = f"if (!act.arrive({n}, prev, {{{incoming}}})) return Outcome::Stopped;"
+            return [wait + "  // not the last flow",
                     f"act.passed({n});", self.goto(node.next)]
         if isinstance(node, SendNode):
             payload = "Value()" if node.payload is None else self.expr(node.payload, line)
-            return [f"act.step({n}, [&] {{ Value v = {payload}; rt.send({_cstr(node.signal)}, v); return v; }});",
+            send = f"rt.send({_cstr(node.signal)}, v);"
+            return [f"act.step({n}, [&] {{ Value v = {payload}; {send} return v; }});",
                     self.goto(node.next)]
         if isinstance(node, AcceptNode):
             store = f" {_ident(node.store)}.set(v);" if node.store is not None else ""
-            return [f"act.step({n}, [&] {{ Value v = rt.accept(act, {_cstr(node.signal)});{store} return v; }});",
+            accept = f"rt.accept(act, {_cstr(node.signal)});"
+            return [f"act.step({n}, [&] {{ Value v = {accept}{store} return v; }});",
                     self.goto(node.next)]
         raise self.error(f"the generator cannot express a {node.kind} node", line)  # pragma: no cover
 
@@ -304,7 +307,8 @@ class _LaneWriter:
             node = lane.nodes[node_id]
             out.append(f"    {{{_cstr(node.id)}, {_cstr(node.kind)}, {_cstr(node.label or node.id)}}},")
         out += ["};", "", "Outcome walk(Activation& act, int node, int prev) {", "  Runtime& rt = runtime();",
-                "  (void)rt;  // a lane without calls does not use it", "  (void)prev;  // only joins read it",
+                "  (void)rt;  // a lane without calls does not use it",
+                "  (void)prev;  // only joins read it",
                 "  for (;;) {", "    switch (node) {"]
         for node_id in order:
             out += self.case(lane.nodes[node_id])

@@ -49,7 +49,8 @@ def command(language: str, model: Path, output: Path, deployment: Path | None, b
             sys.exit(1)
         return
     if not build:
-        click.echo(f"build: cmake -S {output} -B {output}/out -G Ninja && cmake --build {output}/out", err=True)
+        click.echo(f"build: cmake -S {output} -B {output}/out -G Ninja && cmake --build {output}/out",
+                   err=True)
         return
     program = build_cpp(output, jobs=jobs)
     click.echo(f"built {program}", err=True)
