@@ -9,6 +9,7 @@ built. `CppRun` runs one program as a child process against a `Rig`'s broker and
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import os
@@ -28,6 +29,23 @@ from umlbot.compiler.api import compile_model
 from umlbot.compiler.compiled import CompiledModel
 
 CACHE = Path(tempfile.gettempdir()) / "umlbot-codegen-tests"
+MODELS = Path(__file__).parent / "models"
+
+#: every model a codegen test runs as a generated program (built together, once)
+TEST_MODELS: dict[str, Path] = {
+    "fork": MODELS / "fork.yaml",
+    "sensor_decision": MODELS / "sensor_decision.yaml",
+    "reentrant": MODELS / "reentrant.yaml",
+    "no_match": MODELS / "no_match.yaml",
+    "values": MODELS / "codegen_values.yaml",
+    "signals": MODELS / "signals.yaml",
+    "held_signals": MODELS / "held_signals.yaml",
+    "exit_loop": MODELS / "exit_loop.yaml",
+    "drive_and_read": MODELS / "drive_and_read.yaml",
+    "fault_loop": MODELS / "fault_loop.yaml",
+    "stubborn": MODELS / "stubborn.yaml",
+    "robot_car": Path(__file__).parent.parent / "models" / "robot_car",
+}
 
 _HARNESS = """cmake_minimum_required(VERSION 3.16)
 project(umlbot_codegen_tests LANGUAGES CXX)
@@ -80,6 +98,12 @@ def build_programs(models: dict[str, CompiledModel], jobs: int = 2) -> dict[str,
             raise RuntimeError(f"{' '.join(step)} failed:\n{(done.stdout + done.stderr)[-4000:]}")
     (root / "built").write_text("ok\n", encoding="utf-8")
     return programs
+
+
+@functools.cache
+def test_programs() -> dict[str, Path]:
+    """Every `TEST_MODELS` program, built once per session (and cached between sessions)."""
+    return build_programs({name: compile_model(path) for name, path in TEST_MODELS.items()})
 
 
 def build_project(model: CompiledModel) -> Path:

@@ -18,14 +18,15 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from codegen_support import CppRun, build_programs, lane_sequences, outcomes, wait_for
+from codegen_support import CppRun, lane_sequences, outcomes, test_programs, wait_for
 from conftest import BrokerProcess, RawClient
 from orchestrator_support import MODELS, ROBOT_CAR, Rig, rig
 
 from umlbot.compiler.api import compile_model
 from umlbot.compiler.compiled import CompiledModel, ForkNode
 
-pytestmark = pytest.mark.network
+# the first test builds every program (tests/codegen_support.py): ~1-2 min on a loaded machine, once
+pytestmark = [pytest.mark.network, pytest.mark.timeout(600)]
 
 Nodes = Callable[[], list[str]]
 
@@ -57,7 +58,7 @@ SCENARIOS: dict[str, Scenario] = {
 @pytest.fixture(scope="session")
 def programs() -> dict[str, Path]:
     """Every scenario's generated program, built once per session (cached by its sources)."""
-    return build_programs({name: compile_model(s.path) for name, s in SCENARIOS.items()})
+    return test_programs()
 
 
 def _stimulate(kind: str, raw: RawClient, nodes: Nodes) -> None:

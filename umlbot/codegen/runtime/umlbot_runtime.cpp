@@ -260,6 +260,7 @@ struct State {
   std::ofstream trace_out;
   // heartbeat
   bool heartbeat_stop = false;
+  bool closing = false;  // the final status is out: a disconnect now is ours
 };
 
 State g;
@@ -366,10 +367,15 @@ void on_connect(mosquitto*, void*, int rc) {
   rt.cv.notify_all();
 }
 
-void on_disconnect(mosquitto*, void*, int) {
+void on_disconnect(mosquitto*, void*, int rc) {
   Runtime& rt = runtime();
   std::lock_guard<std::mutex> lock(rt.mu);
   if (!g.connected) return;
+  if (rc == 0 || g.closing) {  // our own goodbye at the end: not a fault
+    g.connected = false;
+    rt.cv.notify_all();
+    return;
+  }
   g.connected = false;
   g.availability.clear();  // stale: the retained status comes again after the reconnect
   for (auto& entry : g.pending) {
@@ -1260,19 +1266,33 @@ int run_main(int argc, char** argv, const ModelInfo& model) {
 
   auto finish_threads = [&] { pthread_kill(signals.native_handle(), SIGUSR2); signals.join(); };
   auto started = Clock::now();
-  int rc = mosquitto_connect_async(g.mosq, g.settings.host.c_str(), g.settings.port, g.settings.keepalive);
+  // a broker that is not up yet (the robot booting) gets the connect time-out to come, as in Python
+  const auto connect_deadline = after(kConnectTimeoutS);
+  int rc = MOSQ_ERR_SUCCESS;
+  std::string why;
+  while (true) {
+    rc = mosquitto_connect_async(g.mosq, g.settings.host.c_str(), g.settings.port, g.settings.keepalive);
+    if (rc == MOSQ_ERR_SUCCESS) break;
+    why = rc == MOSQ_ERR_ERRNO ? std::strerror(errno) : mosquitto_strerror(rc);
+    bool give_up;
+    {
+      std::unique_lock<std::mutex> lock(rt.mu);
+      give_up = rt.cv.wait_until(lock, std::min(connect_deadline, after(0.2)), [] { return g.exit_requested_flag; }) ||
+                Clock::now() >= connect_deadline || rc == MOSQ_ERR_INVAL;
+    }
+    if (give_up) break;
+  }
   if (rc == MOSQ_ERR_SUCCESS) rc = mosquitto_loop_start(g.mosq);
   bool up = false;
-  std::string why = rc == MOSQ_ERR_SUCCESS ? "" : (rc == MOSQ_ERR_ERRNO ? std::strerror(errno) : mosquitto_strerror(rc));
   if (rc == MOSQ_ERR_SUCCESS) {
     std::unique_lock<std::mutex> lock(rt.mu);
     g.connecting = true;
-    up = rt.cv.wait_until(lock, after(kConnectTimeoutS),
+    up = rt.cv.wait_until(lock, connect_deadline,
                           [] { return g.connected.load() || !g.connect_error.empty() || g.exit_requested_flag; });
     up = g.connected;
     g.connecting = false;
     if (!up) why = g.connect_error.empty() ? "no answer within " + fmt_g(kConnectTimeoutS) + " s" : g.connect_error;
-    if (!up && g.exit_requested_flag) {
+    if (!up && g.exit_requested_flag) {  // asked to end before the broker answered: nothing ran
       lock.unlock();
       mosquitto_disconnect(g.mosq);
       mosquitto_loop_stop(g.mosq, true);
@@ -1284,7 +1304,10 @@ int run_main(int argc, char** argv, const ModelInfo& model) {
   if (!up) {
     if (rc == MOSQ_ERR_SUCCESS) mosquitto_loop_stop(g.mosq, true);
     finish_threads();
-    std::fprintf(stderr, "error: cannot connect to the MQTT broker at %s: %s\n", g.settings.url_shown.c_str(), why.c_str());
+    std::fprintf(stderr,
+                 "error: cannot connect to the MQTT broker at %s within %s s (%s); is it running? "
+                 "(umlbot broker, or --broker / UMLBOT_BROKER)\n",
+                 g.settings.url_shown.c_str(), fmt_g(kConnectTimeoutS).c_str(), why.c_str());
     return 1;
   }
   std::thread trace(trace_thread);
@@ -1334,6 +1357,7 @@ int run_main(int argc, char** argv, const ModelInfo& model) {
     enter_locked(g.failed ? Phase::Failed : Phase::Stopped, &reason);
     code = g.failed ? 1 : 0;
     g.heartbeat_stop = true;
+    g.closing = true;
     rt.cv.notify_all();
   }
   heartbeat.join();
