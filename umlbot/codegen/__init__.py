@@ -6,7 +6,7 @@ them; `build_cpp` configures and builds the project with CMake and Ninja when th
 installed (`missing_toolchain` says what is not). docs/codegen.md tells users the rest.
 """
 
-from umlbot.codegen.build import APT_LINE, BuildError, build_cpp, missing_toolchain
+from umlbot.codegen.build import APT_LINE, BuildError, build_cpp, cached_program, missing_toolchain
 from umlbot.codegen.cpp import GenerateError, generate_cpp, program_name, project_files, render_cpp
 
 __all__ = [
@@ -14,6 +14,7 @@ __all__ = [
     "BuildError",
     "GenerateError",
     "build_cpp",
+    "cached_program",
     "generate_cpp",
     "missing_toolchain",
     "program_name",

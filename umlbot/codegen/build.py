@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import hashlib
 import os
 import shutil
 import subprocess
 from pathlib import Path
 
 from umlbot.base.errors import UmlbotError
+from umlbot.compiler.compiled import CompiledModel
 
 #: (Debian package, what it provides that the build looks for)
 TOOLCHAIN: tuple[tuple[str, str], ...] = (
@@ -63,3 +65,26 @@ def build_cpp(project: str | Path, build_dir: str | Path | None = None, jobs: in
     if not programs:
         raise BuildError(f"the build of {source} made no *-orchestrator program in {out}")
     return programs[0]
+
+
+def cached_program(model: CompiledModel, cache_dir: str | Path | None = None,
+                   jobs: int | None = None) -> Path:
+    """The model's generated program, built once per set of sources in `cache_dir` (default
+    `$XDG_CACHE_HOME/umlbot/codegen`, else `~/.cache/umlbot/codegen`); `umlbot sim --engine cpp`
+    uses it. Raises `BuildError` when the toolchain is missing or the build fails."""
+    from umlbot.codegen.cpp import generate_cpp, program_name, project_files
+
+    files = project_files(model)
+    digest = hashlib.sha256()
+    for relative, data in files.items():
+        digest.update(relative.encode("utf-8") + b"\0" + hashlib.sha256(data).digest())
+    base = Path(cache_dir) if cache_dir is not None else (
+        Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "umlbot" / "codegen")
+    root = base / f"{program_name(model)}-{digest.hexdigest()[:16]}"
+    program = root / "out" / program_name(model)
+    if (root / "built").exists() and program.exists():
+        return program
+    generate_cpp(model, root)
+    built = build_cpp(root, jobs=jobs)
+    (root / "built").write_text("ok\n", encoding="utf-8")
+    return built
