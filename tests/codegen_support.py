@@ -101,7 +101,7 @@ def build_programs(models: dict[str, CompiledModel], jobs: int = 2) -> dict[str,
 
 
 @functools.cache
-def test_programs() -> dict[str, Path]:
+def built_programs() -> dict[str, Path]:
     """Every `TEST_MODELS` program, built once per session (and cached between sessions)."""
     return build_programs({name: compile_model(path) for name, path in TEST_MODELS.items()})
 

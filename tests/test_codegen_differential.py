@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from codegen_support import CppRun, lane_sequences, outcomes, test_programs, wait_for
+from codegen_support import CppRun, built_programs, lane_sequences, outcomes, wait_for
 from conftest import BrokerProcess, RawClient
 from orchestrator_support import MODELS, ROBOT_CAR, Rig, rig
 
@@ -58,7 +58,7 @@ SCENARIOS: dict[str, Scenario] = {
 @pytest.fixture(scope="session")
 def programs() -> dict[str, Path]:
     """Every scenario's generated program, built once per session (cached by its sources)."""
-    return test_programs()
+    return built_programs()
 
 
 def _stimulate(kind: str, raw: RawClient, nodes: Nodes) -> None:

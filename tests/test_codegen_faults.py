@@ -16,7 +16,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 import pytest
-from codegen_support import TEST_MODELS, test_programs, wait_for
+from codegen_support import TEST_MODELS, built_programs, wait_for
 from conftest import BrokerProcess, RawClient
 from orchestrator_support import rig
 
@@ -32,7 +32,7 @@ ENGINES = ["python", "cpp"]
 def _argv(engine: str, model: str, tmp_path: Path) -> list[str]:
     """The command line of `engine` running TEST_MODELS[model] (no options yet)."""
     if engine == "cpp":
-        return [str(test_programs()[model])]
+        return [str(built_programs()[model])]
     compiled = tmp_path / f"{model}.json"
     if not compiled.exists():
         write_compiled(compile_model(TEST_MODELS[model]), compiled)
@@ -71,7 +71,7 @@ def _error_line(err: str) -> str:
 
 @pytest.fixture(scope="session", autouse=True)
 def _programs() -> None:
-    test_programs()
+    built_programs()
 
 
 @pytest.mark.parametrize("engine", ENGINES)
