@@ -182,3 +182,27 @@ def test_an_error_reply_fails_both_engines_with_the_same_line(mosquitto_broker: 
     assert lines["cpp"].startswith(
         "error: fail-safe stop: lane RaspberryPI, node overdrive (LeftActuator.dutycycle(Count.depth * 60)): "
         "LeftActuator.dutycycle: "), lines
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_the_heartbeat_keeps_the_motor_running_and_a_frozen_orchestrator_stops_it(
+    engine: str, mosquitto_broker: BrokerProcess, tmp_path: Path,
+) -> None:
+    # the motor's watchdog is 0.6 s; the model enables it once and then sleeps a minute: only the
+    # orchestrator's heartbeat (its lease, docs/services.md) keeps it running
+    lease = {"LeftActuator": {"watchdog_s": 0.6}}
+    with rig(mosquitto_broker.url, TEST_MODELS["stubborn"], settings=lease) as r:
+        proc = _start(engine, "stubborn", tmp_path, "--broker", mosquitto_broker.url, "--grace", "0.3")
+        left = r.driver("LeftActuator")
+        try:
+            assert wait_for(lambda: left.running, 10.0), "the motor never ran"
+            assert not wait_for(lambda: not left.running, 2.0), "the motor stopped while the heartbeat came"
+            proc.send_signal(signal.SIGSTOP)  # frozen: no heartbeat, no goodbye
+            assert wait_for(lambda: not left.running, 3.0), "a frozen orchestrator's motor ran on"
+            service = r.host_of("LeftActuator").services["LeftActuator"]
+            assert service.stop_reason == "orchestrator unresponsive"
+        finally:
+            proc.send_signal(signal.SIGCONT)
+            proc.send_signal(signal.SIGTERM)
+        code, err = _finish(proc)
+        assert code == 0, err
