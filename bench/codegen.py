@@ -14,7 +14,12 @@ Per engine: p50/p99 of an action in ms and the ratio to raw (targets for cpp: p5
 first feature call's start. Then the time to generate and build the reference car, and a model of
 `--nodes` (2000) nodes. The last output line is one JSON object.
 
+`--tracks` instead runs the reference car on every bundled track under both engines (`umlbot
+sim`: python at `--speed 10` on the sim clock, cpp at `--cpp-speed 2` in wall time) and prints
+per track whether each reached the goal, its collisions and sim seconds.
+
     python bench/codegen.py [--n 2000] [--nodes 2000] [--no-builds]
+    python bench/codegen.py --tracks [--cpp-speed 2]
 """
 
 from __future__ import annotations
@@ -105,12 +110,36 @@ def big_model_text(nodes: int) -> str:
     return "\n".join(lines) + "\n"
 
 
+def sim_tracks(cpp_speed: float) -> dict[str, Any]:
+    """Every bundled track under both engines."""
+    from umlbot.sim import SimOptions, run_sim
+
+    car = ROOT / "models" / "robot_car"
+    rows = []
+    for track in sorted((ROOT / "models" / "tracks").glob("*.yaml")):
+        row: dict[str, Any] = {"track": track.stem}
+        for engine, speed in (("python", 10.0), ("cpp", cpp_speed)):
+            result = run_sim(SimOptions(model=car, track=track, speed=speed, port=0, timeout_s=300.0,
+                                        engine=engine))
+            row[engine] = {"goal": result.goal_reached, "collisions": result.collisions,
+                           "sim_s": round(result.sim_s, 1), "reason": result.reason}
+        rows.append(row)
+        print(json.dumps(row), file=sys.stderr)
+    return {"cpp_speed": cpp_speed, "tracks": rows,
+            "goals": {engine: sum(1 for row in rows if row[engine]["goal"]) for engine in ("python", "cpp")}}
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--n", type=int, default=2000, help="actions per engine")
     parser.add_argument("--nodes", type=int, default=2000, help="nodes of the big model")
     parser.add_argument("--no-builds", action="store_true", help="skip the generate+build timings")
+    parser.add_argument("--tracks", action="store_true", help="the car on every track, both engines")
+    parser.add_argument("--cpp-speed", type=float, default=2.0, help="sim speed of the cpp engine")
     args = parser.parse_args()
+    if args.tracks:
+        print(json.dumps(sim_tracks(args.cpp_speed)))
+        return
     work = Path(tempfile.mkdtemp(prefix="umlbot-bench-codegen-"))
     result: dict[str, Any] = {"n": args.n}
     try:
