@@ -221,61 +221,81 @@ class _LaneWriter:
     def goto(self, target: str) -> str:
         return f"prev = node; node = {self.nodes[target]}; continue;"
 
-    def case(self, node: Node) -> list[str]:
-        n = self.nodes[node.id]
+    def what(self, node: Node) -> str:
+        """The comment naming a node: kind, id, label, file:line."""
         what = f"{node.kind} {node.id}"
         if node.label and node.label != node.id:
             what += f": {node.label}"
-        lines = [f"      case {n}:  // {_comment(what)} ({self.where(node.line)})"]
-        body = self.body(node, n)
-        lines += [f"        {text}" for text in body]
+        return f"{_comment(what)} ({self.where(node.line)})"
+
+    def function_name(self, node: Node) -> str:
+        return f"{'choose' if isinstance(node, DecisionNode) else 'do'}_{self.nodes[node.id][2:]}"
+
+    def function(self, node: Node) -> list[str]:
+        """The function holding what a node computes (None for the nodes that only route)."""
+        line = node.line
+        name = self.function_name(node)
+        body: list[str]
+        if isinstance(node, ActionNode):
+            body = [f"return {self.call(node.call, line)};"]
+        elif isinstance(node, DatastoreNode):
+            body = [f"Value v = {self.expr(node.value, line)};", f"{_ident(node.name)}.set(v);", "return v;"]
+        elif isinstance(node, SendNode):
+            payload = "Value()" if node.payload is None else self.expr(node.payload, line)
+            body = [f"Value v = {payload};", f"rt.send({_cstr(node.signal)}, v);", "return v;"]
+        elif isinstance(node, AcceptNode):
+            body = [f"Value v = rt.accept(act, {_cstr(node.signal)});"]
+            if node.store is not None:
+                body.append(f"{_ident(node.store)}.set(v);")
+            body.append("return v;")
+        elif isinstance(node, DecisionNode):
+            body = []
+            for branch in node.branches:
+                target = self.nodes[branch.target]
+                if branch.guard is None:
+                    body.append(f"return {target};  // else")
+                else:
+                    guard = self.expr(branch.guard, branch.line or line)
+                    body.append(f"if (truthy({guard})) return {target};")
+            if node.branches[-1].guard is not None:
+                body.append("return -1;  // no guard holds and there is no else: this flow stops")
+        else:
+            return []
+        returns = "int" if isinstance(node, DecisionNode) else "Value"
+        text = "\n".join(body)
+        if "rt." in text:
+            body.insert(0, "Runtime& rt = runtime();")
+        used = re.search(r"(?<![\w:])act\b", text) is not None
+        param = "Activation& act" if used else "Activation& /*act*/"
+        return [f"// {self.what(node)}", f"static {returns} {name}({param}) {{",
+                *(f"  {line_}" for line_ in body), "}", ""]
+
+    def case(self, node: Node) -> list[str]:
+        n = self.nodes[node.id]
+        lines = [f"      case {n}:  // {self.what(node)}"]
+        lines += [f"        {text}" for text in self.route(node, n)]
         return lines
 
-    def body(self, node: Node, n: str) -> list[str]:
-        line = node.line
+    def route(self, node: Node, n: str) -> list[str]:
+        """What the walk does at a node: run its function, then go on."""
         if isinstance(node, StartNode):
             return [f"act.passed({n});", self.goto(node.next)]
         if isinstance(node, EndNode):
             return [f"act.passed({n});", "return Outcome::Ended;"]
-        if isinstance(node, ActionNode):
-            return [f"act.step({n}, [&] {{ return {self.call(node.call, line)}; }});", self.goto(node.next)]
-        if isinstance(node, DatastoreNode):
-            store = _ident(node.name)
-            value = self.expr(node.value, line)
-            return [f"act.step({n}, [&] {{ Value v = {value}; {store}.set(v); return v; }});",
-                    self.goto(node.next)]
+        if isinstance(node, ActionNode | DatastoreNode | SendNode | AcceptNode):
+            return [f"act.step({n}, {self.function_name(node)});", self.goto(node.next)]
         if isinstance(node, DecisionNode):
-            out = [f"node = act.decide({n}, [&]() -> int {{"]
-            for branch in node.branches:
-                target = self.nodes[branch.target]
-                if branch.guard is None:
-                    out.append(f"  return {target};  // else")
-                else:
-                    guard = self.expr(branch.guard, branch.line or line)
-                    out.append(f"  if (truthy({guard})) return {target};")
-            out += ["  return -1;", "});",
+            return [f"node = act.decide({n}, {self.function_name(node)});",
                     "if (node < 0) return Outcome::Stopped;  // no guard holds, no else",
                     f"prev = {n};", "continue;"]
-            return out
         if isinstance(node, ForkNode):
             targets = ", ".join(self.nodes[t] for t in node.targets)
             return [f"return act.fork({n}, {{{targets}}});  // joined at {node.join}"]
         if isinstance(node, JoinNode):
             incoming = ", ".join(self.nodes[t] for t in node.incoming)
             wait = f"if (!act.arrive({n}, prev, {{{incoming}}})) return Outcome::Stopped;"
-            return [wait + "  // not the last flow",
-                    f"act.passed({n});", self.goto(node.next)]
-        if isinstance(node, SendNode):
-            payload = "Value()" if node.payload is None else self.expr(node.payload, line)
-            send = f"rt.send({_cstr(node.signal)}, v);"
-            return [f"act.step({n}, [&] {{ Value v = {payload}; {send} return v; }});",
-                    self.goto(node.next)]
-        if isinstance(node, AcceptNode):
-            store = f" {_ident(node.store)}.set(v);" if node.store is not None else ""
-            accept = f"rt.accept(act, {_cstr(node.signal)});"
-            return [f"act.step({n}, [&] {{ Value v = {accept}{store} return v; }});",
-                    self.goto(node.next)]
-        raise self.error(f"the generator cannot express a {node.kind} node", line)  # pragma: no cover
+            return [wait + "  // not the last flow", f"act.passed({n});", self.goto(node.next)]
+        raise self.error(f"the generator cannot express a {node.kind} node", node.line)  # pragma: no cover
 
     def declarations(self) -> list[str]:
         lane = self.lane
@@ -306,10 +326,12 @@ class _LaneWriter:
         for node_id in order:
             node = lane.nodes[node_id]
             out.append(f"    {{{_cstr(node.id)}, {_cstr(node.kind)}, {_cstr(node.label or node.id)}}},")
-        out += ["};", "", "Outcome walk(Activation& act, int node, int prev) {", "  Runtime& rt = runtime();",
-                "  (void)rt;  // a lane without calls does not use it",
-                "  (void)prev;  // only joins read it",
-                "  for (;;) {", "    switch (node) {"]
+        out += ["};", "", "// what each node computes"]
+        for node_id in order:
+            out += self.function(lane.nodes[node_id])
+        out += ["// the flows: from each node to the next",
+                "Outcome walk(Activation& act, int node, int prev) {",
+                "  (void)prev;  // only joins read it", "  for (;;) {", "    switch (node) {"]
         for node_id in order:
             out += self.case(lane.nodes[node_id])
         out += ["      default:", "        return Outcome::Stopped;", "    }", "  }", "}", "",

@@ -771,6 +771,38 @@ void Activation::passed(int node) {
   runtime().trace(lane_, nodes_[node], t, now(), nullptr, nullptr, nullptr);
 }
 
+Value Activation::step(int node, Value (*body)(Activation&)) {
+  checkpoint();
+  const double began = now();
+  Value value;
+  try {
+    value = body(*this);
+  } catch (...) {
+    fail_current(node, began);
+  }
+  traced(node, began, value.is_null() ? nullptr : &value, nullptr);
+  return value;
+}
+
+int Activation::decide(int node, int (*choose)(Activation&)) {
+  checkpoint();
+  const double began = now();
+  int target = -1;
+  try {
+    target = choose(*this);
+  } catch (...) {
+    fail_current(node, began);
+  }
+  if (target < 0) {
+    static const std::string warning = "no guard holds and there is no else: this flow stops";
+    traced(node, began, nullptr, &warning);
+    return -1;
+  }
+  const Value value(nodes_[target].id);
+  traced(node, began, &value, nullptr);
+  return target;
+}
+
 void Activation::traced(int node, double began, const Value* value, const std::string* warning) {
   runtime().trace(lane_, nodes_[node], began, now(), value, nullptr, warning);
 }

@@ -111,16 +111,14 @@ class Activation {
   // A join: counts the flow from `prev`; true for the flow that continues (the last to arrive).
   bool arrive(int join, int prev, std::initializer_list<int> incoming);
 
-  // Trace an executed node and return its value; on an exception, trace the error and throw
-  // NodeFailed (Cancelled passes through).
-  template <typename F>
-  Value step(int node, F&& body);
+  // Run a node's function, trace the node with its value and return it; on an exception, trace
+  // the error and throw NodeFailed (Cancelled and NodeFailed pass through).
+  Value step(int node, Value (*body)(Activation&));
   // The trace of a node without a body (start, end, fork, join).
   void passed(int node);
-  // A decision: `body` returns the target node (its id is the traced value) or -1 when no guard
-  // holds and there is no else (a warning; the flow stops).
-  template <typename F>
-  int decide(int node, F&& body);
+  // A decision: `choose` returns the target node (its id is the traced value) or -1 when no
+  // guard holds and there is no else (a warning; the flow stops).
+  int decide(int node, int (*choose)(Activation&));
 
   const char* lane() const { return lane_; }
   const NodeInfo& info(int node) const { return nodes_[node]; }
@@ -206,41 +204,5 @@ Runtime& runtime();
 
 // The program's main: options, connect, wait online, stop actuators, run lanes, stop, exit code.
 int run_main(int argc, char** argv, const ModelInfo& model);
-
-// --- template ------------------------------------------------------------------------------------
-
-template <typename F>
-Value Activation::step(int node, F&& body) {
-  checkpoint();
-  const double began = now();
-  Value value;
-  try {
-    value = body();
-  } catch (...) {
-    fail_current(node, began);
-  }
-  traced(node, began, value.is_null() ? nullptr : &value, nullptr);
-  return value;
-}
-
-template <typename F>
-int Activation::decide(int node, F&& body) {
-  checkpoint();
-  const double began = now();
-  int target = -1;
-  try {
-    target = body();
-  } catch (...) {
-    fail_current(node, began);
-  }
-  if (target < 0) {
-    static const std::string warning = "no guard holds and there is no else: this flow stops";
-    traced(node, began, nullptr, &warning);
-    return -1;
-  }
-  const Value value(nodes_[target].id);
-  traced(node, began, &value, nullptr);
-  return target;
-}
 
 }  // namespace umlbot
