@@ -273,10 +273,30 @@ Clock::time_point after(double seconds) {
   return Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(seconds));
 }
 
+// Every publish goes through one lock: libmosquitto's threaded mode was seen to interleave two
+// threads' packets on a loaded machine (the broker then closed the connection: "out of memory").
+int publish_raw(const char* topic, int length, const void* payload, int qos, bool retain, int* mid = nullptr) {
+  static std::mutex publishing;
+  std::lock_guard<std::mutex> lock(publishing);
+  return mosquitto_publish(g.mosq, mid, topic, length, payload, qos, retain);
+}
+
+// the final status's message id, and whether the broker acknowledged it
+std::atomic<int> g_final_mid{-1};
+std::atomic<bool> g_final_acked{false};
+
+void on_publish(mosquitto*, void*, int mid) {
+  if (mid != g_final_mid.load()) return;
+  g_final_acked = true;
+  Runtime& rt = runtime();
+  std::lock_guard<std::mutex> lock(rt.mu);
+  rt.cv.notify_all();
+}
+
 bool active() { return g.phase == Phase::Running || g.phase == Phase::Stopping; }
 
 void publish(const std::string& topic, const std::string& payload, int qos, bool retain) {
-  int rc = mosquitto_publish(g.mosq, nullptr, topic.c_str(), static_cast<int>(payload.size()),
+  int rc = publish_raw(topic.c_str(), static_cast<int>(payload.size()),
                              payload.data(), qos, retain);
   if (rc != MOSQ_ERR_SUCCESS) throw ModelError("NotConnected", std::string("cannot publish on ") + topic + ": " + mosquitto_strerror(rc));
 }
@@ -293,7 +313,12 @@ void publish_status_locked() {
   status["call_timeout_s"] = g.call_timeout_s;
   status["since"] = now();
   try {
-    publish(g.base + "/orchestrator/status", dump(status), 1, true);
+    const std::string topic = g.base + "/orchestrator/status";
+    const std::string payload = dump(status);
+    int mid = -1;
+    int rc = publish_raw(topic.c_str(), static_cast<int>(payload.size()), payload.data(), 1, true, &mid);
+    if (rc != MOSQ_ERR_SUCCESS) throw ModelError("NotConnected", mosquitto_strerror(rc));
+    if (g.phase == Phase::Stopped || g.phase == Phase::Failed) g_final_mid = mid;
   } catch (const std::exception& e) {
     log_line(30, "orchestrator status not published", e.what());
   }
@@ -513,7 +538,7 @@ void ship_locked(std::unique_lock<std::mutex>& lock) {
       array += texts[i];
     }
     array += "]";
-    mosquitto_publish(g.mosq, nullptr, (g.base + "/orchestrator/trace").c_str(), static_cast<int>(array.size()),
+    publish_raw((g.base + "/orchestrator/trace").c_str(), static_cast<int>(array.size()),
                       array.data(), 0, false);
   }
   if (g.trace_out.is_open()) {
@@ -858,7 +883,7 @@ Value Runtime::call(Activation& act, const char* component, const char* feature,
   request["timeout_s"] = g.call_timeout_s;
   const std::string topic = g.base + "/" + component + "/call/" + feature;
   const std::string payload = dump(request);
-  int rc = mosquitto_publish(g.mosq, nullptr, topic.c_str(), static_cast<int>(payload.size()), payload.data(), 0, false);
+  int rc = publish_raw(topic.c_str(), static_cast<int>(payload.size()), payload.data(), 0, false);
   std::unique_lock<std::mutex> lock(mu);
   if (rc != MOSQ_ERR_SUCCESS) {
     g.pending.erase(id);
@@ -1055,7 +1080,7 @@ void heartbeat_thread() {
       beat["seq"] = seq;
       beat["period_s"] = g.model->heartbeat_s;
       const std::string payload = dump(beat);
-      mosquitto_publish(g.mosq, nullptr, (g.base + "/orchestrator/heartbeat").c_str(),
+      publish_raw((g.base + "/orchestrator/heartbeat").c_str(),
                         static_cast<int>(payload.size()), payload.data(), 0, false);
     }
     rt.cv.wait_until(lock, after(g.model->heartbeat_s), [] { return g.heartbeat_stop; });
@@ -1091,7 +1116,7 @@ void stop_actuators(bool at_start) {
     request["timeout_s"] = timeout;
     const std::string payload = dump(request);
     const std::string topic = g.base + "/" + call.stop->component + "/call/" + call.stop->feature;
-    mosquitto_publish(g.mosq, nullptr, topic.c_str(), static_cast<int>(payload.size()), payload.data(), 0, false);
+    publish_raw(topic.c_str(), static_cast<int>(payload.size()), payload.data(), 0, false);
   }
   std::unique_lock<std::mutex> lock(rt.mu);
   rt.cv.wait_until(lock, after(timeout), [&] {
@@ -1298,6 +1323,7 @@ int run_main(int argc, char** argv, const ModelInfo& model) {
   mosquitto_connect_callback_set(g.mosq, on_connect);
   mosquitto_disconnect_callback_set(g.mosq, on_disconnect);
   mosquitto_message_callback_set(g.mosq, on_message);
+  mosquitto_publish_callback_set(g.mosq, on_publish);
   mosquitto_reconnect_delay_set(g.mosq, 1, 2, false);
 
   auto finish_threads = [&] { pthread_kill(signals.native_handle(), SIGUSR2); signals.join(); };
@@ -1397,7 +1423,18 @@ int run_main(int argc, char** argv, const ModelInfo& model) {
     rt.cv.notify_all();
   }
   heartbeat.join();
+  {
+    // the final status first reaches the broker (its PUBACK), then the DISCONNECT
+    std::unique_lock<std::mutex> lock(rt.mu);
+    rt.cv.wait_until(lock, after(1.0), [] { return g_final_acked.load() || !g.connected.load(); });
+  }
   mosquitto_disconnect(g.mosq);
+  {
+    // the DISCONNECT must reach the broker before the network thread ends, else the broker
+    // publishes the last will (`offline`) over the final status
+    std::unique_lock<std::mutex> lock(rt.mu);
+    rt.cv.wait_until(lock, after(1.0), [] { return !g.connected.load(); });
+  }
   mosquitto_loop_stop(g.mosq, false);
   mosquitto_destroy(g.mosq);
   mosquitto_lib_cleanup();
