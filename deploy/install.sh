@@ -23,6 +23,10 @@ usage: install.sh [options]
   --prefix DIR        installation directory (default /opt/umlbot)
   --source DIR        umlbot source checkout to install (default: the one holding this script)
   --model FILE        compiled model (`umlbot compile MODEL -o FILE`); enables the orchestrator
+  --program FILE      a generated orchestrator (`umlbot generate cpp MODEL -o DIR --build`,
+                      built for the robot): installed as PREFIX/bin/umlbot-orchestrator-program
+                      and run by umlbot-orchestrator.service instead of `umlbot run` (a drop-in,
+                      rewritten on every run: a re-run without --program goes back to Python)
   --deployment FILE   deployment file (plain or YAML)
   --robot ID          robot id written to umlbot.env (default: car)
   --broker URL        default broker URL written to umlbot.env (default: mqtt://127.0.0.1:1883)
@@ -60,6 +64,7 @@ PREFIX=/opt/umlbot
 GIVEN=" "  # the options given on this command line (they update an existing umlbot.env)
 SOURCE="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 MODEL=""
+PROGRAM=""
 DEPLOYMENT=""
 ROBOT=car
 BROKER=mqtt://127.0.0.1:1883
@@ -82,6 +87,7 @@ while [ $# -gt 0 ]; do
         --prefix) PREFIX="${2%/}"; shift 2 ;;
         --source) SOURCE="$2"; shift 2 ;;
         --model) MODEL="$2"; shift 2 ;;
+        --program) PROGRAM="$2"; shift 2 ;;
         --deployment) DEPLOYMENT="$2"; shift 2 ;;
         --robot) ROBOT="$2"; GIVEN+="robot "; shift 2 ;;
         --broker) BROKER="$2"; GIVEN+="broker "; shift 2 ;;
@@ -140,6 +146,8 @@ case " $SERVICES " in
 esac
 case "$DRIVER" in auto|pigpio|lgpio|mock|sim) ;; *) die "unknown driver '$DRIVER' (auto, pigpio, lgpio, mock or sim)" ;; esac
 [ -z "$MODEL" ] || [ -f "$MODEL" ] || die "compiled model $MODEL not found"
+[ -z "$PROGRAM" ] || [ -f "$PROGRAM" ] || die "generated program $PROGRAM not found"
+[ -z "$PROGRAM" ] || [ -x "$PROGRAM" ] || die "generated program $PROGRAM is not executable"
 [ -z "$DEPLOYMENT" ] || [ -f "$DEPLOYMENT" ] || die "deployment $DEPLOYMENT not found"
 [ -f "$SOURCE/pyproject.toml" ] || die "$SOURCE is not an umlbot checkout (no pyproject.toml)"
 [[ "$ROBOT" =~ ^[A-Za-z0-9_][A-Za-z0-9_.-]*$ ]] || die "bad robot id '$ROBOT' (letters, digits, _ . -)"
@@ -270,6 +278,10 @@ fi
 
 # 2. The robot: compiled model and deployment (the robot needs no model sources).
 if [ -n "$MODEL" ]; then install -m 0644 "$MODEL" "$ROOT$MODEL_PATH"; fi
+if [ -n "$PROGRAM" ]; then
+    install -d -m 0755 "$DEST/bin"
+    install -m 0755 "$PROGRAM" "$DEST/bin/umlbot-orchestrator-program"
+fi
 if [ -n "$DEPLOYMENT" ]; then install -m 0644 "$DEPLOYMENT" "$ROOT$DEPLOYMENT_PATH"; fi
 
 # 3. Documentation and the broker security files, for reference on the robot.
@@ -446,10 +458,23 @@ done
     echo "After=${SERVICE_UNITS[*]}"
 } >"$UNITDIR/umlbot-orchestrator.service.d/20-umlbot-services.conf"
 chmod 0644 "$UNITDIR/umlbot-orchestrator.service.d/20-umlbot-services.conf"
+# the generated program instead of `umlbot run` (docs/codegen.md): the same options and exit codes
+GENERATED="$UNITDIR/umlbot-orchestrator.service.d/30-generated-program.conf"
+if [ -n "$PROGRAM" ]; then
+    {
+        echo "# Written by deploy/install.sh --program: the generated C++ orchestrator runs the model."
+        echo "[Service]"
+        echo "ExecStart="
+        echo "ExecStart=$PREFIX/bin/umlbot-orchestrator-program \$UMLBOT_RUN_ARGS"
+    } >"$GENERATED"
+    chmod 0644 "$GENERATED"
+else
+    rm -f "$GENERATED"
+fi
 
 # 8. Enable: umlbot.target on boot, and under it every service kind and the orchestrator.
 WANTED=("${SERVICE_UNITS[@]}")
-if [ -n "$MODEL" ]; then WANTED+=(umlbot-orchestrator.service); fi
+if [ -n "$MODEL$PROGRAM" ]; then WANTED+=(umlbot-orchestrator.service); fi
 if [ "$EMBEDDED_BROKER" -eq 1 ]; then WANTED+=(umlbot-broker.service); fi
 
 if [ "$ENABLE" -eq 1 ]; then

@@ -436,7 +436,7 @@ def test_a_plugins_service_kind_is_installed_and_secured_like_a_built_in(tmp_pat
 def test_an_unknown_kind_is_refused_with_the_installed_ones(tmp_path: Path) -> None:
     result = run_install("--root", str(tmp_path / "root"), "--no-venv", "--services", "motor laser")
     assert result.returncode != 0
-    installed = "motor sonar servo gpio ros2 buzzer, all"
+    installed = "motor sonar servo gpio stereo ros2 buzzer, all"
     assert f"unknown service kind 'laser' (installed: {installed})" in result.stderr
     result = run_install("--root", str(tmp_path / "root"), "--no-venv", "--services", "motor ../x")
     assert result.returncode != 0 and "bad service kind name '../x'" in result.stderr

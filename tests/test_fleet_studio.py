@@ -45,7 +45,9 @@ def test_fleet_requests_list_robots_and_follow_one(
                 status, body = request(api)
                 assert status == 200, body
                 seen.update({r["robot"]: r for r in body["robots"]})
-                return body["hub"]["connected"] and "fleet-x1" in seen and seen["fleet-x1"]["components"]
+                # both retained messages seen (the broker may hand them over in either order)
+                return (body["hub"]["connected"] and "fleet-x1" in seen and seen["fleet-x1"]["components"]
+                        and seen["fleet-x1"]["orchestrator"] != "unknown")
 
             assert wait_until(listed, timeout=20), seen
             row = seen["fleet-x1"]

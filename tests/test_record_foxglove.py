@@ -44,9 +44,9 @@ def test_foxglove_client_sees_the_channels_and_the_car_move(tmp_path: Path) -> N
             if line.startswith("foxglove: "):
                 url = line.split()[1]
         assert url.startswith("ws://127.0.0.1:")  # loopback, like the studio
-        scene, pose = f"{BASE}/sim/scene", f"{BASE}/sim/pose"
-        client = subprocess.run([node, "test/interop/foxglove_client.mjs", url, "2500", scene, pose],
-                                cwd=WEB, capture_output=True, text=True, timeout=60, check=False)
+        scene, pose, trace = f"{BASE}/sim/scene", f"{BASE}/sim/pose", f"{BASE}/orchestrator/trace"
+        client = subprocess.run([node, "test/interop/foxglove_client.mjs", url, "2500", scene, pose, trace],
+                                cwd=WEB, capture_output=True, text=True, timeout=90, check=False)
         assert client.returncode == 0, client.stderr
         assert sim.wait(90) == 0
     finally:

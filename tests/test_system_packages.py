@@ -13,7 +13,7 @@ SCRIPT = ROOT / "scripts" / "system-packages.sh"
 PROGRAMS = {"mosquitto": "mosquitto", "graphviz": "dot", "openssl": "openssl",
             "systemd": "systemd-analyze", "systemd-container": "systemd-nspawn", "debootstrap": "debootstrap",
             "chromium": "chromium", "chromium-driver": "chromedriver",
-            "nodejs": "node", "npm": "npm"}
+            "nodejs": "node", "npm": "npm", "g++": "g++", "cmake": "cmake", "ninja-build": "ninja"}
 
 
 def run(path: str, *args: str, python: str | None = None) -> subprocess.CompletedProcess[str]:
@@ -53,7 +53,7 @@ def tools(folder: Path, **scripts: str) -> str:
 
 def test_the_script_looks_for_the_documented_packages() -> None:
     text = SCRIPT.read_text(encoding="utf-8")
-    assert dict(re.findall(r"have ([\w-]+) .*\|\| missing\+=\(([\w-]+)\)", text)) == {
+    assert dict(re.findall(r"have ([\w+-]+) .*\|\| missing\+=\(([\w+-]+)\)", text)) == {
         program: package for package, program in PROGRAMS.items()}
     readme = (ROOT / "README.md").read_text(encoding="utf-8").split("## Set-up", 1)[1].split("\n## ")[0]
     for package in [*PROGRAMS, "python3-venv"]:

@@ -38,6 +38,7 @@ COMMANDS: dict[str, str] = {
     "calibrate": "Calibrate a sensor: 'calibrate stereo' for a stereo camera (chessboard pairs).",
     "ros2-bridge": "Show the robot to ROS 2: status, states, trace; features as a ROS 2 service.",
     "record": "Record a running robot as a rosbag2-compatible MCAP file.",
+    "generate": "Generate the model's swimlanes as a C++17 CMake project (`generate cpp`).",
 }
 
 

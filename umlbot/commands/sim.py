@@ -65,11 +65,14 @@ DEFAULT_TRACK = "s_bend"  # the bundled track, wherever umlbot is run from
               help="Serve the run live to Foxglove (WebSocket on 127.0.0.1, its URL is printed).")
 @click.option("--foxglove-port", type=click.IntRange(0, 65535), default=8765, show_default=True,
               help="Port of the Foxglove server (0 = any free port).")
+@click.option("--engine", type=click.Choice(["python", "cpp"]), default="python", show_default=True,
+              help="cpp: run the model's generated C++ program (`umlbot generate cpp`, built once and "
+              "cached) instead of the orchestrator in this process; the world then runs in wall time.")
 def command(model: Path, track: Path | None, speed: float, broker_url: str | None, port: int | None,
             timeout_s: float, plot: Path | None, processes: bool, seed: int | None, noise_cm: float,
             drop_percent: float, max_collisions: int, robot: str | None, robots: int | None, hub_port: int,
             as_json: bool, trace_file: Path | None, studio: bool, studio_port: int,
-            record_file: Path | None, foxglove: bool, foxglove_port: int) -> None:
+            record_file: Path | None, foxglove: bool, foxglove_port: int, engine: str) -> None:
     """Run MODEL on a track: embedded broker, world, services, orchestrator; exit 0 only when the
     goal was reached without a collision."""
     from umlbot.base.logs import configure_logging
@@ -83,7 +86,8 @@ def command(model: Path, track: Path | None, speed: float, broker_url: str | Non
     if robots is not None:
         refused = [name for name, given in (("--broker", broker_url), ("--port", port), ("--plot", plot),
                                             ("--trace", trace_file), ("--studio", studio),
-                                            ("--record", record_file), ("--foxglove", foxglove)) if given]
+                                            ("--record", record_file), ("--foxglove", foxglove),
+                                            ("--engine cpp", engine == "cpp")) if given]
         if refused:
             raise click.UsageError(
                 f"--robots runs its own brokers and many cars: not with {', '.join(refused)}")
@@ -98,6 +102,7 @@ def command(model: Path, track: Path | None, speed: float, broker_url: str | Non
         model=model, track=find_track(track or DEFAULT_TRACK), speed=speed, broker_url=broker_url,
         port=port, timeout_s=timeout_s, plot=plot, processes=processes, seed=seed, sonar_noise_cm=noise_cm,
         sonar_drop=drop_percent / 100.0, max_collisions=max_collisions, trace_file=trace_file, robot=robot,
+        engine=engine,
     )
     live = sys.stdout.isatty() and not as_json
     announced: list[str] = []

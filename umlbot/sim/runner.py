@@ -28,11 +28,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from umlbot.base.clock import Clock
 from umlbot.base.errors import ConfigError, SimError
 from umlbot.base.logs import get_logger
 from umlbot.services.orchestrator import Orchestrator
 from umlbot.services.simworld import attach_local_world
 from umlbot.sim.clock import SimClock
+from umlbot.sim.program import ProgramOrchestrator
 from umlbot.sim.reach import goal_problem_at, start_problem
 from umlbot.sim.sharing import WorldServer
 from umlbot.sim.track import load_track, track_warnings
@@ -116,6 +118,11 @@ class SimOptions:
     stall_s: float = WALL_STALL_S
     #: also write the orchestrator's trace to this file (JSON lines, as `umlbot run --trace`)
     trace_file: Path | None = None
+    #: python: the orchestrator in this process on the event-driven sim clock; cpp: the model's
+    #: generated C++ program (`umlbot generate cpp`) as a child process, the world in wall time
+    engine: str = "python"
+    #: with engine cpp: this built program instead of generating and building one (cached)
+    program: Path | None = None
     #: refuse a track whose goal a car of this width cannot reach (`umlbot.sim.reach`); off only
     #: for runs that must not end at the goal (tests of the time-out and collision paths)
     check_goal: bool = True
@@ -465,6 +472,16 @@ def run_sim(
     except ValueError as exc:
         raise SimError(f"{options.track}: {exc}") from exc
     compiled = compile_model(options.model)
+    program: Path | None = None
+    if options.engine == "cpp":  # generated and built once per model (cached), before anything runs
+        from umlbot.codegen import BuildError, cached_program
+
+        try:
+            program = options.program or cached_program(compiled)
+        except BuildError as exc:
+            raise SimError(f"--engine cpp: {exc}") from exc
+    elif options.engine != "python":
+        raise SimError(f"--engine must be python or cpp, got {options.engine!r}")
     deployment = sim_deployment(compiled, options.robot)
     on_mock = mock_components(deployment)
     if on_mock:
@@ -496,17 +513,26 @@ def run_sim(
         services.start()
         services.wait_online()
         # the world moves with the clock from now on: start-up time is not sim time
-        clock = SimClock(options.speed)
-        clock.limit_s = options.timeout_s  # time ends there: the run ends at the time-out exactly
+        clock: Clock
+        if options.engine == "cpp":  # a program in wall time: the world paced by the wall clock
+            clock = Clock(options.speed)
+        else:
+            clock = SimClock(options.speed)
+            clock.limit_s = options.timeout_s  # time ends there: the run ends at the time-out exactly
         world.clock = clock
         # the world ends the run itself, at the sim time it happens, not when the runner looks
         world.halt_at_goal = True
         world.max_collisions = options.max_collisions
         listener = watch.on_event if trace_listener is None else _both(watch.on_event, trace_listener)
-        orchestrator = Orchestrator(
-            compiled, BrokerSettings.from_url(url), robot=deployment.robot, clock=clock,
-            trace_listener=listener, handle_signals=False, trace_file=options.trace_file,
-        )
+        if program is not None:
+            trace_file = options.trace_file or Path(tempfile.mkdtemp(prefix="umlbot-sim-")) / "trace.jsonl"
+            orchestrator = ProgramOrchestrator(program, compiled, url, deployment.robot, options.speed,
+                                               trace_file, listener)
+        else:
+            orchestrator = Orchestrator(
+                compiled, BrokerSettings.from_url(url), robot=deployment.robot, clock=clock,
+                trace_listener=listener, handle_signals=False, trace_file=options.trace_file,
+            )
         # a fail-safe stop halts the world at once, in the orchestrator's thread: its own stop
         # calls go through the broker and may time out while the car drives on
         orchestrator.life.on_fault(lambda _fault: world.halt())

@@ -12,6 +12,7 @@ from umlbot.services.orchestrator.orchestrator import (
     EXIT_FAULT,
     EXIT_OK,
     Orchestrator,
+    heartbeat_period_s,
     run_orchestrator,
 )
 from umlbot.services.orchestrator.signals import SignalBoard
@@ -31,6 +32,7 @@ __all__ = [
     "TraceRecord",
     "TraceRecorder",
     "event_dict",
+    "heartbeat_period_s",
     "run_orchestrator",
     "used_components",
 ]
