@@ -276,18 +276,18 @@ def test_a_decisions_second_output_asks_for_its_guard_instead_of_making_one_up(
         settled(page)
         show(page, "activity-main")
         click_node(page, "RaspberryPI", "start")
-        click_kind(page, "decision")
+        click_kind(page, "decision")  # dropped after the selected start, wired in: its else is the end
         decision = selected_node(page)
+        else_edge = f'svg.diagram g.edge[data-source="{decision}"][data-target="end"] text.elabel'
+        expect(page.locator(else_edge)).to_have_text("else")  # the first output is shown as the else
         click_kind(page, "action")
         action = selected_node(page)
-        connect(page, "RaspberryPI", "start", decision)
-        connect(page, "RaspberryPI", decision, action)  # the first output: the else
-        connect(page, "RaspberryPI", decision, "end")
-        guard = page.locator('#props input[name="guard"][data-target="end"]')
+        connect(page, "RaspberryPI", decision, action)  # the second output: it needs a guard
+        guard = page.locator(f'#props input[name="guard"][data-target="{action}"]')
         expect(guard).to_have_value("")
         expect(guard).to_be_focused()
         assert guard.get_attribute("placeholder")
-        edge = f'svg.diagram g.edge[data-source="{decision}"][data-target="end"] text.elabel'
+        edge = f'svg.diagram g.edge[data-source="{decision}"][data-target="{action}"] text.elabel'
         expect(page.locator(edge)).to_have_text("?")
         on_node = page.locator(node(page, "RaspberryPI", decision))
         expect(on_node).to_have_class(re.compile(r"(^|\s)error(\s|$)"))
@@ -301,7 +301,7 @@ def test_a_decisions_second_output_asks_for_its_guard_instead_of_making_one_up(
         page.wait_for_function("window.__studio.edit.dirty === false")
         page.close()
     text = (folder / "activities" / "main.yaml").read_text(encoding="utf-8")
-    assert f"branches: [{{if: Application.exit, then: end}}, {{else: {action}}}]" in text, text
+    assert f"branches: [{{if: Application.exit, then: {action}}}, {{else: end}}]" in text, text
     assert errors == [], errors
 
 
