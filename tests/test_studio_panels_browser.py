@@ -399,7 +399,9 @@ def test_the_palette_and_a_nodes_fields_are_the_servers_node_kinds(browser: Brow
         expect(page.locator('#palette .node-kind[data-kind="wait"]')).to_have_count(1)
         kinds = page.locator("#palette .node-kind").evaluate_all("(l) => l.map((e) => e.dataset.kind)")
         assert kinds == ["start", "end", "action", "datastore", "decision", "fork", "join", "send", "wait"]
-        assert page.locator('#palette .node-kind[data-kind="wait"]').get_attribute("title") == "waits a while"
+        # the server's doc, and how the palette's button is used
+        assert page.locator('#palette .node-kind[data-kind="wait"]').get_attribute("title") == (
+            "waits a while (Enter adds it after the selected node)")
         page.keyboard.press("f")  # all of it: the action is further down
         page.locator(node("RaspberryPI", "left_power")).click()
         expect(page.locator('#props input[name="call"]')).to_have_class(re.compile(r"(^|\s)code(\s|$)"))
