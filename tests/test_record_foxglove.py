@@ -32,7 +32,7 @@ def test_foxglove_client_sees_the_channels_and_the_car_move(tmp_path: Path) -> N
     assert node is not None, "node is needed"
     assert (WEB / "node_modules" / "@foxglove" / "ws-protocol").is_dir(), "make web first (npm ci)"
     argv = [sys.executable, "-c", "from umlbot.cli import main; main()", "sim", str(MODEL), "--port", "0",
-            "--speed", "4", "--foxglove", "--foxglove-port", "0", "--record", str(tmp_path / "run.mcap")]
+            "--speed", "2", "--foxglove", "--foxglove-port", "0", "--record", str(tmp_path / "run.mcap")]
     sim = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, cwd=ROOT)
     lines: queue.Queue[str] = queue.Queue()
     assert sim.stdout is not None
@@ -70,8 +70,8 @@ def test_foxglove_client_sees_the_channels_and_the_car_move(tmp_path: Path) -> N
     assert abs(last["y"] - first["y"]) + abs(last["x"] - first["x"]) > 0.2  # the car drove
     tracks = [e for u in updates for e in u["entities"] if e["id"] == "track"]
     assert tracks and len(tracks[0]["lines"][0]["points"]) >= 4  # the walls
-    poses = seen["decoded"][pose]
-    assert poses and poses[-1]["header"]["frame_id"] == "world"
+    poses = seen["decoded"].get(pose)  # (the run lasts long enough for a late client: speed 2)
+    assert poses and poses[-1]["header"]["frame_id"] == "world", seen["counts"]
 
 
 def test_the_layout_in_docs_is_the_one_umlbot_makes() -> None:
