@@ -451,3 +451,25 @@ def test_a_sim_clock_waits_for_a_lease_renewal_before_time_passes_it() -> None:
     assert wall >= DEADMAN_GRACE_WALL_S * 0.9
     ((when, side),) = w.deadman_stops
     assert side == "left" and when <= last + 1.0 + 1e-6
+
+
+def test_a_long_run_keeps_only_the_newest_pings_and_a_poller_sees_each_once(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    import umlbot.sim.world as world_module
+
+    monkeypatch.setattr(world_module, "MAX_PINGS", 50)
+    w = World(parse_track(ROOM), IDEAL, clock=SimClock())
+    seen, polled = 0, []
+    for burst in (7, 30, 120, 3):  # the last-but-one overruns what the world keeps
+        for _ in range(burst):
+            w.read_sonar_cm()
+        seen, new = w.pings_since(seen)
+        polled.append(new)
+    assert seen == 7 + 30 + 120 + 3
+    assert len(w.pings) == 50, "the world keeps at most MAX_PINGS"
+    assert [len(new) for new in polled] == [7, 30, 50, 3], "an overrun poller gets what is kept"
+    times = [p.time_s for new in polled for p in new]
+    assert times == sorted(times) and len(set(times)) == len(times), "in order, none twice"
+    assert polled[-1] == w.pings[-3:]
+    assert w.pings_since(seen) == (seen, [])

@@ -12,9 +12,11 @@ so 180° looks left and 0° looks right.
 
 from __future__ import annotations
 
+import itertools
 import math
 import random
 import threading
+from collections import deque
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -115,11 +117,24 @@ class _Servo:
     angle_deg: float = 90.0
 
 
+#: what a world keeps of its run, newest first out: a sim that runs for hours (the studio's, a
+#: soak) must not grow without bound. ~35 min of pings at one per 60 ms; ~28 min of path at 0.3 m/s
+#: (a point every 5 mm); collisions stop the car, so a few hundred is plenty.
+MAX_PINGS = 35_000
+MAX_PATH_POINTS = 100_000
+MAX_COLLISION_POINTS = 1_000
+
+
 @dataclass
 class _Trace:
-    path: list[tuple[float, float, float]] = field(default_factory=list)  # (t, x, y)
-    pings: list[Ping] = field(default_factory=list)
-    collision_points: list[tuple[float, float]] = field(default_factory=list)
+    path: deque[tuple[float, float, float]] = field(  # (t, x, y)
+        default_factory=lambda: deque(maxlen=MAX_PATH_POINTS)
+    )
+    pings: deque[Ping] = field(default_factory=lambda: deque(maxlen=MAX_PINGS))
+    pings_total: int = 0  # every ping of the run, the dropped ones included
+    collision_points: deque[tuple[float, float]] = field(
+        default_factory=lambda: deque(maxlen=MAX_COLLISION_POINTS)
+    )
 
 
 class World:
@@ -331,6 +346,7 @@ class World:
                 hit = Point(origin.x + echo[0] * math.cos(echo[1]), origin.y + echo[0] * math.sin(echo[1]))
             if charge:  # a free-running driver's readings would crowd the trace's pings
                 self._trace.pings.append(Ping(self._time, origin, bearing, result, hit))
+                self._trace.pings_total += 1
                 self._last_ping_s = self._time
         echo_s = self.car.sonar_timeout_s if result is None else 2 * result / 100.0 / SPEED_OF_SOUND_MPS
         if charge:
@@ -538,8 +554,20 @@ class World:
 
     @property
     def pings(self) -> list[Ping]:
+        """The newest pings of the run (at most `MAX_PINGS`)."""
         with self._lock:
             return list(self._trace.pings)
+
+    def pings_since(self, seen: int) -> tuple[int, list[Ping]]:
+        """(pings so far, the ones after the first `seen` that are still kept): a reader that polls
+        copies only what is new, however long the run."""
+        with self._lock:
+            total = self._trace.pings_total
+            new = min(total - seen, len(self._trace.pings))
+            if new <= 0:
+                return total, []
+            newest_first = list(itertools.islice(reversed(self._trace.pings), new))
+            return total, newest_first[::-1]
 
     @property
     def collision_points(self) -> list[tuple[float, float]]:

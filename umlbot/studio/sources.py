@@ -269,8 +269,7 @@ class WorldSource:
 
     def sample(self) -> None:
         snap = self.world.snapshot()
-        pings = self.world.pings
-        new, self._sent_pings = pings[self._sent_pings:], len(pings)
+        self._sent_pings, new = self.world.pings_since(self._sent_pings)
         self.hub.push_world({
             "t": round(snap.time_s, 3),
             "car": {"x": round(snap.pose.x, 4), "y": round(snap.pose.y, 4),
