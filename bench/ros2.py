@@ -4,8 +4,8 @@
   service `/umlbot/<robot>/call`) -> MQTT -> a sonar service (`umlbot service sonar`, mock driver)
   and back; the raw hops: a paho request/reply (requester here, responder in a child process,
   TCP_NODELAY, QoS 0) plus a cyclonedds request/reply (rmw_cyclonedds layout, server in a child
-  process). Also umlbot's own MQTT call (BusClient -> the same sonar service), to show where the
-  time goes.
+  process on cyclonedds' own reader, writer and serialiser). Also umlbot's own MQTT call
+  (BusClient -> the same sonar service), to show where the time goes.
 - **publish**: a feature that becomes a ROS 2 publish (`Base.drive` of a `ros2_twist` component,
   `umlbot service ros2`) until the Fast DDS peer (tests/ros2_peer) has the Twist; the raw hops:
   umlbot's MQTT call to the sonar plus a cyclonedds publish seen by the same peer.
@@ -73,16 +73,26 @@ print("ready", flush=True)
 sys.stdin.read()
 """
 
+# cyclonedds as it comes (its DataReader/DataWriter and its own serialiser), not umlbot's
+# ServiceServer: the raw hop stays the library's, whatever umlbot's service code does
 RAW_DDS_SERVER = """
 import sys
+from cyclonedds.pub import DataWriter
+from cyclonedds.sub import DataReader
 from umlbot.services.ros2 import dds
 from umlbot.services.ros2.msgtypes import Types
 builder = dds.TypeBuilder.of(Types.load())
-def handle(request):
-    response = server.response()
-    response.success, response.message = True, "100"
-    return response
-server = dds.ServiceServer(builder, int(sys.argv[1]), "/bench/raw", "std_srvs/srv/Trigger", handle)
+dp = dds.participant(int(sys.argv[1]))
+requests = dds.shared_topic(dp, "rq/bench/rawRequest", builder.cls("std_srvs/srv/Trigger_Request", True))
+replies = dds.shared_topic(dp, "rr/bench/rawReply", builder.cls("std_srvs/srv/Trigger_Response", True))
+Response = replies.data_type
+writer = DataWriter(dp, replies, qos=dds.qos(True))
+def on_data(reader):
+    for request in reader.take(N=32):
+        if isinstance(request, requests.data_type):
+            writer.write(Response(rmw_guid=request.rmw_guid, rmw_seq=request.rmw_seq, success=True,
+                                  message="100"))
+reader = DataReader(dp, requests, qos=dds.qos(True), listener=dds.Listener(on_data_available=on_data))
 print("ready", flush=True)
 sys.stdin.read()
 """
