@@ -8,6 +8,7 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+import time
 from collections.abc import Iterator
 from typing import Any
 
@@ -125,6 +126,10 @@ TrigReq = make_idl_struct("Trigger_Request_", "std_srvs::srv::dds_::Trigger_Requ
 TrigRep = make_idl_struct("Trigger_Response_", "std_srvs::srv::dds_::Trigger_Response_",
                           {**head, "success": bool, "message": str})
 
+CallReq = make_idl_struct("CallFeature_Request_", "umlbot_msgs::srv::dds_::CallFeature_Request_",
+                          {**head, "component": str, "feature": str, "args_json": str, "timeout_s": float})
+bad = DataWriter(dp, Topic(dp, "rq/plain/callRequest", CallReq), qos=qos)
+
 # a server of /plain/set (std_srvs/srv/SetBool)
 replies = DataWriter(dp, Topic(dp, "rr/plain/setReply", SetRep), qos=qos)
 def serve(reader):
@@ -141,6 +146,13 @@ ask = DataWriter(dp, Topic(dp, "rq/plain/serveRequest", TrigReq), qos=qos)
 answers = DataReader(dp, Topic(dp, "rr/plain/serveReply", TrigRep), qos=qos)
 print("ready", flush=True)
 for line in sys.stdin:
+    if line.strip() == "garbage":  # a CallFeature request whose component is not UTF-8
+        from cyclonedds._clayer import ddspy_write
+        data = CallReq(rmw_guid=5, rmw_seq=6, component="\u00ff\u00fe", feature="value", args_json="",
+                       timeout_s=0.0).serialize(use_version_2=False)
+        data = data.replace("\u00ff\u00fe".encode(), b"\\xff\\xfe\\xff\\xfe")  # same length
+        print("garbage", ddspy_write(bad._ref, data.ljust((len(data) + 3) & ~3, b"\\0")), flush=True)
+        continue
     if line.strip() != "call":
         continue
     deadline = time.monotonic() + 10
@@ -184,6 +196,8 @@ def test_client_and_server_against_a_plain_cyclone_dds_peer(builder: dds.TypeBui
         return server.response_of(request, success=True, message="served")
 
     server = dds.ServiceServer(builder, DOMAIN, "/plain/serve", "std_srvs/srv/Trigger", handle)
+    called: list[Any] = []
+    calls = dds.ServiceServer(builder, DOMAIN, "/plain/call", "umlbot_msgs/srv/CallFeature", called.append)
     try:
         for seq, data in ((1, True), (2, False)):
             request = client.request()
@@ -193,11 +207,17 @@ def test_client_and_server_against_a_plain_cyclone_dds_peer(builder: dds.TypeBui
             assert (reply.success, reply.message) == (not data, f"seq {seq}")
             printed = plain_peer.stdout.readline().split()
             assert printed == ["request", f"{client.guid:x}", str(seq), str(data)]
-        plain_peer.stdin.write("call\n")
+        plain_peer.stdin.write("garbage\ncall\n")
         plain_peer.stdin.flush()
+        assert plain_peer.stdout.readline().strip() == "garbage 0", "the peer's DDS took it"
         assert plain_peer.stdout.readline().strip() == "reply True served"
         assert [(r.rmw_guid, r.rmw_seq) for r in served] == [(0xABCDEF, 41)]
         assert server.served == 1
+        deadline = time.monotonic() + 5
+        while calls.bad == 0 and time.monotonic() < deadline:
+            time.sleep(0.02)
+        assert (calls.bad, called) == (1, []), "the garbage came and was refused, not handled"
     finally:
         client.close()
         server.close()
+        calls.close()

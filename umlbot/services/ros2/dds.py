@@ -464,6 +464,8 @@ class _ServiceEndpoint:
         self._in_cls = in_topic.data_type
         self._in_codec = FlatCodec.of(builder, in_type, True) if _raw_take is not None else None
         self._out_codec = FlatCodec.of(builder, out_type, True) if _raw_write is not None else None
+        #: samples taken that did not decode (a peer sent garbage)
+        self.bad = 0
         self._writer = DataWriter(dp, out_topic, qos=qos(True))
         self._reader = DataReader(dp, in_topic, qos=qos(True),
                                   listener=Listener(on_data_available=self._available))
@@ -507,6 +509,7 @@ class _ServiceEndpoint:
         raise NotImplementedError
 
     def _bad(self, exc: Exception) -> None:
+        self.bad += 1
         log.warning("ros2_bad_sample", service=self.service, error=f"{type(exc).__name__}: {exc}")
 
     def close(self) -> None:
