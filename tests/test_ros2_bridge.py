@@ -109,6 +109,13 @@ def test_a_ros2_client_calls_features_through_the_bridge(mosquitto_broker: Broke
             assert not reply.ok and reply.error_code in ("unknown_feature", "timeout"), reply
             reply = call("DistanceRead", "value", "[not json")
             assert (reply.ok, reply.error_code) == (False, "bad_request")
+            request = caller.request()  # nobody serves it: the sweeper answers at the time-out
+            request.component, request.feature, request.timeout_s = "Nobody", "value", 0.3
+            started = time.monotonic()
+            reply = caller.call(request, 5.0)
+            assert (reply.ok, reply.error_code) == (False, "timeout"), reply
+            assert "Nobody.value" in reply.error_message and 0.3 <= time.monotonic() - started < 2.0
+            assert call("DistanceRead", "value").value_json == "42", "and the bridge goes on"
         finally:
             caller.close()
 

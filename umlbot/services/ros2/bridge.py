@@ -44,8 +44,12 @@ def _stamp(sample: Any, now: float) -> None:
     sample.nanosec = int((now - int(now)) * 1e9)
 
 
+#: one encoder made once (`json.dumps` with options makes one per call)
+_ENCODE = json.JSONEncoder(separators=(",", ":"), allow_nan=False, default=str).encode
+
+
 def _json(value: Any) -> str:
-    return "" if value is None else json.dumps(value, separators=(",", ":"), allow_nan=False, default=str)
+    return "" if value is None else _ENCODE(value)
 
 
 class Ros2Bridge:
@@ -215,9 +219,9 @@ class Ros2Bridge:
 
     def _call(self, request: Any) -> Any:
         """A request on `/umlbot/<robot>/call` (on DDS's listener thread): the MQTT call goes out
-        at once and is answered from the reply's callback (or by the sweeper at its time-out);
-        no thread waits for it."""
-        assert self._server is not None
+        from this thread at once and is answered from the reply's callback on the connection's
+        network thread (or by the sweeper at its time-out); no thread waits for it and nothing
+        is queued between the two."""
         try:
             args = json.loads(request.args_json) if request.args_json.strip() else []
             if not isinstance(args, list):
@@ -226,53 +230,49 @@ class Ros2Bridge:
             component, feature = str(request.component), str(request.feature)
             request_id, future = self.bus.request(component, feature, *args, timeout=timeout)
         except (BusError, ValueError) as exc:
-            return self._response("bad_request", str(exc))
+            return self._response(request, "bad_request", str(exc))
         with self._calls_lock:
             self._calls[request_id] = (time.monotonic() + timeout, request, component, feature)
         future.add_done_callback(lambda done: self._answered(request_id, done))
         return None
 
-    def _response(self, code: str = "", message: str = "", value: Any = None) -> Any:
+    def _response(self, request: Any, code: str = "", message: str = "", value: Any = None) -> Any:
         assert self._server is not None
-        response = self._server.response()
         if code:
-            response.error_code, response.error_message = code, message
-        else:
-            response.ok, response.value_json = True, _json(value)
-        return response
+            return self._server.response_of(request, error_code=code, error_message=message)
+        return self._server.response_of(request, ok=True, value_json=_json(value))
 
-    def _finish(self, request_id: str, response: Any) -> None:
-        """Answer a call once: whoever comes first, the reply or the sweeper."""
-        with self._calls_lock:
-            entry = self._calls.pop(request_id, None)
-        if entry is not None and self._server is not None:
+    def _respond(self, request_id: str, request: Any, response: Any) -> None:
+        if self._server is not None:
             try:
-                self._server.respond(entry[1], response)
+                self._server.respond(request, response)
             except Exception:  # DDS shutting down
                 log.debug("ros2_bridge_respond_failed", request_id=request_id)
 
     def _answered(self, request_id: str, done: Future[dict[str, Any]]) -> None:
-        """The MQTT reply came (on the network thread: only a DDS write here)."""
+        """The MQTT reply came (on the network thread: only a DDS write here). Whoever takes the
+        call out of `_calls` first answers it: this or the sweeper."""
         with self._calls_lock:
-            entry = self._calls.get(request_id)
+            entry = self._calls.pop(request_id, None)
         if entry is None:
             return
-        _, _, component, feature = entry
+        _, request, component, feature = entry
         try:
-            response = self._response(value=reply_value(done.result(), component, feature))
+            response = self._response(request, value=reply_value(done.result(), component, feature))
         except RemoteError as exc:
-            response = self._response(exc.code, exc.message)
+            response = self._response(request, exc.code, exc.message)
         except Exception as exc:  # NotConnected: the broker went away
-            response = self._response("not_connected", str(exc))
-        self._finish(request_id, response)
+            response = self._response(request, "not_connected", str(exc))
+        self._respond(request_id, request, response)
 
     def _sweep(self) -> None:
         """Answer the calls whose time-out passed without a reply."""
         while not self._stop.wait(SWEEP_S):
             now = time.monotonic()
             with self._calls_lock:
-                late = [(rid, entry) for rid, entry in self._calls.items() if entry[0] <= now]
-            for request_id, (_, _, component, feature) in late:
+                late = [(rid, self._calls.pop(rid)) for rid, entry in list(self._calls.items())
+                        if entry[0] <= now]
+            for request_id, (_, request, component, feature) in late:
                 self.bus.forget(request_id)
-                self._finish(request_id, self._response(
-                    "timeout", f"no reply from {component}.{feature} within the call's time-out"))
+                self._respond(request_id, request, self._response(
+                    request, "timeout", f"no reply from {component}.{feature} within the call's time-out"))
