@@ -214,6 +214,7 @@ struct Options {
   double grace_s = 2.0;
   double startup_timeout_s = 10.0;
   double speed = 1.0;
+  bool sim_clock = false;  // sleeps on the simulator's clock (hidden option --sim-clock)
 };
 
 struct State {
@@ -262,6 +263,14 @@ struct State {
   // heartbeat
   bool heartbeat_stop = false;
   bool closing = false;  // the final status is out: a disconnect now is ours
+  // the simulator's clock (--sim-clock): see sim_report_locked
+  int sim_busy = 0;              // lane and token threads not in an idle wait (a call counts as busy)
+  uint64_t sim_woken = 0;        // wake messages handled
+  uint64_t sim_next = 0;         // sleep ids
+  std::set<uint64_t> sim_sleeping;  // ids of the sleeps waiting for their wake
+  std::set<uint64_t> sim_fired;     // ids woken, not yet seen by their thread
+  int sim_busy_sent = -1;
+  uint64_t sim_woken_sent = 0;
 };
 
 State g;
@@ -299,6 +308,52 @@ void publish(const std::string& topic, const std::string& payload, int qos, bool
   int rc = publish_raw(topic.c_str(), static_cast<int>(payload.size()),
                              payload.data(), qos, retain);
   if (rc != MOSQ_ERR_SUCCESS) throw ModelError("NotConnected", std::string("cannot publish on ") + topic + ": " + mosquitto_strerror(rc));
+}
+
+// --- the simulator's clock (--sim-clock) -------------------------------------------------------------
+// With --sim-clock the program's sleeps take sim time: the simulator (umlbot/sim/program.py) owns
+// the clock, which moves to the next deadline only while the program has nothing to do. The
+// program says on <base>/sim/clock/program, in order: {"sleep":id,"s":seconds} when a lane starts
+// a sleep, {"cancel":id} when one ends early, {"busy":n,"woken":w} whenever n (the lane and token
+// threads not waiting for a sleep, a signal or their forked tokens; a call in flight is busy)
+// or w (the wakes handled) changed. The simulator answers {"wake":id,"now":t} on
+// <base>/sim/clock/sim when a sleep's deadline is reached. A thread that wakes another counts it
+// busy at once (the wake handler, the last token of a fork, a signal), so n never drops to 0
+// between a wake and the thread it wakes running. Off by default: a robot sleeps in wall time.
+
+// A clock message (never throws: a lost connection shows as a stall of the simulator's time).
+void sim_publish(const std::string& payload) {
+  const std::string topic = g.base + "/sim/clock/program";
+  publish_raw(topic.c_str(), static_cast<int>(payload.size()), payload.data(), 0, false);
+}
+
+void sim_report_locked() {
+  if (!g.opts.sim_clock) return;
+  if (g.sim_busy == g.sim_busy_sent && g.sim_woken == g.sim_woken_sent) return;
+  g.sim_busy_sent = g.sim_busy;
+  g.sim_woken_sent = g.sim_woken;
+  const std::string payload = "{\"busy\":" + std::to_string(g.sim_busy) + ",\"woken\":" + std::to_string(g.sim_woken) + "}";
+  sim_publish(payload);
+}
+
+// A thread starts (or is handed) work: it counts as busy; -1: it ends or waits.
+void sim_busy_locked(int delta) {
+  if (!g.opts.sim_clock) return;
+  g.sim_busy += delta;
+  sim_report_locked();
+}
+
+void on_sim_wake(const std::string& payload) {
+  Value v = Value::parse(payload, nullptr, false);
+  if (v.is_discarded() || !v.is_object() || !v.contains("wake") || !v["wake"].is_number_unsigned()) return;
+  const uint64_t id = v["wake"].get<uint64_t>();
+  ++g.sim_woken;
+  if (g.sim_sleeping.erase(id)) {
+    g.sim_fired.insert(id);
+    ++g.sim_busy;  // handed to the sleeping thread
+  }
+  sim_report_locked();
+  runtime().cv.notify_all();
 }
 
 // Called with g's lock held.
@@ -376,6 +431,7 @@ void subscribe_all() {
   const std::string topics[] = {g.base + "/+/status", g.base + "/signal/+", g.base + "/orchestrator/exit",
                                 g.reply_topic};
   for (const auto& t : topics) mosquitto_subscribe(g.mosq, nullptr, t.c_str(), t == g.reply_topic ? 0 : 1);
+  if (g.opts.sim_clock) mosquitto_subscribe(g.mosq, nullptr, (g.base + "/sim/clock/sim").c_str(), 0);
 }
 
 void on_connect(mosquitto*, void*, int rc) {
@@ -460,6 +516,7 @@ void on_signal(const std::string& name, const std::string& payload) {
   if (board.waiting > 0) {
     board.last = std::move(value);
     ++board.gen;
+    sim_busy_locked(board.waiting);  // handed to the accept nodes it wakes
     runtime().cv.notify_all();
   } else {
     board.held = true;
@@ -512,7 +569,9 @@ void on_message(mosquitto*, void*, const mosquitto_message* message) {
   }
   if (topic.compare(0, g.base.size() + 1, g.base + "/") != 0) return;
   const std::string rest = topic.substr(g.base.size() + 1);
-  if (rest == "orchestrator/exit") {
+  if (rest == "sim/clock/sim") {
+    if (g.opts.sim_clock) on_sim_wake(payload);
+  } else if (rest == "orchestrator/exit") {
     on_exit_message(payload, message->retain);
   } else if (rest.compare(0, 7, "signal/") == 0) {
     if (!message->retain) on_signal(rest.substr(7), payload);
@@ -725,7 +784,11 @@ void Activation::run(int start) {
   if (outcome == Outcome::Forked) {
     Runtime& rt = runtime();
     std::unique_lock<std::mutex> lock(rt.mu);
+    waiting_ = true;
+    sim_busy_locked(-1);
     rt.cv.wait(lock, [&] { return finished_ || failure_ || cancelled(); });
+    if (waiting_) sim_busy_locked(1);  // not handed over by the last token: woken by a cancellation
+    waiting_ = false;
     std::exception_ptr failure = failure_;
     bool cut = !finished_ && !failure_;
     lock.unlock();
@@ -759,6 +822,7 @@ Outcome Activation::fork(int node, std::initializer_list<int> targets) {
   if (cancelled_) throw Cancelled{};
   for (int target : targets) {
     ++live_;
+    sim_busy_locked(1);  // the token's thread counts from now
     threads_.emplace_back(&Activation::token, this, target, node);
   }
   return Outcome::Forked;
@@ -778,6 +842,12 @@ void Activation::token(int target, int from) {
   --live_;
   if (error && !failure_) failure_ = error;
   if (outcome == Outcome::Ended || live_ == 0) finished_ = true;
+  int handed = 0;
+  if (waiting_ && (finished_ || failure_)) {  // the activation's walk goes on: hand it this thread's turn
+    waiting_ = false;
+    handed = 1;
+  }
+  sim_busy_locked(handed - 1);
   rt.cv.notify_all();
 }
 
@@ -918,6 +988,24 @@ Value Runtime::call_lane(Activation& caller, const char* lane, Walker walker, co
 Value Runtime::sleep(Activation& act, const Value& seconds_value, double scale) {
   if (!is_num(seconds_value))
     throw ModelError("TypeError", std::string("float() argument must be a string or a real number, not '") + tname(seconds_value) + "'");
+  if (g.opts.sim_clock) {
+    const double seconds = std::max(0.0, as_dbl(seconds_value) * scale);
+    std::unique_lock<std::mutex> lock(mu);
+    if (act.cancelled()) throw Cancelled{};
+    const uint64_t id = ++g.sim_next;
+    g.sim_sleeping.insert(id);
+    sim_publish("{\"sleep\":" + std::to_string(id) + ",\"s\":" + dump(Value(seconds)) + "}");
+    sim_busy_locked(-1);
+    cv.wait(lock, [&] { return g.sim_fired.count(id) > 0 || act.cancelled(); });
+    if (!g.sim_fired.erase(id)) {  // cancelled before its wake: no longer a deadline of the sim's
+      g.sim_sleeping.erase(id);
+      sim_publish("{\"cancel\":" + std::to_string(id) + "}");
+      sim_busy_locked(1);
+      throw Cancelled{};
+    }
+    if (act.cancelled()) throw Cancelled{};
+    return Value();
+  }
   const double seconds = as_dbl(seconds_value) * scale / g.opts.speed;
   std::unique_lock<std::mutex> lock(mu);
   cv.wait_until(lock, after(std::max(0.0, seconds)), [&] { return act.cancelled(); });
@@ -939,10 +1027,14 @@ Value Runtime::accept(Activation& act, const char* signal) {
     return std::move(board.held_value);
   }
   ++board.waiting;
+  sim_busy_locked(-1);
   const uint64_t gen = board.gen;
   cv.wait(lock, [&] { return board.gen != gen || act.cancelled(); });
   --board.waiting;
-  if (board.gen == gen) throw Cancelled{};
+  if (board.gen == gen) {  // not handed over by a signal: cancelled
+    sim_busy_locked(1);
+    throw Cancelled{};
+  }
   return board.last;
 }
 
@@ -1030,6 +1122,7 @@ Options parse_options(int argc, char** argv, const ModelInfo& model, bool& help)
     else if (arg == "--grace") o.grace_s = parse_seconds(arg, take(), 0);
     else if (arg == "--startup-timeout") o.startup_timeout_s = parse_seconds(arg, take(), 0);
     else if (arg == "--speed") o.speed = parse_seconds(arg, take(), 1e-9);
+    else if (arg == "--sim-clock") o.sim_clock = true;
     else if (arg == "--log-level") {
       std::string level = take();
       std::transform(level.begin(), level.end(), level.begin(), ::toupper);
@@ -1185,6 +1278,7 @@ void run_lane(const ComponentLane& lane) {
   }
   std::lock_guard<std::mutex> lock(rt.mu);
   --g.lanes_running;
+  sim_busy_locked(-1);
   rt.cv.notify_all();
 }
 
@@ -1194,6 +1288,7 @@ void supervise() {
   {
     std::lock_guard<std::mutex> lock(rt.mu);
     g.lanes_running = static_cast<int>(g.model->lanes.size());
+    sim_busy_locked(g.lanes_running);
   }
   for (const auto& lane : g.model->lanes) threads.emplace_back(run_lane, std::cref(lane));
   {
