@@ -6,6 +6,7 @@ import pytest
 from codegen_support import TEST_MODELS, built_programs
 
 from umlbot.sim import SimOptions, find_track, run_sim
+from umlbot.sim.track import bundled_tracks
 
 pytestmark = [pytest.mark.network, pytest.mark.timeout(600)]
 
@@ -18,6 +19,34 @@ def test_the_generated_program_reaches_the_goal_of_the_corridor() -> None:
     assert result.goal_reached and result.collisions == 0 and result.failure is None
     assert result.actions > 20  # the program's feature calls, read from its trace
     assert result.action_p50_ms is not None and result.action_p50_ms > 0
+
+
+def test_the_generated_program_reaches_the_goal_of_every_bundled_track() -> None:
+    """On the event-driven sim clock (`--sim-clock`): at --speed 100 on a loaded machine too."""
+    program = built_programs()["robot_car"]
+    tracks = bundled_tracks()
+    assert len(tracks) >= 19
+    missed: dict[str, object] = {}
+    for name, track in tracks.items():
+        result = run_sim(SimOptions(model=TEST_MODELS["robot_car"], track=track, speed=100.0, port=0,
+                                    timeout_s=200.0, engine="cpp", program=program))
+        if not result.ok or result.reason != "goal":
+            missed[name] = result.as_dict()
+    assert not missed, missed
+
+
+@pytest.mark.parametrize("track", ["corridor", "chicane", "t_junction"])
+def test_the_generated_program_drives_as_the_interpreter_does(track: str) -> None:
+    """Both engines on the same sim clock: the car reaches the goal at the same sim time."""
+    program = built_programs()["robot_car"]
+    results = {engine: run_sim(SimOptions(model=TEST_MODELS["robot_car"], track=find_track(track),
+                                          speed=100.0, port=0, timeout_s=200.0, engine=engine,
+                                          program=program if engine == "cpp" else None))
+               for engine in ("python", "cpp")}
+    assert all(r.ok for r in results.values()), {e: r.as_dict() for e, r in results.items()}
+    assert results["cpp"].sim_s == pytest.approx(results["python"].sim_s, abs=0.05)
+    assert results["cpp"].distance_m == pytest.approx(results["python"].distance_m, abs=0.01)
+    assert results["cpp"].final_pose == pytest.approx(results["python"].final_pose, abs=0.01)
 
 
 def test_an_unknown_engine_is_refused() -> None:

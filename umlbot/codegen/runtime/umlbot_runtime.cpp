@@ -15,11 +15,8 @@
 #include <cstdlib>
 #include <cstring>
 #include <deque>
-#include <fstream>
-#include <iostream>
 #include <random>
 #include <set>
-#include <sstream>
 
 namespace umlbot {
 
@@ -53,11 +50,12 @@ int g_log_level = 20;  // DEBUG 10, INFO 20, WARNING 30, ERROR 40
 void log_line(int level, const std::string& event, const std::string& detail = "") {
   if (level < g_log_level) return;
   const char* name = level >= 40 ? "error" : level >= 30 ? "warning" : level >= 20 ? "info" : "debug";
-  std::ostringstream out;
-  out << "[" << name << "] " << event;
-  if (!detail.empty()) out << " " << detail;
-  out << "\n";
-  std::cerr << out.str() << std::flush;
+  // stdio, not iostreams: the program links no stream or locale machinery (memory, start-up)
+  std::string out = std::string("[") + name + "] " + event;
+  if (!detail.empty()) out += " " + detail;
+  out += "\n";
+  std::fwrite(out.data(), 1, out.size(), stderr);
+  std::fflush(stderr);
 }
 
 // --- broker settings ------------------------------------------------------------------------------
@@ -158,9 +156,11 @@ Settings parse_url(const std::string& raw) {
   }
   s.host = rest;
   if (s.host.empty()) throw StartError(bad + "no host (e.g. mqtt://127.0.0.1:1883)");
-  std::istringstream items(query);
-  std::string item;
-  while (std::getline(items, item, '&')) {
+  for (size_t from = 0; from <= query.size();) {
+    size_t amp = query.find('&', from);
+    if (amp == std::string::npos) amp = query.size();
+    const std::string item = query.substr(from, amp - from);
+    from = amp + 1;
     if (item.empty()) continue;
     auto eq = item.find('=');
     std::string k = percent_decode(item.substr(0, eq));
@@ -259,7 +259,7 @@ struct State {
   uint64_t trace_dropped = 0;
   bool trace_closing = false;
   bool trace_on = false;
-  std::ofstream trace_out;
+  std::FILE* trace_out = nullptr;
   // heartbeat
   bool heartbeat_stop = false;
   bool closing = false;  // the final status is out: a disconnect now is ours
@@ -600,9 +600,12 @@ void ship_locked(std::unique_lock<std::mutex>& lock) {
     publish_raw((g.base + "/orchestrator/trace").c_str(), static_cast<int>(array.size()),
                       array.data(), 0, false);
   }
-  if (g.trace_out.is_open()) {
-    for (const auto& t : texts) g.trace_out << t << "\n";
-    g.trace_out.flush();
+  if (g.trace_out != nullptr) {
+    for (const auto& t : texts) {
+      std::fwrite(t.data(), 1, t.size(), g.trace_out);
+      std::fputc('\n', g.trace_out);
+    }
+    std::fflush(g.trace_out);
   }
   lock.lock();
 }
@@ -1371,8 +1374,8 @@ int run_main(int argc, char** argv, const ModelInfo& model) {
   for (const auto& s : model.accepted) g.accepted.insert(s);
   g.trace_on = g.opts.trace || !g.opts.trace_file.empty();
   if (!g.opts.trace_file.empty()) {
-    g.trace_out.open(g.opts.trace_file, std::ios::out | std::ios::trunc);
-    if (!g.trace_out) {
+    g.trace_out = std::fopen(g.opts.trace_file.c_str(), "w");
+    if (g.trace_out == nullptr) {
       std::fprintf(stderr, "error: %s: cannot write the trace file\n", g.opts.trace_file.c_str());
       return 1;
     }
