@@ -21,6 +21,7 @@ def test_the_generated_program_reaches_the_goal_of_the_corridor() -> None:
     assert result.action_p50_ms is not None and result.action_p50_ms > 0
 
 
+@pytest.mark.slow  # ~90 s on 2 loaded cores
 def test_the_generated_program_reaches_the_goal_of_every_bundled_track() -> None:
     """On the event-driven sim clock (`--sim-clock`): at --speed 100 on a loaded machine too."""
     program = built_programs()["robot_car"]
