@@ -190,6 +190,8 @@ class ProgramOrchestrator:
         self._proc: subprocess.Popen[str] | None = None
         self._exits = 0
         self._lock = threading.Lock()
+        self._position = 0  # how far the trace file has been read
+        self._reading = threading.Lock()
 
     def run_sync(self) -> int:
         """Run the program to its end, following its trace; returns its exit code."""
@@ -212,12 +214,11 @@ class ProgramOrchestrator:
         errors: list[str] = []
         reader = threading.Thread(target=lambda: errors.extend(proc.stderr or []), daemon=True)
         reader.start()
-        position = 0
         while proc.poll() is None:
-            position = self._follow(position)
+            self._read_trace()
             time.sleep(0.02)
         reader.join(timeout=5)
-        self._follow(position)
+        self._read_trace()
         code = proc.returncode
         if code != 0:
             lines = [line.strip() for line in errors if line.startswith("error: ")]
@@ -235,6 +236,27 @@ class ProgramOrchestrator:
             if self._proc is not None and self._proc.poll() is None:
                 log.info("sim_program_exit", reason=reason)
                 self._proc.send_signal(signal.SIGTERM)
+
+    def settle(self, quiet_s: float = 0.1, timeout_s: float = 2.0) -> None:
+        """Read the trace as far as the program wrote it, once the file stopped growing for
+        `quiet_s` (it ships its trace every 20 ms): `stats` then count every action it made."""
+        deadline = time.monotonic() + timeout_s
+        size, since = -1, time.monotonic()
+        while time.monotonic() < deadline:
+            try:
+                now_size = self.trace_file.stat().st_size
+            except OSError:
+                return
+            if now_size != size:
+                size, since = now_size, time.monotonic()
+            elif time.monotonic() - since >= quiet_s:
+                break
+            time.sleep(0.02)
+        self._read_trace()
+
+    def _read_trace(self) -> None:
+        with self._reading:
+            self._position = self._follow(self._position)
 
     def _follow(self, position: int) -> int:
         """Read the trace lines written since `position` (whole lines only)."""

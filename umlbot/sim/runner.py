@@ -602,6 +602,8 @@ def run_sim(
             # the orchestrator finishes what it does at the halted time (calls, decisions) and
             # then waits: its action count is that of the model, not of when the runner looked
             sim_clock.wait_quiet(QUIET_WAIT_S)
+            if isinstance(orchestrator, ProgramOrchestrator):
+                orchestrator.settle()  # its trace, where its actions are counted, is read late
             actions_at_end = orchestrator.stats.actions
             sim_clock.release()  # pending sleeps return: the lanes see the exit and end
         elif orchestrator is not None:
