@@ -787,11 +787,13 @@ void Activation::run(int start) {
   if (outcome == Outcome::Forked) {
     Runtime& rt = runtime();
     std::unique_lock<std::mutex> lock(rt.mu);
-    waiting_ = true;
-    sim_busy_locked(-1);
-    rt.cv.wait(lock, [&] { return finished_ || failure_ || cancelled(); });
-    if (waiting_) sim_busy_locked(1);  // not handed over by the last token: woken by a cancellation
-    waiting_ = false;
+    if (!(finished_ || failure_ || cancelled())) {  // (a wait that ends at once is no idle time)
+      waiting_ = true;
+      sim_busy_locked(-1);
+      rt.cv.wait(lock, [&] { return finished_ || failure_ || cancelled(); });
+      if (waiting_) sim_busy_locked(1);  // not handed over by the last token: woken by a cancellation
+      waiting_ = false;
+    }
     std::exception_ptr failure = failure_;
     bool cut = !finished_ && !failure_;
     lock.unlock();
