@@ -15,11 +15,13 @@ first feature call's start. Then the time to generate and build the reference ca
 `--nodes` (2000) nodes. The last output line is one JSON object.
 
 `--tracks` instead runs the reference car on every bundled track under both engines (`umlbot
-sim`: python at `--speed 10` on the sim clock, cpp at `--cpp-speed 2` in wall time) and prints
-per track whether each reached the goal, its collisions and sim seconds.
+sim`, both at `--speed 10` on the event-driven sim clock; the program with `--sim-clock`) and
+prints per track whether each reached the goal, its collisions, sim and wall seconds.
+`--wall-clock` runs the program in wall time instead (at `--cpp-speed`, as before it took part in
+the sim clock).
 
     python bench/codegen.py [--n 2000] [--nodes 2000] [--no-builds]
-    python bench/codegen.py --tracks [--cpp-speed 2]
+    python bench/codegen.py --tracks [--cpp-speed 10] [--wall-clock]
 """
 
 from __future__ import annotations
@@ -110,7 +112,7 @@ def big_model_text(nodes: int) -> str:
     return "\n".join(lines) + "\n"
 
 
-def sim_tracks(cpp_speed: float) -> dict[str, Any]:
+def sim_tracks(cpp_speed: float, wall_clock: bool) -> dict[str, Any]:
     """Every bundled track under both engines."""
     from umlbot.sim import SimOptions, run_sim
 
@@ -120,13 +122,15 @@ def sim_tracks(cpp_speed: float) -> dict[str, Any]:
         row: dict[str, Any] = {"track": track.stem}
         for engine, speed in (("python", 10.0), ("cpp", cpp_speed)):
             result = run_sim(SimOptions(model=car, track=track, speed=speed, port=0, timeout_s=300.0,
-                                        engine=engine))
+                                        engine=engine, wall_clock=wall_clock and engine == "cpp"))
             row[engine] = {"goal": result.goal_reached, "collisions": result.collisions,
-                           "sim_s": round(result.sim_s, 1), "reason": result.reason}
+                           "sim_s": round(result.sim_s, 1), "wall_s": round(result.wall_s, 1),
+                           "reason": result.reason}
         rows.append(row)
         print(json.dumps(row), file=sys.stderr)
-    return {"cpp_speed": cpp_speed, "tracks": rows,
-            "goals": {engine: sum(1 for row in rows if row[engine]["goal"]) for engine in ("python", "cpp")}}
+    return {"cpp_speed": cpp_speed, "cpp_clock": "wall" if wall_clock else "sim", "tracks": rows,
+            "goals": {engine: sum(1 for row in rows if row[engine]["goal"]) for engine in ("python", "cpp")},
+            "same_sim_s": sum(1 for row in rows if abs(row["python"]["sim_s"] - row["cpp"]["sim_s"]) <= 0.5)}
 
 
 def main() -> None:
@@ -135,10 +139,11 @@ def main() -> None:
     parser.add_argument("--nodes", type=int, default=2000, help="nodes of the big model")
     parser.add_argument("--no-builds", action="store_true", help="skip the generate+build timings")
     parser.add_argument("--tracks", action="store_true", help="the car on every track, both engines")
-    parser.add_argument("--cpp-speed", type=float, default=2.0, help="sim speed of the cpp engine")
+    parser.add_argument("--cpp-speed", type=float, default=10.0, help="sim speed of the cpp engine")
+    parser.add_argument("--wall-clock", action="store_true", help="--tracks: the program in wall time")
     args = parser.parse_args()
     if args.tracks:
-        print(json.dumps(sim_tracks(args.cpp_speed)))
+        print(json.dumps(sim_tracks(args.cpp_speed, args.wall_clock)))
         return
     work = Path(tempfile.mkdtemp(prefix="umlbot-bench-codegen-"))
     result: dict[str, Any] = {"n": args.n}

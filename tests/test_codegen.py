@@ -100,3 +100,15 @@ def test_the_generated_project_builds_with_cmake_and_its_program_answers_help() 
     done = subprocess.run([str(program), "--frobnicate"], capture_output=True, text=True, timeout=10,
                           check=False, env={**os.environ, "UMLBOT_BROKER": ""})
     assert done.returncode == 2 and "No such option: --frobnicate" in done.stderr
+
+
+@pytest.mark.timeout(600)
+def test_the_program_needs_only_libmosquitto_and_the_c_library_at_run_time() -> None:
+    """libstdc++ and libgcc are linked in (resident memory: docs/codegen.md)."""
+    program = build_project(compile_model(ROBOT_CAR))
+    done = subprocess.run(["readelf", "-d", str(program)], capture_output=True, text=True, timeout=30,
+                          check=True)
+    needed = sorted(line.split("[", 1)[1].rstrip("]")
+                    for line in done.stdout.splitlines() if "(NEEDED)" in line)
+    assert any(name.startswith("libmosquitto.so") for name in needed), needed
+    assert not [name for name in needed if name.startswith(("libstdc++", "libgcc_s"))], needed

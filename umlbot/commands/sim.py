@@ -67,7 +67,7 @@ DEFAULT_TRACK = "s_bend"  # the bundled track, wherever umlbot is run from
               help="Port of the Foxglove server (0 = any free port).")
 @click.option("--engine", type=click.Choice(["python", "cpp"]), default="python", show_default=True,
               help="cpp: run the model's generated C++ program (`umlbot generate cpp`, built once and "
-              "cached) instead of the orchestrator in this process; the world then runs in wall time.")
+              "cached) instead of the orchestrator in this process, on the same sim clock.")
 def command(model: Path, track: Path | None, speed: float, broker_url: str | None, port: int | None,
             timeout_s: float, plot: Path | None, processes: bool, seed: int | None, noise_cm: float,
             drop_percent: float, max_collisions: int, robot: str | None, robots: int | None, hub_port: int,

@@ -119,10 +119,13 @@ class SimOptions:
     #: also write the orchestrator's trace to this file (JSON lines, as `umlbot run --trace`)
     trace_file: Path | None = None
     #: python: the orchestrator in this process on the event-driven sim clock; cpp: the model's
-    #: generated C++ program (`umlbot generate cpp`) as a child process, the world in wall time
+    #: generated C++ program (`umlbot generate cpp`) as a child process on the same clock
     engine: str = "python"
     #: with engine cpp: this built program instead of generating and building one (cached)
     program: Path | None = None
+    #: with engine cpp: the program and the world in wall time at `speed` (as before the program
+    #: took part in the sim clock): the run then depends on the machine's load
+    wall_clock: bool = False
     #: refuse a track whose goal a car of this width cannot reach (`umlbot.sim.reach`); off only
     #: for runs that must not end at the goal (tests of the time-out and collision paths)
     check_goal: bool = True
@@ -514,9 +517,9 @@ def run_sim(
         services.wait_online()
         # the world moves with the clock from now on: start-up time is not sim time
         clock: Clock
-        if options.engine == "cpp":  # a program in wall time: the world paced by the wall clock
+        if options.engine == "cpp" and options.wall_clock:  # the program and the world in wall time
             clock = Clock(options.speed)
-        else:
+        else:  # the generated program too takes part in the clock (--sim-clock, `ClockBridge`)
             clock = SimClock(options.speed)
             clock.limit_s = options.timeout_s  # time ends there: the run ends at the time-out exactly
         world.clock = clock
@@ -527,7 +530,8 @@ def run_sim(
         if program is not None:
             trace_file = options.trace_file or Path(tempfile.mkdtemp(prefix="umlbot-sim-")) / "trace.jsonl"
             orchestrator = ProgramOrchestrator(program, compiled, url, deployment.robot, options.speed,
-                                               trace_file, listener)
+                                               trace_file, listener,
+                                               clock if isinstance(clock, SimClock) else None)
         else:
             orchestrator = Orchestrator(
                 compiled, BrokerSettings.from_url(url), robot=deployment.robot, clock=clock,
@@ -598,6 +602,8 @@ def run_sim(
             # the orchestrator finishes what it does at the halted time (calls, decisions) and
             # then waits: its action count is that of the model, not of when the runner looked
             sim_clock.wait_quiet(QUIET_WAIT_S)
+            if isinstance(orchestrator, ProgramOrchestrator):
+                orchestrator.settle()  # its trace, where its actions are counted, is read late
             actions_at_end = orchestrator.stats.actions
             sim_clock.release()  # pending sleeps return: the lanes see the exit and end
         elif orchestrator is not None:

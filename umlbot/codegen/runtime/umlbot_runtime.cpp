@@ -15,11 +15,8 @@
 #include <cstdlib>
 #include <cstring>
 #include <deque>
-#include <fstream>
-#include <iostream>
 #include <random>
 #include <set>
-#include <sstream>
 
 namespace umlbot {
 
@@ -53,11 +50,12 @@ int g_log_level = 20;  // DEBUG 10, INFO 20, WARNING 30, ERROR 40
 void log_line(int level, const std::string& event, const std::string& detail = "") {
   if (level < g_log_level) return;
   const char* name = level >= 40 ? "error" : level >= 30 ? "warning" : level >= 20 ? "info" : "debug";
-  std::ostringstream out;
-  out << "[" << name << "] " << event;
-  if (!detail.empty()) out << " " << detail;
-  out << "\n";
-  std::cerr << out.str() << std::flush;
+  // stdio, not iostreams: the program links no stream or locale machinery (memory, start-up)
+  std::string out = std::string("[") + name + "] " + event;
+  if (!detail.empty()) out += " " + detail;
+  out += "\n";
+  std::fwrite(out.data(), 1, out.size(), stderr);
+  std::fflush(stderr);
 }
 
 // --- broker settings ------------------------------------------------------------------------------
@@ -158,9 +156,11 @@ Settings parse_url(const std::string& raw) {
   }
   s.host = rest;
   if (s.host.empty()) throw StartError(bad + "no host (e.g. mqtt://127.0.0.1:1883)");
-  std::istringstream items(query);
-  std::string item;
-  while (std::getline(items, item, '&')) {
+  for (size_t from = 0; from <= query.size();) {
+    size_t amp = query.find('&', from);
+    if (amp == std::string::npos) amp = query.size();
+    const std::string item = query.substr(from, amp - from);
+    from = amp + 1;
     if (item.empty()) continue;
     auto eq = item.find('=');
     std::string k = percent_decode(item.substr(0, eq));
@@ -214,6 +214,7 @@ struct Options {
   double grace_s = 2.0;
   double startup_timeout_s = 10.0;
   double speed = 1.0;
+  bool sim_clock = false;  // sleeps on the simulator's clock (hidden option --sim-clock)
 };
 
 struct State {
@@ -258,10 +259,18 @@ struct State {
   uint64_t trace_dropped = 0;
   bool trace_closing = false;
   bool trace_on = false;
-  std::ofstream trace_out;
+  std::FILE* trace_out = nullptr;
   // heartbeat
   bool heartbeat_stop = false;
   bool closing = false;  // the final status is out: a disconnect now is ours
+  // the simulator's clock (--sim-clock): see sim_report_locked
+  int sim_busy = 0;              // lane and token threads not in an idle wait (a call counts as busy)
+  uint64_t sim_woken = 0;        // wake messages handled
+  uint64_t sim_next = 0;         // sleep ids
+  std::set<uint64_t> sim_sleeping;  // ids of the sleeps waiting for their wake
+  std::set<uint64_t> sim_fired;     // ids woken, not yet seen by their thread
+  int sim_busy_sent = -1;
+  uint64_t sim_woken_sent = 0;
 };
 
 State g;
@@ -299,6 +308,52 @@ void publish(const std::string& topic, const std::string& payload, int qos, bool
   int rc = publish_raw(topic.c_str(), static_cast<int>(payload.size()),
                              payload.data(), qos, retain);
   if (rc != MOSQ_ERR_SUCCESS) throw ModelError("NotConnected", std::string("cannot publish on ") + topic + ": " + mosquitto_strerror(rc));
+}
+
+// --- the simulator's clock (--sim-clock) -------------------------------------------------------------
+// With --sim-clock the program's sleeps take sim time: the simulator (umlbot/sim/program.py) owns
+// the clock, which moves to the next deadline only while the program has nothing to do. The
+// program says on <base>/sim/clock/program, in order: {"sleep":id,"s":seconds} when a lane starts
+// a sleep, {"cancel":id} when one ends early, {"busy":n,"woken":w} whenever n (the lane and token
+// threads not waiting for a sleep, a signal or their forked tokens; a call in flight is busy)
+// or w (the wakes handled) changed. The simulator answers {"wake":id,"now":t} on
+// <base>/sim/clock/sim when a sleep's deadline is reached. A thread that wakes another counts it
+// busy at once (the wake handler, the last token of a fork, a signal), so n never drops to 0
+// between a wake and the thread it wakes running. Off by default: a robot sleeps in wall time.
+
+// A clock message (never throws: a lost connection shows as a stall of the simulator's time).
+void sim_publish(const std::string& payload) {
+  const std::string topic = g.base + "/sim/clock/program";
+  publish_raw(topic.c_str(), static_cast<int>(payload.size()), payload.data(), 0, false);
+}
+
+void sim_report_locked() {
+  if (!g.opts.sim_clock) return;
+  if (g.sim_busy == g.sim_busy_sent && g.sim_woken == g.sim_woken_sent) return;
+  g.sim_busy_sent = g.sim_busy;
+  g.sim_woken_sent = g.sim_woken;
+  const std::string payload = "{\"busy\":" + std::to_string(g.sim_busy) + ",\"woken\":" + std::to_string(g.sim_woken) + "}";
+  sim_publish(payload);
+}
+
+// A thread starts (or is handed) work: it counts as busy; -1: it ends or waits.
+void sim_busy_locked(int delta) {
+  if (!g.opts.sim_clock) return;
+  g.sim_busy += delta;
+  sim_report_locked();
+}
+
+void on_sim_wake(const std::string& payload) {
+  Value v = Value::parse(payload, nullptr, false);
+  if (v.is_discarded() || !v.is_object() || !v.contains("wake") || !v["wake"].is_number_unsigned()) return;
+  const uint64_t id = v["wake"].get<uint64_t>();
+  ++g.sim_woken;
+  if (g.sim_sleeping.erase(id)) {
+    g.sim_fired.insert(id);
+    ++g.sim_busy;  // handed to the sleeping thread
+  }
+  sim_report_locked();
+  runtime().cv.notify_all();
 }
 
 // Called with g's lock held.
@@ -376,6 +431,7 @@ void subscribe_all() {
   const std::string topics[] = {g.base + "/+/status", g.base + "/signal/+", g.base + "/orchestrator/exit",
                                 g.reply_topic};
   for (const auto& t : topics) mosquitto_subscribe(g.mosq, nullptr, t.c_str(), t == g.reply_topic ? 0 : 1);
+  if (g.opts.sim_clock) mosquitto_subscribe(g.mosq, nullptr, (g.base + "/sim/clock/sim").c_str(), 0);
 }
 
 void on_connect(mosquitto*, void*, int rc) {
@@ -460,6 +516,7 @@ void on_signal(const std::string& name, const std::string& payload) {
   if (board.waiting > 0) {
     board.last = std::move(value);
     ++board.gen;
+    sim_busy_locked(board.waiting);  // handed to the accept nodes it wakes
     runtime().cv.notify_all();
   } else {
     board.held = true;
@@ -512,7 +569,9 @@ void on_message(mosquitto*, void*, const mosquitto_message* message) {
   }
   if (topic.compare(0, g.base.size() + 1, g.base + "/") != 0) return;
   const std::string rest = topic.substr(g.base.size() + 1);
-  if (rest == "orchestrator/exit") {
+  if (rest == "sim/clock/sim") {
+    if (g.opts.sim_clock) on_sim_wake(payload);
+  } else if (rest == "orchestrator/exit") {
     on_exit_message(payload, message->retain);
   } else if (rest.compare(0, 7, "signal/") == 0) {
     if (!message->retain) on_signal(rest.substr(7), payload);
@@ -541,9 +600,12 @@ void ship_locked(std::unique_lock<std::mutex>& lock) {
     publish_raw((g.base + "/orchestrator/trace").c_str(), static_cast<int>(array.size()),
                       array.data(), 0, false);
   }
-  if (g.trace_out.is_open()) {
-    for (const auto& t : texts) g.trace_out << t << "\n";
-    g.trace_out.flush();
+  if (g.trace_out != nullptr) {
+    for (const auto& t : texts) {
+      std::fwrite(t.data(), 1, t.size(), g.trace_out);
+      std::fputc('\n', g.trace_out);
+    }
+    std::fflush(g.trace_out);
   }
   lock.lock();
 }
@@ -725,7 +787,13 @@ void Activation::run(int start) {
   if (outcome == Outcome::Forked) {
     Runtime& rt = runtime();
     std::unique_lock<std::mutex> lock(rt.mu);
-    rt.cv.wait(lock, [&] { return finished_ || failure_ || cancelled(); });
+    if (!(finished_ || failure_ || cancelled())) {  // (a wait that ends at once is no idle time)
+      waiting_ = true;
+      sim_busy_locked(-1);
+      rt.cv.wait(lock, [&] { return finished_ || failure_ || cancelled(); });
+      if (waiting_) sim_busy_locked(1);  // not handed over by the last token: woken by a cancellation
+      waiting_ = false;
+    }
     std::exception_ptr failure = failure_;
     bool cut = !finished_ && !failure_;
     lock.unlock();
@@ -759,6 +827,7 @@ Outcome Activation::fork(int node, std::initializer_list<int> targets) {
   if (cancelled_) throw Cancelled{};
   for (int target : targets) {
     ++live_;
+    sim_busy_locked(1);  // the token's thread counts from now
     threads_.emplace_back(&Activation::token, this, target, node);
   }
   return Outcome::Forked;
@@ -778,6 +847,12 @@ void Activation::token(int target, int from) {
   --live_;
   if (error && !failure_) failure_ = error;
   if (outcome == Outcome::Ended || live_ == 0) finished_ = true;
+  int handed = 0;
+  if (waiting_ && (finished_ || failure_)) {  // the activation's walk goes on: hand it this thread's turn
+    waiting_ = false;
+    handed = 1;
+  }
+  sim_busy_locked(handed - 1);
   rt.cv.notify_all();
 }
 
@@ -918,6 +993,24 @@ Value Runtime::call_lane(Activation& caller, const char* lane, Walker walker, co
 Value Runtime::sleep(Activation& act, const Value& seconds_value, double scale) {
   if (!is_num(seconds_value))
     throw ModelError("TypeError", std::string("float() argument must be a string or a real number, not '") + tname(seconds_value) + "'");
+  if (g.opts.sim_clock) {
+    const double seconds = std::max(0.0, as_dbl(seconds_value) * scale);
+    std::unique_lock<std::mutex> lock(mu);
+    if (act.cancelled()) throw Cancelled{};
+    const uint64_t id = ++g.sim_next;
+    g.sim_sleeping.insert(id);
+    sim_publish("{\"sleep\":" + std::to_string(id) + ",\"s\":" + dump(Value(seconds)) + "}");
+    sim_busy_locked(-1);
+    cv.wait(lock, [&] { return g.sim_fired.count(id) > 0 || act.cancelled(); });
+    if (!g.sim_fired.erase(id)) {  // cancelled before its wake: no longer a deadline of the sim's
+      g.sim_sleeping.erase(id);
+      sim_publish("{\"cancel\":" + std::to_string(id) + "}");
+      sim_busy_locked(1);
+      throw Cancelled{};
+    }
+    if (act.cancelled()) throw Cancelled{};
+    return Value();
+  }
   const double seconds = as_dbl(seconds_value) * scale / g.opts.speed;
   std::unique_lock<std::mutex> lock(mu);
   cv.wait_until(lock, after(std::max(0.0, seconds)), [&] { return act.cancelled(); });
@@ -939,10 +1032,14 @@ Value Runtime::accept(Activation& act, const char* signal) {
     return std::move(board.held_value);
   }
   ++board.waiting;
+  sim_busy_locked(-1);
   const uint64_t gen = board.gen;
   cv.wait(lock, [&] { return board.gen != gen || act.cancelled(); });
   --board.waiting;
-  if (board.gen == gen) throw Cancelled{};
+  if (board.gen == gen) {  // not handed over by a signal: cancelled
+    sim_busy_locked(1);
+    throw Cancelled{};
+  }
   return board.last;
 }
 
@@ -1030,6 +1127,7 @@ Options parse_options(int argc, char** argv, const ModelInfo& model, bool& help)
     else if (arg == "--grace") o.grace_s = parse_seconds(arg, take(), 0);
     else if (arg == "--startup-timeout") o.startup_timeout_s = parse_seconds(arg, take(), 0);
     else if (arg == "--speed") o.speed = parse_seconds(arg, take(), 1e-9);
+    else if (arg == "--sim-clock") o.sim_clock = true;
     else if (arg == "--log-level") {
       std::string level = take();
       std::transform(level.begin(), level.end(), level.begin(), ::toupper);
@@ -1185,6 +1283,7 @@ void run_lane(const ComponentLane& lane) {
   }
   std::lock_guard<std::mutex> lock(rt.mu);
   --g.lanes_running;
+  sim_busy_locked(-1);
   rt.cv.notify_all();
 }
 
@@ -1194,6 +1293,7 @@ void supervise() {
   {
     std::lock_guard<std::mutex> lock(rt.mu);
     g.lanes_running = static_cast<int>(g.model->lanes.size());
+    sim_busy_locked(g.lanes_running);
   }
   for (const auto& lane : g.model->lanes) threads.emplace_back(run_lane, std::cref(lane));
   {
@@ -1276,8 +1376,8 @@ int run_main(int argc, char** argv, const ModelInfo& model) {
   for (const auto& s : model.accepted) g.accepted.insert(s);
   g.trace_on = g.opts.trace || !g.opts.trace_file.empty();
   if (!g.opts.trace_file.empty()) {
-    g.trace_out.open(g.opts.trace_file, std::ios::out | std::ios::trunc);
-    if (!g.trace_out) {
+    g.trace_out = std::fopen(g.opts.trace_file.c_str(), "w");
+    if (g.trace_out == nullptr) {
       std::fprintf(stderr, "error: %s: cannot write the trace file\n", g.opts.trace_file.c_str());
       return 1;
     }

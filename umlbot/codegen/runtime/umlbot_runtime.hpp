@@ -141,6 +141,7 @@ class Activation {
   std::vector<std::thread> threads_;
   int live_ = 0;          // tokens running (guarded by the runtime's mutex)
   bool finished_ = false; // an end reached, or no token left
+  bool waiting_ = false;  // run() waits for the tokens (guarded by the runtime's mutex)
   std::exception_ptr failure_;
   std::map<std::pair<int, int>, int> arrivals_;
 };
@@ -180,7 +181,8 @@ class Runtime {
   Value call(Activation& act, const char* component, const char* feature, Value args);
   // A virtual lane: a new activation on this thread.
   Value call_lane(Activation& caller, const char* lane, Walker walker, const NodeInfo* nodes, int start);
-  // usleep/msleep: seconds of wall time, cut short by cancellation.
+  // usleep/msleep: seconds of wall time (of the simulator's clock with --sim-clock), cut short by
+  // cancellation.
   Value sleep(Activation& act, const Value& seconds_value, double scale);
   // Application.exit
   Value exit_requested() const;
