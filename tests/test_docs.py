@@ -941,6 +941,8 @@ OTHER_PROGRAMS_OPTIONS = {
     "mosquitto_sub": {"--cafile"},
     "debootstrap": {"--variant"},
     "systemd-nspawn": {"--boot", "--system-call-filter", "--private-network"},
+    "the generated C++ program (umlbot generate cpp)": {"--sim-clock"},
+    "ld": {"--gc-sections"},
 }
 
 
