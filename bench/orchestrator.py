@@ -200,7 +200,7 @@ def motor_service(url: str) -> Iterator[None]:
 class RawRequester:
     """A paho client sending umlbot request envelopes to the mock service: the baseline."""
 
-    def __init__(self, url: str, protocol: str) -> None:
+    def __init__(self, url: str, protocol: str = "3.1.1") -> None:
         port = int(url.rsplit(":", 1)[1])
         self.client = _raw_client(port, "requester", protocol)
         self.client.on_socket_open = _nodelay
@@ -399,7 +399,8 @@ def main() -> None:
     for kind in options.brokers.split(","):
         result = measure(kind.strip(), options.n, options.blocks, options.window, options.steps)
         print(
-            f"{kind:10s} MQTT {result['protocol']:5s} raw p50 {result['raw_p50_ms']:.3f} p99 {result['raw_p99_ms']:.3f} ms | "
+            f"{kind:10s} MQTT {result['protocol']:5s} "
+            f"raw p50 {result['raw_p50_ms']:.3f} p99 {result['raw_p99_ms']:.3f} ms | "
             f"action p50 {result['action_p50_ms']:.3f} p99 {result['action_p99_ms']:.3f} ms | "
             f"ratio p50 {result['ratio_p50']:.2f} p99 {result['ratio_p99']:.2f} "
             f"(traced {result['ratio_traced_p50']:.2f}/{result['ratio_traced_p99']:.2f}, "
