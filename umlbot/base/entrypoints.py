@@ -1,13 +1,14 @@
 """Entry points of the installed packages, read without `importlib.metadata` where it can be.
 
-`importlib.metadata` imports email, zipfile, csv and (through importlib.abc) tempfile: about
-2.8 MB resident in every service process, which only needs the two `umlbot.*` groups of the
-plugin catalog (docs/performance.md, "Memory"). For the usual layout — folders on `sys.path`
-holding pip's `*.dist-info` (or setuptools' `*.egg-info`) folders, editable installs included —
-this module reads the same files the same way: the distributions in `sys.path` order, the first of
-each normalized name only, their `entry_points.txt`, and Name and Version from their `METADATA`.
-Anything else — a zip archive or an `.egg` on `sys.path`, a meta path finder with distributions
-of its own — goes to `importlib.metadata` itself, so the answer is the same either way.
+`importlib.metadata` imports email, zipfile, csv and (through importlib.abc) tempfile: 1.7 MB
+resident in a service process, which only needs the two `umlbot.*` groups of the plugin catalog
+(and pydantic's look for its plugins; docs/performance.md, "Memory"). For the usual layout —
+folders on `sys.path` holding pip's `*.dist-info` (or setuptools' `*.egg-info`) folders, editable
+installs included — this module reads the same files the same way: the distributions in
+`sys.path` order, the first of each normalized name only, their `entry_points.txt`, and Name and
+Version from their `METADATA`. Anything else — a zip archive or an `.egg` on `sys.path`, a meta
+path finder with distributions of its own — goes to `importlib.metadata` itself, so the answer is
+the same either way.
 """
 
 from __future__ import annotations
