@@ -4,7 +4,8 @@ For each broker (started by this script, in its own process on a free port) one 
 service runs as its own process (`umlbot service motor --driver mock`, as on the robot), and:
 
 (a) latency: a model whose lane is a loop of `LeftActuator.dutycycle(50)` actions, run by the
-    orchestrator, against a raw paho requester sending the same envelope to the same service, in
+    orchestrator, against a raw paho requester sending the same envelope to the same service
+    (speaking the MQTT version the orchestrator's connections speak: `protocol`), in
     rotating blocks so that machine load hits every variant alike: `raw_p50_ms`/`raw_p99_ms`,
     `action_p50_ms`/`action_p99_ms` (`--no-trace`: the same MQTT traffic as the raw requester)
     and their ratios; `action_traced_…` and `ratio_traced_…` with the trace published (three
@@ -17,7 +18,7 @@ service runs as its own process (`umlbot service motor --driver mock`, as on the
     alone); `node_steps_traced_per_s` is the same with the trace recorder publishing every event
     on the broker (events beyond its queue are dropped and counted, never waited for).
 
-The last output line is one JSON object: {"results": [{"broker", "raw_p50_ms", "raw_p99_ms",
+The last output line is one JSON object: {"results": [{"broker", "protocol", "raw_p50_ms", "raw_p99_ms",
 "action_p50_ms", "action_p99_ms", "ratio_p50", "ratio_p99", "action_traced_p50_ms",
 "action_traced_p99_ms", "ratio_traced_p50", "ratio_traced_p99", "trace_events_per_message",
 "fork_actions_per_s", "raw_publish_per_s", "node_steps_per_s", …}, …]}.
@@ -199,9 +200,9 @@ def motor_service(url: str) -> Iterator[None]:
 class RawRequester:
     """A paho client sending umlbot request envelopes to the mock service: the baseline."""
 
-    def __init__(self, url: str) -> None:
+    def __init__(self, url: str, protocol: str = "3.1.1") -> None:
         port = int(url.rsplit(":", 1)[1])
-        self.client = _raw_client(port, "requester")
+        self.client = _raw_client(port, "requester", protocol)
         self.client.on_socket_open = _nodelay
         self.reply_topic = f"umlbot/{ROBOT}/_reply/raw-{os.getpid()}"
         self.topics = [f"umlbot/{ROBOT}/{c}/call/dutycycle" for c in ("LeftActuator", "RightActuator")]
@@ -210,6 +211,7 @@ class RawRequester:
         self.client.on_message = self._on_reply
         _subscribed(self.client, self.reply_topic)
         self.counter = 0
+        self.protocol = protocol
 
     def _on_reply(self, client: mqtt.Client, userdata: Any, msg: mqtt.MQTTMessage) -> None:
         reply_id = json.loads(msg.payload)["id"]
@@ -250,6 +252,18 @@ class RawRequester:
     def close(self) -> None:
         self.client.disconnect()
         self.client.loop_stop()
+
+
+def spoken_protocol(url: str) -> str:
+    """The MQTT version umlbot's connections speak on this broker ("5", or "3.1.1" after a
+    refusal): the raw requester speaks the same, so that the ratio compares the same traffic
+    (MQTT 5 costs paho, raw or not, more per packet: docs/performance.md, RPC)."""
+    connection = BusConnection(BrokerSettings.from_url(url), role="bench-protocol", robot=ROBOT)
+    connection.start(TIMEOUT_S)
+    try:
+        return connection.protocol
+    finally:
+        connection.close()
 
 
 def run_model(url: str, model: CompiledModel, trace: bool = True) -> Orchestrator:
@@ -306,7 +320,7 @@ def measure(kind: str, n: int, blocks: int, window: int, steps: int) -> dict[str
     per_block = max(1, n // blocks)
     loop_model = compile_text(LOOP.format(n=per_block))
     with run_broker(kind) as url, motor_service(url):
-        raw = RawRequester(url)
+        raw = RawRequester(url, spoken_protocol(url))
         try:
             for _ in range(100):
                 raw.round_trip()
@@ -343,6 +357,7 @@ def measure(kind: str, n: int, blocks: int, window: int, steps: int) -> dict[str
     untraced, _ = node_steps_per_s(None, steps)
     result: dict[str, Any] = {
         "broker": kind,
+        "protocol": raw.protocol,
         "n": len(raw_samples),
         "raw_p50_ms": round(percentile(raw_samples, 50) * 1000, 4),
         "raw_p99_ms": round(percentile(raw_samples, 99) * 1000, 4),
@@ -384,7 +399,8 @@ def main() -> None:
     for kind in options.brokers.split(","):
         result = measure(kind.strip(), options.n, options.blocks, options.window, options.steps)
         print(
-            f"{kind:10s} raw p50 {result['raw_p50_ms']:.3f} p99 {result['raw_p99_ms']:.3f} ms | "
+            f"{kind:10s} MQTT {result['protocol']:5s} "
+            f"raw p50 {result['raw_p50_ms']:.3f} p99 {result['raw_p99_ms']:.3f} ms | "
             f"action p50 {result['action_p50_ms']:.3f} p99 {result['action_p99_ms']:.3f} ms | "
             f"ratio p50 {result['ratio_p50']:.2f} p99 {result['ratio_p99']:.2f} "
             f"(traced {result['ratio_traced_p50']:.2f}/{result['ratio_traced_p99']:.2f}, "

@@ -71,6 +71,23 @@ def test_broker_restart_reconnects_both_sides(
     assert server.connection.counters.connects >= 2
 
 
+def test_the_same_state_is_published_again_after_a_reconnect(
+    broker: BrokerProcess, pair: tuple[ComponentServer, BusClient], raw_client: Callable[..., RawClient]
+) -> None:
+    """An unchanged state is not published twice on one connection, but a broker without
+    persistence forgot it over its restart: the first one after the reconnect goes out."""
+    server, _ = pair
+    server.publish_state({"value": 42})
+    broker.stop()
+    assert wait_until(lambda: not server.connected, 5.0)
+    broker.start()
+    assert wait_until(lambda: server.connected, RECONNECT_S)
+    server.publish_state({"value": 42})
+    watcher = raw_client(broker)
+    watcher.subscribe(TOPICS.state("Sensor"))
+    assert json.loads(watcher.get(5.0, TOPICS.state("Sensor")).payload) == {"value": 42}
+
+
 def _call_ok(client: BusClient) -> bool:
     try:
         return bool(client.call("Sensor", "value", timeout=0.5) == 42)

@@ -214,6 +214,20 @@ def test_publish_state_is_retained(broker: BrokerProcess, server: ComponentServe
     assert json.loads(watcher.get(5.0, TOPICS.state("Motor")).payload) == {"dutycycle": 60, "enabled": True}
 
 
+def test_an_unchanged_state_is_not_published_again(broker: BrokerProcess, server: ComponentServer,
+                                                  raw_client: Callable[..., RawClient]) -> None:
+    """A state equal to the last one published says nothing new: only changes go out."""
+    watcher = raw_client(broker)
+    watcher.subscribe(TOPICS.state("Motor"))
+    for duty in (60, 60, 60, 70, 70, 60):
+        server.publish_state({"dutycycle": duty})
+    seen = []
+    with contextlib.suppress(TimeoutError):
+        while True:
+            seen.append(json.loads(watcher.get(1.0, TOPICS.state("Motor")).payload)["dutycycle"])
+    assert seen == [60, 70, 60]
+
+
 def test_raw_paho_bare_payload_is_fire_and_forget(broker: BrokerProcess, server: ComponentServer,
                                                   probe: Probe, raw_client: Callable[..., RawClient]) -> None:
     raw = raw_client(broker)

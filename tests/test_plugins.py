@@ -8,9 +8,15 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+import zipfile
+from collections.abc import Iterable
 from importlib.metadata import EntryPoint, distributions, entry_points
 from pathlib import Path
+from typing import Any
 
+import pytest
+
+from umlbot.base import entrypoints
 from umlbot.base.plugins import COMPONENTS_GROUP, DRIVERS_GROUP, Catalog, build_catalog, catalog
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -206,3 +212,43 @@ def test_an_installed_broken_package_is_reported_and_does_not_take_down_the_rest
     assert service.returncode == 1, service.stderr  # not the module's own exit status 3
     assert ("error: the buzzer driver 'exits' of package good-plugins cannot be loaded from "
             "plugin_sample_exits:FACTORY: SystemExit: 3") in service.stderr
+
+
+def _described(eps: Iterable[Any]) -> list[tuple[str, str, str, str | None, str | None]]:
+    return [(ep.name, ep.value, ep.group, ep.dist.metadata["Name"], ep.dist.version) for ep in eps]
+
+
+def test_the_light_reader_finds_what_importlib_metadata_finds(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """umlbot.base.entrypoints reads the same entry points as importlib.metadata, in the same order:
+    the installed ones, a package on sys.path, and of two with one name the first on sys.path."""
+    first, second = tmp_path / "first", tmp_path / "second"
+    _write_package(first, "good-plugins", GOOD_COMPONENTS, GOOD_DRIVERS)
+    _write_package(second, "Good.Plugins", {"shadowed": "plugin_samples:GOOD"}, {})  # same name, later
+    monkeypatch.setattr(sys, "path", [str(first), str(second), *sys.path])
+    assert entrypoints._distributions() is not None, "this layout is read without importlib.metadata"
+    for group in (COMPONENTS_GROUP, DRIVERS_GROUP, "console_scripts", "pydantic"):
+        light = _described(entrypoints.entry_points(group))
+        assert light == _described(entry_points(group=group)), group
+    assert ("good", "plugin_samples:GOOD", COMPONENTS_GROUP, "good-plugins", "1.0") in _described(
+        entrypoints.entry_points(COMPONENTS_GROUP))
+    assert "shadowed" not in {ep.name for ep in entrypoints.entry_points(COMPONENTS_GROUP)}
+    loaded = next(ep for ep in entrypoints.entry_points(DRIVERS_GROUP) if ep.name == "warp.mock").load()
+    assert loaded is next(ep for ep in entry_points(group=DRIVERS_GROUP) if ep.name == "warp.mock").load()
+
+
+def test_a_zip_on_sys_path_goes_to_importlib_metadata(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A layout the light reader does not read itself (a zip archive) is read by importlib.metadata."""
+    archive = tmp_path / "plugins.zip"
+    with zipfile.ZipFile(archive, "w") as zipped:
+        zipped.writestr("zipped_plugin-1.0.dist-info/METADATA", "Name: zipped-plugin\nVersion: 1.0\n")
+        zipped.writestr("zipped_plugin-1.0.dist-info/entry_points.txt",
+                        f"[{COMPONENTS_GROUP}]\nzipped = plugin_samples:GOOD\n")
+    monkeypatch.setattr(sys, "path", [str(archive), *sys.path])
+    assert entrypoints._distributions() is None
+    found = _described(entrypoints.entry_points(COMPONENTS_GROUP))
+    assert ("zipped", "plugin_samples:GOOD", COMPONENTS_GROUP, "zipped-plugin", "1.0") in found
+    assert found == _described(entry_points(group=COMPONENTS_GROUP))

@@ -47,14 +47,17 @@ main()
 #: by libraries only for features a service does not use (asyncio, rich and greenlet by structlog;
 #: urllib.request and http.client by paho, for proxies; ssl by paho, for TLS, also where its socket
 #: reads and writes name `ssl.SSLWantReadError` in `except` clauses; hashlib by paho for WebSockets
-#: and secrets by pydantic for SecretStr), or by the real GPIO drivers (the mock driver is running).
+#: and secrets by pydantic for SecretStr; importlib.metadata with email, zipfile and csv by the
+#: plugin catalog and pydantic's plugin lookup, which umlbot.base.entrypoints reads without them;
+#: tempfile with shutil by umlbot.base.files, only for writing), or by the real GPIO drivers (the
+#: mock driver is running).
 ABSENT = (
     "asyncio", "rich", "greenlet", "urllib.request", "http.client", "matplotlib", "numpy", "amqtt",
     "aiohttp", "umlbot.compiler.api", "umlbot.compiler.checker", "umlbot.compiler.source",
     "umlbot.compiler.expr_parser", "umlbot.compiler.compiled", "umlbot.compiler.render", "umlbot.sim",
     "umlbot.studio", "umlbot.services.orchestrator", "umlbot.monitor", "umlbot.services.bus.broker",
     "pigpio", "lgpio", "secrets", "hmac", "hashlib", "_hashlib",
-    "ssl", "_ssl",
+    "ssl", "_ssl", "importlib.metadata", "email", "zipfile", "csv", "tempfile", "shutil",
 )
 #: What the service keeps on purpose: request validation, logging, the MQTT client, the CLI.
 PRESENT = ("pydantic", "umlbot.services.bus.envelopes", "structlog", "paho.mqtt.client", "click")

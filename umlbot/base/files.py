@@ -17,7 +17,6 @@ import math
 import os
 import stat
 import sys
-import tempfile
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -190,6 +189,9 @@ def _make_folders(folder: Path) -> list[Path]:
 
 def _stage(path: Path, data: bytes, mode: int | None = None) -> str:
     """`data` in a new temporary file beside `path`, written and fsynced; its name."""
+    import tempfile  # here: with shutil, bz2 and lzma about 0.3 MB that a service (which only
+    # reads its deployment) never needs (docs/performance.md, "Memory")
+
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     try:
         if mode is None:

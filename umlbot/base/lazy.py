@@ -48,12 +48,21 @@ class Deferred(types.ModuleType):
 
 
 def import_lean(module: str, deferred: Iterable[str] = (), blocked: Iterable[str] = (),
-                unraised: Mapping[str, Iterable[str]] | None = None) -> types.ModuleType:
+                unraised: Mapping[str, Iterable[str]] | None = None,
+                provided: Mapping[str, Mapping[str, Any]] | None = None) -> types.ModuleType:
     """Import `module` with the modules in `deferred` replaced by `Deferred` stand-ins and those in
     `blocked` made to raise ImportError, unless they are imported already (then the library gets
     the real ones). `unraised` maps a deferred module to its exception names that must not import
-    it (see `Deferred`)."""
+    it (see `Deferred`). `provided` maps a module to the names the library takes from it with
+    `from module import name`, each with what it gets instead (a stand-in module holding only
+    those)."""
     stand_ins: dict[str, types.ModuleType | None] = {}
+    for name, attributes in (provided or {}).items():
+        if name not in sys.modules:
+            providing = types.ModuleType(name)
+            for attribute, value in attributes.items():
+                setattr(providing, attribute, value)
+            stand_ins[name] = providing
     for name in blocked:
         if name not in sys.modules:
             stand_ins[name] = None  # `import name` raises ImportError

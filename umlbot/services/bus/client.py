@@ -17,7 +17,10 @@ import threading
 import time
 from concurrent.futures import Future, InvalidStateError
 from concurrent.futures import TimeoutError as FutureTimeout
-from typing import Any
+from typing import TYPE_CHECKING, Any, Protocol
+
+if TYPE_CHECKING:
+    import asyncio
 
 from umlbot.base.errors import CallTimeout, NotConnected, RemoteError
 from umlbot.base.logs import get_logger
@@ -27,6 +30,53 @@ from umlbot.services.bus.envelopes import dumps, is_timeout, parse_json
 from umlbot.services.bus.settings import BrokerSettings
 
 log = get_logger(__name__)
+
+
+class _Waiter(Protocol):
+    """Who waits for a reply: a `concurrent.futures.Future` or an `acall`'s `_LoopWaiter`."""
+
+    def set_result(self, result: dict[str, Any]) -> None: ...
+
+    def set_exception(self, exception: BaseException | None) -> None: ...
+
+
+class _LoopWaiter:
+    """An `acall`'s reply hand-off: resolves its asyncio future on the event loop, in one hop.
+
+    The network thread calls `set_result`/`set_exception`; each schedules the resolution with one
+    `call_soon_threadsafe`, and the awaiting task runs on the loop's next turn. (Wrapping a
+    `concurrent.futures.Future` and `asyncio.wait_for` takes two more turns of the loop and a
+    helper future per call: about 0.05 ms of every orchestrator action on the 2-core machine,
+    docs/performance.md, Orchestrator.)
+    """
+
+    __slots__ = ("_future", "_loop")
+
+    def __init__(self, loop: asyncio.AbstractEventLoop, future: asyncio.Future[Any]) -> None:
+        self._loop = loop
+        self._future = future
+
+    def set_result(self, result: dict[str, Any]) -> None:
+        with contextlib.suppress(RuntimeError):  # the loop is closed: nobody waits any more
+            self._loop.call_soon_threadsafe(_resolve, self._future, result)
+
+    def set_exception(self, exception: BaseException | None) -> None:
+        with contextlib.suppress(RuntimeError):
+            self._loop.call_soon_threadsafe(_resolve, self._future, exception)
+
+
+#: what an `acall`'s future resolves to when its time-out came first.
+_TIMED_OUT: Any = object()
+
+
+def _resolve(future: asyncio.Future[Any], outcome: Any) -> None:
+    """On the loop: settle `future` unless it is done (cancelled, timed out or answered)."""
+    if future.done():
+        return
+    if isinstance(outcome, BaseException):
+        future.set_exception(outcome)
+    else:
+        future.set_result(outcome)
 
 
 class BusClient:
@@ -45,7 +95,7 @@ class BusClient:
         self.connection = BusConnection(settings, role=role, robot=robot, client_id=client_id)
         token = os.urandom(8).hex()  # not the client id: that one is never published
         self.reply_topic = self.topics.reply(settings.username, token)
-        self._pending: dict[str, Future[dict[str, Any]]] = {}
+        self._pending: dict[str, _Waiter] = {}
         self._pending_lock = threading.Lock()
         self._ids = itertools.count(1)
         self._id_prefix = token[:6] + "-"
@@ -85,15 +135,22 @@ class BusClient:
         self, component: str, feature: str, args: tuple[Any, ...], timeout_s: float,
         ack_wait_s: float | None = None,
     ) -> tuple[str, Future[dict[str, Any]]]:
+        future: Future[dict[str, Any]] = Future()
+        return self._send(component, feature, args, timeout_s, future, ack_wait_s), future
+
+    def _send(
+        self, component: str, feature: str, args: tuple[Any, ...], timeout_s: float, waiter: _Waiter,
+        ack_wait_s: float | None = None,
+    ) -> str:
+        """Publish the request; `waiter` gets the reply (or NotConnected). Returns the request id."""
         if not self.connection.connected:
             raise NotConnected(
                 f"cannot call {component}.{feature}: not connected to the MQTT broker at "
                 f"{self.connection.settings.url}"
             )
         request_id = f"{self._id_prefix}{next(self._ids)}"
-        future: Future[dict[str, Any]] = Future()
         with self._pending_lock:
-            self._pending[request_id] = future
+            self._pending[request_id] = waiter
         # the time-out goes with the request: a monitor reports it unanswered when this caller gives up
         request: dict[str, Any] = {"id": request_id, "reply_to": self.reply_topic, "args": args}
         if is_timeout(timeout_s):
@@ -109,7 +166,7 @@ class BusClient:
             with self._pending_lock:
                 self._pending.pop(request_id, None)
             raise
-        return request_id, future
+        return request_id
 
     def call(self, component: str, feature: str, *args: Any, timeout: float = 2.0,
              acknowledged: bool = False) -> Any:
@@ -148,16 +205,18 @@ class BusClient:
         """The asyncio form of `call`: awaits the reply without blocking the event loop."""
         import asyncio  # here: a hardware service never calls it, and asyncio costs it ~2 MB
 
-        request_id, future = self._request(component, feature, args, timeout)
+        loop = asyncio.get_running_loop()
+        future: asyncio.Future[Any] = loop.create_future()
+        request_id = self._send(component, feature, args, timeout, _LoopWaiter(loop, future))
+        expiry = loop.call_later(timeout, _resolve, future, _TIMED_OUT)
         try:
-            reply = await asyncio.wait_for(asyncio.wrap_future(future), timeout)
-        except TimeoutError:
-            with self._pending_lock:
-                self._pending.pop(request_id, None)
-            raise CallTimeout(component, feature, timeout) from None
+            reply = await future
         finally:  # also when the awaiting task is cancelled: forget the call
+            expiry.cancel()
             with self._pending_lock:
                 self._pending.pop(request_id, None)
+        if reply is _TIMED_OUT:
+            raise CallTimeout(component, feature, timeout)
         return _unwrap(reply, component, feature)
 
     def send(self, component: str, feature: str, *args: Any) -> None:
@@ -188,7 +247,7 @@ class BusClient:
         with self._pending_lock:
             future = self._pending.pop(request_id, None) if isinstance(request_id, str) else None
         if future is not None:
-            with contextlib.suppress(InvalidStateError):  # cancelled by a timed-out acall
+            with contextlib.suppress(InvalidStateError):  # a future its caller cancelled
                 future.set_result(reply)
 
     def _fail_pending(self) -> None:

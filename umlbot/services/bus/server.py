@@ -210,6 +210,9 @@ class ComponentServer:
         self._claimed = False  # the component is ours: no other live server (see claim())
         self._retained: dict[str, Any] | None = None  # the last status seen on our status topic
         self._published: bytes | None = None  # the payload of our last `online` status
+        self._state_lock = threading.Lock()
+        self._state_sent: bytes | None = None  # the last state published, on connection number …
+        self._state_connects = 0  # … this (a reconnect publishes it again: the broker may have lost it)
         self._foreign_warned = -FOREIGN_STATUS_WARN_EVERY_S
         #: this server's name in its status and liveness answers (random: not the client id)
         self.instance = os.urandom(8).hex()
@@ -342,13 +345,25 @@ class ComponentServer:
 
     def publish_state(self, state: dict[str, Any]) -> None:
         """Publish the component's current state (retained) on `…/<component>/state`; nothing
-        before claim(): a server that may not serve the component leaves its state alone."""
+        before claim(): a server that may not serve the component leaves its state alone. A state
+        equal to the one this connection last published is not published again (after a
+        reconnect it is)."""
         if not self._claimed:
             return
-        try:
-            self.connection.publish(self.topics.state(self.component), state, qos=1, retain=True)
-        except NotConnected:
-            self._log.debug("state_not_published", reason="not connected")
+        payload = to_payload(state)
+        connects = self.connection.counters.connects
+        with self._state_lock:
+            # the broker holds this very state (retained) since this connection published it:
+            # publishing it again says nothing new, and costs every subscriber (the orchestrator,
+            # a monitor) a message per command (a model repeating `dutycycle(50)` in a loop)
+            if payload == self._state_sent and connects == self._state_connects:
+                return
+            try:
+                self.connection.publish(self.topics.state(self.component), payload, qos=1, retain=True)
+            except NotConnected:
+                self._log.debug("state_not_published", reason="not connected")
+                return
+            self._state_sent, self._state_connects = payload, connects
 
     def _publish_online(self) -> None:
         with self._status_lock:  # never after stop() said offline, never before claim()

@@ -163,6 +163,7 @@ class Orchestrator:
         #: `stop_reason`: watchdog, orchestrator unresponsive, deadman …): why the car stood still
         self.safety_stops: dict[str, str] = {}
         self._stop_reasons: dict[str, str | None] = {}  # the last `stop_reason` each state said
+        self._stop_reasons_seen: dict[str, str | None] = {}  # the same, on the dispatcher thread
         self.signals = SignalBoard.for_model(compiled)
         self.engine = Engine(compiled, self, self.signals, self.clock)
         self.used = sorted(used_components(compiled))
@@ -586,8 +587,14 @@ class Orchestrator:
         except ValueError:
             return
         reason = data.get("stop_reason") if isinstance(data, dict) else None
-        self._to_loop(self._on_stop_reason, component, reason if isinstance(reason, str) else None,
-                      message.retain)
+        reason = reason if isinstance(reason, str) else None
+        # the same reason as the last one handed over changes nothing on the loop (see
+        # _on_stop_reason): a motor's state comes after every command, and waking the event loop
+        # for each would cost every action a turn of it
+        if reason == self._stop_reasons_seen.get(component):
+            return
+        self._stop_reasons_seen[component] = reason
+        self._to_loop(self._on_stop_reason, component, reason, message.retain)
 
     def _on_stop_reason(self, component: str, reason: str | None, retained: bool) -> None:
         previous = self._stop_reasons.get(component)
