@@ -34,7 +34,7 @@ from collections import Counter
 from pathlib import Path
 from typing import Any
 
-from orchestrator import LOOP, ROBOT, RawRequester, compile_text, motor_service, run_broker
+from orchestrator import LOOP, ROBOT, RawRequester, compile_text, motor_service, run_broker, spoken_protocol
 from rpc import _raw_client, percentile
 
 from umlbot.base.logs import configure_logging
@@ -83,7 +83,7 @@ def measure_orchestrator(url: str, n: int, blocks: int, folder: Path) -> dict[st
     model = compile_text(LOOP.format(n=per_block))
     samples: dict[str, list[float]] = {"raw": [], "traced": [], "recorded": [], "inprocess": []}
     with motor_service(url):
-        raw = RawRequester(url)
+        raw = RawRequester(url, spoken_protocol(url))  # the orchestrator's MQTT version
         try:
             for _ in range(100):
                 raw.round_trip()
