@@ -192,8 +192,10 @@ def test_a_full_disk_ends_the_recording_cleanly_and_the_robot_drives_on(tmp_path
     failing write of the real file, not a fake."""
     limit = 150_000  # a full recording of this run is ~400 kB
     out = tmp_path / "run.mcap"
+    # a chunk is closed every wall second: at speed 20 on an idle machine one chunk is ~200 kB,
+    # more than the limit, and the cut file would hold none; at speed 5 a chunk is ~50 kB
     argv = [sys.executable, "-c", "from umlbot.cli import main; main()", "sim", str(MODEL), "--port", "0",
-            "--speed", "20", "--json", "--record", str(out)]
+            "--speed", "5", "--json", "--record", str(out)]
     done = subprocess.run(argv, capture_output=True, text=True, timeout=110, cwd=ROOT,
                           preexec_fn=lambda: _limit_file_size(limit), env={**os.environ}, check=False)
     assert done.returncode == 0, done.stderr[-2000:]  # goal reached: the robot did not notice
