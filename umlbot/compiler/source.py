@@ -593,8 +593,17 @@ def _read_node(node: YNode, d: Diagnostics) -> SourceNode | None:
 _LANES_HEADER = re.compile(r"lanes:[ \t]*(#.*)?")
 _ITEM = re.compile(r"( *)- ")
 #: what may make a swimlane's text mean something else alone than in its file: an anchor or an
-#: alias (one may refer to another swimlane's), a tab, a directive or document marker.
-_NOT_ALONE = re.compile(r"[&*][^\s*&]|\t|^(---|\.\.\.|%)", re.MULTILINE)
+#: alias (one may refer to another swimlane's), a tab, a directive or document marker
+#: (`_not_alone`).
+_ANCHOR = re.compile(r"&[^\s&]")
+_ALIAS = re.compile(r"\*[^\s*]")
+_MARKERS = ("---", "...", "%")
+
+
+def _not_alone(text: str) -> bool:
+    """Whether `text` may read otherwise in pieces than whole (`_pieces`)."""
+    return ("\t" in text or text.startswith(_MARKERS) or any("\n" + m in text for m in _MARKERS)
+            or _ANCHOR.search(text) is not None or _ALIAS.search(text) is not None)
 #: a text this short cannot hold more YAML nodes than `umlbot.base.yamlsrc.MAX_NODES` (each takes
 #: two characters or more), so that reading its swimlanes one by one refuses nothing more.
 _ALONE_MAX_CHARS = 900_000
@@ -684,7 +693,7 @@ class LaneCache:
 def _pieces(text: str) -> list[tuple[int, str]] | None:
     """The swimlanes' texts of an activity file `lanes:` + a list, with the line (0-based) each
     starts at; None for a file of another form."""
-    if len(text) > _ALONE_MAX_CHARS or _NOT_ALONE.search(text):
+    if len(text) > _ALONE_MAX_CHARS or _not_alone(text):
         return None
     lines = text.split("\n")
     index = 0
