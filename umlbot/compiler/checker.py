@@ -17,7 +17,7 @@ from umlbot.base.diagnostics import Diagnostic, Diagnostics, Location
 from umlbot.base.errors import ConfigError, ModelError
 from umlbot.base.library import ComponentKind, FeatureSpec, Implementation
 from umlbot.base.yamlsrc import YMap, YScalar, YSeq, locate
-from umlbot.compiler.compiled import CompiledModel
+from umlbot.compiler.compiled import CompiledModel, Lane
 from umlbot.compiler.expr import BINARY_OPERATIONS
 from umlbot.compiler.expr_parser import (
     RawExpr,
@@ -487,7 +487,8 @@ class _LaneChecks:
     left_out: list[tuple[Part, ...]] = field(default_factory=list)
     missing: list[tuple[str, Location]] = field(default_factory=list)
     lane_calls: list[_LaneCall] = field(default_factory=list)
-    built: Data | None = None
+    #: its compiled swimlane, validated (`_Checker.build_lane`)
+    built: Lane | None = None
 
 
 class CheckMemo:
@@ -507,6 +508,10 @@ class CheckMemo:
         self.lanes: dict[int, _LaneChecks] = {}
         #: expression text -> its parsed tree (offsets are relative to the text)
         self.trees: dict[str, RawExpr] = {}
+        #: a datastore's value that reads no datastore -> its type, in the scope of the key
+        #: (`_Checker.names_key`): it is the same in every pass of the inference, and next time
+        self.values: dict[int, tuple[YScalar, str, tuple[Any, ...], Type]] = {}
+        self.names_key: tuple[Any, ...] = ()
 
     def get(self, src: SourceLane, virtual: bool, damaged: bool) -> _LaneChecks | None:
         entry = self.lanes.get(id(src))
@@ -972,6 +977,12 @@ class _Checker:
         for lane in self.lanes:
             for name in lane.writes:
                 self.scope.datastore_types[(lane.name, name)] = "unknown"
+        memo = self.memo
+        names_key = self.names_key() if memo is not None else ()
+        if memo is not None:
+            # the last check's key when equal: then comparing it below is by identity
+            names_key = memo.names_key = memo.names_key if memo.names_key == names_key else names_key
+        known: dict[int, tuple[YScalar, str, tuple[Any, ...], Type]] = {}
         for _ in range(50):
             changed = False
             read_datastore = False
@@ -983,6 +994,13 @@ class _Checker:
                             t = _join(t, "any")
                             continue
                         key = id(scalar)
+                        if memo is not None:
+                            kept = known.get(key) or memo.values.get(key)
+                            if kept is not None and kept[0] is scalar and kept[1] == lane.name \
+                                    and kept[2] is names_key:
+                                known[key] = kept
+                                t = _join(t, kept[3])
+                                continue
                         if key not in parsed:
                             try:
                                 parsed[key] = self.parse(scalar)
@@ -1000,6 +1018,8 @@ class _Checker:
                         read_datastore = read_datastore or checker.read_datastore
                         if value_type == "none":
                             value_type = "any"
+                        if memo is not None and not checker.read_datastore:
+                            known[key] = (scalar, lane.name, names_key, value_type)
                         t = _join(t, value_type)
                     if t != self.scope.datastore_types[(lane.name, name)]:
                         self.scope.datastore_types[(lane.name, name)] = t
@@ -1009,6 +1029,18 @@ class _Checker:
         for store, t in self.scope.datastore_types.items():
             if t == "unknown":
                 self.scope.datastore_types[store] = "any"
+        if memo is not None:
+            memo.values = known
+
+    def names_key(self) -> tuple[Any, ...]:
+        """`scope_key` without the datastores' types (only which datastores there are): what an
+        expression that reads no datastore can depend on."""
+        scope = self.scope
+        return (tuple(scope.kinds.items()), tuple(scope.impls.items()),
+                tuple((name, lane.virtual) for name, lane in scope.lanes.items()),
+                tuple(scope.datastore_types), frozenset(scope.damage.lanes),
+                bool(scope.damage.empty_files), frozenset(scope.unknown_components),
+                scope.components_unknown, scope.lanes_unknown, scope.deployment_unread)
 
     def expression(self, lane: _Lane, scalar: YScalar, action: bool = False) -> tuple[Data, Type] | None:
         try:
@@ -1334,11 +1366,13 @@ class _Checker:
             "signals": sorted(self.signals), "lanes": lanes,
         })
 
-    def build_lane(self, lane: _Lane) -> Data:
+    def build_lane(self, lane: _Lane) -> Data | Lane:
+        """The compiled swimlane: as data (validated with the whole model), or with a memo the
+        `Lane` validated when it was last built (the model takes it as it is)."""
         entry = self.entries.get(lane.name)
         if entry is not None:
             if entry.built is None:
-                entry.built = self.built_lane(lane)
+                entry.built = Lane.model_validate(self.built_lane(lane))
             return entry.built
         return self.built_lane(lane)
 
