@@ -94,7 +94,8 @@ def random_ops(rng: random.Random, lanes: dict[str, list[tuple[str, str]]]) -> l
         return [{"op": "set_guard", "lane": lane, "source": decision, "target": other,
                  "guard": rng.choice(GUARDS)}]
     if what == "call":
-        return [{"op": "set_node", "lane": lane, "id": of_kind("action"), "fields": {"call": rng.choice(CALLS)}}]
+        return [{"op": "set_node", "lane": lane, "id": of_kind("action"),
+                 "fields": {"call": rng.choice(CALLS)}}]
     if what == "add":
         kind = rng.choice(KINDS)
         fields: dict[str, Any] = {"action": {"call": rng.choice(CALLS)},
@@ -112,7 +113,8 @@ def random_ops(rng: random.Random, lanes: dict[str, list[tuple[str, str]]]) -> l
     if what == "rename_node":
         return [{"op": "rename_node", "lane": lane, "id": node, "new_id": rng.choice(NAMES) + "_n"}]
     if what == "rename_lane":
-        return [{"op": "rename_lane", "lane": lane, "new_name": rng.choice(NAMES + [f"Lane{rng.randrange(9)}"])}]
+        new_name = rng.choice([*NAMES, f"Lane{rng.randrange(9)}"])
+        return [{"op": "rename_lane", "lane": lane, "new_name": new_name}]
     if what == "add_lane":
         return [{"op": "add_lane", "lane": f"New{rng.randrange(50)}"}]
     if what == "remove_lane":
@@ -247,3 +249,35 @@ def test_a_stale_reuse_would_be_caught(tmp_path: Path, monkeypatch: pytest.Monke
     assert_same(root, before, blind, "before")
     with pytest.raises(AssertionError):
         assert_same(root, after, blind, "after")
+
+
+TRICKY = [
+    # comments between and inside swimlanes, at the list's indent and at none
+    "# top\nlanes:   # the list\n  - lane: A\n    nodes:\n      - {id: s, kind: start}\n"
+    "  # between\n# at none\n      - {id: e, kind: end}\n\n  - lane: B\n    nodes: [{id: s, kind: start},\n"
+    "      {id: e, kind: end}]\n",
+    # a quoted scalar whose second line looks like the next swimlane
+    "lanes:\n  - lane: A\n    nodes:\n      - {id: s, kind: start, next: \"e\n  - lane: Fake\"}\n"
+    "      - {id: e, kind: end}\n  - lane: B\n    nodes: []\n",
+    # a block scalar, a plain scalar over two lines
+    "lanes:\n  - lane: A\n    nodes:\n      - id: c\n        kind: action\n        call: |\n          msleep(1)\n"
+    "      - id: d\n        kind: action\n        call: msleep(\n          2)\n  - lane: B\n    nodes: 3\n",
+    # the list at no indent; an anchor and its alias in two swimlanes (read whole)
+    "lanes:\n- lane: A\n  nodes: &n [{id: s, kind: start}]\n- lane: B\n  nodes: *n\n",
+    # a duplicate key, another key of the file, a second document
+    "lanes:\n  - lane: A\n    lane: B\n    nodes: []\n",
+    "lanes:\n  - lane: A\n    nodes: []\nother: 1\n",
+    "lanes:\n  - lane: A\n    nodes: []\n---\nlanes: []\n",
+    # one swimlane without a list; an empty file; not YAML
+    "lane: A\nnodes:\n  - {id: s, kind: start}\n", "", "lanes:\n  - lane: [\n",
+]
+
+
+@pytest.mark.parametrize("text", TRICKY)
+def test_pieces_read_as_the_whole_file(tmp_path: Path, text: str) -> None:
+    root = generated_model(tmp_path / "gen", 1)
+    files: Files = {rel: data for rel, data in read_model_folder(root).items() if isinstance(data, bytes)}
+    files["activities/tricky.yaml"] = text.encode("utf-8")
+    incremental = IncrementalCheck()
+    assert_same(root, files, incremental, "first")
+    assert_same(root, files, incremental, "again")  # what was kept

@@ -737,8 +737,10 @@ def _read_piece(piece: str, start: int, shown: str, rel: str) -> _LaneRead | Non
         root = parse_yaml("\n" * (start - 1) + "lanes:\n" + piece, shown, d)
     except ModelError:
         return None
-    lanes = root.items.get("lanes") if isinstance(root, YMap) else None
-    if d.items or not isinstance(lanes, YSeq) or len(lanes.items) != 1 or len(root.items) != 1:
+    if d.items or not isinstance(root, YMap) or len(root.items) != 1:
+        return None
+    lanes = root.items.get("lanes")
+    if not isinstance(lanes, YSeq) or len(lanes.items) != 1:
         return None
     part = SourceModel(name="", loc=Location(shown, 1, 1))
     _read_lane(lanes.items[0], rel, part, d)

@@ -2,11 +2,12 @@
 
 The working copy is the model's files (relative path -> bytes) as the page has edited them; the
 compiler checks it in memory (`check_model(root, files=…)`; after an edit incrementally,
-`IncrementalCheck`, with the same result), so its messages are `umlbot check`'s, naming the files as on disk; a model file that cannot be read (no permission, not a file, too
-large) is in it as `Unreadable`, reported as `umlbot check` reports it, never edited and never
-written. Saving writes only the files that differ, all or none (`write_files_atomically`: temp
-files in their folders, then renames, the old files kept until all are in place), and only inside
-the model folder; a failed save says why in words and leaves the files as they were.
+`IncrementalCheck`, with the same result), so its messages are `umlbot check`'s, naming the files
+as on disk; a model file that cannot be read (no permission, not a file, too large) is in it
+as `Unreadable`, reported as `umlbot check` reports it, never edited and never written. Saving
+writes only the files that differ, all or none (`write_files_atomically`: temp files in their
+folders, then renames, the old files kept until all are in place), and only inside the model
+folder; a failed save says why in words and leaves the files as they were.
 
 `disk` is what the studio last saw on disk (read, or written by itself), so the invariant the page
 relies on is: every file of the working copy equals the disk's or is unsaved (`dirty`). A file
