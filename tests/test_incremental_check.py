@@ -260,7 +260,8 @@ TRICKY = [
     "lanes:\n  - lane: A\n    nodes:\n      - {id: s, kind: start, next: \"e\n  - lane: Fake\"}\n"
     "      - {id: e, kind: end}\n  - lane: B\n    nodes: []\n",
     # a block scalar, a plain scalar over two lines
-    "lanes:\n  - lane: A\n    nodes:\n      - id: c\n        kind: action\n        call: |\n          msleep(1)\n"
+    "lanes:\n  - lane: A\n    nodes:\n      - id: c\n        kind: action\n        call: |\n"
+    "          msleep(1)\n"
     "      - id: d\n        kind: action\n        call: msleep(\n          2)\n  - lane: B\n    nodes: 3\n",
     # the list at no indent; an anchor and its alias in two swimlanes (read whole)
     "lanes:\n- lane: A\n  nodes: &n [{id: s, kind: start}]\n- lane: B\n  nodes: *n\n",
@@ -281,3 +282,30 @@ def test_pieces_read_as_the_whole_file(tmp_path: Path, text: str) -> None:
     incremental = IncrementalCheck()
     assert_same(root, files, incremental, "first")
     assert_same(root, files, incremental, "again")  # what was kept
+
+
+def test_the_studios_answer_equals_one_made_from_scratch(tmp_path: Path) -> None:
+    """The studio's answer after each edit (its model view with the swimlanes' views it kept, its
+    diagnostics) equals the one made from a check from scratch of the same working copy."""
+    from umlbot.studio.model_view import source_view
+    from umlbot.studio.workspace import Workspace
+
+    root = car_model(tmp_path / "car")
+    ws = Workspace(root)
+    ws.check()
+    rng = random.Random(11)
+    made = 0
+    for _ in range(40):
+        assert ws.result is not None
+        try:
+            ws.edit(ws.version, random_ops(rng, lanes_of(ws.result) or {"RaspberryPI": []}))
+        except EditError:
+            continue
+        made += 1
+        got = dict(ws.answer_cache)
+        fresh = check_model(root, files=ws.files)
+        assert fresh.source is not None
+        assert got["model"] == source_view(fresh.source)
+        ws.check(fresh)  # the same answer made without what was kept for this working copy
+        assert got["diagnostics"] == ws.answer_cache["diagnostics"]
+    assert made >= 15
