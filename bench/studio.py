@@ -21,7 +21,10 @@ Both parts run a real broker (Mosquitto, or the embedded amqtt with --broker amq
   animation frame that drew the new diagram with the node's diagnostic
   (`window.__studio.edit.timings`), split into the server's answer and the drawing; after each,
   a bare `check_model` of the same files is timed in this process (the compiler's share, under
-  the same load). Target: p50 <= 300 ms. No broker.
+  the same load). Then the server's side alone in this process (`Workspace.edit` and its JSON)
+  for the same edits, with the studio's incremental check and alternately with a check from
+  scratch (`server_edit_*`, `server_edit_full_*`, `incremental_check_*`). Target: p50 <= 300 ms.
+  No broker.
 
 The last output line is one JSON object {"latency": {...}, "load": {...}, "edit": {...}}. Exit 1
 when a target is missed. `--parts edit` runs only the edit part (also `latency`, `load`).
@@ -33,6 +36,7 @@ when a target is missed. `--parts edit` runs only the edit part (also `latency`,
 from __future__ import annotations
 
 import argparse
+import gc
 import json
 import os
 import random
@@ -306,7 +310,58 @@ def measure_edit(browser: Any, nodes: int, edits: int, workdir: Path) -> dict[st
             "draw_p99_ms": round(percentile(drawn, 99), 1),
             "check_p50_ms": round(statistics.median(checks), 1),
             "check_p99_ms": round(percentile(checks, 99), 1),
+            **server_edits(root, edits, nodes),
             "load_average": round(max(load_before, os.getloadavg()[0]), 1)}
+
+
+class _FullCheck:
+    """The studio's check before issue 28: every edit checks the whole working copy from scratch."""
+
+    def check(self, path: Path, files: Any = None) -> Any:
+        from umlbot.compiler.api import check_model
+
+        return check_model(path, files=files)
+
+
+def server_edits(root: Path, edits: int, nodes: int) -> dict[str, float]:
+    """The server's side of the same edits in this process (`Workspace.edit` and the answer's
+    JSON, no HTTP), with the incremental check and, alternately in the same minutes, with a check
+    from scratch (the raw baseline); and the incremental check alone (`check_*`)."""
+    from umlbot.studio.workspace import Workspace
+
+    incremental, full = Workspace(root), Workspace(root)
+    full.checker = _FullCheck()  # type: ignore[assignment]
+    checks: list[float] = []
+    original = incremental.checker.check
+
+    def timed(*args: Any, **kwargs: Any) -> Any:
+        started = time.perf_counter()
+        try:
+            return original(*args, **kwargs)
+        finally:
+            checks.append((time.perf_counter() - started) * 1000)
+
+    incremental.checker.check = timed  # type: ignore[method-assign]
+    times: dict[str, list[float]] = {"incremental": [], "full": []}
+    for ws in (incremental, full):
+        ws.check()
+    checks.clear()
+    gc.collect()
+    gc.freeze()  # as the studio's server does once started (`StudioServer.start`)
+    try:
+        for index in range(edits):
+            for name, ws in (("incremental", incremental), ("full", full)):
+                started = time.perf_counter()
+                json.dumps(ws.edit(ws.version, edit_ops(index, nodes)))
+                times[name].append((time.perf_counter() - started) * 1000)
+    finally:
+        gc.unfreeze()
+    return {"server_edit_p50_ms": round(statistics.median(times["incremental"]), 1),
+            "server_edit_p99_ms": round(percentile(times["incremental"], 99), 1),
+            "server_edit_full_p50_ms": round(statistics.median(times["full"]), 1),
+            "server_edit_full_p99_ms": round(percentile(times["full"], 99), 1),
+            "incremental_check_p50_ms": round(statistics.median(checks), 1),
+            "incremental_check_p99_ms": round(percentile(checks, 99), 1)}
 
 
 def main() -> int:

@@ -14,9 +14,9 @@ from pathlib import Path
 
 from umlbot.base.diagnostics import Diagnostic, Diagnostics, ModelErrors
 from umlbot.base.errors import ModelError
-from umlbot.compiler.checker import check_source
+from umlbot.compiler.checker import CheckMemo, check_source
 from umlbot.compiler.compiled import CompiledModel
-from umlbot.compiler.source import SourceModel, Unreadable, load_source
+from umlbot.compiler.source import LaneCache, SourceModel, Unreadable, load_source
 
 
 @dataclass(frozen=True)
@@ -40,14 +40,33 @@ class CheckResult:
         return [d for d in self.diagnostics if d.severity == "warning"]
 
 
+class IncrementalCheck:
+    """Checks one model again and again (the studio's working copy after each edit), doing again
+    only what the change can change, as a language server does: a swimlane whose text did not
+    change is not parsed again (`LaneCache`), its nodes and graph are not checked again, and its
+    expressions only when something they can name changed (`CheckMemo`). `check` gives what
+    `check_model` gives for the same files (tests/test_incremental_check.py holds it to that
+    after every edit of random sequences)."""
+
+    def __init__(self) -> None:
+        self.lanes = LaneCache()
+        self.memo = CheckMemo()
+
+    def check(self, path: str | Path, deployment: str | Path | None = None,
+              files: Mapping[str, bytes | Unreadable] | None = None) -> CheckResult:
+        return check_model(path, deployment, files, incremental=self)
+
+
 def check_model(path: str | Path, deployment: str | Path | None = None,
-                files: Mapping[str, bytes | Unreadable] | None = None) -> CheckResult:
+                files: Mapping[str, bytes | Unreadable] | None = None,
+                incremental: IncrementalCheck | None = None) -> CheckResult:
     """Check the model at `path` (a folder or one file); `deployment` overrides its deployment file.
 
     `files` (path relative to the folder -> content) checks those files as the folder `path`
     instead of what is on disk (the studio's working copy); messages name them as on disk. A file
     that could not be read is there as `Unreadable` (`umlbot.compiler.source.read_model_folder` reads a
-    folder so): it is reported as `umlbot check` reports it.
+    folder so): it is reported as `umlbot check` reports it. `incremental`: what the last check of
+    the same model kept (`IncrementalCheck.check`); the result is the same.
     """
     diagnostics = Diagnostics()
     source: SourceModel | None = None
@@ -57,8 +76,13 @@ def check_model(path: str | Path, deployment: str | Path | None = None,
     collecting = gc.isenabled()
     gc.disable()
     try:
-        source = load_source(path, diagnostics, deployment, files)
-        model = check_source(source, diagnostics)
+        if incremental is None:
+            source = load_source(path, diagnostics, deployment, files)
+            model = check_source(source, diagnostics)
+        else:
+            incremental.lanes.generation()
+            source = load_source(path, diagnostics, deployment, files, incremental.lanes)
+            model = check_source(source, diagnostics, incremental.memo)
     except ModelError as exc:
         diagnostics.add_model_error(exc)
         model = None

@@ -13,11 +13,11 @@ from dataclasses import dataclass, field
 from typing import Any, Literal, cast
 
 from umlbot.base.catalog import component_features, component_kinds, kind_features, resolve_implementation
-from umlbot.base.diagnostics import Diagnostics, Location
+from umlbot.base.diagnostics import Diagnostic, Diagnostics, Location
 from umlbot.base.errors import ConfigError, ModelError
 from umlbot.base.library import ComponentKind, FeatureSpec, Implementation
 from umlbot.base.yamlsrc import YMap, YScalar, YSeq, locate
-from umlbot.compiler.compiled import CompiledModel
+from umlbot.compiler.compiled import CompiledModel, Lane
 from umlbot.compiler.expr import BINARY_OPERATIONS
 from umlbot.compiler.expr_parser import (
     RawExpr,
@@ -468,10 +468,68 @@ class _ExprChecker:
         return _call(target, args), cast(Type, spec.returns)
 
 
+@dataclass
+class _LaneChecks:
+    """What checking one swimlane found, kept for the next check (`CheckMemo`)."""
+
+    src: SourceLane
+    virtual: bool
+    damaged: bool
+    lane: _Lane
+    #: its nodes' and graph's problems and signals: they depend on its text only.
+    problems: list[Diagnostic]
+    signals: set[str]
+    #: the scope its expressions were checked in (`_Checker.scope_key`), and what they gave:
+    #: problems, checks left out, swimlanes named in vain, calls of swimlanes (its nodes hold
+    #: the compiled expressions).
+    scope_key: tuple[Any, ...] | None = None
+    expr_problems: list[Diagnostic] = field(default_factory=list)
+    left_out: list[tuple[Part, ...]] = field(default_factory=list)
+    missing: list[tuple[str, Location]] = field(default_factory=list)
+    lane_calls: list[_LaneCall] = field(default_factory=list)
+    #: its compiled swimlane, validated (`_Checker.build_lane`)
+    built: Lane | None = None
+
+
+class CheckMemo:
+    """What the last check of a model found per swimlane, for the next check of the same model
+    (the studio checks its working copy after every edit).
+
+    A swimlane whose `SourceLane` is the same object as the last time (`LaneCache` gives it when
+    its text did not change) is not read again, and its graph not checked again; its expressions
+    are not checked again either when everything outside it that they can name is as before
+    (components, their implementations, swimlanes, every datastore's type, what could not be
+    read). The problems and the compiled model are those of a check from scratch.
+    """
+
+    MAX_TREES = 50_000
+
+    def __init__(self) -> None:
+        self.lanes: dict[int, _LaneChecks] = {}
+        #: expression text -> its parsed tree (offsets are relative to the text)
+        self.trees: dict[str, RawExpr] = {}
+        #: a datastore's value that reads no datastore -> its type, in the scope of the key
+        #: (`_Checker.names_key`): it is the same in every pass of the inference, and next time
+        self.values: dict[int, tuple[YScalar, str, tuple[Any, ...], Type]] = {}
+        self.names_key: tuple[Any, ...] = ()
+
+    def get(self, src: SourceLane, virtual: bool, damaged: bool) -> _LaneChecks | None:
+        entry = self.lanes.get(id(src))
+        if entry is None or entry.src is not src or entry.virtual != virtual or entry.damaged != damaged:
+            return None
+        return entry
+
+
 class _Checker:
-    def __init__(self, source: SourceModel, diagnostics: Diagnostics) -> None:
+    def __init__(self, source: SourceModel, diagnostics: Diagnostics,
+                 memo: CheckMemo | None = None) -> None:
         self.source = source
         self.d = diagnostics
+        self.memo = memo
+        #: the swimlanes' entries of this check (which become `memo.lanes` after it)
+        self.entries: dict[str, _LaneChecks] = {}
+        #: while one swimlane's expressions are checked for the memo: what they leave out, miss
+        self.recording: _LaneChecks | None = None
         damage = source.damage
         self.scope = _Scope(damage=damage, components_unknown=damage.components_unknown,
                             lanes_unknown=damage.lanes_unknown)
@@ -488,6 +546,10 @@ class _Checker:
         self.deployed: dict[str, Implementation] = {}
         self.parsed: dict[int, tuple[RawExpr, SourceText]] = {}
         self.trees: dict[str, RawExpr] = {}
+        if memo is not None:
+            if len(memo.trees) > CheckMemo.MAX_TREES:
+                memo.trees.clear()
+            self.trees = memo.trees
 
     def leave_out(self, *parts: Part) -> None:
         """Count a check left out because it depends on `parts` of the model, for each file that
@@ -723,32 +785,60 @@ class _Checker:
                 self.d.error(f"duplicate swimlane '{src.name}' (first defined at {first.file}:"
                              f"{first.line})", src.loc)
                 continue
-            lane = _Lane(src, virtual=src.name not in self.source.components)
+            virtual = src.name not in self.source.components
+            damaged = src.name in self.source.damage.lanes
+            if self.memo is None:
+                lane = _Lane(src, virtual=virtual)
+                self.read_lane(lane)
+            else:
+                entry = self.memo.get(src, virtual, damaged)
+                if entry is None:
+                    entry = self.checked_lane(src, virtual, damaged)
+                lane = entry.lane
+                self.d.items.extend(entry.problems)
+                self.signals |= entry.signals
+                self.entries[src.name] = entry
             self.scope.lanes[src.name] = lane
             self.lanes.append(lane)
-            unique: list[SourceNode] = []
-            seen: set[str] = set()
-            for node in src.nodes:
-                if node.id in seen:
-                    self.d.error(f"duplicate node id '{node.id}' in swimlane '{lane.name}'", node.id_loc)
-                else:
-                    seen.add(node.id)
-                    unique.append(node)
-            for index, node in enumerate(unique):
-                following = unique[index + 1].id if index + 1 < len(unique) else None
-                self.read_node(lane, node, following)
-            starts = [n for n in lane.nodes.values() if n.src.kind == "start"]
-            damaged = lane.name in self.source.damage.lanes  # its start or end may be unread
-            if not starts:
-                if not damaged:
-                    self.d.error(f"swimlane '{lane.name}' has no start node", src.loc)
+
+    def checked_lane(self, src: SourceLane, virtual: bool, damaged: bool) -> _LaneChecks:
+        """A swimlane read and its graph checked, for the memo: what depends on its text only."""
+        lane = _Lane(src, virtual=virtual)
+        outer, outer_signals = self.d, self.signals
+        self.d, self.signals = Diagnostics(), set()
+        try:
+            self.read_lane(lane)
+            if not damaged:  # an edge to an unread node is no error of its own
+                self.check_graph(lane)
+            return _LaneChecks(src, virtual, damaged, lane, self.d.items, self.signals)
+        finally:
+            self.d, self.signals = outer, outer_signals
+
+    def read_lane(self, lane: _Lane) -> None:
+        src = lane.src
+        unique: list[SourceNode] = []
+        seen: set[str] = set()
+        for node in src.nodes:
+            if node.id in seen:
+                self.d.error(f"duplicate node id '{node.id}' in swimlane '{lane.name}'", node.id_loc)
             else:
-                lane.start = starts[0].id
-                for extra in starts[1:]:
-                    self.d.error(f"duplicate start node '{extra.id}': swimlane '{lane.name}' already "
-                                 f"starts at '{starts[0].id}'", extra.src.id_loc)
-            if not damaged and not any(n.src.kind == "end" for n in lane.nodes.values()):
-                self.d.error(f"swimlane '{lane.name}' has no end node", src.loc)
+                seen.add(node.id)
+                unique.append(node)
+        for index, node in enumerate(unique):
+            following = unique[index + 1].id if index + 1 < len(unique) else None
+            self.read_node(lane, node, following)
+        starts = [n for n in lane.nodes.values() if n.src.kind == "start"]
+        damaged = lane.name in self.source.damage.lanes  # its start or end may be unread
+        if not starts:
+            if not damaged:
+                self.d.error(f"swimlane '{lane.name}' has no start node", src.loc)
+        else:
+            lane.start = starts[0].id
+            for extra in starts[1:]:
+                self.d.error(f"duplicate start node '{extra.id}': swimlane '{lane.name}' already "
+                             f"starts at '{starts[0].id}'", extra.src.id_loc)
+        if not damaged and not any(n.src.kind == "end" for n in lane.nodes.values()):
+            self.d.error(f"swimlane '{lane.name}' has no end node", src.loc)
 
     def scalar(self, fields: YMap, key: str, what: str, required: bool = True) -> YScalar | None:
         node = fields.get(key)
@@ -887,6 +977,12 @@ class _Checker:
         for lane in self.lanes:
             for name in lane.writes:
                 self.scope.datastore_types[(lane.name, name)] = "unknown"
+        memo = self.memo
+        names_key = self.names_key() if memo is not None else ()
+        if memo is not None:
+            # the last check's key when equal: then comparing it below is by identity
+            names_key = memo.names_key = memo.names_key if memo.names_key == names_key else names_key
+        known: dict[int, tuple[YScalar, str, tuple[Any, ...], Type]] = {}
         for _ in range(50):
             changed = False
             read_datastore = False
@@ -898,6 +994,13 @@ class _Checker:
                             t = _join(t, "any")
                             continue
                         key = id(scalar)
+                        if memo is not None:
+                            kept = known.get(key) or memo.values.get(key)
+                            if kept is not None and kept[0] is scalar and kept[1] == lane.name \
+                                    and kept[2] is names_key:
+                                known[key] = kept
+                                t = _join(t, kept[3])
+                                continue
                         if key not in parsed:
                             try:
                                 parsed[key] = self.parse(scalar)
@@ -915,6 +1018,8 @@ class _Checker:
                         read_datastore = read_datastore or checker.read_datastore
                         if value_type == "none":
                             value_type = "any"
+                        if memo is not None and not checker.read_datastore:
+                            known[key] = (scalar, lane.name, names_key, value_type)
                         t = _join(t, value_type)
                     if t != self.scope.datastore_types[(lane.name, name)]:
                         self.scope.datastore_types[(lane.name, name)] = t
@@ -924,6 +1029,18 @@ class _Checker:
         for store, t in self.scope.datastore_types.items():
             if t == "unknown":
                 self.scope.datastore_types[store] = "any"
+        if memo is not None:
+            memo.values = known
+
+    def names_key(self) -> tuple[Any, ...]:
+        """`scope_key` without the datastores' types (only which datastores there are): what an
+        expression that reads no datastore can depend on."""
+        scope = self.scope
+        return (tuple(scope.kinds.items()), tuple(scope.impls.items()),
+                tuple((name, lane.virtual) for name, lane in scope.lanes.items()),
+                tuple(scope.datastore_types), frozenset(scope.damage.lanes),
+                bool(scope.damage.empty_files), frozenset(scope.unknown_components),
+                scope.components_unknown, scope.lanes_unknown, scope.deployment_unread)
 
     def expression(self, lane: _Lane, scalar: YScalar, action: bool = False) -> tuple[Data, Type] | None:
         try:
@@ -943,43 +1060,89 @@ class _Checker:
             self.missing_lanes.setdefault(name, loc)
         if result is not None:
             self.lane_calls.extend(checker.lane_calls)
+        if self.recording is not None:
+            self.recording.left_out += checker.left_out
+            self.recording.missing += checker.missing
+            if result is not None:
+                self.recording.lane_calls += checker.lane_calls
         return result
 
+    def scope_key(self) -> tuple[Any, ...]:
+        """Everything outside a swimlane that its expressions can name (`_ExprChecker`): equal
+        keys, equal results of the same expressions."""
+        scope = self.scope
+        return (tuple(scope.kinds.items()), tuple(scope.impls.items()),
+                tuple((name, lane.virtual) for name, lane in scope.lanes.items()),
+                tuple(scope.datastore_types.items()), frozenset(scope.damage.lanes),
+                bool(scope.damage.empty_files), frozenset(scope.unknown_components),
+                scope.components_unknown, scope.lanes_unknown, scope.deployment_unread)
+
     def check_expressions(self) -> None:
+        if self.memo is None:
+            for lane in self.lanes:
+                self.check_lane_expressions(lane)
+            return
+        key = self.scope_key()
         for lane in self.lanes:
-            for node_id in lane.order:
-                node = lane.nodes[node_id]
-                kind = node.src.kind
-                if kind == "action" and node.expr is not None:
-                    result = self.expression(lane, node.expr, action=True)
-                    if result is not None:
-                        if result[0]["op"] == "call":
-                            node.compiled_expr = result[0]
-                        else:
-                            self.d.error("an action is a call: Component.feature(args), a virtual "
-                                         "swimlane, or a builtin such as msleep(ms)",
-                                         node.expr.content_location())
-                elif kind in ("datastore", "send") and node.expr is not None:
-                    result = self.expression(lane, node.expr)
-                    if result is not None:
-                        if result[1] == "none":
-                            self.d.error(f"'{node.expr.text.strip()}' gives no value",
-                                         node.expr.content_location())
-                        else:
-                            node.compiled_expr = result[0]
-                elif kind == "decision":
-                    for branch in node.branches:
-                        if branch.guard is None:
-                            node.compiled_guards.append(None)
-                            continue
-                        result = self.expression(lane, branch.guard)
-                        if result is None:
-                            node.compiled_guards.append(None)
-                            continue
-                        if result[1] not in ("bool", "any"):
-                            self.d.error(f"a guard must be a bool, got {result[1]}",
-                                         branch.guard.content_location())
-                        node.compiled_guards.append(result[0])
+            entry = self.entries[lane.name]
+            if entry.scope_key != key:
+                # checked again: its nodes get this check's compiled expressions
+                for node in lane.nodes.values():
+                    node.compiled_expr = None
+                    node.compiled_guards = []
+                entry.scope_key, entry.built = None, None
+                entry.left_out, entry.missing, entry.lane_calls = [], [], []
+                outer = self.d
+                self.d, self.recording = Diagnostics(), entry
+                try:
+                    self.check_lane_expressions(lane)
+                    entry.expr_problems = self.d.items
+                finally:
+                    self.d, self.recording = outer, None
+                self.d.items.extend(entry.expr_problems)
+                entry.scope_key = key
+                continue
+            self.d.items.extend(entry.expr_problems)
+            for parts in entry.left_out:
+                self.leave_out(*parts)
+            for name, loc in entry.missing:
+                self.missing_lanes.setdefault(name, loc)
+            self.lane_calls.extend(entry.lane_calls)
+
+    def check_lane_expressions(self, lane: _Lane) -> None:
+        for node_id in lane.order:
+            node = lane.nodes[node_id]
+            kind = node.src.kind
+            if kind == "action" and node.expr is not None:
+                result = self.expression(lane, node.expr, action=True)
+                if result is not None:
+                    if result[0]["op"] == "call":
+                        node.compiled_expr = result[0]
+                    else:
+                        self.d.error("an action is a call: Component.feature(args), a virtual "
+                                     "swimlane, or a builtin such as msleep(ms)",
+                                     node.expr.content_location())
+            elif kind in ("datastore", "send") and node.expr is not None:
+                result = self.expression(lane, node.expr)
+                if result is not None:
+                    if result[1] == "none":
+                        self.d.error(f"'{node.expr.text.strip()}' gives no value",
+                                     node.expr.content_location())
+                    else:
+                        node.compiled_expr = result[0]
+            elif kind == "decision":
+                for branch in node.branches:
+                    if branch.guard is None:
+                        node.compiled_guards.append(None)
+                        continue
+                    result = self.expression(lane, branch.guard)
+                    if result is None:
+                        node.compiled_guards.append(None)
+                        continue
+                    if result[1] not in ("bool", "any"):
+                        self.d.error(f"a guard must be a bool, got {result[1]}",
+                                     branch.guard.content_location())
+                    node.compiled_guards.append(result[0])
 
     # --- graphs --------------------------------------------------------------------------------------
 
@@ -1203,7 +1366,17 @@ class _Checker:
             "signals": sorted(self.signals), "lanes": lanes,
         })
 
-    def build_lane(self, lane: _Lane) -> Data:
+    def build_lane(self, lane: _Lane) -> Data | Lane:
+        """The compiled swimlane: as data (validated with the whole model), or with a memo the
+        `Lane` validated when it was last built (the model takes it as it is)."""
+        entry = self.entries.get(lane.name)
+        if entry is not None:
+            if entry.built is None:
+                entry.built = Lane.model_validate(self.built_lane(lane))
+            return entry.built
+        return self.built_lane(lane)
+
+    def built_lane(self, lane: _Lane) -> Data:
         assert lane.start is not None
         return {
             "name": lane.name, "virtual": lane.virtual,
@@ -1254,28 +1427,32 @@ def _where(loc: Location) -> str:
     return f"{loc.file}:{loc.line}:{loc.column}"
 
 
-def check_source(source: SourceModel, diagnostics: Diagnostics) -> CompiledModel | None:
+def check_source(source: SourceModel, diagnostics: Diagnostics,
+                 memo: CheckMemo | None = None) -> CompiledModel | None:
     """Run every check; the compiled model when there is no error, else None.
 
     A file that could not be read (its error is reported) leaves out only the checks that depend
     on what it may hold ("unknown component", "unknown swimlane", "never called" would be
     follow-ons of it); its error says how many.
     """
-    checker = _Checker(source, diagnostics)
+    checker = _Checker(source, diagnostics, memo)
     checker.check_components()
     checker.check_deployment()
     checker.read_lanes()
     checker.infer_datastore_types()
     checker.check_expressions()
     checker.report_empty_files()
-    for lane in checker.lanes:
-        if lane.name not in source.damage.lanes:  # an edge to an unread node is no error of its own
-            checker.check_graph(lane)
+    if memo is None:  # with a memo, each swimlane's graph is checked as it is read
+        for lane in checker.lanes:
+            if lane.name not in source.damage.lanes:  # an edge to an unread node is no error of its own
+                checker.check_graph(lane)
     checker.check_recursion()
     checker.report_left_out()
+    if memo is not None:
+        memo.lanes = {id(entry.src): entry for entry in checker.entries.values()}
     if diagnostics.has_errors:
         return None
     return checker.build()
 
 
-__all__ = ["Type", "check_source"]
+__all__ = ["CheckMemo", "Type", "check_source"]

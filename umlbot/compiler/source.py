@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import hashlib
 import re
+from collections import Counter
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -256,10 +257,12 @@ class _Reader:
     """
 
     def __init__(self, root: Path, diagnostics: Diagnostics,
-                 files: Mapping[str, bytes | Unreadable] | None = None) -> None:
+                 files: Mapping[str, bytes | Unreadable] | None = None,
+                 cache: LaneCache | None = None) -> None:
         self.root = root
         self.diagnostics = diagnostics
         self.files = files
+        self.cache = cache
         self.contents: dict[str, bytes] = {}
         #: the files that could not be read, in the order read.
         self.unread: list[UnreadFile] = []
@@ -320,20 +323,23 @@ class _Reader:
 
 def load_source(path: str | Path, diagnostics: Diagnostics,
                 deployment_path: str | Path | None = None,
-                files: Mapping[str, bytes | Unreadable] | None = None) -> SourceModel:
+                files: Mapping[str, bytes | Unreadable] | None = None,
+                cache: LaneCache | None = None) -> SourceModel:
     """Read a model folder or a one-file model; shape problems go to `diagnostics`.
 
     `files` (path relative to the folder -> content, or `Unreadable` for a file that is there but
     could not be read: `read_model_folder`) replaces the folder's files on disk: the model is read
     from them, and positions and messages name the files as if they were on disk.
     Raises `ModelError` only when nothing sensible can be read (missing folder, no model.yaml).
+    `cache` (kept by the caller from one read to the next, as the studio does) reuses what the
+    swimlanes of an activity file whose text did not change read to: the same `SourceLane`s.
     """
     p = Path(path)
     if files is None and p.name == MODEL_FILE and p.is_file():
         # `model.yaml` of a folder model is the folder: its swimlanes and deployment are beside it
         p = p.parent
     if files is not None or p.is_dir():
-        reader = _Reader(p, diagnostics, files)
+        reader = _Reader(p, diagnostics, files, cache)
         model_file = p / MODEL_FILE
         if not reader.is_file(model_file):
             raise ModelError(f"not a model: no {MODEL_FILE} in this folder", str(p), 1, 1)
@@ -415,23 +421,37 @@ def _read_model_file(reader: _Reader, path: Path, default_name: str) -> SourceMo
 
 
 def _read_lane_file(reader: _Reader, path: Path, model: SourceModel) -> None:
+    if reader.cache is not None:
+        try:
+            text = reader.read_text(path)
+        except ModelError as exc:
+            reader.could_not_read(exc, ACTIVITY_FILE_PARTS)
+            return
+        if reader.cache.read(text, reader.display(path), reader.relative(path), model,
+                             reader.diagnostics):
+            return
+        reader.contents.pop(reader.relative(path), None)  # read again below, as without a cache
     try:
         root, shown = _parse(reader, path)
     except ModelError as exc:
         # Its swimlanes are unknown: every call of them would be a follow-on "unknown swimlane".
         reader.could_not_read(exc, ACTIVITY_FILE_PARTS)
         return
+    _lanes_of(root, shown, reader.relative(path), model, reader.diagnostics)
+
+
+def _lanes_of(root: YNode | None, shown: str, rel: str, model: SourceModel, d: Diagnostics) -> None:
+    """Read the swimlanes of an activity file (`root`, None when empty) into `model`."""
     if root is None:
         # a warning, unless the model calls swimlanes defined nowhere: then the checker makes it
         # the one error that explains them (`check_source`)
         model.damage.empty_files.append(Location(shown, 1, 1))
         return
-    rel = reader.relative(path)
     if isinstance(root, YMap) and "lanes" in root.items:
-        _unknown_keys(root, ("lanes",), "activity file", reader.diagnostics)
-        _read_lanes(root.items["lanes"], rel, model, reader.diagnostics)
+        _unknown_keys(root, ("lanes",), "activity file", d)
+        _read_lanes(root.items["lanes"], rel, model, d)
     else:
-        _read_lane(root, rel, model, reader.diagnostics)
+        _read_lane(root, rel, model, d)
 
 
 def _read_components(node: YNode, model: SourceModel, d: Diagnostics) -> None:
@@ -565,6 +585,179 @@ def _read_node(node: YNode, d: Diagnostics) -> SourceNode | None:
         return None
     _unknown_keys(node, ("id", "kind", *NODE_FIELDS[kind.text]), f"{kind.text} node", d)
     return SourceNode(id=ident.text, kind=kind.text, loc=node.loc, fields=node, id_loc=ident.loc)
+
+
+# --- reading again what did not change (the studio's edits) --------------------------------------
+
+#: an activity file `lanes:` followed by its swimlanes, each starting with `- ` at one indent.
+_LANES_HEADER = re.compile(r"lanes:[ \t]*(#.*)?")
+_ITEM = re.compile(r"( *)- ")
+#: what may make a swimlane's text mean something else alone than in its file: an anchor or an
+#: alias (one may refer to another swimlane's), a tab, a directive or document marker
+#: (`_not_alone`).
+_ANCHOR = re.compile(r"&[^\s&]")
+_ALIAS = re.compile(r"\*[^\s*]")
+_MARKERS = ("---", "...", "%")
+
+
+def _not_alone(text: str) -> bool:
+    """Whether `text` may read otherwise in pieces than whole (`_pieces`)."""
+    return ("\t" in text or text.startswith(_MARKERS) or any("\n" + m in text for m in _MARKERS)
+            or _ANCHOR.search(text) is not None or _ALIAS.search(text) is not None)
+#: a text this short cannot hold more YAML nodes than `umlbot.base.yamlsrc.MAX_NODES` (each takes
+#: two characters or more), so that reading its swimlanes one by one refuses nothing more.
+_ALONE_MAX_CHARS = 900_000
+
+
+@dataclass
+class _LaneRead:
+    """What one swimlane's text read to: its `SourceLane`s, damage and shape problems."""
+
+    lanes: list[SourceLane]
+    damaged: set[str]
+    all_lanes: bool
+    problems: list[Diagnostic]
+    empty_files: list[Location] = field(default_factory=list)
+
+    @staticmethod
+    def of(part: SourceModel, d: Diagnostics) -> _LaneRead:
+        damage = part.damage
+        return _LaneRead(part.lanes, damage.lanes, damage.all_lanes, d.items, damage.empty_files)
+
+
+class LaneCache:
+    """The swimlanes of activity files, read one by one and kept by their text and first line.
+
+    An activity file of the form `lanes:` and a list of swimlanes is cut at each `- ` of the list,
+    and each swimlane's text is read alone (YAML and shape), at its own lines; a text read before
+    at the same place is not read again: its `SourceLane`s are the same objects as the last time
+    (`umlbot.compiler.checker.CheckMemo` then reuses the checks of that swimlane). A file of
+    another form, or whose pieces do not read alone exactly as the whole (an alias, a YAML error,
+    a duplicate key), is read whole, as without a cache: the result is the same either way.
+    """
+
+    def __init__(self) -> None:
+        self._entries: dict[tuple[str, str, int, str], _LaneRead] = {}
+        self._used: dict[tuple[str, str, int, str], _LaneRead] = {}
+        #: swimlane texts read again ("read") or not ("reused"), files read whole ("whole").
+        self.stats: Counter[str] = Counter()
+
+    def generation(self) -> None:
+        """Forget what the last read did not use (called once per read of the model)."""
+        self._entries, self._used = self._used, {}
+
+    def read(self, text: str, shown: str, rel: str, model: SourceModel, d: Diagnostics) -> bool:
+        """Read the swimlanes of one activity file's `text` into `model`; False (nothing done) when
+        the file is not of the form read piece by piece."""
+        pieces = _pieces(text)
+        if pieces is None:
+            # another form (one swimlane, ...): read whole, and not again while it is the same
+            key = (shown, rel, -1, text)
+            entry = self._used.get(key) or self._entries.get(key)
+            if entry is None:
+                entry = _read_whole(text, shown, rel)
+                if entry is None:
+                    return False
+                self.stats["whole"] += 1
+            else:
+                self.stats["reused"] += 1
+            self._used[key] = entry
+            self._add(entry, model, d)
+            return True
+        reads: list[_LaneRead] = []
+        for start, piece in pieces:
+            key = (shown, rel, start, piece)
+            entry = self._used.get(key) or self._entries.get(key)
+            if entry is None:
+                entry = _read_piece(piece, start, shown, rel)
+                if entry is None:
+                    return False
+                self.stats["read"] += 1
+            else:
+                self.stats["reused"] += 1
+            reads.append(entry)
+            self._used[key] = entry
+        for entry in reads:
+            self._add(entry, model, d)
+        return True
+
+    @staticmethod
+    def _add(entry: _LaneRead, model: SourceModel, d: Diagnostics) -> None:
+        model.lanes.extend(entry.lanes)
+        model.damage.lanes |= entry.damaged
+        model.damage.all_lanes = model.damage.all_lanes or entry.all_lanes
+        model.damage.empty_files.extend(entry.empty_files)
+        d.items.extend(entry.problems)
+
+
+def _pieces(text: str) -> list[tuple[int, str]] | None:
+    """The swimlanes' texts of an activity file `lanes:` + a list, with the line (0-based) each
+    starts at; None for a file of another form."""
+    if len(text) > _ALONE_MAX_CHARS or _not_alone(text):
+        return None
+    lines = text.split("\n")
+    index = 0
+    while index < len(lines) and (not lines[index].strip() or lines[index].startswith("#")):
+        index += 1
+    if index == len(lines) or not _LANES_HEADER.fullmatch(lines[index]):
+        return None
+    pieces: list[tuple[int, str]] = []
+    indent: str | None = None
+    start = -1
+    for number in range(index + 1, len(lines)):
+        line = lines[number]
+        content = line.lstrip(" ")
+        if not content or content.startswith("#"):
+            continue
+        if indent is None:
+            item = _ITEM.match(line)
+            if item is None:
+                return None
+            indent = item.group(1)
+        width = len(line) - len(content)
+        if width < len(indent):
+            return None  # another key of the file, or text at an indent the list does not have
+        if width == len(indent):
+            if not content.startswith("- "):
+                return None
+            if start >= 0:
+                pieces.append((start, "\n".join(lines[start:number])))
+            start = number
+    if start < 0:
+        return None
+    pieces.append((start, "\n".join(lines[start:])))
+    return pieces
+
+
+def _read_piece(piece: str, start: int, shown: str, rel: str) -> _LaneRead | None:
+    """One swimlane's text read alone at its lines; None when it does not read alone cleanly."""
+    d = Diagnostics()
+    try:
+        # under a `lanes:` key of its own, as deep as in the file (`MAX_DEPTH` refuses the same)
+        root = parse_yaml("\n" * (start - 1) + "lanes:\n" + piece, shown, d)
+    except ModelError:
+        return None
+    if d.items or not isinstance(root, YMap) or len(root.items) != 1:
+        return None
+    lanes = root.items.get("lanes")
+    if not isinstance(lanes, YSeq) or len(lanes.items) != 1:
+        return None
+    part = SourceModel(name="", loc=Location(shown, 1, 1))
+    _read_lane(lanes.items[0], rel, part, d)
+    return _LaneRead.of(part, d)
+
+
+def _read_whole(text: str, shown: str, rel: str) -> _LaneRead | None:
+    """An activity file read whole, as `_read_lane_file` reads it; None when it cannot be parsed
+    (then it is read as without a cache, which reports that)."""
+    d = Diagnostics()
+    try:
+        root = parse_yaml(text, shown, d)
+    except ModelError:
+        return None
+    part = SourceModel(name="", loc=Location(shown, 1, 1))
+    _lanes_of(root, shown, rel, part, d)
+    return _LaneRead.of(part, d)
 
 
 # --- deployment ------------------------------------------------------------------------------------

@@ -201,9 +201,40 @@ def source_lane_view(lane: SourceLane, components: set[str]) -> dict[str, Any]:
             "edges": edges}
 
 
-def source_view(source: SourceModel) -> dict[str, Any]:
+class LaneViews:
+    """The views of swimlanes (`source_lane_view`, `node_index`'s rows) kept from one answer to
+    the next by the `SourceLane` object: the incremental check (`IncrementalCheck`) gives the same
+    object for a swimlane whose text did not change, so an edit makes again only the views of the
+    swimlanes it changed. What is kept is what would be made again."""
+
+    def __init__(self) -> None:
+        self._views: dict[tuple[int, bool], tuple[SourceLane, dict[str, Any]]] = {}
+        self._rows: dict[int, tuple[SourceLane, list[tuple[int, str, str | None]]]] = {}
+
+    def view(self, lane: SourceLane, components: set[str]) -> dict[str, Any]:
+        key = (id(lane), lane.name in components)
+        kept = self._views.get(key)
+        if kept is None or kept[0] is not lane:
+            kept = self._views[key] = (lane, source_lane_view(lane, components))
+        return kept[1]
+
+    def rows(self, lane: SourceLane) -> list[tuple[int, str, str | None]]:
+        kept = self._rows.get(id(lane))
+        if kept is None or kept[0] is not lane:
+            kept = self._rows[id(lane)] = (lane, _lane_rows(lane))
+        return kept[1]
+
+    def keep_only(self, source: SourceModel) -> None:
+        """Forget the views of swimlanes that are not in `source` (the last answer's)."""
+        there = {id(lane) for lane in source.lanes}
+        self._views = {key: kept for key, kept in self._views.items() if key[0] in there}
+        self._rows = {key: kept for key, kept in self._rows.items() if key in there}
+
+
+def source_view(source: SourceModel, views: LaneViews | None = None) -> dict[str, Any]:
     """The model as its files say, in `model_view`'s shape plus each node's `fields`, each
-    component's `settings`; drawn by the editor also while the model has errors."""
+    component's `settings`; drawn by the editor also while the model has errors. `views`: the
+    swimlanes' views kept from the last answer (`LaneViews`)."""
     from umlbot.base.catalog import component_kinds, resolve_implementation
 
     deployment = source.deployment.deployment if source.deployment is not None else None
@@ -241,18 +272,23 @@ def source_view(source: SourceModel) -> dict[str, Any]:
         "components": components,
         "links": links,
         "diagrams": [{"id": key, "title": key.removeprefix("activity-"), "file": lanes[0].file,
-                      "lanes": [source_lane_view(lane, names) for lane in lanes]}
+                      "lanes": [views.view(lane, names) if views is not None else
+                                source_lane_view(lane, names) for lane in lanes]}
                      for key, lanes in grouped.items()],
     }
 
 
-def node_index(source: SourceModel) -> dict[str, list[tuple[int, str, str | None]]]:
+def _lane_rows(lane: SourceLane) -> list[tuple[int, str, str | None]]:
+    return [(lane.loc.line, lane.name, None), *((node.loc.line, lane.name, node.id) for node in lane.nodes)]
+
+
+def node_index(source: SourceModel, views: LaneViews | None = None
+               ) -> dict[str, list[tuple[int, str, str | None]]]:
     """Per file (relative path): (line, lane, node id or None for the lane's header), sorted."""
     index: dict[str, list[tuple[int, str, str | None]]] = {}
     for lane in source.lanes:
         rows = index.setdefault(lane.file, [])
-        rows.append((lane.loc.line, lane.name, None))
-        rows.extend((node.loc.line, lane.name, node.id) for node in lane.nodes)
+        rows.extend(views.rows(lane) if views is not None else _lane_rows(lane))
     for rows in index.values():
         rows.sort(key=lambda row: row[0])
     return index

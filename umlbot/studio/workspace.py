@@ -1,12 +1,13 @@
 """The studio's working copy of one model folder: edits, undo/redo, checks, saving, files on disk.
 
 The working copy is the model's files (relative path -> bytes) as the page has edited them; the
-compiler checks it in memory (`check_model(root, files=…)`), so its messages are `umlbot check`'s,
-naming the files as on disk; a model file that cannot be read (no permission, not a file, too
-large) is in it as `Unreadable`, reported as `umlbot check` reports it, never edited and never
-written. Saving writes only the files that differ, all or none (`write_files_atomically`: temp
-files in their folders, then renames, the old files kept until all are in place), and only inside
-the model folder; a failed save says why in words and leaves the files as they were.
+compiler checks it in memory (`check_model(root, files=…)`; after an edit incrementally,
+`IncrementalCheck`, with the same result), so its messages are `umlbot check`'s, naming the files
+as on disk; a model file that cannot be read (no permission, not a file, too large) is in it
+as `Unreadable`, reported as `umlbot check` reports it, never edited and never written. Saving
+writes only the files that differ, all or none (`write_files_atomically`: temp files in their
+folders, then renames, the old files kept until all are in place), and only inside the model
+folder; a failed save says why in words and leaves the files as they were.
 
 `disk` is what the studio last saw on disk (read, or written by itself), so the invariant the page
 relies on is: every file of the working copy equals the disk's or is unsaved (`dirty`). A file
@@ -38,7 +39,7 @@ from umlbot.base.files import (
     os_problem,
     write_files_atomically,
 )
-from umlbot.compiler.api import CheckResult, check_model
+from umlbot.compiler.api import CheckResult, IncrementalCheck
 from umlbot.compiler.source import ACTIVITIES_DIR, MODEL_FILE, Unreadable, read_model_folder
 from umlbot.studio.edit import (
     EditError,
@@ -49,7 +50,14 @@ from umlbot.studio.edit import (
     rename_positions,
     takes_lanes,
 )
-from umlbot.studio.model_view import attribute, deployment_fields, diagnostic_view, node_index, source_view
+from umlbot.studio.model_view import (
+    LaneViews,
+    attribute,
+    deployment_fields,
+    diagnostic_view,
+    node_index,
+    source_view,
+)
 
 LAYOUT_FILE = ".umlbot-studio.json"
 #: unsaved edits kept when the studio quits; the next start offers to restore or discard them.
@@ -220,6 +228,10 @@ class Workspace:
         #: files changed on disk while the working copy had changed them too (the user decides)
         self.conflicts: set[str] = set()
         self.result: CheckResult | None = None
+        #: checks the working copy after each edit doing again only what the edit changed (its
+        #: answer is `check_model`'s for the same files)
+        self.checker = IncrementalCheck()
+        self.lane_views = LaneViews()  # the page's views of the swimlanes the edit left alone
         self.answer_cache: dict[str, Any] = {}
         self._lanes_memo: dict[str, tuple[bytes, bool]] = {}
         #: unsaved edits a previous studio kept when it quit (None: none, or decided).
@@ -262,14 +274,17 @@ class Workspace:
         """Check the working copy with the compiler (unless `result` is that check already); the
         page's answer (model view, diagnostics)."""
         if result is None:
-            result = check_model(self.root, files=self.files)
+            result = self.checker.check(self.root, files=self.files)
         self.result = result
-        index = node_index(result.source) if result.source is not None else {}
+        if result.source is not None:
+            self.lane_views.keep_only(result.source)
+        index = node_index(result.source, self.lane_views) if result.source is not None else {}
         fields = deployment_fields(result.source) if result.source is not None else {}
         diagnostics = [attribute(diagnostic_view(d), self._relative(d.location.file), index, fields)
                        for d in result.diagnostics]
         self.answer_cache = {
-            "model": source_view(result.source) if result.source is not None and self.files else None,
+            "model": source_view(result.source, self.lane_views)
+            if result.source is not None and self.files else None,
             # where the page may offer to add a swimlane (besides a new file of its own)
             "lane_files": self._lane_files(),
             "compiled": result.model is not None,
@@ -343,7 +358,7 @@ class Workspace:
                 files.pop(rel, None)
             else:
                 files[rel] = text.encode("utf-8")
-        result = check_model(self.root, files=files) if changes else None
+        result = self.checker.check(self.root, files=files) if changes else None
         if result is not None:
             self._refuse_names_the_compiler_refuses(text_ops, result)  # before anything changes
         for op in layout_ops:
