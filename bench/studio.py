@@ -306,7 +306,8 @@ def measure_first(browser: Any, samples: int, workdir: Path) -> dict[str, Any]:
             first: dict[str, Any] = page.evaluate("window.__first")
             dcl = page.evaluate("performance.getEntriesByType('navigation')[0].domContentLoadedEventEnd")
             runs.append({"diagram": first["id"], "progress_ms": round(first.get("progress", -1), 1),
-                         "first_diagram_ms": round(first["diagram"], 1), "dom_content_loaded_ms": round(dcl, 1)})
+                         "first_diagram_ms": round(first["diagram"], 1),
+                         "dom_content_loaded_ms": round(dcl, 1)})
             context.close()
     drawn = [r["first_diagram_ms"] for r in runs]
     return {"samples": runs, "diagram": runs[0]["diagram"],
