@@ -1,0 +1,108 @@
+// The diagram by keyboard: the canvas and its nodes, swimlane headers and components are focusable
+// (draw/render.ts gives them tabindex); Tab walks them, the one focused is scrolled into view, and
+// in edit mode focusing one by keyboard selects it (so Delete deletes what has the focus). Enter or
+// space on it does what a click does ("canvas.activate": after "Connect to…" it connects; else it
+// goes to its first field; a node that calls an activity, when only watching, opens it). Esc in
+// the properties panel comes back to the selected element; after an edit redraws the diagram, the
+// focus stays on the selection.
+
+import type { Selection } from "../../core/selection";
+import type { Studio } from "../../core/studio";
+
+const FOCUSABLE = "g.node, g.component, g.lane-head";
+
+export function install({ bus, store, canvas }: Studio): void {
+  const el = canvas.el;
+  el.tabIndex = 0;
+  el.setAttribute("aria-label", "diagram: Tab to its nodes; arrows pan, + and - zoom, f fits");
+  /** the last input was a key (not the pointer): focus then selects */
+  let byKeys = false;
+  /** the focus is (or was, until a redraw removed its element) in the canvas */
+  let inCanvas = false;
+  window.addEventListener(
+    "keydown",
+    () => {
+      byKeys = true;
+    },
+    true,
+  );
+  window.addEventListener(
+    "pointerdown",
+    () => {
+      byKeys = false;
+    },
+    true,
+  );
+  document.addEventListener("focusin", (ev) => {
+    inCanvas = el.contains(ev.target as Node);
+  });
+
+  el.addEventListener("focusin", (ev) => {
+    const t = (ev.target as Element).closest?.(FOCUSABLE);
+    if (!t) return;
+    const v = canvas.shown();
+    if (byKeys && v) {
+      if (!t.closest(".lane-head")) canvas.showElement(v, t); // a header sticks to the top itself
+      bus.emit("follow.set", false); // moved by hand: the view stays on what has the focus
+    }
+    const edit = store.edit;
+    if (!edit || !byKeys || el.classList.contains("connecting")) return;
+    const sel = selectionOf(t);
+    if (sel && JSON.stringify(sel) !== JSON.stringify(edit.selection)) {
+      edit.selection = sel;
+      bus.emit("props.render");
+      bus.request("selection.highlight");
+    }
+  });
+
+  el.addEventListener("keydown", (ev) => {
+    if (ev.key !== "Enter" && ev.key !== " ") return;
+    if (ev.ctrlKey || ev.metaKey || ev.altKey) return;
+    const t = (ev.target as Element).closest?.(FOCUSABLE);
+    if (!t) return;
+    ev.preventDefault();
+    ev.stopPropagation(); // not the page's space (play)
+    if (bus.request("canvas.activate", t)) return;
+    // watching only: a node that calls an activity opens it
+    const called = t.closest("g.node")?.getAttribute("data-calls");
+    const diagram = called ? store.laneDiagram.get(called) : undefined;
+    if (diagram) bus.emit("diagram.select", diagram);
+  });
+
+  const focusSelection = (): void => {
+    const shown = bus.request("selection.highlight");
+    const head = store.edit?.selection?.type === "lane" ? laneHead(store.edit.selection.lane) : null;
+    const target = (shown ?? head) as (Element & HTMLOrSVGElement) | null;
+    (target ?? el).focus();
+  };
+  const laneHead = (lane: string): Element | null =>
+    el.querySelector(
+      `svg[data-diagram="${CSS.escape(canvas.current)}"] g.lane[data-lane="${CSS.escape(lane)}"] g.lane-head`,
+    );
+  bus.on("canvas.focus-selection", focusSelection);
+
+  // an edit redrew the diagram under the focus: the focus goes to the selection again
+  bus.on("selection.marked", (shown) => {
+    const a = document.activeElement;
+    if (!inCanvas || !shown || (a && a !== document.body && a.isConnected)) return;
+    (shown as Element & HTMLOrSVGElement).focus({ preventScroll: true });
+  });
+
+  // "Connect to…": the focus goes to the node it starts from; Tab to the next one, Enter
+  bus.on("connect.start", (lane, id) => {
+    const g = el.querySelector<SVGGElement>(
+      `svg[data-diagram="${CSS.escape(canvas.current)}"] g.node[data-lane="${CSS.escape(lane)}"][data-node="${CSS.escape(id)}"]`,
+    );
+    g?.focus({ preventScroll: true });
+  });
+}
+
+/** What a focused element of the canvas selects. */
+function selectionOf(t: Element): Selection {
+  const node = t.closest("g.node");
+  if (node) return { type: "node", lane: node.getAttribute("data-lane")!, id: node.getAttribute("data-node")! };
+  const comp = t.closest("g.component");
+  if (comp) return { type: "component", name: comp.getAttribute("data-component")! };
+  const lane = t.closest("g.lane")?.getAttribute("data-lane");
+  return lane ? { type: "lane", lane } : null;
+}
