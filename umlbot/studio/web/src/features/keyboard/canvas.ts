@@ -1,10 +1,10 @@
 // The diagram by keyboard: the canvas and its nodes, swimlane headers and components are focusable
-// (draw/render.ts gives them tabindex); Tab walks them, the one focused is scrolled into view, and
-// in edit mode focusing one by keyboard selects it (so Delete deletes what has the focus). Enter or
-// space on it does what a click does ("canvas.activate": after "Connect to…" it connects; else it
-// goes to its first field; a node that calls an activity, when only watching, opens it). Esc in
-// the properties panel comes back to the selected element; after an edit redraws the diagram, the
-// focus stays on the selection.
+// (draw/render.ts gives them tabindex); Tab walks them and the one focused is panned into view.
+// Focus alone selects nothing (Tab passes nodes on its way to the palette or the panel); in edit
+// mode space selects the focused element, Enter selects it and goes to its first field
+// ("canvas.activate"; after "Connect to…" both connect to it; a node that calls an activity, when
+// only watching, opens it), Delete deletes it. Esc in the properties panel comes back to the
+// selected element; after an edit redraws the diagram, the focus stays on the selection.
 
 import type { Selection } from "../../core/selection";
 import type { Studio } from "../../core/studio";
@@ -39,29 +39,38 @@ export function install({ bus, store, canvas }: Studio): void {
 
   el.addEventListener("focusin", (ev) => {
     const t = (ev.target as Element).closest?.(FOCUSABLE);
-    if (!t) return;
     const v = canvas.shown();
-    if (byKeys && v) {
-      if (!t.closest(".lane-head")) canvas.showElement(v, t); // a header sticks to the top itself
-      bus.emit("follow.set", false); // moved by hand: the view stays on what has the focus
-    }
-    const edit = store.edit;
-    if (!edit || !byKeys || el.classList.contains("connecting")) return;
-    const sel = selectionOf(t);
-    if (sel && JSON.stringify(sel) !== JSON.stringify(edit.selection)) {
-      edit.selection = sel;
-      bus.emit("props.render");
-      bus.request("selection.highlight");
-    }
+    if (!t || !byKeys || !v) return;
+    if (!t.closest(".lane-head")) canvas.showElement(v, t); // a header sticks to the top itself
+    bus.emit("follow.set", false); // moved by hand: the view stays on what has the focus
   });
 
+  /** Select the focused element (no change when it is selected already). */
+  const selectFocused = (t: Element): void => {
+    const edit = store.edit;
+    const sel = selectionOf(t);
+    if (!edit || !sel || JSON.stringify(sel) === JSON.stringify(edit.selection)) return;
+    edit.selection = sel;
+    bus.emit("props.render");
+    bus.request("selection.highlight");
+  };
+
   el.addEventListener("keydown", (ev) => {
-    if (ev.key !== "Enter" && ev.key !== " ") return;
     if (ev.ctrlKey || ev.metaKey || ev.altKey) return;
     const t = (ev.target as Element).closest?.(FOCUSABLE);
     if (!t) return;
+    if (ev.key === "Delete" || ev.key === "Backspace") {
+      // what has the focus is what goes (the page's Delete then deletes the selection)
+      if (!el.classList.contains("connecting")) selectFocused(t);
+      return;
+    }
+    if (ev.key !== "Enter" && ev.key !== " ") return;
     ev.preventDefault();
     ev.stopPropagation(); // not the page's space (play)
+    if (ev.key === " " && store.edit && !el.classList.contains("connecting")) {
+      selectFocused(t); // space selects; Enter also goes to its first field
+      return;
+    }
     if (bus.request("canvas.activate", t)) return;
     // watching only: a node that calls an activity opens it
     const called = t.closest("g.node")?.getAttribute("data-calls");
@@ -71,10 +80,22 @@ export function install({ bus, store, canvas }: Studio): void {
 
   const focusSelection = (): void => {
     const shown = bus.request("selection.highlight");
-    const head = store.edit?.selection?.type === "lane" ? laneHead(store.edit.selection.lane) : null;
-    const target = (shown ?? head) as (Element & HTMLOrSVGElement) | null;
-    (target ?? el).focus();
+    const s = store.edit?.selection;
+    // a flow is not focusable: its source node is
+    const target =
+      s?.type === "lane"
+        ? laneHead(s.lane)
+        : s?.type === "edge"
+          ? nodeG(s.lane, s.source)
+          : shown?.matches(FOCUSABLE)
+            ? shown
+            : null;
+    ((target ?? el) as Element & HTMLOrSVGElement).focus();
   };
+  const nodeG = (lane: string, id: string): Element | null =>
+    el.querySelector(
+      `svg[data-diagram="${CSS.escape(canvas.current)}"] g.node[data-lane="${CSS.escape(lane)}"][data-node="${CSS.escape(id)}"]`,
+    );
   const laneHead = (lane: string): Element | null =>
     el.querySelector(
       `svg[data-diagram="${CSS.escape(canvas.current)}"] g.lane[data-lane="${CSS.escape(lane)}"] g.lane-head`,
@@ -84,16 +105,13 @@ export function install({ bus, store, canvas }: Studio): void {
   // an edit redrew the diagram under the focus: the focus goes to the selection again
   bus.on("selection.marked", (shown) => {
     const a = document.activeElement;
-    if (!inCanvas || !shown || (a && a !== document.body && a.isConnected)) return;
+    if (!inCanvas || !shown?.matches(FOCUSABLE) || (a && a !== document.body && a.isConnected)) return;
     (shown as Element & HTMLOrSVGElement).focus({ preventScroll: true });
   });
 
   // "Connect to…": the focus goes to the node it starts from; Tab to the next one, Enter
   bus.on("connect.start", (lane, id) => {
-    const g = el.querySelector<SVGGElement>(
-      `svg[data-diagram="${CSS.escape(canvas.current)}"] g.node[data-lane="${CSS.escape(lane)}"][data-node="${CSS.escape(id)}"]`,
-    );
-    g?.focus({ preventScroll: true });
+    (nodeG(lane, id) as SVGGElement | null)?.focus({ preventScroll: true });
   });
 }
 
