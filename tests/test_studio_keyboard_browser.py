@@ -2,11 +2,12 @@
 
 From an empty folder (`umlbot studio --new`), every step of a small edit is done with key presses
 only — no click, no `focus()` from the test: Tab is pressed until the element wanted has the focus.
-The starter model is created, the diagram switched, an action and a decision are added after the selected node from the
-palette, a call is typed, the decision is connected back to the action and its guard typed, a
-node is renamed, one deleted, the delete undone and redone, a swimlane added, the view zoomed and
-panned, Follow toggled, and the model saved: the drawing (DOM) and the saved files say each
-step happened. The focus is visible (a blue ring) on the diagram's nodes. Screenshot under out/.
+The starter model is created, the diagram switched, an action and a decision are added after the
+selected node from the palette, a call is typed, the decision is connected back to the action and
+its guard typed, a node is renamed, one deleted, the delete undone and redone, a swimlane added,
+the view zoomed and panned, Follow toggled, and the model saved: the drawing (DOM) and the saved
+files say each step happened. The focus is visible (a blue ring) on the diagram's nodes.
+Screenshot under out/.
 """
 
 from __future__ import annotations
@@ -57,6 +58,12 @@ def node(lane: str, node_id: str) -> str:
     return f'svg.diagram g.node[data-lane="{lane}"][data-node="{node_id}"]'
 
 
+def scale(transform: str) -> float:
+    m = re.search(r"scale\(([-\d.e]+)\)", transform)
+    assert m, transform
+    return float(m.group(1))
+
+
 def viewport(page: Page) -> str:
     return str(page.locator('svg[data-diagram="activity-main"] g.viewport').get_attribute("transform"))
 
@@ -78,8 +85,9 @@ def test_a_small_edit_by_keyboard_only(browser: Browser, tmp_path: Path) -> None
         settled(page)
         assert (folder / "model.yaml").is_file()
         lane = "RaspberryPI"
-        start = str(page.locator(f'svg.diagram g.node[data-lane="{lane}"][data-kind="start"]').get_attribute("data-node"))
-        end = str(page.locator(f'svg.diagram g.node[data-lane="{lane}"][data-kind="end"]').get_attribute("data-node"))
+        of_kind = 'svg.diagram g.node[data-lane="{}"][data-kind="{}"]'
+        start = str(page.locator(of_kind.format(lane, "start")).get_attribute("data-node"))
+        end = str(page.locator(of_kind.format(lane, "end")).get_attribute("data-node"))
 
         # switching diagrams: the list's entries take Enter
         tab_to(page, '#diagram-list [data-diagram="components"]')
@@ -93,7 +101,8 @@ def test_a_small_edit_by_keyboard_only(browser: Browser, tmp_path: Path) -> None
         tab_to(page, node(lane, start))
         page.keyboard.press(" ")
         expect(page.locator(node(lane, start))).to_have_class(re.compile(r"(^|\s)selected(\s|$)"))
-        ring = page.locator(node(lane, start) + " .shape").evaluate("(e) => getComputedStyle(e).strokeDasharray")
+        ring = page.locator(node(lane, start) + " .shape").evaluate(
+            "(e) => getComputedStyle(e).strokeDasharray")
         assert ring not in ("none", ""), ring
         shot(page, "studio-keyboard-focus.png")
 
@@ -131,7 +140,8 @@ def test_a_small_edit_by_keyboard_only(browser: Browser, tmp_path: Path) -> None
         if has_focus(page, '#props input[name="guard"]'):
             page.keyboard.press("Escape")
         settled(page)
-        expect(page.locator(edge(lane, "decision1", "action1") + " text.guard")).to_have_text("not Application.exit")
+        guard = page.locator(edge(lane, "decision1", "action1") + " text.guard")
+        expect(guard).to_have_text("not Application.exit")
 
         # rename: Enter on the node goes to its name field
         tab_to(page, node(lane, "action1"))
@@ -174,7 +184,6 @@ def test_a_small_edit_by_keyboard_only(browser: Browser, tmp_path: Path) -> None
         page.keyboard.press("+")
         zoomed = viewport(page)
         assert zoomed != before
-        scale = lambda t: float(re.search(r"scale\(([-\d.e]+)\)", t).group(1))  # noqa: E731
         assert scale(zoomed) > scale(before)
         page.keyboard.press("ArrowRight")
         assert viewport(page) != zoomed and scale(viewport(page)) == scale(zoomed)

@@ -153,13 +153,14 @@ def test_a_new_user_builds_a_robot_with_the_pointer_runs_it_and_sees_it_reach_th
         user.drag(page.locator(node(LANE, read) + " circle.port-out"), page.locator(node(LANE, "decision1")))
         expect(page.locator(edge(read, "decision1"))).to_have_count(1)
         # what was built, as the diagram shows it, with no problem left
-        for a, b in [("start", left_duty), (left_duty, right_duty), (right_duty, left_on), (left_on, right_on),
-                     (right_on, "decision1"), ("decision1", left_off), ("decision1", read),
-                     (read, "decision1"), (left_off, right_off), (right_off, "end")]:
+        for a, b in [("start", left_duty), (left_duty, right_duty), (right_duty, left_on),
+                     (left_on, right_on), (right_on, "decision1"), ("decision1", left_off),
+                     ("decision1", read), (read, "decision1"), (left_off, right_off), (right_off, "end")]:
             expect(page.locator(edge(a, b))).to_have_count(1)
         expect(page.locator(edge("decision1", read) + " text.elabel")).to_have_text("DistanceRead.value()>25")
         expect(page.locator(node(LANE, left_duty) + " text.label")).to_have_text("LeftActuator.dutycycle(60)")
-        expect(page.locator(node(LANE, right_off) + " text.label")).to_have_text("RightActuator.enabled(false)")
+        expect(page.locator(node(LANE, right_off) + " text.label")).to_have_text(
+            "RightActuator.enabled(false)")
         expect(page.locator("svg.diagram g.node.error")).to_have_count(0)
         shot(page, "studio-usability-built.png")
 
