@@ -267,8 +267,7 @@ export class Renderer {
           class: "lane-head",
           "data-h": lg.headerH,
           tabindex: 0,
-          role: "button",
-          "aria-label": `swimlane ${lane.name}`,
+          role: "button", // named by its texts
         },
         g,
       );
@@ -469,8 +468,7 @@ export class Renderer {
           "data-x": attrNum(c.x),
           "data-y": attrNum(c.y),
           tabindex: 0,
-          role: "button",
-          "aria-label": `component ${c.name}`,
+          role: "button", // (named by its texts)
         },
         v.viewport,
       );

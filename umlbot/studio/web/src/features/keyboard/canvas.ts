@@ -37,7 +37,15 @@ export function install({ bus, store, canvas }: Studio): void {
     inCanvas = el.contains(ev.target as Node);
   });
 
+  // A press of the pointer on the drawing focuses nothing (as before it was focusable): the keys
+  // stay the page's, and Delete deletes the selection, not the node pressed last. (Its pointer
+  // events — select, drag, pan, double-click — are not the mouse's default and go on.)
+  el.addEventListener("mousedown", (ev) => {
+    if ((ev.target as Element).closest?.("svg")) ev.preventDefault();
+  });
+
   el.addEventListener("focusin", (ev) => {
+    if (!byKeys) return;
     const t = (ev.target as Element).closest?.(FOCUSABLE);
     const v = canvas.shown();
     if (!t || !byKeys || !v) return;
@@ -111,6 +119,7 @@ export function install({ bus, store, canvas }: Studio): void {
 
   // "Connect to…": the focus goes to the node it starts from; Tab to the next one, Enter
   bus.on("connect.start", (lane, id) => {
+    if (!byKeys) return; // with the pointer: the next node is clicked
     (nodeG(lane, id) as SVGGElement | null)?.focus({ preventScroll: true });
   });
 }
