@@ -43,3 +43,13 @@ test("the viewer's keys, not with a modifier nor in a field or on a button", () 
   assert.equal(viewAction(key("l", { tag: "SELECT" })), null);
   assert.equal(viewAction(key("x")), null);
 });
+
+test("zoom and pan by keys: + and - zoom, the arrows pan, not in a field", () => {
+  assert.equal(viewAction(key("+")), "zoom-in");
+  assert.equal(viewAction(key("=")), "zoom-in");
+  assert.equal(viewAction(key("-")), "zoom-out");
+  assert.equal(viewAction(key("ArrowLeft")), "pan-left");
+  assert.equal(viewAction(key("ArrowDown", { tag: "g" })), "pan-down"); // a focused node of the diagram
+  assert.equal(viewAction(key("ArrowUp", { tag: "INPUT" })), null);
+  assert.equal(viewAction(key("-", { ctrl: true })), null); // the browser's own zoom
+});

@@ -70,6 +70,10 @@ export interface StudioEvents {
 
   // ---- the view
   "view.fit": () => void;
+  /** pan the shown diagram by (dx, dy) screen px (keys: the arrows) */
+  "view.pan": (dx: number, dy: number) => void;
+  /** zoom the shown diagram by `factor` about the canvas's centre (keys: + and -) */
+  "view.zoom": (factor: number) => void;
   /** centre a node at a readable zoom, and flash it */
   "view.reveal": (lane: string, node: string) => void;
   "follow.set": (on: boolean) => void;
@@ -78,6 +82,11 @@ export interface StudioEvents {
   "follow.due": () => void;
   /** a press on the canvas: true when a feature took it (no panning) */
   "canvas.press": (ev: PointerEvent) => boolean | undefined;
+  /** Enter or space on a focused element of the canvas (a node, a lane's header, a component):
+   * true when a feature took it */
+  "canvas.activate": (el: Element) => boolean | undefined;
+  /** focus the selected element of the shown diagram (else the canvas) */
+  "canvas.focus-selection": () => void;
   /** play or pause the replay: true when there is one */
   "replay.toggle": () => true | undefined;
 
@@ -123,6 +132,8 @@ export interface StudioEvents {
   "props.focus": (selector: string, ifEmpty?: boolean) => void;
   /** outline the selection (after a redraw too); the selected element of the shown diagram */
   "selection.highlight": () => Element | null | undefined;
+  /** the selection was outlined: its element in the shown diagram (null: none there) */
+  "selection.marked": (shown: Element | null) => void;
   /** delete the selection (asking first when it takes more with it than is seen) */
   "selection.delete": () => void;
   /** the next node clicked is connected from node `id` of `lane` */

@@ -87,6 +87,11 @@ export function zoomedAt(view: View, px: number, py: number, k: number): View {
   return { x: px - ((px - view.x) * k) / view.k, y: py - ((py - view.y) * k) / view.k, k };
 }
 
+/** A zoom kept within what the page allows. */
+export function clampZoom(k: number): number {
+  return Math.min(MAX_K, Math.max(MIN_K, k));
+}
+
 /** The wheel's zoom factor for a wheel event's deltaY (lines when `lines`, else pixels). */
 export function wheelZoom(k: number, deltaY: number, lines: boolean): number {
   const f = Math.exp(-deltaY * (lines ? 0.05 : 0.0015));

@@ -260,7 +260,17 @@ export class Renderer {
       }
       // The header, after the body: the page keeps it on the lane's visible part (core/lanes.ts,
       // stickHeads), over the nodes it passes. `data-tw`: its widest text's width.
-      const head = svgEl("g", { class: "lane-head", "data-h": lg.headerH }, g);
+      // focusable (keyboard: features/keyboard): Tab reaches a lane's nodes, then its header
+      const head = svgEl(
+        "g",
+        {
+          class: "lane-head",
+          "data-h": lg.headerH,
+          tabindex: 0,
+          role: "button", // named by its texts
+        },
+        g,
+      );
       svgEl("rect", { class: "lane-header", x: 0, y: 0, width: lg.w, height: lg.headerH }, head);
       // a virtual lane is a called activity; a component's lane runs on that component: the
       // stereotype on its own line above the name (UML's way; side by side they overlapped)
@@ -305,6 +315,8 @@ export class Renderer {
         "data-y": attrNum(nb.y),
         "data-w": nb.w,
         "data-h": nb.h,
+        tabindex: 0,
+        role: "button",
       },
       parent,
     );
@@ -455,6 +467,8 @@ export class Renderer {
           "data-state": "unknown",
           "data-x": attrNum(c.x),
           "data-y": attrNum(c.y),
+          tabindex: 0,
+          role: "button", // (named by its texts)
         },
         v.viewport,
       );

@@ -104,14 +104,48 @@ export function install(studio: Studio): void {
     return false;
   };
 
+  /** Enter or space on a focused node, lane header or component (keyboard): as a click on it —
+   * after "Connect to…" it connects; else it selects it and goes to its first field. */
+  const activate = (target: Element): boolean | undefined => {
+    if (!store.edit) return undefined;
+    const nodeG = target.closest("g.node");
+    if (nodeG) {
+      const lane = nodeG.getAttribute("data-lane")!;
+      const id = nodeG.getAttribute("data-node")!;
+      if (from) {
+        const start = from;
+        cancel();
+        bus.emit("notice.hide", "hint");
+        if (start.lane !== lane) {
+          bus.request("notice.show", {
+            kind: "error",
+            text: "A flow stays inside its swimlane: connect nodes of the same lane.",
+            hideAfterMs: 5000,
+          });
+        } else if (start.id !== id) void connect(lane, start.id, id);
+        return true;
+      }
+      select({ type: "node", lane, id });
+    } else if (target.closest("g.component")) {
+      select({ type: "component", name: target.closest("g.component")!.getAttribute("data-component")! });
+    } else if (target.closest("g.lane-head")) {
+      const lane = target.closest("g.lane")?.getAttribute("data-lane");
+      if (!lane) return undefined;
+      select({ type: "lane", lane });
+    } else return undefined;
+    bus.emit("props.focus", "input, select");
+    return true;
+  };
+
   bus.on("canvas.press", press);
+  bus.on("canvas.activate", activate);
   bus.on("connect.cancel", cancel);
   bus.on("connect.start", (lane, id) => {
     from = { lane, id };
     canvas.el.classList.add("connecting");
     bus.request("notice.show", {
       kind: "hint",
-      text: `Click the node that follows ${id} (Esc cancels).`,
+      text: `Click the node that follows ${id} (or Tab to it and press Enter; Esc cancels).`,
       hideAfterMs: 5000,
     });
   });

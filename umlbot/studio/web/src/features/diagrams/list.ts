@@ -29,6 +29,14 @@ export class DiagramList {
       dot.title = "ran just now";
       li.prepend(dot);
       li.addEventListener("click", () => select(id));
+      // by keyboard: Tab to it, Enter or space shows it
+      li.tabIndex = 0;
+      li.addEventListener("keydown", (ev) => {
+        if (ev.key !== "Enter" && ev.key !== " ") return;
+        ev.preventDefault();
+        ev.stopPropagation();
+        select(id);
+      });
       this.el.append(li);
     }
   }
@@ -36,6 +44,8 @@ export class DiagramList {
   markSelected(id: string): void {
     for (const li of this.el.querySelectorAll<HTMLLIElement>("li")) {
       li.classList.toggle("selected", li.dataset.diagram === id);
+      if (li.dataset.diagram === id) li.setAttribute("aria-current", "true");
+      else li.removeAttribute("aria-current");
     }
   }
 

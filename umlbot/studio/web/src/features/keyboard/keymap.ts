@@ -15,7 +15,29 @@ export interface KeyPress {
 }
 
 export type EditAction = "save" | "undo" | "redo" | "cancel" | "delete";
-export type ViewAction = "play" | "fit" | "follow";
+export type ViewAction =
+  | "play"
+  | "fit"
+  | "follow"
+  | "zoom-in"
+  | "zoom-out"
+  | "pan-left"
+  | "pan-right"
+  | "pan-up"
+  | "pan-down";
+
+const VIEW_KEYS = new Map<string, ViewAction>([
+  [" ", "play"],
+  ["f", "fit"],
+  ["l", "follow"],
+  ["+", "zoom-in"],
+  ["=", "zoom-in"],
+  ["-", "zoom-out"],
+  ["ArrowLeft", "pan-left"],
+  ["ArrowRight", "pan-right"],
+  ["ArrowUp", "pan-up"],
+  ["ArrowDown", "pan-down"],
+]);
 
 /** The editor's action for a key press (null: not the editor's). Ctrl-S saves from anywhere;
  * while something is typed in a field, its keys are the field's (its own text undo); with nothing
@@ -35,11 +57,8 @@ export function editAction(p: KeyPress, selected: boolean): EditAction | null {
 }
 
 /** The viewer's action for a key press (null: none; keys with a modifier, or typed into a field or
- * a button, are theirs). */
+ * a button, are theirs): space plays, f fits, l follows, + and - zoom, the arrows pan. */
 export function viewAction(p: KeyPress): ViewAction | null {
   if (p.ctrl || p.meta || p.alt || /^(INPUT|SELECT|TEXTAREA|BUTTON)$/.test(p.tag)) return null;
-  if (p.key === " ") return "play";
-  if (p.key === "f") return "fit";
-  if (p.key === "l") return "follow";
-  return null;
+  return VIEW_KEYS.get(p.key) ?? null;
 }

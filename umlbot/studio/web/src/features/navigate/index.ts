@@ -3,7 +3,7 @@
 // stops following the robot (the view stays where the user put it).
 
 import { $ } from "../../core/dom";
-import { wheelZoom, zoomedAt } from "../../core/geometry";
+import { clampZoom, wheelZoom, zoomedAt } from "../../core/geometry";
 import type { Studio } from "../../core/studio";
 import { installEdges } from "./edges";
 import { measureQuality } from "./quality";
@@ -22,6 +22,23 @@ export function install(studio: Studio): void {
   $<HTMLButtonElement>("#fit").addEventListener("click", fit);
   installEdges(studio);
   bus.on("view.fit", fit);
+  // by keys (features/keyboard): moved by hand, so the view stays where the user put it
+  bus.on("view.pan", (dx, dy) => {
+    const v = canvas.shown();
+    if (!v?.view) return;
+    bus.emit("follow.set", false);
+    v.view.x += dx;
+    v.view.y += dy;
+    canvas.apply(v);
+  });
+  bus.on("view.zoom", (factor) => {
+    const v = canvas.shown();
+    if (!v?.view) return;
+    bus.emit("follow.set", false);
+    const { W, H } = canvas.size();
+    v.view = zoomedAt(v.view, W / 2, H / 2, clampZoom(v.view.k * factor));
+    canvas.apply(v);
+  });
   bus.on("view.reveal", (lane, node) => reveal(studio, lane, node));
   hooks.reveal = (lane, node) => reveal(studio, lane, node);
   hooks.quality = (id) => {

@@ -35,7 +35,7 @@ export function drawLibrary({ bus, store }: Studio, p: HTMLElement): void {
     for (const impl of impls) {
       const item = el(
         "div",
-        { class: "item impl", "data-impl": impl.id, "data-kind": impl.kind, tabindex: "0" },
+        { class: "item impl", "data-impl": impl.id, "data-kind": impl.kind, tabindex: "0", role: "button" },
         group,
       );
       el("b", {}, item, impl.id);
@@ -50,6 +50,12 @@ export function drawLibrary({ bus, store }: Studio, p: HTMLElement): void {
         edit.selection = { type: "new-component", impl: impl.id };
         bus.emit("props.render");
         bus.emit("props.focus", '[name="name"]');
+      };
+      item.onkeydown = (ev) => {
+        if (ev.key !== "Enter" && ev.key !== " ") return;
+        ev.preventDefault();
+        ev.stopPropagation();
+        item.click();
       };
     }
   }

@@ -27,6 +27,17 @@ export function install(studio: Studio): void {
     const input = panel.el.querySelector<HTMLInputElement>(selector);
     if (input && (!ifEmpty || input.value === "")) input.focus();
   });
+  // A press elsewhere (the palette, the canvas: they keep the focus where it is) ends the typing
+  // in a field of the panel: its text is sent as on Enter, before what the press does — a call
+  // typed and then a palette item clicked is not lost.
+  window.addEventListener(
+    "pointerdown",
+    (ev) => {
+      const a = document.activeElement;
+      if (a instanceof HTMLInputElement && panel.el.contains(a) && !panel.el.contains(ev.target as Node)) a.blur();
+    },
+    true,
+  );
   // a double click on a node, a lane's title or a component: its name, ready to be typed over
   canvas.el.addEventListener("dblclick", (ev) => {
     const t = ev.target as Element;

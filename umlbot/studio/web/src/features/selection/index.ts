@@ -35,7 +35,10 @@ export function install({ bus, store, canvas }: Studio): void {
     if (!edit) return undefined;
     for (const e of canvas.el.querySelectorAll(".selected")) e.classList.remove("selected");
     const s = edit.selection;
-    if (!s) return null;
+    if (!s) {
+      bus.emit("selection.marked", null);
+      return null;
+    }
     const q = selectionQuery(s);
     let shown: Element | null = null;
     if (q) {
@@ -44,8 +47,14 @@ export function install({ bus, store, canvas }: Studio): void {
         if (e.closest("svg")?.getAttribute("data-diagram") === canvas.current) shown = e;
       }
     }
-    return s.type === "lane" ? null : shown;
+    const found = s.type === "lane" ? null : shown;
+    bus.emit("selection.marked", s.type === "lane" ? laneHead(s.lane) : found);
+    return found;
   };
+  const laneHead = (lane: string): Element | null =>
+    canvas.el.querySelector(
+      `svg[data-diagram="${CSS.escape(canvas.current)}"] g.lane[data-lane="${CSS.escape(lane)}"] g.lane-head`,
+    );
 
   const remove = async (confirmed = false): Promise<void> => {
     const edit = store.edit!;
