@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
 import click
+
+from umlbot.commands.checked import checked_model
 
 
 @click.command(name="compile")
@@ -16,19 +17,13 @@ import click
               help="Deployment file to use instead of the model's own.")
 def command(model: Path, output: Path | None, deployment: Path | None) -> None:
     """Compile MODEL (a model folder or file) into a compiled model file for `umlbot run`."""
-    from umlbot.compiler.api import check_model
     from umlbot.compiler.compiled import dump_compiled, write_compiled
 
-    result = check_model(model, deployment)
-    for diagnostic in result.diagnostics:
-        click.echo(str(diagnostic), err=True)
-    if result.model is None:
-        click.echo(f"{model}: {len(result.errors)} error(s); nothing written", err=True)
-        sys.exit(1)
+    compiled = checked_model(model, deployment)
     if output is not None and str(output) == "-":
-        click.echo(dump_compiled(result.model).decode("utf-8"), nl=False)
+        click.echo(dump_compiled(compiled).decode("utf-8"), nl=False)
         return
-    target = output or Path(f"{result.model.name}.compiled.json")
-    write_compiled(result.model, target)
-    click.echo(f"wrote {target} ({result.model.source_hash})", err=True)
+    target = output or Path(f"{compiled.name}.compiled.json")
+    write_compiled(compiled, target)
+    click.echo(f"wrote {target} ({compiled.source_hash})", err=True)
 

@@ -12,6 +12,8 @@ from pathlib import Path
 
 import click
 
+from umlbot.commands.checked import checked_model
+
 
 @click.command(name="generate")
 @click.argument("language", type=click.Choice(["cpp"]))
@@ -26,20 +28,13 @@ def command(language: str, model: Path, output: Path, deployment: Path | None, b
             jobs: int | None) -> None:
     """Generate MODEL (a model folder or file, or a compiled model file) as a C++ project in DIR."""
     from umlbot.codegen import APT_LINE, build_cpp, generate_cpp, missing_toolchain, program_name
-    from umlbot.compiler.api import check_model
     from umlbot.compiler.compiled import CompiledModel, load_compiled
 
     compiled: CompiledModel
     if model.is_file() and model.suffix == ".json":
         compiled = load_compiled(model)
     else:
-        result = check_model(model, deployment)
-        for diagnostic in result.diagnostics:
-            click.echo(str(diagnostic), err=True)
-        if result.model is None:
-            click.echo(f"{model}: {len(result.errors)} error(s); nothing written", err=True)
-            sys.exit(1)
-        compiled = result.model
+        compiled = checked_model(model, deployment)
     written = generate_cpp(compiled, output, source=model.name)
     click.echo(f"wrote {output} ({len(written)} file(s) changed; program {program_name(compiled)})", err=True)
     missing = missing_toolchain()

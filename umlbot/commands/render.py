@@ -7,6 +7,8 @@ from pathlib import Path
 
 import click
 
+from umlbot.commands.checked import checked_model
+
 #: exit status when every other format was written but the SVG could not be drawn (no `dot`).
 SVG_NOT_DRAWN = 3
 
@@ -23,19 +25,13 @@ def command(model: Path, out_dir: Path | None, fmt: str,
             deployment: Path | None) -> None:
     """Draw MODEL's diagrams (SVG needs Graphviz's `dot`: without it the other formats are
     written and the command exits 3)."""
-    from umlbot.compiler.api import check_model
     from umlbot.compiler.render import FORMATS, Format, SvgNotDrawn, render_model
 
-    result = check_model(model, deployment)
-    for diagnostic in result.diagnostics:
-        click.echo(str(diagnostic), err=True)
-    if result.model is None:
-        click.echo(f"{model}: {len(result.errors)} error(s); nothing drawn", err=True)
-        sys.exit(1)
+    compiled = checked_model(model, deployment, nothing="nothing drawn")
     formats: tuple[Format, ...] = FORMATS if fmt == "all" else (fmt,)  # type: ignore[assignment]
-    target = out_dir or Path(f"{result.model.name}-diagrams")
+    target = out_dir or Path(f"{compiled.name}-diagrams")
     try:
-        written = render_model(result.model, target, formats)
+        written = render_model(compiled, target, formats)
     except SvgNotDrawn as exc:
         for path in exc.written:
             click.echo(str(path))
