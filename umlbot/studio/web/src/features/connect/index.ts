@@ -25,6 +25,25 @@ export function install(studio: Studio): void {
     bus.request("selection.highlight");
   };
 
+  /** The node chosen by "Connect to…", ending that mode. */
+  const takeFrom = (): { lane: string; id: string } => {
+    const start = from!;
+    cancel();
+    bus.emit("notice.hide", "hint");
+    return start;
+  };
+
+  /** True when a flow from `sourceLane` may end in `targetLane`; else says why. */
+  const sameLane = (sourceLane: string, targetLane: string): boolean => {
+    if (sourceLane === targetLane) return true;
+    bus.request("notice.show", {
+      kind: "error",
+      text: "A flow stays inside its swimlane: connect nodes of the same lane.",
+      hideAfterMs: 5000,
+    });
+    return false;
+  };
+
   const connect = async (lane: string, source: string, target: string): Promise<void> => {
     // a decision's first output is its else; the server writes any other with an empty guard,
     // which the checker reports on the decision until it is typed here
@@ -51,30 +70,13 @@ export function install(studio: Studio): void {
       if (target.classList.contains("port-out") && !from) {
         // a flow drawn from the node's output port: dropped on a node of its lane, it connects them
         dragFlow(canvas.el, ev, target, (to) => {
-          if (!to) return;
-          if (to.lane !== lane) {
-            bus.request("notice.show", {
-              kind: "error",
-              text: "A flow stays inside its swimlane: connect nodes of the same lane.",
-              hideAfterMs: 5000,
-            });
-          } else if (to.id !== id) void connect(lane, id, to.id);
+          if (to && sameLane(lane, to.lane) && to.id !== id) void connect(lane, id, to.id);
         });
         return true;
       }
       if (from) {
-        const start = from;
-        cancel();
-        bus.emit("notice.hide", "hint");
-        if (start.lane !== lane) {
-          bus.request("notice.show", {
-            kind: "error",
-            text: "A flow stays inside its swimlane: connect nodes of the same lane.",
-            hideAfterMs: 5000,
-          });
-          return true;
-        }
-        void connect(lane, start.id, id);
+        const start = takeFrom();
+        if (sameLane(start.lane, lane)) void connect(lane, start.id, id);
         return true;
       }
       dragNode(studio, ev, nodeG as SVGGElement, lane, id);
@@ -113,16 +115,8 @@ export function install(studio: Studio): void {
       const lane = nodeG.getAttribute("data-lane")!;
       const id = nodeG.getAttribute("data-node")!;
       if (from) {
-        const start = from;
-        cancel();
-        bus.emit("notice.hide", "hint");
-        if (start.lane !== lane) {
-          bus.request("notice.show", {
-            kind: "error",
-            text: "A flow stays inside its swimlane: connect nodes of the same lane.",
-            hideAfterMs: 5000,
-          });
-        } else if (start.id !== id) void connect(lane, start.id, id);
+        const start = takeFrom();
+        if (sameLane(start.lane, lane) && start.id !== id) void connect(lane, start.id, id);
         return true;
       }
       select({ type: "node", lane, id });
