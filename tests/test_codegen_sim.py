@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import queue
+import tempfile
 import time
+from pathlib import Path
 
 import pytest
 from codegen_support import TEST_MODELS, built_programs
@@ -15,14 +17,18 @@ from umlbot.sim.track import bundled_tracks
 pytestmark = [pytest.mark.network, pytest.mark.timeout(600)]
 
 
-def test_the_generated_program_reaches_the_goal_of_the_corridor() -> None:
+def test_the_generated_program_reaches_the_goal_of_the_corridor(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+) -> None:
     program = built_programs()["robot_car"]
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))  # where the runner keeps the program's trace
     result = run_sim(SimOptions(model=TEST_MODELS["robot_car"], track=find_track("corridor"), speed=2.0,
                                 port=0, timeout_s=60.0, engine="cpp", program=program))
     assert result.reason == "goal", result.as_dict()
     assert result.goal_reached and result.collisions == 0 and result.failure is None
     assert result.actions > 20  # the program's feature calls, read from its trace
     assert result.action_p50_ms is not None and result.action_p50_ms > 0
+    assert list(tmp_path.iterdir()) == [], "the program's trace, kept by nobody, is removed"
 
 
 @pytest.mark.slow  # ~90 s on 2 loaded cores

@@ -16,6 +16,7 @@ from __future__ import annotations
 import contextlib
 import math
 import os
+import shutil
 import signal
 import statistics
 import subprocess
@@ -505,6 +506,7 @@ def run_sim(
     failure: str | None = None
     actions_at_end = 0
     ros2_drivers: Any = None
+    trace_dir: Path | None = None  # the generated program's trace, when the user keeps none
     try:
         if observe is not None:
             finish_observing = observe(world, url, deployment.robot)
@@ -528,7 +530,10 @@ def run_sim(
         world.max_collisions = options.max_collisions
         listener = watch.on_event if trace_listener is None else _both(watch.on_event, trace_listener)
         if program is not None:
-            trace_file = options.trace_file or Path(tempfile.mkdtemp(prefix="umlbot-sim-")) / "trace.jsonl"
+            trace_file = options.trace_file
+            if trace_file is None:  # the program's trace is where the runner counts its actions
+                trace_dir = Path(tempfile.mkdtemp(prefix="umlbot-sim-"))
+                trace_file = trace_dir / "trace.jsonl"
             orchestrator = ProgramOrchestrator(program, compiled, url, deployment.robot, options.speed,
                                                trace_file, listener,
                                                clock if isinstance(clock, SimClock) else None)
@@ -620,6 +625,8 @@ def run_sim(
                 if orch_thread.is_alive():
                     orchestrator.request_exit("simulation ended")  # a second request ends the grace
                     orch_thread.join(timeout=5)
+        if trace_dir is not None:
+            shutil.rmtree(trace_dir, ignore_errors=True)
         services.stop()
         if ros2_drivers is not None:
             ros2_drivers.stop()
