@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import signal
 import subprocess
 import threading
 import time
@@ -195,3 +196,30 @@ def test_an_unreachable_broker_is_retried_and_the_outage_logged_again_now_and_th
     # every attempt is logged; the first as a warning, then one per CONNECT_WARN_EVERY_S
     assert len(failed) >= 12
     assert 2 <= len(warnings) < len(failed) // 2, (len(warnings), len(failed))
+
+
+def test_a_message_the_lost_broker_never_acknowledged_is_not_sent_again_after_the_reconnect(
+    broker: BrokerProcess, raw_client: Callable[..., RawClient]
+) -> None:
+    """paho keeps every unacknowledged QoS 1 message and sends it again after a reconnect. Our
+    connections start clean and republish what matters (status, state); anything older is stale:
+    a motor command sent again after the orchestrator failed the run, or a state older than the
+    one republished at the reconnect (seen: a retained `running: true` over a stopped motor)."""
+    connection = BusConnection(BrokerSettings.from_url(broker.url), "test", reconnect_max_s=0.5)
+    connection.start(5.0)
+    try:
+        assert broker.proc is not None
+        broker.proc.send_signal(signal.SIGSTOP)  # frozen: the socket takes the packet, no PUBACK
+        connection.publish("umlbot-test/stale", b"stale", qos=1, retain=True)
+        broker.kill()  # the connection is lost with the message unacknowledged
+        assert wait_until(lambda: not connection.connected, 5.0)
+        broker.start()
+        assert wait_until(lambda: connection.connected, RECONNECT_S)
+        connection.publish("umlbot-test/fresh", b"fresh", qos=1, retain=True, wait_s=5.0)
+        watcher = raw_client(broker)
+        watcher.subscribe("umlbot-test/#")
+        assert watcher.get(5.0, "umlbot-test/fresh").payload == b"fresh"
+        with pytest.raises(TimeoutError):
+            watcher.get(1.0, "umlbot-test/stale")
+    finally:
+        connection.close()

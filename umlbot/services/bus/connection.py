@@ -140,6 +140,25 @@ class _PahoClient(mqtt.Client):
         self.on_acknowledged: Callable[[int, Any], None] | None = None
         self._goodbye = False  # our DISCONNECT is queued: close the socket without a reset
 
+    def _messages_reconnect_reset_out(self) -> None:
+        """Forget what the lost connection still owed the broker instead of sending it again.
+
+        paho keeps every unacknowledged QoS 1/2 message and sends it again after a reconnect,
+        also with a clean start. Ours start clean and republish what lasts (status, state) on
+        every connect; an older message is stale there: a motor command sent again after the
+        orchestrator failed the run, or a state older than the one just republished (a retained
+        `running: true` over a stopped motor was seen). A waiter of a dropped message is told.
+        """
+        with self._out_message_mutex:
+            dropped = list(self._out_messages.values())
+            self._out_messages.clear()
+            self._inflight_messages = 0
+        for message in dropped:
+            info = message.info
+            with info._condition:
+                info.rc = mqtt.MQTT_ERR_CONN_LOST
+                info._condition.notify_all()
+
     def _sock_close(self) -> None:
         sock = self._sock
         if sock is None or not self._goodbye:
