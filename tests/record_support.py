@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+import yaml
 
 from umlbot.record import SimRecording
 from umlbot.sim.runner import SimOptions, SimResult, run_sim
@@ -65,6 +66,9 @@ def read_with_mcap(path: Path) -> Read:
         for schema, channel, message, decoded in reader.iter_decoded_messages(log_time_order=False):
             assert schema is not None and schema.encoding == "ros2msg"
             assert channel.message_encoding == "cdr"
+            # the one channel field MCAP's ros2 profile requires (`ros2 bag play` takes the
+            # publisher's QoS from it): a YAML list
+            assert isinstance(yaml.safe_load(channel.metadata["offered_qos_profiles"]), list)
             types[channel.topic] = schema.name
             counts[channel.topic] += 1
             messages.append((channel.topic, decoded, message.log_time))

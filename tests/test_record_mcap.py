@@ -58,6 +58,13 @@ def test_the_recording_has_every_kind_of_message(recorded: RecordedRun) -> None:
     assert info["custom_data"]["umlbot.clock"] == "sim"
     assert info["custom_data"]["umlbot.robot"] == "car"
     assert info["message_count"] == sum(counts.values())
+    # what `ros2 bag info` prints of a single MCAP file comes from this record (rosbag2's
+    # metadata, version 9 since Jazzy): the storage, and every topic with its type and count
+    assert info["storage_identifier"] == "mcap" and info["version"] >= 5
+    listed = {t["topic_metadata"]["name"]: t for t in info["topics_with_message_count"]}
+    assert {name: t["message_count"] for name, t in listed.items()} == dict(counts)
+    assert all(listed[topic]["topic_metadata"]["type"] == msgtype for topic, msgtype in types.items())
+    assert all(t["topic_metadata"]["serialization_format"] == "cdr" for t in listed.values())
 
     by_topic: dict[str, list[Any]] = {}
     for topic, message, _ in messages:
