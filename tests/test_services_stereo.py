@@ -51,6 +51,26 @@ def test_features_on_scripted_depths(broker: BrokerProcess) -> None:
         assert camera.reads == 7
 
 
+def test_reach_and_open_bearing_find_the_gap_the_car_fits_through(broker: BrokerProcess) -> None:
+    """A wall 80 cm ahead with a gap from 5.5° to 27.5° left (34 cm wide at the wall, a far wall
+    400 cm away behind it), a wall 60 cm away on the right: the car's 24 cm strip is free far
+    only through the gap, whose middle openBearing gives; a frame without a reading: -1 and 0."""
+    gap = [(30, 80), (29, 80), (26, 400), (8, 400), (3, 80), (0, 80), (-30, 60)]
+    dep = stereo_deployment("mock", mock_depths=[gap, gap, gap, gap, gap, gap, "too dark to see"])
+    with running("stereo", dep, broker.url), client(broker.url) as bus:
+        assert 70 <= bus.call("Eye", "reach", 0) <= 80  # the wall ahead
+        assert bus.call("Eye", "reach", 17) >= 390  # through the gap to the far wall
+        assert bus.call("Eye", "reach", 10) < 100  # the ray is in the gap, the car's width is not
+        assert bus.call("Eye", "reach", -20) < 70  # the near wall on the right
+        assert 14 <= bus.call("Eye", "openBearing") <= 19
+        assert bus.call("Eye", "distance", 10) == 400  # a ray alone sees the gap wider than it is
+        assert bus.call("Eye", "reach", 17) == -1
+        assert bus.call("Eye", "openBearing") == 0
+        with pytest.raises(RemoteError) as err:
+            bus.call("Eye", "reach", -31)
+        assert err.value.code == "out_of_range"
+
+
 def test_a_camera_that_stops_delivering_frames_errors_and_says_so(broker: BrokerProcess) -> None:
     dep = stereo_deployment("mock", mock_distance_cm=90)
     with running("stereo", dep, broker.url) as host, client(broker.url) as bus:

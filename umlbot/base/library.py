@@ -208,6 +208,9 @@ CAMERA = KindSpec("camera", (
     FeatureSpec("nearest", (), "int", "cm to the nearest surface in view, -1 = no reading."),
     FeatureSpec("nearestBearing", (), "int", "direction of the nearest surface in degrees (+ = left)."),
     FeatureSpec("freeWidth", (), "int", "cm of free way straight ahead (0 = blocked or no reading)."),
+    FeatureSpec("reach", (Param("angle_deg", "int", -30, 30, "°"),), "int",
+                "cm a strip the car's width is free in that direction (+ = left), -1 = no reading."),
+    FeatureSpec("openBearing", (), "int", "direction (degrees, + = left) in which the way is free farthest."),
 ), "a camera that measures distances (a stereo pair)")
 
 
@@ -277,7 +280,8 @@ BUILTIN = ComponentPlugin(
             kind="camera",
             aliases=("CModelStereoCamera",),
             service="stereo",
-            features=CAMERA.pick("distance", "nearest", "nearestBearing", "freeWidth"),
+            features=CAMERA.pick("distance", "nearest", "nearestBearing", "freeWidth", "reach",
+                                  "openBearing"),
             title="stereo camera pair (two Pi camera modules or a USB stereo camera)",
             settings_doc={"calibration": "the file 'umlbot calibrate stereo' wrote",
                           "source": "picamera2 or opencv", "width_px": "image width",

@@ -5,7 +5,13 @@
 - `nearest()`: the distance to the nearest surface anywhere in view, or -1;
 - `nearestBearing()`: the direction of that nearest surface (0 without a reading);
 - `freeWidth()`: how wide the way straight ahead is free up to `look_ahead_cm` (0 when the way
-  straight ahead is blocked or there is no reading).
+  straight ahead is blocked or there is no reading);
+- `reach(angle_deg)`: how far (cm) a strip `car_width_cm` wide (default 24: the car and a margin)
+  is free in that direction, i.e. the nearest seen surface within half that width of the line
+  (`NO_READING` when the direction itself is unseen);
+- `openBearing()`: the direction, within `open_limit_deg` (default 24) of straight ahead, in which
+  `reach` is longest: the middle of the stretch of directions within 10 % of the longest (the
+  middle of the gap, follow-the-gap style), 0 without a reading.
 
 A frame is reused for `frame_max_age_s` (driver time, sim time in the simulator), so that a model
 asking several questions in a row gets answers about the same picture. The retained state carries
@@ -30,7 +36,7 @@ class StereoService(ComponentService):
 
     kind = "stereo"
     handlers = {"distance": "distance", "nearest": "nearest", "nearestBearing": "nearest_bearing",
-                "freeWidth": "free_width"}
+                "freeWidth": "free_width", "reach": "reach", "openBearing": "open_bearing"}
 
     _frame: DepthFrame | None = None
     _frame_at: float = -math.inf
@@ -120,6 +126,46 @@ class StereoService(ComponentService):
             width += edge
         return round(width)
 
+    @staticmethod
+    def _points(frame: DepthFrame) -> list[tuple[float, float]]:
+        """The seen surfaces as points (cm ahead, cm to the left)."""
+        return [(cm * math.cos(math.radians(angle)), cm * math.sin(math.radians(angle)))
+                for angle, cm in zip(frame.angles_deg, frame.columns_cm, strict=True) if cm is not None]
+
+    def _reach(self, frame: DepthFrame, angle_deg: float,
+               points: list[tuple[float, float]] | None = None) -> int:
+        """cm a strip car_width_cm wide is free along angle_deg: the nearest seen point within half
+        that width of the line (its distance along it); the line's own direction must be seen."""
+        if frame.problem is not None or self._distance(frame, angle_deg) == NO_READING:
+            return NO_READING
+        half = self._setting("car_width_cm", 24.0) / 2
+        theta = math.radians(angle_deg)
+        cos_t, sin_t = math.cos(theta), math.sin(theta)
+        free = self._setting("max_reach_cm", 400.0)
+        for x, y in self._points(frame) if points is None else points:
+            along, across = x * cos_t + y * sin_t, y * cos_t - x * sin_t
+            if along > 0 and abs(across) <= half:
+                free = min(free, along)
+        return round(free)
+
+    def _open_bearing(self, frame: DepthFrame) -> int:
+        """The middle of the stretch of directions (1° apart) whose reach is within 10 % of the
+        longest, the one holding the longest (nearest straight ahead on a tie); 0 without one."""
+        limit = int(self._setting("open_limit_deg", 24.0))
+        bearings = list(range(-limit, limit + 1))
+        points = self._points(frame)
+        reaches = [self._reach(frame, float(b), points) for b in bearings]
+        best = max(reaches)
+        if best <= 0:
+            return 0
+        at = min((i for i, r in enumerate(reaches) if r == best), key=lambda i: abs(bearings[i]))
+        low = high = at
+        while low > 0 and reaches[low - 1] >= 0.9 * best:
+            low -= 1
+        while high < len(reaches) - 1 and reaches[high + 1] >= 0.9 * best:
+            high += 1
+        return round((bearings[low] + bearings[high]) / 2)
+
     def _summarise(self, frame: DepthFrame) -> dict[str, Any]:
         nearest, bearing = self._nearest(frame)
         low, high = frame.fov_deg
@@ -151,6 +197,12 @@ class StereoService(ComponentService):
 
     def free_width(self) -> int:
         return self._free_width(self.frame())
+
+    def reach(self, angle_deg: int) -> int:
+        return self._reach(self.frame(), float(angle_deg))
+
+    def open_bearing(self) -> int:
+        return self._open_bearing(self.frame())
 
     def state(self) -> dict[str, Any]:
         with self.lock:
