@@ -7,6 +7,8 @@ Both parts run a real broker (Mosquitto, or the embedded amqtt with --broker amq
 - **latency**: the reference car (`models/robot_car`) runs on mock services under a real
   `umlbot run`; for each trace event the page applies, it records the time from the node's end
   (the orchestrator's clock, the event's own `time`) to the animation frame that highlighted it.
+  Beside it, the part before the studio (`trace_p50_ms`, `trace_p99_ms`: a node's end to its
+  trace message at a subscriber on the same broker) and the trace messages per second.
   Targets: p50 <= 50 ms, p99 <= 200 ms.
 - **load**: a generated model of `--nodes` activity nodes in one activity diagram (20 swimlanes of
   100 nodes), shown in the page, while a publisher sends `--rate` trace events per second on the
@@ -153,6 +155,41 @@ def open_page(browser: Any, url: str, diagram: str | None = None) -> Page:
     return page
 
 
+class TraceWatch:
+    """The trace as a subscriber on the same broker sees it while the page measures: each event's
+    time from its node's end to the message's arrival (the orchestrator's batching and the
+    broker: the part of the page's latency before the studio), and the messages per second."""
+
+    def __init__(self, broker_url: str, robot: str) -> None:
+        self.delays_ms: list[float] = []
+        self.messages = 0
+        self._lock = threading.Lock()
+        port = int(broker_url.rsplit(":", 1)[1])
+        self._client = mqtt.Client(CallbackAPIVersion.VERSION2, client_id=f"bench-trace-{os.getpid()}")
+        self._client.on_message = self._message
+        self._client.connect("127.0.0.1", port, 30)
+        self._client.subscribe(f"umlbot/{robot}/orchestrator/trace")
+        self._client.loop_start()
+
+    def _message(self, _client: Any, _userdata: Any, message: Any) -> None:
+        now = time.time()
+        batch = json.loads(message.payload)
+        with self._lock:
+            self.messages += 1
+            for event in batch if isinstance(batch, list) else [batch]:
+                self.delays_ms.append((now - event["end"]) * 1000.0)
+
+    def restart(self) -> float:
+        with self._lock:
+            self.delays_ms.clear()
+            self.messages = 0
+        return time.monotonic()
+
+    def close(self) -> None:
+        self._client.loop_stop()
+        self._client.disconnect()
+
+
 def measure_latency(browser: Any, broker_url: str, seconds: float, workdir: Path) -> dict[str, Any]:
     env = {**os.environ, "UMLBOT_BROKER": broker_url, "UMLBOT_LOG_LEVEL": "WARNING"}
     compiled = workdir / "car.json"
@@ -165,17 +202,26 @@ def measure_latency(browser: Any, broker_url: str, seconds: float, workdir: Path
         studio = stack.enter_context(child(umlbot("studio", str(CAR), "--port", "0", "--robot", "car"), env,
                                            workdir / "studio.log"))
         page = open_page(browser, studio_url(studio))
+        watch = TraceWatch(broker_url, "car")
+        stack.callback(watch.close)
         with child(umlbot("run", str(compiled), "--robot", "car"), env, workdir / "run.log"):
             page.wait_for_function("window.__studio.latencies.length > 0", timeout=60_000)
             page.evaluate("window.__studio.latencies.length = 0")
+            began = watch.restart()
             time.sleep(seconds)
             latencies: list[float] = page.evaluate("window.__studio.latencies.slice()")
             applied: int = page.evaluate("window.__studio.applied")
+            trace = list(watch.delays_ms)
+            messages_per_s = watch.messages / (time.monotonic() - began)
         page.close()
     return {"samples": len(latencies), "applied": applied,
             "latency_p50_ms": round(statistics.median(latencies), 1),
             "latency_p99_ms": round(percentile(latencies, 99), 1),
-            "latency_max_ms": round(max(latencies), 1)}
+            "latency_max_ms": round(max(latencies), 1),
+            # the share of it before the studio: node end -> trace message at a subscriber
+            "trace_p50_ms": round(statistics.median(trace), 1) if trace else None,
+            "trace_p99_ms": round(percentile(trace, 99), 1) if trace else None,
+            "trace_messages_per_s": round(messages_per_s, 1)}
 
 
 def publish_load(broker_url: str, lanes: dict[str, list[tuple[str, str]]], rate: float, seconds: float,

@@ -17,7 +17,8 @@ import pytest
 
 from umlbot.services.bus import TraceEvent
 from umlbot.services.orchestrator import TraceRecord, TraceRecorder, event_dict
-from umlbot.services.orchestrator.trace import encode_record
+from umlbot.services.orchestrator import trace as trace_module
+from umlbot.services.orchestrator.trace import DEFAULT_BATCH, encode_record
 
 
 def rec(i: int, value: Any = None) -> TraceRecord:
@@ -53,7 +54,7 @@ def test_events_leave_as_one_array_per_window_numbered_in_order(tmp_path: Path) 
     trace_file = tmp_path / "trace.jsonl"
 
     async def run() -> TraceRecorder:
-        recorder = TraceRecorder(sink, trace_file, listened.append, window_s=0.02)
+        recorder = TraceRecorder(sink, trace_file, listened.append, window_s=0.02, burst=1)
         began = asyncio.get_running_loop().time()
         for i in range(1, 51):  # one event a millisecond for 50 ms
             recorder.record(rec(i))
@@ -84,7 +85,7 @@ def test_a_lone_event_leaves_at_once_and_the_next_ones_wait_for_the_window() -> 
 
     async def run() -> None:
         loop = asyncio.get_running_loop()
-        recorder = TraceRecorder(sink, window_s=0.05)
+        recorder = TraceRecorder(sink, window_s=0.05, burst=1)
         began = loop.time()
         recorder.record(rec(1))
         recorder.record(rec(2))  # the same turn of the loop: the same message
@@ -206,3 +207,101 @@ def test_a_trace_file_in_a_missing_folder_is_written_there(tmp_path: Path) -> No
 
     asyncio.run(run())
     assert [strict(line.encode())["value"] for line in trace_file.read_text().splitlines()] == [5]
+
+
+class FrozenClock:
+    """A `time` stand-in whose monotonic clock only moves when told (the loop's own runs on)."""
+
+    def __init__(self) -> None:
+        self.now = 1000.0
+
+    def monotonic(self) -> float:
+        return self.now
+
+
+def test_after_a_quiet_spell_the_first_clusters_of_a_burst_leave_at_once(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """The mechanism, on a frozen clock: the first message and the next `burst - 1` are scheduled
+    for the loop's next turn, not for the end of a window; the one after waits one interval."""
+    clock = FrozenClock()
+    monkeypatch.setattr(trace_module, "time", clock)
+    sink = Sink()
+
+    async def run() -> None:
+        recorder = TraceRecorder(sink, window_s=0.02, burst=4)
+        interval = recorder.pacer.interval_s
+        assert interval == pytest.approx(1 / 47)  # 50 in any second, the burst included
+        for cluster in range(4):  # four clusters 3 ms apart, as a lane's nodes between replies
+            recorder.record(rec(2 * cluster + 1))
+            recorder.record(rec(2 * cluster + 2))
+            await asyncio.sleep(0)  # the loop's next turn: the cluster has left, as one message
+            assert len(sink.messages) == cluster + 1
+            clock.now += 0.003
+        recorder.record(rec(9))  # the fifth within the bound's room: waits, at most an interval
+        await asyncio.sleep(0)
+        await asyncio.sleep(0)
+        assert len(sink.messages) == 4
+        clock.now += interval
+        await asyncio.sleep(interval + 0.01)  # the loop's timer runs on the real clock
+        assert len(sink.messages) == 5
+        clock.now += 1.0  # quiet: the next leaves at once again
+        recorder.record(rec(10))
+        await asyncio.sleep(0)
+        assert len(sink.messages) == 6
+        recorder.close()
+
+    asyncio.run(run())
+    assert [[e["seq"] for e in batch] for _, batch in sink.messages] == [
+        [1, 2], [3, 4], [5, 6], [7, 8], [9], [10]]
+
+
+@pytest.mark.parametrize("burst", [1, 4])
+@pytest.mark.parametrize("nodes_per_turn, pause_s", [(10, 0.001), (128, 0.0)])
+def test_a_tight_loop_sends_at_most_50_messages_in_any_second(burst: int, nodes_per_turn: int,
+                                                               pause_s: float) -> None:
+    """A fast lane for 1.5 s: 10 nodes then a 1 ms reply (10 000 nodes/s: a message a millisecond
+    without a bound), or one that never waits (a loop turn every 128 nodes, as the engine yields).
+    The burst does not raise the bound of plain 20 ms windows: at most 50 messages in any second,
+    besides full batches (500 events), which leave at once with or without it. Counted at the
+    times the recorder sent them (its pacer's clock; the sink's may lag under load)."""
+    sink = Sink()
+    sent_at: list[float] = []
+    turns = 0
+
+    async def run() -> TraceRecorder:
+        nonlocal turns
+        loop = asyncio.get_running_loop()
+        recorder = TraceRecorder(sink, window_s=0.02, burst=burst)
+        pacer_sent = recorder.pacer.sent
+
+        def sent(now: float) -> None:
+            sent_at.append(now)
+            pacer_sent(now)
+
+        recorder.pacer.sent = sent  # type: ignore[method-assign]
+        end = loop.time() + 1.5
+        i = 0
+        while loop.time() < end:
+            for _ in range(nodes_per_turn):
+                i += 1
+                recorder.record(rec(i))
+            turns += 1
+            await asyncio.sleep(pause_s)
+        sent_at.append(float("inf"))  # close()'s own message is not counted
+        recorder.close()
+        return recorder
+
+    recorder = asyncio.run(run())
+    assert len(sent_at) >= len(sink.messages)
+    times = [at for at, (_, batch) in zip(sent_at, sink.messages, strict=False)
+             if len(batch) < DEFAULT_BATCH and at < float("inf")]
+    most = 0
+    for first, at in enumerate(times):  # any half-open second
+        most = max(most, sum(1 for later in times[first:] if later - at < 1.0))
+    assert most <= 50
+    if nodes_per_turn == 10:  # no full batch: the bound is the whole rate; turns were coalesced
+        assert all(len(batch) < DEFAULT_BATCH for _, batch in sink.messages)
+        assert len(sink.messages) < turns / 2
+    else:  # the lane outran the bound: full batches left besides
+        assert any(len(batch) == DEFAULT_BATCH for _, batch in sink.messages)
+    assert recorder.dropped == 0 and sink.seqs == list(range(1, recorder.recorded + 1))

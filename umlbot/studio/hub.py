@@ -2,9 +2,11 @@
 
 Events (`MonitorEvent` dicts, the objects `umlbot monitor --json` prints) arrive on the bus's
 dispatcher thread; `push` only appends them to a list under a lock (and wakes the event loop when
-nothing is scheduled yet). The event loop flushes at once when the last flush is more than
-`FLUSH_S` ago, else when it is due (so a lone event reaches the page within a millisecond or two,
-and a busy robot makes at most one frame per `FLUSH_S`). A flush keeps what a page opened later
+nothing is scheduled yet). The event loop flushes at once when its `Pacer` allows it, else when it
+does: at most `FLUSHES_PER_S` (100) flushes in any second, of which `FLUSH_BURST` (4) may follow
+each other closely — so a lone event reaches the page within a millisecond or two, so do the next
+few trace messages of a robot's burst, and a busy robot makes at most 100 flushes a second, one
+every `Pacer.interval_s` (10.3 ms) when it keeps talking. A flush keeps what a page opened later
 needs (the snapshot: the latest availability, retained state, broker and orchestrator status, the trace
 history, the last calls, and with a simulated world its latest state and the pings of its last
 second) and sends one `events` frame to each connected page. The history is bounded
@@ -35,11 +37,16 @@ from typing import Any
 
 from umlbot.base.bounded import MAX_ROWS, RecentDict
 from umlbot.base.logs import get_logger
+from umlbot.base.pacing import Pacer
 
 log = get_logger(__name__)
 
-#: seconds between two frames to the pages at most (events are coalesced in between).
-FLUSH_S = 0.010
+#: flushes to the pages in any second at most (events are coalesced in between): one per
+#: `FLUSH_S` on average.
+FLUSHES_PER_S = 100
+FLUSH_S = 1.0 / FLUSHES_PER_S
+#: flushes that may follow each other closely within that bound (a robot's burst of messages).
+FLUSH_BURST = 4
 #: trace events kept for pages that open later.
 DEFAULT_KEEP_TRACE = 100_000
 #: feature calls kept for pages that open later.
@@ -230,7 +237,8 @@ class Hub:
         self.world_pings: collections.deque[dict[str, Any]] = collections.deque(maxlen=KEEP_PINGS)
         self._loop: asyncio.AbstractEventLoop | None = None
         self._scheduled = False
-        self._last_flush = 0.0
+        #: when the next flush may go (at most `FLUSHES_PER_S` a second, `FLUSH_BURST` back to back).
+        self.pacer = Pacer(FLUSHES_PER_S, FLUSH_BURST)
         #: pages dropped for falling behind, since the start, and the most characters of JSON
         #: one page ever had waiting.
         self.dropped_pages = 0
@@ -340,7 +348,7 @@ class Hub:
 
     def flush(self) -> None:
         """Move queued events into the snapshot and send them to every page as one frame."""
-        self._last_flush = time.monotonic()
+        self.pacer.sent(time.monotonic())
         with self._lock:
             self._scheduled = False
             events, self._incoming = self._incoming, []
@@ -395,7 +403,7 @@ class Hub:
             self.broker = event
 
     def _due(self) -> None:
-        wait = self._last_flush + FLUSH_S - time.monotonic()
+        wait = self.pacer.wait(time.monotonic())
         loop = self._loop
         if wait > 0 and loop is not None:
             loop.call_later(wait, self._safe_flush)

@@ -4,11 +4,13 @@ The engine hands each executed node to `TraceRecorder.record` as a plain tuple. 
 numbers the events (`seq` 1, 2, 3 … in recording order), turns each into its JSON text at once (a
 few microseconds, no I/O: the encoding cost is spread evenly instead of falling on the loop as one
 block of a batch's worth while a reply waits behind it), and ships them in batches from the event
-loop, at most one message per `window_s` (20 ms):
-an event recorded when the last message left more than a window ago leaves at the loop's next
-turn, together with every event recorded in the same turn (so a lone node is seen at once);
-otherwise it waits for the window to end. Everything pending then (at most `batch` events) leaves
-as ONE message on `…/orchestrator/trace` (QoS 0), a JSON array of `TraceEvent` objects in
+loop, at most 50 messages in any second (`window_s` 20 ms: one per window on average) of which up
+to `burst` (4) may follow each other closely (`umlbot.base.pacing.Pacer`): an event recorded when
+the pacer allows a message leaves at the loop's next turn, together with every event recorded in
+the same turn (so a lone node is seen at once, and so are the next few clusters of a burst — the
+nodes a lane runs after each reply); otherwise it waits until a message is allowed again (at most
+`Pacer.interval_s`, 21.3 ms, after the last one). Everything pending then (at most `batch` events)
+leaves as ONE message on `…/orchestrator/trace` (QoS 0), a JSON array of `TraceEvent` objects in
 recording order. A full batch pending leaves at the loop's next turn, and `close` ships the rest. The same
 events go to the `--trace FILE` copy (JSON lines, one event a line) and to an optional listener.
 When shipping falls behind by more than `max_pending` events, the oldest are dropped and counted
@@ -28,6 +30,7 @@ from pathlib import Path
 from typing import IO, Any
 
 from umlbot.base.logs import get_logger
+from umlbot.base.pacing import Pacer
 from umlbot.services.bus import json_default
 from umlbot.services.orchestrator.engine import TraceRecord
 
@@ -37,8 +40,10 @@ log = get_logger(__name__)
 DEFAULT_MAX_PENDING = 20_000
 #: events in one trace message at most; this many pending are shipped without waiting.
 DEFAULT_BATCH = 500
-#: how long the first event of a batch waits for others: at most one message per window.
+#: one message per window on average: at most 1 / window_s (50) messages in any second.
 DEFAULT_WINDOW_S = 0.020
+#: messages that may leave back to back within that bound (the clusters of a lane's burst).
+DEFAULT_BURST = 4
 
 Publish = Callable[[bytes], None]
 Listener = Callable[[dict[str, Any]], None]
@@ -117,9 +122,10 @@ class TraceRecorder:
         max_pending: int = DEFAULT_MAX_PENDING,
         batch: int = DEFAULT_BATCH,
         window_s: float = DEFAULT_WINDOW_S,
+        burst: int = DEFAULT_BURST,
     ) -> None:
-        if batch < 1 or max_pending < 1 or window_s < 0:
-            raise ValueError("batch and max_pending must be >= 1 and window_s >= 0")
+        if batch < 1 or max_pending < 1 or window_s < 0 or burst < 1:
+            raise ValueError("batch, max_pending and burst must be >= 1 and window_s >= 0")
         self._loop = asyncio.get_running_loop()
         self._publish = publish
         self._listener = listener
@@ -135,10 +141,10 @@ class TraceRecorder:
         self._pending: collections.deque[tuple[str, TraceRecord]] = collections.deque()
         self._max_pending = max_pending
         self._batch = batch
-        self._window_s = window_s
+        #: when a message may leave (at most 1 / window_s a second, `burst` back to back).
+        self.pacer = Pacer.every(window_s, burst)
         self._handle: asyncio.Handle | None = None  # the scheduled _drain
         self._soon = False  # _handle runs at the loop's next turn
-        self._last_ship = -float("inf")  # time.monotonic() when the last message left
         self._closed = False
         #: events recorded so far (the `seq` of the last one).
         self.recorded = 0
@@ -157,10 +163,10 @@ class TraceRecorder:
         pending.append((encode_record(record, self.recorded), record))
         if self._handle is None:
             if not self._closed:
-                wait = self._last_ship + self._window_s - time.monotonic()
+                wait = self.pacer.wait(time.monotonic())
                 if wait > 0:
                     self._handle = self._loop.call_later(wait, self._drain)
-                else:  # quiet for a window: leave with whatever this turn of the loop records
+                else:  # a message may leave: with whatever this turn of the loop records
                     self._soon = True
                     self._handle = self._loop.call_soon(self._drain)
         elif not self._soon and len(pending) >= self._batch:
@@ -178,7 +184,7 @@ class TraceRecorder:
                 self._soon = True
                 self._handle = self._loop.call_soon(self._drain)
             else:
-                self._handle = self._loop.call_later(self._window_s, self._drain)
+                self._handle = self._loop.call_later(self.pacer.wait(time.monotonic()), self._drain)
 
     def close(self, timeout: float = 2.0) -> None:
         """Ship what is queued (for at most `timeout` s), then close the file; idempotent."""
@@ -206,7 +212,7 @@ class TraceRecorder:
         count = min(limit, len(pending))
         if not count:
             return
-        self._last_ship = time.monotonic()
+        self.pacer.sent(time.monotonic())
         first = self.recorded - len(pending) + 1  # the seq of the oldest pending event
         popleft = pending.popleft
         shipped = [popleft() for _ in range(count)]
