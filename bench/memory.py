@@ -4,23 +4,24 @@ Starts a broker (Mosquitto when installed, else the embedded one) on a free port
 the other, `umlbot service KIND --deploy <car> --driver mock` for every kind and `umlbot service
 all`, with the environment the systemd unit sets (its `Environment=` lines, e.g. glibc's
 `MALLOC_MMAP_THRESHOLD_`, and the log level of deploy/umlbot.env.example). Each process is
-measured once all its components are online and it has settled: VmRSS (resident set, what the
-issue's target is about), VmHWM (its peak) and Pss (shared library pages split between the
-processes that map them) from /proc/PID. Then the process is put to work — `--calls` rounds of
-every feature of each of its components, with an argument out of range every tenth round (an
-error reply) — and measured again: `used_rss_mb` is what a service that has served a run holds,
-and the target applies to it as to the idle figure. The raw baselines of the same run are a bare
-Python interpreter and a plain paho client connected to the broker.
+measured once all its components are online and it has settled: Rss (resident set, what the
+issue's target is about, counted exactly: see `proc_memory`), VmHWM (its peak) and Pss (shared
+library pages split between the processes that map them) from /proc/PID. Then the process is
+put to work — `--calls` rounds of every feature of each of its components, with an argument out
+of range every tenth round (an error reply) — and measured again: `used_rss_mb` is what a
+service that has served a run holds, and the target applies to it as to the idle figure. The raw
+baselines of the same run are a bare Python interpreter and a plain paho client connected to the
+broker.
 
-The services are measured as installed: with their bytecode cached. `pip install` (deploy/install.sh)
-compiles every module of umlbot and its plugins; a checkout run with PYTHONDONTWRITEBYTECODE=1 (or
-a fresh one) compiles them from source at every start instead, and the compiler's scratch memory
-leaves about 1.3 MB more resident for good. So the measured processes run without that variable
-and one unmeasured `umlbot service all` start first writes the caches of everything a service
-imports (`"bytecode": "cached"` in the output).
+The services are measured as installed: with their bytecode cached. `pip install`
+(deploy/install.sh) compiles every module of umlbot and its plugins; a checkout run with
+PYTHONDONTWRITEBYTECODE=1 (or a fresh one) compiles them from source at every start instead, and
+the compiler's scratch memory stays resident (docs/performance.md, "Memory"). So the measured
+processes run without that variable, and one unmeasured `umlbot service all` start first writes
+the caches of everything a service imports (`"bytecode": "cached"` in the output).
 
-The last output line is one JSON object: {"broker", "environment", "bytecode", "results": [{"process",
-"components", "rss_mb", "used_rss_mb", "hwm_mb", "pss_mb"}, ...], "kinds", "kinds_rss_mb",
+The last output line is one JSON object: {"broker", "environment", "bytecode", "results":
+[{"process", "components", "rss_mb", "used_rss_mb", "hwm_mb", "pss_mb"}, ...], "kinds", "kinds_rss_mb",
 "all_rss_mb", "all_used_rss_mb", "max_service_rss_mb", "target_rss_mb"}.
 
     python bench/memory.py [--kinds motor,sonar,servo,gpio] [--settle 2] [--repeat 1] [--calls 100]
@@ -126,7 +127,12 @@ def umlbot() -> list[str]:
 
 
 def proc_memory(pid: int) -> dict[str, float]:
-    """VmRSS, VmHWM (from /proc/PID/status) and Pss (from smaps_rollup) in MB."""
+    """Rss and Pss (from smaps_rollup), VmRSS and VmHWM (from /proc/PID/status) in MB.
+
+    Rss is what the target is about. smaps_rollup counts it exactly, page table by page table;
+    VmRSS, since Linux 6.2, is read from per-CPU counters without folding them in: off by up to
+    32 pages per CPU for each of its three parts (0.75 MB on a 2-CPU machine, 1.5 MB on a
+    Raspberry Pi's four cores). One serving `service motor` here: VmRSS 31.8 MB, Rss 31.07 MB."""
     values: dict[str, float] = {}
     for line in Path(f"/proc/{pid}/status").read_text().splitlines():
         key, _, rest = line.partition(":")
@@ -134,8 +140,11 @@ def proc_memory(pid: int) -> dict[str, float]:
             values[key] = int(rest.split()[0]) / 1024
     with contextlib.suppress(OSError):
         for line in Path(f"/proc/{pid}/smaps_rollup").read_text().splitlines():
-            if line.startswith("Pss:"):
-                values["Pss"] = int(line.split()[1]) / 1024
+            key, _, rest = line.partition(":")
+            if key in ("Rss", "Pss"):
+                values[key] = int(rest.split()[0]) / 1024
+    values.setdefault("Rss", values["VmRSS"])  # no smaps_rollup (Linux < 4.14): the counters' figure
+    values["VmHWM"] = max(values["VmHWM"], values["Rss"])  # a peak is at least the exact figure
     return values
 
 
@@ -215,7 +224,7 @@ def measure_service(kind: str, port: int, watch: OnlineWatch, settle_s: float,
         if not watch.wait(lambda online: not components & online, 15.0):
             raise RuntimeError(f"service {kind} did not go offline")
     return {"process": f"umlbot service {kind}", "components": len(components), **_mb(memory),
-            "used_rss_mb": round(used["VmRSS"], 1), "hwm_mb": round(used["VmHWM"], 1)}
+            "used_rss_mb": round(used["Rss"], 1), "hwm_mb": round(used["VmHWM"], 1)}
 
 
 def measure_script(name: str, argv: list[str], settle_s: float, env: dict[str, str]) -> dict[str, Any]:
@@ -233,7 +242,7 @@ def measure_script(name: str, argv: list[str], settle_s: float, env: dict[str, s
 
 
 def _mb(memory: dict[str, float]) -> dict[str, float]:
-    return {"rss_mb": round(memory["VmRSS"], 1), "hwm_mb": round(memory["VmHWM"], 1),
+    return {"rss_mb": round(memory["Rss"], 1), "hwm_mb": round(memory["VmHWM"], 1),
             "pss_mb": round(memory.get("Pss", float("nan")), 1)}
 
 
