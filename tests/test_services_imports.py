@@ -26,16 +26,27 @@ ROOT = Path(__file__).resolve().parent.parent
 DEPLOYMENT = ROOT / "models" / "robot_car" / "deployment.yaml"
 ROBOT = "importcheck"
 
-#: Runs `umlbot service …` (argv after the two paths) and writes sorted(sys.modules) to the second
-#: path once the test creates the first: the modules of a service that has been serving.
+#: Runs `umlbot service …` (argv after the two paths) and writes to the second path, once the test
+#: creates the first, what a service that has been serving holds: sorted(sys.modules) and the
+#: pydantic models whose validator is built (module.qualname), as JSON.
 WRAPPER = """
-import sys, threading, time
+import json, sys, threading, time
 from pathlib import Path
 trigger, out = Path(sys.argv[1]), Path(sys.argv[2])
+def built_models():
+    from pydantic import BaseModel
+    seen, todo = set(), list(BaseModel.__subclasses__())
+    while todo:
+        model = todo.pop()
+        if model not in seen:
+            seen.add(model)
+            todo.extend(model.__subclasses__())
+    return sorted(f"{m.__module__}.{m.__qualname__}" for m in seen if m.__dict__.get("__pydantic_complete__"))
 def dump():
     while not trigger.exists():
         time.sleep(0.02)
-    Path(str(out) + ".part").write_text("\\n".join(sorted(sys.modules)))
+    state = {"modules": sorted(sys.modules), "models": built_models()}
+    Path(str(out) + ".part").write_text(json.dumps(state))
     Path(str(out) + ".part").rename(out)
 threading.Thread(target=dump, daemon=True).start()
 sys.argv = ["umlbot", *sys.argv[3:]]
@@ -61,6 +72,18 @@ ABSENT = (
 )
 #: What the service keeps on purpose: request validation, logging, the MQTT client, the CLI.
 PRESENT = ("pydantic", "umlbot.services.bus.envelopes", "structlog", "paho.mqtt.client", "click")
+
+#: The pydantic models a service builds (each costs resident memory: docs/performance.md,
+#: "Memory"): the payloads of the bus, the broker settings, the deployment, and the settings of its
+#: own kinds' drivers — no model of another floor (compiled model, compiler, sim, studio, CLI) and
+#: no other kind's settings. These validate at the boundary and must be built:
+VALIDATED = ("umlbot.services.bus.envelopes.CallRequest", "umlbot.services.bus.envelopes.Reply",
+             "umlbot.services.bus.envelopes.ErrorBody", "umlbot.services.bus.envelopes.Status",
+             "umlbot.services.bus.envelopes.Heartbeat", "umlbot.services.bus.settings.BrokerSettings",
+             "umlbot.base.deployment.Deployment")
+#: modules whose models a service of any kind may build; a kind's own modules come on top
+MODEL_MODULES = ("umlbot.base.deployment", "umlbot.services.bus.envelopes", "umlbot.services.bus.settings",
+                 "umlbot.services.mock_support")
 
 
 #: The reference car's components by service kind.
@@ -105,7 +128,8 @@ def test_a_serving_service_imports_only_what_it_uses(
         deadline = time.monotonic() + 10.0
         while not out.exists() and time.monotonic() < deadline:
             time.sleep(0.02)
-        modules = set(out.read_text().splitlines())
+        state = json.loads(out.read_text())
+        modules, models = set(state["modules"]), state["models"]
     finally:
         service.terminate()
         _, stderr = service.communicate(timeout=15)
@@ -115,6 +139,13 @@ def test_a_serving_service_imports_only_what_it_uses(
                     or any(name.startswith(prefix + ".") for prefix in ABSENT))
     assert loaded == [], f"a {kind} service imported what it does not use: {loaded}"
     assert set(PRESENT) <= modules
+    kinds = {"motor", "sonar", "servo", "gpio"} if kind == "all" else {kind}
+    foreign = [name for name in models if name.rpartition(".")[0] not in MODEL_MODULES
+               and name.split(".")[:3] not in [["umlbot", "services", k] for k in kinds]]
+    assert foreign == [], f"a {kind} service built pydantic models it does not validate: {foreign}"
+    assert set(VALIDATED) <= set(models), sorted(set(VALIDATED) - set(models))
+    # the settings of each of its kinds' drivers (the mock driver runs) are validated too
+    assert {f"umlbot.services.{k}.mock" for k in kinds} <= {name.rpartition(".")[0] for name in models}
 
 
 ASYNC_LOGGING = """
