@@ -11,7 +11,7 @@ from typing import Any
 
 import pytest
 from conftest import BrokerProcess
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 from paho.mqtt import _packet
 from paho.mqtt.enums import MQTTProtocolVersion
@@ -46,6 +46,7 @@ def _properties(response_topic: str | None, correlation: bytes | None) -> Proper
 _MQTT_CHARACTERS = st.characters(blacklist_categories=("Cs",), blacklist_characters="\x00")
 
 
+@settings(max_examples=300, deadline=None)  # a loaded machine must not fail it on time
 @given(
     topic=st.text(min_size=1, max_size=80).map(lambda t: t.encode("utf-8")),
     qos=st.sampled_from([0, 1, 2]),
