@@ -139,6 +139,7 @@ class _PahoClient(mqtt.Client):
         self._write_lock = threading.RLock()
         self.on_acknowledged: Callable[[int, Any], None] | None = None
         self._goodbye = False  # our DISCONNECT is queued: close the socket without a reset
+        self._loop_thread: int | None = None  # the thread that runs `loop()`, noted by it
 
     def _messages_reconnect_reset_out(self) -> None:
         """Forget what the lost connection still owed the broker instead of sending it again.
@@ -185,6 +186,11 @@ class _PahoClient(mqtt.Client):
         with self._write_lock:
             return super()._packet_write()
 
+    def loop(self, timeout: float = 1.0) -> MQTTErrorCode:
+        self._loop_thread = threading.get_ident()
+        rc: MQTTErrorCode = super().loop(timeout)
+        return rc
+
     def _handle_publish(self) -> MQTTErrorCode:
         """An MQTT 5 PUBLISH without properties (every umlbot request and reply) decoded here,
         without the `Properties` object paho makes for each (its table of names, then parsing the
@@ -214,15 +220,24 @@ class _PahoClient(mqtt.Client):
         self, command: int, packet: bytes | bytearray, mid: int, qos: int, info: Any = None
     ) -> MQTTErrorCode:
         # paho would also wake the network thread for every packet; we wake it only when the
-        # packet could not be written here (inside a paho callback, or a full socket buffer).
+        # packet could not be written here (on the network thread inside a paho callback, or a
+        # full socket buffer).
         if command & 0xF0 == mqtt.DISCONNECT:
             self._goodbye = True
         self._out_packet.append(
             {"command": command, "mid": mid, "qos": qos, "pos": 0, "to_process": len(packet),
              "packet": packet, "info": info}
         )
-        if self._in_callback_mutex.acquire(False):
-            self._in_callback_mutex.release()
+        # paho's test, "no callback runs", would also hold back a reply from the dispatcher
+        # thread while the network thread is still in the callback that handed the request over
+        # (the dispatcher, woken by a socket byte, runs at once): the reply then waited until the
+        # network thread had left the callback and come round to its `select`, about 75 µs at
+        # load 14 (docs/performance.md, ROS 2). Only the network thread itself, inside a
+        # callback, leaves the write to its loop.
+        on_loop = threading.get_ident() == self._loop_thread
+        if not on_loop or self._in_callback_mutex.acquire(False):
+            if on_loop:
+                self._in_callback_mutex.release()
             rc = self.loop_write()
             if not self.want_write():
                 return rc
