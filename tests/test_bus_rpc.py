@@ -6,6 +6,7 @@ import asyncio
 import contextlib
 import json
 import os
+import queue
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -26,6 +27,7 @@ from umlbot.services.bus import (
     FeatureError,
     Message,
     Topics,
+    reply_value,
 )
 
 pytestmark = pytest.mark.network
@@ -414,3 +416,37 @@ def test_cancelled_async_calls_are_forgotten(client: BusClient) -> None:
     asyncio.run(main())
     assert client._pending == {}
     assert client.call("Motor", "value") == 42
+
+
+def test_request_then_calls_back_with_the_reply_or_the_lost_connection(
+    broker: BrokerProcess, server: ComponentServer
+) -> None:
+    # the ROS 2 bridge's way: no Future, the function runs on the network thread
+    got: queue.Queue[tuple[str, Any, Any]] = queue.Queue()
+    bus = BusClient(BrokerSettings.from_url(broker.url), ROBOT, role="test")
+    bus.start(5.0)
+    try:
+        noted = bus.new_request_id()
+        assert bus.request_then("Motor", "add", 1, 2, timeout=5.0, request_id=noted,
+                                then=lambda *outcome: got.put(outcome)) == noted
+        assert got.get(timeout=5) == (noted, {"id": noted, "ok": True, "value": 3}, None)
+        assert bus.new_request_id() != noted
+        other = bus.request_then("Motor", "refuse", then=lambda *outcome: got.put(outcome))
+        request_id, reply, error = got.get(timeout=5)
+        assert (request_id, reply["ok"], error) == (other, False, None)
+        assert reply["error"]["code"] == "out_of_range"
+        assert reply_value_error(reply) == "out_of_range"
+        slow = bus.request_then("Motor", "sleep", 2.0, timeout=5.0, then=lambda *outcome: got.put(outcome))
+    finally:
+        bus.close()  # the call in flight is told the connection is gone
+    request_id, reply, error = got.get(timeout=5)
+    assert (request_id, reply, type(error)) == (slow, None, NotConnected)
+    assert bus._pending == {}
+
+
+def reply_value_error(reply: dict[str, Any]) -> str:
+    try:
+        reply_value(reply, "Motor", "refuse")
+    except RemoteError as exc:
+        return exc.code
+    raise AssertionError("an error reply unwraps as RemoteError")

@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import time
 from collections.abc import Iterator
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
@@ -15,7 +16,8 @@ from conftest import BrokerProcess, RawClient
 from ros2_support import FastDdsPeer, build_peer, session_domain
 from services_support import ROBOT, client, deployment, running
 
-from umlbot.services.bus import BrokerSettings, Topics
+from umlbot.base.library import FeatureSpec, Param
+from umlbot.services.bus import BrokerSettings, ComponentServer, Feature, Topics
 from umlbot.services.ros2 import dds
 from umlbot.services.ros2.bridge import Ros2Bridge
 from umlbot.services.ros2.msgtypes import Types
@@ -145,3 +147,40 @@ def test_the_bridge_command_starts_and_stops(mosquitto_broker: BrokerProcess, tm
         if process.poll() is None:
             process.kill()
             process.wait()
+
+
+def test_a_call_in_flight_when_the_broker_goes_is_answered_not_connected(
+    mosquitto_broker: BrokerProcess,
+) -> None:
+    settings = BrokerSettings.from_url(mosquitto_broker.url)
+    builder = dds.TypeBuilder.of(Types.load())
+    slow = ComponentServer(settings, ROBOT, "Slow", "test", [
+        Feature(FeatureSpec("nap", (Param("seconds", "float", 0, 5),), "float"),
+                lambda seconds: time.sleep(seconds) or seconds)])
+    slow.start(5.0)
+    try:
+        with Ros2Bridge(settings, ROBOT, DOMAIN):
+            caller = dds.ServiceClient(builder, DOMAIN, f"/umlbot/{ROBOT}/call",
+                                       "umlbot_msgs/srv/CallFeature")
+            try:
+                assert caller.wait_for_server(10.0)
+                request = caller.request()
+                request.component, request.feature, request.args_json = "Slow", "nap", "[0.05]"
+                reply = caller.call(request, 5.0)
+                assert (reply.ok, reply.value_json) == (True, "0.05")  # answered by its reply
+                request = caller.request()
+                request.component, request.feature, request.args_json = "Slow", "nap", "[3]"
+                request.timeout_s = 10.0
+                with ThreadPoolExecutor(1) as pool:
+                    pending = pool.submit(caller.call, request, 8.0)
+                    time.sleep(0.5)
+                    started = time.monotonic()
+                    mosquitto_broker.stop()
+                    reply = pending.result(8.0)
+                # answered when the connection went, not at the call's time-out (10 s)
+                assert (reply.ok, reply.error_code) == (False, "not_connected"), reply
+                assert time.monotonic() - started < 2.5
+            finally:
+                caller.close()
+    finally:
+        slow.stop()

@@ -15,6 +15,7 @@ import json
 import os
 import threading
 import time
+from collections.abc import Callable
 from concurrent.futures import Future, InvalidStateError
 from concurrent.futures import TimeoutError as FutureTimeout
 from typing import TYPE_CHECKING, Any, Protocol
@@ -63,6 +64,29 @@ class _LoopWaiter:
     def set_exception(self, exception: BaseException | None) -> None:
         with contextlib.suppress(RuntimeError):
             self._loop.call_soon_threadsafe(_resolve, self._future, exception)
+
+
+#: what a `request_then` callback gets: the request id, and the raw reply envelope or None and
+#: the exception
+ReplyCallback = Callable[[str, dict[str, Any] | None, BaseException | None], None]
+
+
+class _CallbackWaiter:
+    """A `request_then`'s reply hand-off: calls its function on the network thread, nothing else
+    (no `Future`, its condition and its list of callbacks made and run for every call)."""
+
+    __slots__ = ("_callback", "_request_id")
+
+    def __init__(self, callback: ReplyCallback, request_id: str) -> None:
+        self._callback = callback
+        self._request_id = request_id
+
+    def set_result(self, result: dict[str, Any]) -> None:
+        self._callback(self._request_id, result, None)
+
+    def set_exception(self, exception: BaseException | None) -> None:
+        self._callback(self._request_id, None,
+                       exception or NotConnected("the connection to the MQTT broker was lost"))
 
 
 #: what an `acall`'s future resolves to when its time-out came first.
@@ -140,15 +164,17 @@ class BusClient:
 
     def _send(
         self, component: str, feature: str, args: tuple[Any, ...], timeout_s: float, waiter: _Waiter,
-        ack_wait_s: float | None = None,
+        ack_wait_s: float | None = None, *, request_id: str | None = None,
     ) -> str:
-        """Publish the request; `waiter` gets the reply (or NotConnected). Returns the request id."""
+        """Publish the request; `waiter` gets the reply (or NotConnected). Returns the request id
+        (`request_id`, else a new one)."""
         if not self.connection.connected:
             raise NotConnected(
                 f"cannot call {component}.{feature}: not connected to the MQTT broker at "
                 f"{self.connection.settings.url}"
             )
-        request_id = f"{self._id_prefix}{next(self._ids)}"
+        if request_id is None:
+            request_id = self.new_request_id()
         with self._pending_lock:
             self._pending[request_id] = waiter
         # the time-out goes with the request: a monitor reports it unanswered when this caller gives up
@@ -167,6 +193,10 @@ class BusClient:
                 self._pending.pop(request_id, None)
             raise
         return request_id
+
+    def new_request_id(self) -> str:
+        """A request id of this client's, never used before (for `request_then`)."""
+        return f"{self._id_prefix}{next(self._ids)}"
 
     def call(self, component: str, feature: str, *args: Any, timeout: float = 2.0,
              acknowledged: bool = False) -> Any:
@@ -194,6 +224,20 @@ class BusClient:
         future's callbacks run on the network thread (they must return at once); the caller
         times the call out with `forget(request_id)`. `reply_value` unwraps a reply."""
         return self._request(component, feature, args, timeout)
+
+    def request_then(self, component: str, feature: str, *args: Any, timeout: float = 2.0,
+                     then: ReplyCallback, request_id: str | None = None) -> str:
+        """Send a call without waiting; `then(request_id, reply, None)` with the raw reply
+        envelope, or `then(request_id, None, exception)` when the connection is lost, runs on the
+        network thread (it must return at once). What `request` does without a `Future` in
+        between (the ROS 2 bridge answers its DDS requests this way). Returns the request id:
+        `request_id` (from `new_request_id()`, for a caller that notes it before the reply can
+        come), else a new one; the caller times the call out with `forget(request_id)`.
+        `reply_value` unwraps a reply."""
+        if request_id is None:
+            request_id = self.new_request_id()
+        return self._send(component, feature, args, timeout, _CallbackWaiter(then, request_id),
+                          request_id=request_id)
 
     def forget(self, request_id: str) -> bool:
         """Stop waiting for a request's reply; False when it had come (or was forgotten)."""

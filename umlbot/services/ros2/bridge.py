@@ -21,7 +21,6 @@ import json
 import math
 import threading
 import time
-from concurrent.futures import Future
 from typing import Any
 
 from umlbot.base.errors import BusError, RemoteError
@@ -228,12 +227,19 @@ class Ros2Bridge:
                 args = [args]
             timeout = request.timeout_s if request.timeout_s > 0 else self.call_timeout_s
             component, feature = str(request.component), str(request.feature)
-            request_id, future = self.bus.request(component, feature, *args, timeout=timeout)
-        except (BusError, ValueError) as exc:
+        except ValueError as exc:
             return self._response(request, "bad_request", str(exc))
+        # noted before it leaves: the reply may come before this thread runs again
+        request_id = self.bus.new_request_id()
         with self._calls_lock:
             self._calls[request_id] = (time.monotonic() + timeout, request, component, feature)
-        future.add_done_callback(lambda done: self._answered(request_id, done))
+        try:
+            self.bus.request_then(component, feature, *args, timeout=timeout, then=self._answered,
+                                  request_id=request_id)
+        except (BusError, ValueError) as exc:
+            with self._calls_lock:
+                self._calls.pop(request_id, None)
+            return self._response(request, "bad_request", str(exc))
         return None
 
     def _response(self, request: Any, code: str = "", message: str = "", value: Any = None) -> Any:
@@ -249,20 +255,22 @@ class Ros2Bridge:
             except Exception:  # DDS shutting down
                 log.debug("ros2_bridge_respond_failed", request_id=request_id)
 
-    def _answered(self, request_id: str, done: Future[dict[str, Any]]) -> None:
-        """The MQTT reply came (on the network thread: only a DDS write here). Whoever takes the
-        call out of `_calls` first answers it: this or the sweeper."""
+    def _answered(self, request_id: str, reply: dict[str, Any] | None, error: BaseException | None) -> None:
+        """The MQTT reply came (on the network thread: only a DDS write here), or the connection
+        was lost (`error`). Whoever takes the call out of `_calls` first answers it: this or the
+        sweeper."""
         with self._calls_lock:
             entry = self._calls.pop(request_id, None)
         if entry is None:
             return
         _, request, component, feature = entry
-        try:
-            response = self._response(request, value=reply_value(done.result(), component, feature))
-        except RemoteError as exc:
-            response = self._response(request, exc.code, exc.message)
-        except Exception as exc:  # NotConnected: the broker went away
-            response = self._response(request, "not_connected", str(exc))
+        if reply is None:  # NotConnected: the broker went away
+            response = self._response(request, "not_connected", str(error))
+        else:
+            try:
+                response = self._response(request, value=reply_value(reply, component, feature))
+            except RemoteError as exc:
+                response = self._response(request, exc.code, exc.message)
         self._respond(request_id, request, response)
 
     def _sweep(self) -> None:
