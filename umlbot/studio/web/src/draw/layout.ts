@@ -6,6 +6,7 @@
 import type { ElkExtendedEdge, ElkNode } from "elkjs/lib/elk-api.js";
 import ELK from "elkjs/lib/elk-api.js";
 import type { ModelDiagram, ModelLane, ModelNode, ModelView } from "../model/types";
+import { keepLayout, layoutKey, layoutStats, storedLayout } from "./layout-store";
 import { type Dir, grow, middle, pathCrosses, type Rect, route } from "./route";
 
 export const FONT = "system-ui, -apple-system, 'Segoe UI', Roboto, 'DejaVu Sans', sans-serif";
@@ -261,7 +262,7 @@ async function layoutLane(lane: ModelLane, hints?: Hints): Promise<LaneGeom> {
       return edge;
     });
   const graph: ElkNode = { id: "root", layoutOptions: hints ? INTERACTIVE_OPTIONS : LANE_OPTIONS, children, edges };
-  const out = await engine().layout(graph);
+  const out = await laidOut(graph, !hints);
   const nodes: NodeBox[] = [];
   const byId = new Map(lane.nodes.map((n) => [n.id, n]));
   for (const c of out.children ?? []) {
@@ -302,6 +303,21 @@ async function layoutLane(lane: ModelLane, hints?: Hints): Promise<LaneGeom> {
   const h = out.height ?? 100;
   w = Math.max(w, textWidth(lane.name, 15, "600") + 80, 180);
   return { lane, x: 0, y: 0, w, h: h + HEADER_H, headerH: HEADER_H, nodes, edges: edgeGeoms };
+}
+
+/**
+ * ELK's layout of `graph`; a fresh layout (no hints: they are this page's own drawing) is first
+ * looked up in the studio server's layout cache under the hash of exactly this input, and what
+ * ELK makes is sent there (src/draw/layout-store.ts, docs/studio.md "Layout cache").
+ */
+async function laidOut(graph: ElkNode, keep: boolean): Promise<ElkNode> {
+  const key = keep ? layoutKey(graph) : null;
+  const stored = key ? await storedLayout(key, graph) : null;
+  if (stored) return stored;
+  layoutStats.elk += 1;
+  const out = await engine().layout(graph);
+  if (key) keepLayout(key, out);
+  return out;
 }
 
 // Layouts by diagram text: a reconnect or a recompile that left a diagram alone reuses its layout.
