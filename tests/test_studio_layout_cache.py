@@ -220,3 +220,17 @@ def test_check_layout_keeps_only_the_drawn_fields_and_refuses_a_non_layout() -> 
         check_layout({**LAYOUT, "edges": [{"id": "e", "sections": [], "labels": [{}] * 5}]})
     with pytest.raises(LayoutError, match=r"children\[0\]\.id is not an id"):
         check_layout({**LAYOUT, "children": [{"id": "", "x": 0, "y": 0}]})
+
+
+def test_requests_at_once_all_find_the_shipped_layouts(tmp_path: Path) -> None:
+    """The page asks for its lanes at once and the server reads in threads: the first request's
+    read of the shipped file is waited for, not taken for empty."""
+    keys = [f"{i:064x}" for i in range(12)]
+    write_shipped(tmp_path / SHIPPED_NAME, dict.fromkeys(keys, LAYOUT))
+    cache = LayoutCache(tmp_path / "user", [tmp_path / SHIPPED_NAME])
+
+    async def steps(client: aiohttp.ClientSession, url: str) -> list[int]:
+        answers = await asyncio.gather(*(_get(client, url, key) for key in keys))
+        return [status for status, _ in answers]
+
+    assert run(cache, steps) == [200] * len(keys)

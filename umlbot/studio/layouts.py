@@ -28,6 +28,7 @@ import math
 import os
 import re
 import tempfile
+import threading
 from pathlib import Path
 from typing import Any, Protocol
 
@@ -152,6 +153,7 @@ class LayoutCache:
         self.shipped = list(shipped or [])
         self._shipped: dict[str, dict[str, Any]] | None = None
         self._write_failed = False
+        self._lock = threading.Lock()
 
     @classmethod
     def for_model(cls, model: Path | None) -> LayoutCache:
@@ -166,11 +168,13 @@ class LayoutCache:
     # --- reading ---------------------------------------------------------------------------------
 
     def _load_shipped(self) -> dict[str, dict[str, Any]]:
-        if self._shipped is None:
-            self._shipped = {}
-            for path in self.shipped:
-                self._shipped.update(read_shipped(path))
-        return self._shipped
+        with self._lock:  # requests are served in threads: the second waits for the first's read
+            if self._shipped is None:
+                shipped: dict[str, dict[str, Any]] = {}
+                for path in self.shipped:
+                    shipped.update(read_shipped(path))
+                self._shipped = shipped
+            return self._shipped
 
     def get(self, key: str) -> dict[str, Any] | None:
         """The layout kept under `key`, or None."""
