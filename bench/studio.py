@@ -335,6 +335,10 @@ def _first_sample(browser: Any, url: str) -> dict[str, Any]:
     first: dict[str, Any] = page.evaluate("window.__first")
     dcl = page.evaluate("performance.getEntriesByType('navigation')[0].domContentLoadedEventEnd")
     layouts = page.evaluate("window.__studio.layouts ? {...window.__studio.layouts} : null")
+    # the layout cache's first request (the first diagram's lane): when it left, how long it took
+    lookup = page.evaluate("(() => { const e = performance.getEntriesByType('resource')"
+                           ".find(r => r.name.includes('/api/layout/'));"
+                           " return e ? [e.startTime, e.duration] : null; })()")
     said_re = rf"studio: {first['id']} laid out in (\d+) ms, drawn in (\d+) ms"
     split = next((m for m in (re.search(said_re, text) for text in said) if m), None)
     context.close()
@@ -343,6 +347,8 @@ def _first_sample(browser: Any, url: str) -> dict[str, Any]:
             "dom_content_loaded_ms": round(dcl, 1),
             "layout_ms": int(split.group(1)) if split else None,
             "render_ms": int(split.group(2)) if split else None,
+            "layout_lookup_at_ms": round(lookup[0], 1) if lookup else None,
+            "layout_lookup_ms": round(lookup[1], 1) if lookup else None,
             "layouts": layouts}
 
 
