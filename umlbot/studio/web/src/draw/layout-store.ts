@@ -20,6 +20,10 @@ export const layoutStats = {
   kept: 0,
   /** answers from the cache that did not fit their graph (ELK ran) */
   unfit: 0,
+  /** background layouts of a cached lane (ELK's warm-up; src/draw/layout.ts) */
+  warmed: 0,
+  /** of those, layouts that differed from the cached one */
+  differ: 0,
 };
 
 interface P {
