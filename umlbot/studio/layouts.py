@@ -254,7 +254,9 @@ class LayoutCache:
             key = request.match_info["key"]
             if not KEY.fullmatch(key):
                 raise web.HTTPBadRequest(text="a layout key is 64 lower-case hex digits (SHA-256)")
-            layout = await _in_thread(self.get, key)
+            # on the loop: a small file read (~0.1 ms; the shipped file's first read ~2 ms), not a
+            # hop to the default executor, which the editing session's work also uses
+            layout = self.get(key)
             if layout is None:
                 raise web.HTTPNotFound(text="no layout kept under this key")
             return _json({"key": key, "layout": layout})
