@@ -47,6 +47,26 @@ async def _serve(cache: LayoutCache) -> AsyncGenerator[tuple[StudioServer, str],
         await server.stop()
 
 
+class Said:
+    """The layout cache's log, recorded (whatever an earlier test configured logging to)."""
+
+    def __init__(self) -> None:
+        self.lines: list[str] = []
+
+    def warning(self, event: str, **fields: Any) -> None:
+        self.lines.append(event)
+
+    def text(self) -> str:
+        return "\n".join(self.lines)
+
+
+@pytest.fixture
+def said(monkeypatch: pytest.MonkeyPatch) -> Said:
+    recorder = Said()
+    monkeypatch.setattr(layouts_module, "log", recorder)
+    return recorder
+
+
 def run(cache: LayoutCache, steps: Any) -> Any:
     async def main() -> Any:
         gen = _serve(cache)
@@ -157,8 +177,7 @@ def test_a_foreign_page_and_a_studio_others_reach_add_no_layouts(tmp_path: Path)
     assert not StudioServer(data, host="192.0.2.7", allow_remote=True).keeps_layouts()
 
 
-def test_a_bad_entry_or_shipped_file_is_a_miss_with_a_log_line(
-        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_a_bad_entry_or_shipped_file_is_a_miss_with_a_log_line(tmp_path: Path, said: Said) -> None:
     folder = tmp_path / "layouts"
     folder.mkdir()
     (folder / f"{KEY}.json").write_text("{not json", encoding="utf-8")
@@ -172,7 +191,7 @@ def test_a_bad_entry_or_shipped_file_is_a_miss_with_a_log_line(
         return [await _get(client, url, KEY), await _get(client, url, OTHER)]
 
     assert [a[0] for a in run(cache, steps)] == [404, 404]
-    err = "".join(capsys.readouterr())
+    err = said.text()
     assert "layout cache: a bad entry is ignored" in err and "layout cache: a shipped file is ignored" in err
     # a shipped file with one bad entry: the others are served
     write_shipped(model / SHIPPED_NAME, {KEY: LAYOUT})
@@ -180,12 +199,11 @@ def test_a_bad_entry_or_shipped_file_is_a_miss_with_a_log_line(
     assert text.endswith("\n}}\n")
     (model / SHIPPED_NAME).write_text(text[:-4] + f',\n  "{OTHER}": {{"width": 1}}\n}}}}\n', encoding="utf-8")
     assert read_shipped(model / SHIPPED_NAME) == {KEY: LAYOUT}
-    assert "a shipped entry is ignored" in "".join(capsys.readouterr())
+    assert "a shipped entry is ignored" in said.text()
     assert LayoutCache(tmp_path / "empty", [model / SHIPPED_NAME]).get(KEY) == LAYOUT
 
 
-def test_a_cache_that_cannot_be_written_is_no_cache_not_an_error(
-        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_a_cache_that_cannot_be_written_is_no_cache_not_an_error(tmp_path: Path, said: Said) -> None:
     blocker = tmp_path / "cache"
     blocker.write_text("a file where the cache folder would be", encoding="utf-8")
     cache = LayoutCache(blocker / "umlbot" / "layouts")
@@ -198,7 +216,7 @@ def test_a_cache_that_cannot_be_written_is_no_cache_not_an_error(
     answers = run(cache, steps)
     assert answers[:2] == [(200, {"kept": False})] * 2
     assert answers[2][0] == 404
-    assert "".join(capsys.readouterr()).count("layout cache: cannot write") == 1  # said once
+    assert said.text().count("layout cache: cannot write") == 1  # said once
 
 
 def test_the_environment_chooses_the_caches(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
