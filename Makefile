@@ -11,7 +11,7 @@ TRACK  ?= models/tracks/s_bend.yaml
 SPEED  ?= 10
 OUT    ?= out
 
-.PHONY: all install system-packages test lint typecheck pytest test-systemd web sim bench clean studio doc-images
+.PHONY: all install system-packages test lint typecheck pytest test-systemd web sim bench clean studio doc-images layout-cache
 
 all: test
 
@@ -80,6 +80,12 @@ studio:
 # The screenshots of docs/studio.md's tutorial, taken by doing its steps in a real page (Chromium).
 doc-images: system-packages $(STAMP)
 	$(BIN)/python scripts/studio_doc_images.py --out docs/images
+
+# The layouts shipped beside the reference models (models/*/layout-cache.json, docs/studio.md
+# "Layout cache"): laid out afresh by the page in Chromium; run it after a change of the layout code,
+# of ELK or of a reference model (tests/test_studio_layout_cache_browser.py says when).
+layout-cache: system-packages $(STAMP)
+	$(BIN)/python scripts/layout_cache.py
 
 clean:
 	rm -rf $(VENV) $(OUT) .mypy_cache .ruff_cache .pytest_cache build *.egg-info

@@ -33,6 +33,8 @@ Both parts run a real broker (Mosquitto, or the embedded amqtt with --broker amq
   navigation's start, when its progress indication ("Opening the model…") first shows and when
   the first diagram's nodes are drawn (the page's DOMContentLoaded beside them as the baseline),
   and the page's own split of that diagram's time: ELK's layout (in its worker) and the drawing.
+  As a fresh clone opens it (an empty user layout cache, the layouts shipped beside the model),
+  alternated with the same open with the layout cache off (`elk_baseline`: ELK every time).
   Target: the first diagram <= 1 000 ms at p50, the progress indication shown before it. No broker.
 
 The last output line is one JSON object {"latency": {...}, "load": {...}, "edit": {...},
@@ -46,6 +48,7 @@ The last output line is one JSON object {"latency": {...}, "load": {...}, "edit"
 from __future__ import annotations
 
 import argparse
+import contextlib
 import gc
 import json
 import os
@@ -341,38 +344,68 @@ requestAnimationFrame(look);
 def measure_first(browser: Any, samples: int, workdir: Path) -> dict[str, Any]:
     """How long after the page opens (navigation start) the reference car's first diagram is drawn,
     and when the progress indication shows before it; each sample in a new browser context (no
-    cached script: a new user's first open). The page's own DOMContentLoaded is the baseline."""
-    env = {k: v for k, v in os.environ.items() if k not in ("UMLBOT_ROBOT", "UMLBOT_BROKER")}
-    env["UMLBOT_BROKER"] = "mqtt://127.0.0.1:1"  # no broker: the drawing only
-    runs: list[dict[str, Any]] = []
+    cached script: a new user's first open). The page's own DOMContentLoaded is the baseline.
+    Two studios side by side, their samples alternated (the same load): one as a fresh clone has it
+    (an empty user layout cache, the layouts shipped beside the model: what the target is about)
+    and one with the layout cache off (ELK lays out every open: `elk_baseline`)."""
+    base = {k: v for k, v in os.environ.items() if k not in ("UMLBOT_ROBOT", "UMLBOT_BROKER")}
+    base["UMLBOT_BROKER"] = "mqtt://127.0.0.1:1"  # no broker: the drawing only
+    envs = {"cached": {**base, "XDG_CACHE_HOME": str(workdir / "xdg-first")},
+            "elk": {**base, "UMLBOT_LAYOUT_CACHE": "off"}}
+    runs: dict[str, list[dict[str, Any]]] = {"cached": [], "elk": []}
     load_before = os.getloadavg()[0]
-    with child(umlbot("studio", str(CAR), "--port", "0"), env, workdir / "studio-first.log") as proc:
-        url = studio_url(proc)
+    with contextlib.ExitStack() as stack:
+        urls = {name: studio_url(stack.enter_context(child(umlbot("studio", str(CAR), "--port", "0"), env,
+                                                           workdir / f"studio-first-{name}.log")))
+                for name, env in envs.items()}
         for _ in range(samples):
-            context = browser.new_context(viewport={"width": 1600, "height": 1000})
-            page = context.new_page()
-            page.add_init_script(FIRST_DRAWN)
-            said: list[str] = []  # the page's own "studio: <id> laid out in N ms, drawn in M ms"
-            page.on("console", lambda message, said=said: said.append(message.text))
-            page.goto(url)
-            page.wait_for_function("window.__first && window.__first.diagram !== undefined", timeout=120_000)
-            first: dict[str, Any] = page.evaluate("window.__first")
-            dcl = page.evaluate("performance.getEntriesByType('navigation')[0].domContentLoadedEventEnd")
-            said_re = rf"studio: {first['id']} laid out in (\d+) ms, drawn in (\d+) ms"
-            split = next((m for m in (re.search(said_re, text) for text in said) if m), None)
-            runs.append({"diagram": first["id"], "progress_ms": round(first.get("progress", -1), 1),
-                         "first_diagram_ms": round(first["diagram"], 1),
-                         "dom_content_loaded_ms": round(dcl, 1),
-                         "layout_ms": int(split.group(1)) if split else None,
-                         "render_ms": int(split.group(2)) if split else None})
-            context.close()
+            for name, url in urls.items():
+                runs[name].append(_first_sample(browser, url))
+    out = _first_summary(runs["cached"])
+    out["layouts"] = runs["cached"][-1]["layouts"]
+    out["elk_baseline"] = _first_summary(runs["elk"])
+    out["first_diagram_p50_ratio_to_elk"] = round(out["first_diagram_p50_ms"]
+                                                  / out["elk_baseline"]["first_diagram_p50_ms"], 3)
+    out["load_average"] = [round(load_before, 2), round(os.getloadavg()[0], 2)]
+    return out
+
+
+def _first_sample(browser: Any, url: str) -> dict[str, Any]:
+    context = browser.new_context(viewport={"width": 1600, "height": 1000})
+    page = context.new_page()
+    page.add_init_script(FIRST_DRAWN)
+    said: list[str] = []  # the page's own "studio: <id> laid out in N ms, drawn in M ms"
+    page.on("console", lambda message, said=said: said.append(message.text))
+    page.goto(url)
+    page.wait_for_function("window.__first && window.__first.diagram !== undefined", timeout=120_000)
+    first: dict[str, Any] = page.evaluate("window.__first")
+    dcl = page.evaluate("performance.getEntriesByType('navigation')[0].domContentLoadedEventEnd")
+    layouts = page.evaluate("window.__studio.layouts ? {...window.__studio.layouts} : null")
+    # the layout cache's first request (the first diagram's lane): when it left, how long it took
+    lookup = page.evaluate("(() => { const e = performance.getEntriesByType('resource')"
+                           ".find(r => r.name.includes('/api/layout/'));"
+                           " return e ? [e.startTime, e.duration] : null; })()")
+    said_re = rf"studio: {first['id']} laid out in (\d+) ms, drawn in (\d+) ms"
+    split = next((m for m in (re.search(said_re, text) for text in said) if m), None)
+    context.close()
+    return {"diagram": first["id"], "progress_ms": round(first.get("progress", -1), 1),
+            "first_diagram_ms": round(first["diagram"], 1),
+            "dom_content_loaded_ms": round(dcl, 1),
+            "layout_ms": int(split.group(1)) if split else None,
+            "render_ms": int(split.group(2)) if split else None,
+            "layout_lookup_at_ms": round(lookup[0], 1) if lookup else None,
+            "layout_lookup_ms": round(lookup[1], 1) if lookup else None,
+            "layouts": layouts}
+
+
+def _first_summary(runs: list[dict[str, Any]]) -> dict[str, Any]:
     drawn = [r["first_diagram_ms"] for r in runs]
-    return {"samples": runs, "diagram": runs[0]["diagram"],
+    return {"samples": [{k: v for k, v in r.items() if k != "layouts"} for r in runs],
+            "diagram": runs[0]["diagram"],
             "first_diagram_p50_ms": round(statistics.median(drawn), 1),
             "first_diagram_max_ms": round(max(drawn), 1),
             "progress_max_ms": round(max(r["progress_ms"] for r in runs), 1),
-            "progress_before_diagram": all(0 <= r["progress_ms"] < r["first_diagram_ms"] for r in runs),
-            "load_average": [round(load_before, 2), round(os.getloadavg()[0], 2)]}
+            "progress_before_diagram": all(0 <= r["progress_ms"] < r["first_diagram_ms"] for r in runs)}
 
 
 def measure_edit(browser: Any, nodes: int, edits: int, workdir: Path) -> dict[str, Any]:

@@ -98,6 +98,9 @@ def command(model: Path, broker_url: str | None, ca_file: Path | None, robot: st
         result = check_model(model)
         data = studio_data(model, robot, mode="replay" if replay_file else "live", result=result)
         server = StudioServer(data, host=host, port=port, allow_remote=allow_remote)
+    from umlbot.studio.layouts import LayoutCache
+
+    server.layouts = LayoutCache.for_model(model)  # with the model's shipped layouts, if any
     source: RobotFollower | None = None
     what = f"replay of {replay_file}"
     notes: list[str] = []

@@ -32,6 +32,7 @@ from umlbot.base.errors import ConfigError
 from umlbot.base.logs import get_logger
 from umlbot.studio.data import MAX_BODY, StudioData
 from umlbot.studio.hub import CLOSE_TOO_SLOW, MAX_PAGE_CHARS, Hub, Page, dumps
+from umlbot.studio.layouts import LayoutCache
 
 log = get_logger(__name__)
 
@@ -126,6 +127,9 @@ class StudioServer:
     page_limit: int = MAX_PAGE_CHARS
     #: seconds between pings to each page; a page that does not answer one is closed.
     heartbeat_s: float = 20.0
+    #: the layouts the page computed, kept (`/api/layout`, `umlbot.studio.layouts`); the command
+    #: sets the model's own (with its shipped file), else the user's cache only.
+    layouts: LayoutCache = field(default_factory=lambda: LayoutCache.for_model(None))
     _runner: web.AppRunner | None = None
     _tasks: list[asyncio.Task[None]] = field(default_factory=list)
 
@@ -136,6 +140,7 @@ class StudioServer:
         app.router.add_get("/", self._index)
         app.router.add_get("/ws", self._socket)
         app.router.add_static("/static/", static_dir(), follow_symlinks=False)
+        self.layouts.routes(app, self)
         if self.api is not None:
             self.api.routes(app, self)
         for add_routes in self.extra_routes:
@@ -253,6 +258,11 @@ class StudioServer:
         async for message in ws:
             if message.type == WSMsgType.ERROR:
                 break
+
+    def keeps_layouts(self) -> bool:
+        """Whether a page may add to the layout cache: only on a loopback bind (a studio others can
+        reach serves the layouts kept, it takes none from them)."""
+        return is_loopback(self.host)
 
     def check_origin(self, request: web.Request) -> None:
         """Refuse a request from a page of another origin (and, on loopback, a foreign Host)."""

@@ -1,6 +1,7 @@
 // `window.__studio`: what the page shows tests, benchmarks and the docs' screenshots (the browser
 // tests wait on these; tests/test_studio_*browser.py, bench/studio.py, scripts/studio_doc_images.py).
 
+import { layoutStats } from "../draw/layout-store";
 import type { Op } from "../model/types";
 
 export interface StudioHooks {
@@ -26,6 +27,8 @@ export interface StudioHooks {
   reveal: (lane: string, node: string) => void;
   /** how clean diagram `id` is drawn: flow crossings and guard labels overlapped or struck */
   quality: (id: string) => { crossings: number; labels: number; flows: number } | null;
+  /** how the lanes were laid out: by ELK, or taken from the layout cache (docs/studio.md) */
+  layouts: typeof layoutStats;
 }
 
 export interface EditHooks {
@@ -70,6 +73,7 @@ export function createHooks(): StudioHooks {
     durationCounters: () => 0,
     reveal: () => undefined,
     quality: () => null,
+    layouts: layoutStats,
   };
   window.__studio = hooks;
   return hooks;

@@ -6,6 +6,7 @@
 import type { ElkExtendedEdge, ElkNode } from "elkjs/lib/elk-api.js";
 import ELK from "elkjs/lib/elk-api.js";
 import type { ModelDiagram, ModelLane, ModelNode, ModelView } from "../model/types";
+import { keepLayout, keptPart, layoutKey, layoutStats, storedLayout } from "./layout-store";
 import { type Dir, grow, middle, pathCrosses, type Rect, route } from "./route";
 
 export const FONT = "system-ui, -apple-system, 'Segoe UI', Roboto, 'DejaVu Sans', sans-serif";
@@ -261,7 +262,7 @@ async function layoutLane(lane: ModelLane, hints?: Hints): Promise<LaneGeom> {
       return edge;
     });
   const graph: ElkNode = { id: "root", layoutOptions: hints ? INTERACTIVE_OPTIONS : LANE_OPTIONS, children, edges };
-  const out = await engine().layout(graph);
+  const out = await laidOut(graph, !hints);
   const nodes: NodeBox[] = [];
   const byId = new Map(lane.nodes.map((n) => [n.id, n]));
   for (const c of out.children ?? []) {
@@ -302,6 +303,50 @@ async function layoutLane(lane: ModelLane, hints?: Hints): Promise<LaneGeom> {
   const h = out.height ?? 100;
   w = Math.max(w, textWidth(lane.name, 15, "600") + 80, 180);
   return { lane, x: 0, y: 0, w, h: h + HEADER_H, headerH: HEADER_H, nodes, edges: edgeGeoms };
+}
+
+/**
+ * ELK's layout of `graph`; a fresh layout (no hints: they are this page's own drawing) is first
+ * looked up in the studio server's layout cache under the hash of exactly this input, and what
+ * ELK makes is sent there (src/draw/layout-store.ts, docs/studio.md "Layout cache").
+ */
+async function laidOut(graph: ElkNode, keep: boolean): Promise<ElkNode> {
+  const key = keep ? layoutKey(graph) : null;
+  const stored = key ? await storedLayout(key, graph) : null;
+  if (stored) {
+    warmLater(key as string, graph, stored);
+    return stored;
+  }
+  layoutStats.elk += 1;
+  const out = await engine().layout(graph);
+  if (key) keepLayout(key, out);
+  return out;
+}
+
+let warming = false;
+/**
+ * Once per page, a second after a lane came from the layout cache: ELK lays that lane out in the
+ * background, so that the first edit does not pay ELK's cold start (its first layout of a big
+ * lane takes ~2.5 x a warm one), and its answer is compared with the cached one: a difference (the
+ * cache would not draw what ELK draws) is said in the console, counted, and ELK's layout replaces
+ * the entry in the user's cache, which is looked up before a shipped file.
+ */
+function warmLater(key: string, graph: ElkNode, stored: ElkNode): void {
+  if (warming) return;
+  warming = true;
+  setTimeout(() => {
+    engine()
+      .layout(graph)
+      .then((out) => {
+        layoutStats.warmed += 1;
+        if (JSON.stringify(keptPart(out)) !== JSON.stringify(keptPart(stored))) {
+          layoutStats.differ += 1;
+          console.warn("studio: a cached layout differs from ELK's; ELK's is kept for the next open");
+          keepLayout(key, out);
+        }
+      })
+      .catch(() => undefined);
+  }, 1000);
 }
 
 // Layouts by diagram text: a reconnect or a recompile that left a diagram alone reuses its layout.
