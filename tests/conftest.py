@@ -173,6 +173,22 @@ class BrokerProcess:
         )
 
 
+@pytest.fixture(autouse=True, scope="session")
+def _session_cache_home(tmp_path_factory: pytest.TempPathFactory) -> Iterator[None]:
+    """The caches the product keeps under `$XDG_CACHE_HOME` (the studio's layouts, built C++
+    programs) in a folder of the test session's own: no test reads what an earlier run or the
+    user left in ~/.cache, nor writes there. A test that wants an empty one sets its own."""
+    before = os.environ.get("XDG_CACHE_HOME")
+    os.environ["XDG_CACHE_HOME"] = str(tmp_path_factory.mktemp("xdg-cache"))
+    try:
+        yield
+    finally:
+        if before is None:
+            os.environ.pop("XDG_CACHE_HOME", None)
+        else:
+            os.environ["XDG_CACHE_HOME"] = before
+
+
 def _broker(kind: BrokerKind, tmp_path_factory: pytest.TempPathFactory) -> Iterator[BrokerProcess]:
     if kind == "mosquitto" and find_mosquitto() is None:
         pytest.fail("the mosquitto binary is required (apt-get install mosquitto)")
