@@ -134,3 +134,42 @@ def test_a_studio_that_edits_refuses_to_listen_beyond_loopback(tmp_path: Path) -
     server.api = EditApi(Workspace(tmp_path / "new"))
     with pytest.raises(ConfigError, match=r"edits a model only on a loopback --host, not 0\.0\.0\.0"):
         asyncio.run(server.start())
+
+
+def test_the_library_answer_does_not_hold_up_the_pages_other_first_requests(
+        car: tuple[Path, Editor], monkeypatch: pytest.MonkeyPatch) -> None:
+    """`/api/library` is made once (every implementation's settings schema: seconds on a busy
+    machine), off the event loop: the page's layout lookup and files are answered meanwhile."""
+    import threading
+    import time
+
+    import umlbot.studio.api as api
+
+    _, editor = car
+    release = threading.Event()
+    made = api._library()
+
+    def slow() -> dict[str, Any]:
+        release.wait(10.0)
+        return made
+
+    monkeypatch.setattr(api, "_library", slow)
+
+    async def go() -> tuple[float, float, dict[str, Any]]:
+        async with aiohttp.ClientSession() as client:
+            library = asyncio.ensure_future(client.get(f"{editor.url}api/library"))
+            await asyncio.sleep(0.2)  # the library's request is in, waiting for the slow answer
+            started = time.monotonic()
+            async with client.get(f"{editor.url}api/files") as files:
+                assert files.status == 200
+            async with client.get(f"{editor.url}api/layout/{'0' * 64}") as layout:
+                assert layout.status == 404  # nothing kept under that key: asked and answered
+            others = time.monotonic() - started
+            assert not library.done()
+            release.set()
+            async with await library as answer:
+                return others, time.monotonic() - started, await answer.json()
+
+    others, total, answer = asyncio.run(go())
+    assert others < 5.0 and total >= others  # not behind the library's answer (held for 10 s)
+    assert answer == json.loads(json.dumps(made))

@@ -45,6 +45,7 @@ class EditApi:
         self._lock = asyncio.Lock()
         self._loop: asyncio.AbstractEventLoop | None = None
         self.run: StudioRun | None = None
+        self._warming: asyncio.Future[dict[str, Any]] | None = None  # the library's answer, made at start-up
         #: called with the model's name when the model on disk gets another one (the robot id
         #: follows it when neither --robot nor $UMLBOT_ROBOT chose one); on a worker thread.
         self.on_name: Callable[[str], None] | None = None
@@ -55,6 +56,7 @@ class EditApi:
         self.server = server
         self.run = StudioRun(server.hub, self.broadcast, say=lambda line: self._say_run(line))
         app.router.add_get("/api/library", self._library)
+        app.on_startup.append(self._warm)
         app.router.add_get("/api/files", self._files)
         app.router.add_get("/api/tracks", self._tracks)
         posts: dict[str, Handler] = {
@@ -76,10 +78,14 @@ class EditApi:
     # --- reading ---------------------------------------------------------------------------------
 
     async def _library(self, request: web.Request) -> web.StreamResponse:
-        from umlbot.studio.library_view import library
-
         self._guard(request)
-        return _json(library())
+        # made once (every implementation's settings schema: ~0.5 s here, seconds on a busy
+        # machine) in a worker thread, started with the studio (`_warm`): on the event loop it
+        # held up the page's other first requests, its layout lookup among them, for as long
+        return _json(await asyncio.get_running_loop().run_in_executor(None, _library))
+
+    async def _warm(self, app: web.Application) -> None:
+        self._warming = asyncio.get_running_loop().run_in_executor(None, _library)
 
     async def _files(self, request: web.Request) -> web.StreamResponse:
         self._guard(request)
@@ -252,3 +258,9 @@ async def _body(request: web.Request) -> dict[str, Any]:
 def _json(data: Any, status: int = 200) -> web.Response:
     return web.Response(text=dumps(data), status=status, content_type="application/json",
                         headers={"Cache-Control": "no-store"})
+
+
+def _library() -> dict[str, Any]:
+    from umlbot.studio.library_view import library
+
+    return library()
