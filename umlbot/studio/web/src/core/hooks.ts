@@ -26,6 +26,8 @@ export interface StudioHooks {
   reveal: (lane: string, node: string) => void;
   /** how clean diagram `id` is drawn: flow crossings and guard labels overlapped or struck */
   quality: (id: string) => { crossings: number; labels: number; flows: number } | null;
+  /** every collapsible region of diagram `id` open, or back to the opening view (features/regions) */
+  regions: (id: string, how: "open" | "opening") => void;
 }
 
 export interface EditHooks {
@@ -70,6 +72,7 @@ export function createHooks(): StudioHooks {
     durationCounters: () => 0,
     reveal: () => undefined,
     quality: () => null,
+    regions: () => undefined,
   };
   window.__studio = hooks;
   return hooks;

@@ -115,6 +115,8 @@ export function nodeSize(n: ModelNode): { w: number; h: number; statsInside: boo
     case "send":
     case "accept":
       return { w: Math.max(lw + 56, sw + 36), h: 50, statsInside: true };
+    case "region": // a collapsed region (draw/regions.ts): its ⊞ left of the text
+      return { w: Math.max(lw + 48, sw + 20), h: 50, statsInside: true };
     default:
       return { w: Math.max(lw + 28, sw + 20) + (mayCallLane(n) ? RAKE_W : 0), h: 50, statsInside: true };
   }
