@@ -431,7 +431,7 @@ export class Renderer {
       // (14 x 14 units: big enough to see and to click at the zoom a diagram opens at)
       svgEl("path", { class: "rake", d: `M${X(w - 17)},${Y(h - 5)} v-14 M${X(w - 24)},${Y(h - 5)} v-7 h14 v7` }, g);
     }
-    if (n.kind !== "end") {
+    if (n.kind !== "end" && n.kind !== REGION_KIND) {
       // the output port (edit mode shows it): drag from it to another node to connect them
       svgEl("circle", { class: "port-out", cx: X(w / 2), cy: Y(h), r: 6 }, g);
     }

@@ -58,7 +58,15 @@ export function install(studio: Studio): void {
     const g = (t as Element | null)?.closest?.<SVGGElement>("g.node");
     return g && isRegionId(g.dataset.node ?? "") ? g : null;
   };
-  // (capture: before selection, connection and the keyboard's own handlers see the box)
+  // (capture: before selection, connection and the keyboard's own handlers see the box; a press
+  // on it neither selects nor drags it, nor starts a flow: it is no node of the model)
+  el.addEventListener(
+    "pointerdown",
+    (ev) => {
+      if (regionBox(ev.target)) ev.stopPropagation();
+    },
+    true,
+  );
   el.addEventListener(
     "click",
     (ev) => {
