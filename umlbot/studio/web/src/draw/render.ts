@@ -571,7 +571,12 @@ export class Renderer {
       dirty.delete(key);
       const rk = this.regionOf.get(key) ?? (this.regionNodes.has(key) ? key : null);
       const ne = this.nodeEls.get(rk ?? key);
-      if (ne && rk) this.renderNode(ne, this.regionStats(state, rk), rk, ne.count === -2);
+      if (ne && rk) {
+        this.renderNode(ne, this.regionStats(state, rk), rk, ne.count === -2);
+        // a region's box says how often the run went in; the times are its nodes' own
+        ne.stats.textContent = `×${ne.count} in`;
+        for (const a of ["data-last-ms", "data-p50-ms", "data-p99-ms"]) ne.g.removeAttribute(a);
+      }
       else if (ne) this.renderNode(ne, state.nodes.get(key), key, ne.count === -2);
       if (budgetMs > 0 && (++n & 31) === 0 && performance.now() - t0 > budgetMs) break;
     }
