@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import re
+import shutil
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -156,27 +157,49 @@ def test_a_collapsed_region_lights_up_while_the_run_is_inside_and_follow_shows_i
         # `look` ran last: its region's box is the active node, counted by the times the run went in
         expect(box).to_have_class(re.compile(r"(^|\s)active(\s|$)"))
         expect(box).to_have_attribute("data-count", "1")
-        expect(box.locator("text.stats")).to_have_text("×1 in")
+        expect(box.locator("text.stats")).to_have_text("\u00d71 in")
         expect(page.locator('g.node.active[data-lane="RaspberryPI"]')).to_have_count(1)
         # Follow shows it: the box comes into the canvas
-        canvas = page.locator("#canvas").bounding_box()
-        assert canvas
-
-        def in_view() -> bool:
-            b = box.bounding_box()
-            return bool(b and canvas and canvas["x"] <= b["x"] and b["x"] + b["width"] <= canvas["x"] + canvas["width"]
-                        and canvas["y"] <= b["y"] and b["y"] + b["height"] <= canvas["y"] + canvas["height"])
-
         page.wait_for_function(
             """() => { const b = document.querySelector('g.node[data-node="region:forget_sides"]')
                                  .getBoundingClientRect();
                        const c = document.querySelector('#canvas').getBoundingClientRect();
-                       return b.left >= c.left && b.right <= c.right && b.top >= c.top && b.bottom <= c.bottom; }""")
-        assert in_view()
+                       return b.left >= c.left && b.right <= c.right
+                           && b.top >= c.top && b.bottom <= c.bottom; }""")
         shot(page, "studio-regions-running.png")
         # opened, the node itself is the active one
         box.click()
         expect(page.locator(node("look"))).to_have_class(re.compile(r"(^|\s)active(\s|$)"), timeout=WAIT_MS)
         expect(page.locator(node("look"))).to_have_attribute("data-count", "1")
+        assert errors == [], errors
+        page.close()
+
+
+def test_an_edit_inside_a_collapsed_region_opens_it(browser: Browser, tmp_path: Path) -> None:
+    folder = tmp_path / "car"
+    shutil.copytree(CAR_MODEL, folder)
+    errors: list[str] = []
+    with studio(["studio", str(folder), "--port", "0"], tmp_path) as proc:
+        page = open_main(browser, proc.url, errors)
+        box = page.locator(node("region:forget_sides"))
+        expect(box).to_have_count(1)
+        # an edit while it is open: the no-room look forgets the opening beside the way
+        box.click()
+        store = page.locator(node("forget_sides"))
+        expect(store).to_have_count(1, timeout=WAIT_MS)
+        store.click()
+        page.locator('#props input[name="value"]').fill("'left'")
+        page.locator('#props input[name="value"]').press("Enter")
+        page.wait_for_function("window.__studio.edit.busy === false")
+        # back to the opening view: the region is a box again
+        page.evaluate(f"window.__studio.regions('{MAIN}', 'opening')")
+        expect(box).to_have_count(1, timeout=WAIT_MS)
+        expect(store).to_have_count(0)
+        # undone: the edit changes a node inside the box, so the box opens and the node is drawn
+        page.locator("#undo").click()
+        page.wait_for_function("window.__studio.edit.busy === false")
+        expect(store).to_have_count(1, timeout=WAIT_MS)
+        expect(box).to_have_count(0)
+        expect(page.locator(node("region:look_aside"))).to_have_count(1)  # the other stays shut
         assert errors == [], errors
         page.close()
