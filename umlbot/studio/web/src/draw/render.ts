@@ -576,8 +576,7 @@ export class Renderer {
         // a region's box says how often the run went in; the times are its nodes' own
         ne.stats.textContent = `×${ne.count} in`;
         for (const a of ["data-last-ms", "data-p50-ms", "data-p99-ms"]) ne.g.removeAttribute(a);
-      }
-      else if (ne) this.renderNode(ne, state.nodes.get(key), key, ne.count === -2);
+      } else if (ne) this.renderNode(ne, state.nodes.get(key), key, ne.count === -2);
       if (budgetMs > 0 && (++n & 31) === 0 && performance.now() - t0 > budgetMs) break;
     }
     if ((all || state.dirtyOrch) && this.orchBox) {
