@@ -184,9 +184,11 @@ def test_an_edit_inside_a_collapsed_region_opens_it(browser: Browser, tmp_path: 
         box = page.locator(node("region:forget_sides"))
         expect(box).to_have_count(1)
         # an edit while it is open: the no-room look forgets the opening beside the way
+        page.evaluate("window.__studio.reveal('RaspberryPI', 'region:forget_sides')")
         box.click()
         store = page.locator(node("forget_sides"))
         expect(store).to_have_count(1, timeout=WAIT_MS)
+        page.evaluate("window.__studio.reveal('RaspberryPI', 'forget_sides')")
         store.click()
         page.locator('#props input[name="value"]').fill("'left'")
         page.locator('#props input[name="value"]').press("Enter")
