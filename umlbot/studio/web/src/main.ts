@@ -23,6 +23,7 @@ import { install as newModel } from "./features/new-model";
 import { install as notices } from "./features/notices";
 import { install as palette } from "./features/palette";
 import { install as properties } from "./features/properties";
+import { install as regions } from "./features/regions";
 import { install as replay } from "./features/replay";
 import { install as run } from "./features/run";
 import { install as save } from "./features/save";
@@ -37,6 +38,7 @@ const features: Feature[] = [
   connection,
   fleet,
   session,
+  regions, // before diagrams: an edit inside a collapsed region opens it before the redraw
   diagrams,
   diagnostics,
   calls,

@@ -40,6 +40,12 @@ test("a wide diagram that is readable at the canvas's width opens at that width"
   const v = fitView(canvas, { width: 1200, height: 3000 }, true);
   assert.equal(v.k, (1000 - 32) / 1200);
   assert.equal(v.y, 16);
+  // a tall one narrower than that, not readable whole: at its width when that is OPEN_K or more,
+  // else at OPEN_K (cut at the sides, around its start) — never smaller than a wider one opens
+  assert.equal(fitView(canvas, { width: 1400, height: 3000 }, true).k, OPEN_K);
+  assert.ok((1000 - 32) / 1400 >= READABLE_K);
+  // a short one (its height fits at its width) opens at its width down to READABLE_K
+  assert.equal(fitView(canvas, { width: 1400, height: 700 }, true).k, (1000 - 32) / 1400);
 });
 
 test("a short diagram too wide to be read whole opens whole down to WIDE_K, not cut at its right edge", () => {

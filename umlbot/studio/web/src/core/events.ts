@@ -12,6 +12,7 @@ import type {
   EventsMsg,
   FilesMsg,
   HelloMsg,
+  ModelDiagram,
   ModelMsg,
   ModelView,
   Op,
@@ -113,6 +114,10 @@ export interface StudioEvents {
   "edit.model-created": () => void;
   /** the user's positions of diagram `id` */
   "layout.positions": (diagram: string) => Positions | undefined;
+  /** diagram `d` as drawn: its collapsed regions each one box (features/regions) */
+  "layout.collapse": (d: ModelDiagram) => ModelDiagram | undefined;
+  /** a node is to be seen: the collapsed region that holds it opens (true when one did) */
+  "region.show": (lane: string, node: string) => boolean | undefined;
   /** send edit operations (queued: one request at a time); true when applied. A problem with a
    * field of `form` (`data-field`) is shown at that field. */
   "edit.send": (ops: Op[], form?: HTMLElement) => Promise<boolean> | undefined;

@@ -51,7 +51,11 @@ export function fitView({ W, H }: Size, d: Extent, readable: boolean): View {
   const wideOnly = kW <= (H - 2 * pad) / d.height; // the width is what does not fit
   if (readable && k < READABLE_K && !(wideOnly && k >= WIDE_K)) {
     const kWidth = (W - 2 * pad) / d.width;
-    k = kWidth >= READABLE_K ? Math.min(kWidth, 1) : OPEN_K;
+    // (a diagram cut at the bottom anyway opens no smaller than a big one: OPEN_K, so that a
+    // narrower drawing of it, such as the car's `main` with its regions collapsed, is not
+    // drawn smaller than the whole one)
+    const tall = d.height * kWidth > H - 2 * pad;
+    k = kWidth >= (tall ? OPEN_K : READABLE_K) ? Math.min(kWidth, 1) : OPEN_K;
     y = d.height * k > H - 2 * pad ? pad : (H - d.height * k) / 2;
     const w = d.width * k;
     if (w <= W - 2 * pad) x = (W - w) / 2;

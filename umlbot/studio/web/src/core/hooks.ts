@@ -29,6 +29,8 @@ export interface StudioHooks {
   quality: (id: string) => { crossings: number; labels: number; flows: number } | null;
   /** how the lanes were laid out: by ELK, or taken from the layout cache (docs/studio.md) */
   layouts: typeof layoutStats;
+  /** every collapsible region of diagram `id` open, or back to the opening view (features/regions) */
+  regions: (id: string, how: "open" | "opening") => void;
 }
 
 export interface EditHooks {
@@ -74,6 +76,7 @@ export function createHooks(): StudioHooks {
     reveal: () => undefined,
     quality: () => null,
     layouts: layoutStats,
+    regions: () => undefined,
   };
   window.__studio = hooks;
   return hooks;

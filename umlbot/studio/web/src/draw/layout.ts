@@ -7,6 +7,7 @@ import type { ElkExtendedEdge, ElkNode } from "elkjs/lib/elk-api.js";
 import ELK from "elkjs/lib/elk-api.js";
 import type { ModelDiagram, ModelLane, ModelNode, ModelView } from "../model/types";
 import { keepLayout, keptPart, layoutKey, layoutStats, storedLayout } from "./layout-store";
+import { REGION_KIND } from "./regions";
 import { type Dir, grow, middle, pathCrosses, type Rect, route } from "./route";
 
 export const FONT = "system-ui, -apple-system, 'Segoe UI', Roboto, 'DejaVu Sans', sans-serif";
@@ -116,6 +117,8 @@ export function nodeSize(n: ModelNode): { w: number; h: number; statsInside: boo
     case "send":
     case "accept":
       return { w: Math.max(lw + 56, sw + 36), h: 50, statsInside: true };
+    case "region": // a collapsed region (draw/regions.ts): its ⊞ left of the text
+      return { w: Math.max(lw + 48, sw + 20), h: 50, statsInside: true };
     default:
       return { w: Math.max(lw + 28, sw + 20) + (mayCallLane(n) ? RAKE_W : 0), h: 50, statsInside: true };
   }
@@ -402,7 +405,8 @@ function laneLayout(
         : undefined);
     p = was
       ? was.then(
-          (g) => sameShape(g, lane) ?? relayoutLane(lane, g),
+          // a region opened or closed (draw/regions.ts): laid out afresh, as the lane opens
+          (g) => sameShape(g, lane) ?? (sameRegions(g.lane, lane) ? relayoutLane(lane, g) : layoutLane(lane)),
           () => layoutLane(lane),
         )
       : layoutLane(lane);
@@ -411,6 +415,16 @@ function laneLayout(
   }
   lastLane.set(`${diagram}/${lane.name}`, p);
   return p;
+}
+
+/** Whether two drawings of a lane collapse the same regions. */
+function sameRegions(a: ModelLane, b: ModelLane): boolean {
+  const boxes = (l: ModelLane): string =>
+    l.nodes
+      .filter((n) => n.kind === REGION_KIND)
+      .map((n) => n.id)
+      .join("\n");
+  return boxes(a) === boxes(b);
 }
 
 /** The width ELK reserves for a flow's guard label. */

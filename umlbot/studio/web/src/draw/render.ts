@@ -1,13 +1,14 @@
 // SVG drawing of the laid-out diagrams, and the live part: the state's changes are applied as
 // attribute/class/text changes on the existing elements (never a redraw), once per frame.
 
-import { percentiles } from "../model/durations";
+import { Durations, percentiles } from "../model/durations";
 import { safetyStop } from "../model/safety";
 import type { ComponentState, Level, NodeStats, StudioState } from "../model/state";
 import { edgeKey, nextNodes, nodeKey, TRAIL } from "../model/state";
 import type { ModelComponent, ModelView } from "../model/types";
 import type { ActivityLayout, ComponentLayout, NodeBox, Point } from "./layout";
 import { COMP_STATE_LINES, SMALL_PX, shortGuard, textWidth } from "./layout";
+import { REGION_KIND, regionMembers } from "./regions";
 
 const SVGNS = "http://www.w3.org/2000/svg";
 
@@ -96,6 +97,9 @@ export class Renderer {
   renderedRunning = new Map<string, string[]>(); // per lane: nodes running now (after the current one)
   marks = new Map<string, Mark>(); // compiler diagnostics on nodes
   virtualLanes = new Set<string>();
+  /** a node inside a collapsed region (draw/regions.ts) -> the region's box; the box -> its nodes */
+  regionOf = new Map<string, string>();
+  private regionNodes = new Map<string, string[]>();
   private freshNodes: string[] = [];
   private freshEdges: string[] = [];
   private freshLanes = new Set<string>();
@@ -137,6 +141,8 @@ export class Renderer {
     this.orchBox = null;
     this.renderedTrails.clear();
     this.renderedRunning.clear();
+    this.regionOf.clear();
+    this.regionNodes.clear();
     this.virtualLanes = new Set(
       (model?.diagrams ?? []).flatMap((d) => d.lanes.filter((l) => l.virtual).map((l) => l.name)),
     );
@@ -194,6 +200,13 @@ export class Renderer {
         budget = performance.now();
       }
       const lane = lg.lane;
+      for (const nb of lg.nodes) {
+        if (nb.node.kind !== REGION_KIND) continue;
+        const rk = nodeKey(lane.name, nb.node.id);
+        const members = regionMembers(nb.node).map((id) => nodeKey(lane.name, id));
+        this.regionNodes.set(rk, members);
+        for (const m of members) this.regionOf.set(m, rk);
+      }
       const key = laneKey(lg, this.virtualLanes);
       const old = this.pool.get(lane.name);
       if (old && old.key === key) {
@@ -371,6 +384,15 @@ export class Renderer {
           g,
         );
         break;
+      case REGION_KIND:
+        // a collapsed region: a box with a double edge and a ⊞ (open by click, Enter or Space)
+        svgEl("rect", { class: "shape region-back", x: X(4), y: Y(4), width: w, height: h, rx: 6 }, g);
+        svgEl("rect", { class: "shape", x: X(0), y: Y(0), width: w, height: h, rx: 6 }, g);
+        svgEl("text", { class: "region-mark", x: X(14), y: Y(21) }, g, "⊞");
+        g.setAttribute("aria-expanded", "false");
+        g.setAttribute("aria-label", `${n.label} (collapsed: Enter opens it)`);
+        title.textContent = `${n.label} Click, Enter or Space to open it.`;
+        break;
       case "accept":
         svgEl(
           "polygon",
@@ -391,7 +413,14 @@ export class Renderer {
         svgEl("rect", { class: "shape", x: X(0), y: Y(0), width: w, height: h, rx: 11 }, g);
     }
     if (n.kind !== "start" && n.kind !== "end" && n.kind !== "fork" && n.kind !== "join") {
-      const lx = n.kind === "send" ? (w - 18) / 2 : n.kind === "accept" ? (w + 18) / 2 : w / 2;
+      const lx =
+        n.kind === "send"
+          ? (w - 18) / 2
+          : n.kind === "accept"
+            ? (w + 18) / 2
+            : n.kind === REGION_KIND
+              ? w / 2 + 8
+              : w / 2;
       svgEl("text", { class: "label", x: X(lx), y: Y(labelY) }, g, n.label);
     }
     const called = n.kind === "action" ? n.label.replace(/\(\s*\)$/, "") : "";
@@ -402,7 +431,7 @@ export class Renderer {
       // (14 x 14 units: big enough to see and to click at the zoom a diagram opens at)
       svgEl("path", { class: "rake", d: `M${X(w - 17)},${Y(h - 5)} v-14 M${X(w - 24)},${Y(h - 5)} v-7 h14 v7` }, g);
     }
-    if (n.kind !== "end") {
+    if (n.kind !== "end" && n.kind !== REGION_KIND) {
       // the output port (edit mode shows it): drag from it to another node to connect them
       svgEl("circle", { class: "port-out", cx: X(w / 2), cy: Y(h), r: 6 }, g);
     }
@@ -540,8 +569,14 @@ export class Renderer {
     let n = 0;
     for (const key of dirty) {
       dirty.delete(key);
-      const ne = this.nodeEls.get(key);
-      if (ne) this.renderNode(ne, state.nodes.get(key), key, ne.count === -2);
+      const rk = this.regionOf.get(key) ?? (this.regionNodes.has(key) ? key : null);
+      const ne = this.nodeEls.get(rk ?? key);
+      if (ne && rk) {
+        this.renderNode(ne, this.regionStats(state, rk), rk, ne.count === -2);
+        // a region's box says how often the run went in; the times are its nodes' own
+        ne.stats.textContent = `×${ne.count} in`;
+        for (const a of ["data-last-ms", "data-p50-ms", "data-p99-ms"]) ne.g.removeAttribute(a);
+      } else if (ne) this.renderNode(ne, state.nodes.get(key), key, ne.count === -2);
       if (budgetMs > 0 && (++n & 31) === 0 && performance.now() - t0 > budgetMs) break;
     }
     if ((all || state.dirtyOrch) && this.orchBox) {
@@ -611,6 +646,40 @@ export class Renderer {
     }
   }
 
+  /** A node's element, or the collapsed region's box that holds it. */
+  nodeEl(key: string): NodeEl | undefined {
+    return this.nodeEls.get(key) ?? this.nodeEls.get(this.regionOf.get(key) ?? "");
+  }
+
+  /** A collapsed region's figures: how often the run went in (its first node's count), and the
+   * worst problem of a node inside. */
+  private regionStats(state: StudioState, rk: string): NodeStats | undefined {
+    const members = this.regionNodes.get(rk) ?? [];
+    const entry = state.nodes.get(members[0] ?? "");
+    let level: Level = "info";
+    let message = "";
+    for (const m of members) {
+      const s = state.nodes.get(m);
+      const mark = this.marks.get(m);
+      for (const c of [s, mark]) {
+        if (!c || c.level === "info" || (level === "error" && c.level !== "error") || c.level === level) continue;
+        level = c.level;
+        message = c.message;
+      }
+    }
+    if (!entry && level === "info") return undefined;
+    return {
+      count: entry?.count ?? 0,
+      lastMs: entry?.lastMs ?? 0,
+      durs: entry?.durs ?? new Durations(),
+      hasValue: false,
+      value: undefined,
+      level,
+      message,
+      lastIdx: entry?.lastIdx ?? 0,
+    };
+  }
+
   private renderEdge(ee: EdgeEl, count: number): void {
     if (ee.count === count) return;
     ee.count = count;
@@ -621,25 +690,25 @@ export class Renderer {
 
   private renderTrail(lane: string, trail: string[], state: StudioState): void {
     for (const id of this.renderedRunning.get(lane) ?? [])
-      this.nodeEls.get(nodeKey(lane, id))?.g.classList.remove("running");
+      this.nodeEl(nodeKey(lane, id))?.g.classList.remove("running");
     const running = trail.length
       ? nextNodes(state.index, lane, trail[0], state.nodes.get(nodeKey(lane, trail[0])))
       : [];
-    for (const id of running) this.nodeEls.get(nodeKey(lane, id))?.g.classList.add("running");
+    for (const id of running) this.nodeEl(nodeKey(lane, id))?.g.classList.add("running");
     this.renderedRunning.set(lane, running);
     const old = this.renderedTrails.get(lane) ?? [];
     for (const id of old) {
-      const ne = this.nodeEls.get(nodeKey(lane, id));
+      const ne = this.nodeEl(nodeKey(lane, id));
       if (ne) {
         ne.g.classList.remove("active", "trail");
         ne.g.removeAttribute("data-trail");
       }
     }
     trail.slice(0, TRAIL).forEach((id, i) => {
-      const ne = this.nodeEls.get(nodeKey(lane, id));
+      const ne = this.nodeEl(nodeKey(lane, id));
       if (!ne) return;
       if (i === 0) ne.g.classList.add("active");
-      else {
+      else if (!ne.g.classList.contains("active")) {
         ne.g.classList.add("trail");
         ne.g.setAttribute("data-trail", String(i));
       }

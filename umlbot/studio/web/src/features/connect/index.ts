@@ -5,6 +5,7 @@
 
 import { findLane, type Selection } from "../../core/selection";
 import type { Studio } from "../../core/studio";
+import { isRegionId } from "../../draw/regions";
 import type { Op } from "../../model/types";
 import { dragComponent, dragNode } from "./move";
 import { dragFlow } from "./wire";
@@ -70,7 +71,8 @@ export function install(studio: Studio): void {
       if (target.classList.contains("port-out") && !from) {
         // a flow drawn from the node's output port: dropped on a node of its lane, it connects them
         dragFlow(canvas.el, ev, target, (to) => {
-          if (to && sameLane(lane, to.lane) && to.id !== id) void connect(lane, id, to.id);
+          // (a collapsed region's box is no node of the model: features/regions)
+          if (to && sameLane(lane, to.lane) && to.id !== id && !isRegionId(to.id)) void connect(lane, id, to.id);
         });
         return true;
       }

@@ -116,7 +116,8 @@ export class Drawings {
           t1 = performance.now();
           view = renderer.buildComponents(layout, m);
         } else {
-          const d = m.diagrams.find((x) => x.id === id)!;
+          const whole = m.diagrams.find((x) => x.id === id)!;
+          const d = bus.request("layout.collapse", whole) ?? whole;
           const layout = await layoutActivity(d, positions);
           if (gen !== this.generation) return;
           t1 = performance.now();

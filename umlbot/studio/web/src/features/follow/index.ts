@@ -32,7 +32,7 @@ export function install({ bus, store, hooks, canvas, renderer, frames }: Studio)
     }
     const v = canvas.shown();
     const key = v?.view ? lastRan(store.model, canvas.current, store.live) : null;
-    const g = key ? renderer.nodeEls.get(key)?.g : null;
+    const g = key ? renderer.nodeEl(key)?.g : null;
     const box = g ? canvas.nodeBox(g) : null;
     const size = canvas.size();
     if (!v?.view || !g || !box || inView(v.view, box, size, 0)) {
@@ -89,7 +89,7 @@ export function install({ bus, store, hooks, canvas, renderer, frames }: Studio)
     lookedAt = now;
     const v = canvas.shown();
     const key = v?.view ? lastRan(store.model, canvas.current, store.live) : null;
-    const g = key ? renderer.nodeEls.get(key)?.g : null;
+    const g = key ? renderer.nodeEl(key)?.g : null;
     const box = g ? canvas.nodeBox(g) : null;
     if (!v?.view || !g || !box) return;
     const size = canvas.size();

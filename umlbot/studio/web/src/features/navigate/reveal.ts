@@ -7,11 +7,17 @@ import type { Studio } from "../../core/studio";
 const READABLE_K = 0.8;
 const REVEAL_K = 0.9;
 
-export function reveal({ bus, canvas }: Studio, lane: string, node: string): void {
+export function reveal(studio: Studio, lane: string, node: string, tries = 0): void {
+  const { bus, canvas } = studio;
   const v = canvas.shown();
   const g = canvas.el.querySelector<SVGGElement>(
     `g.node[data-lane="${CSS.escape(lane)}"][data-node="${CSS.escape(node)}"]`,
   );
+  // inside a collapsed region: it opens, and the node is shown once drawn (within 10 s)
+  if (!g && (tries > 0 || bus.request("region.show", lane, node)) && tries < 200) {
+    setTimeout(() => reveal(studio, lane, node, tries + 1), 50);
+    return;
+  }
   if (!v?.view || !g) return;
   bus.emit("follow.set", false);
   canvas.uncull(g);
