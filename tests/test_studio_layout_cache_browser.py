@@ -91,8 +91,9 @@ def test_a_second_open_takes_the_layout_from_the_cache_and_draws_the_same(
         # ELK's warm-up in the background lays a cached lane out again: the same as the cache
         second.wait_for_function("window.__studio.layouts.warmed === 1")
         assert second.evaluate("window.__studio.layouts.differ") == 0
-        assert sum(k.startswith("node ") for k in drawn) >= 100
-        assert sum(k.startswith("flow ") for k in drawn) >= 120
+        # main's opening view (its two big branches collapsed into boxes: docs/studio.md, Regions)
+        assert sum(k.startswith("node ") for k in drawn) >= 60
+        assert sum(k.startswith("flow ") for k in drawn) >= 75
         assert again == drawn  # every node at its place, every flow on its path
         second.context.close()
 
