@@ -43,7 +43,7 @@ def _properties(response_topic: str | None, correlation: bytes | None) -> Proper
 
 
 #: what an MQTT UTF-8 string may hold (no NUL, no surrogates: paho refuses them)
-_MQTT_CHARACTERS = st.characters(blacklist_categories=("Cs",), blacklist_characters="\x00")
+_MQTT_CHARACTERS = st.characters(exclude_categories=["Cs"], exclude_characters="\x00")
 
 
 @settings(max_examples=300, deadline=None)  # a loaded machine must not fail it on time

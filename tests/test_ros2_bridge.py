@@ -154,9 +154,12 @@ def test_a_call_in_flight_when_the_broker_goes_is_answered_not_connected(
 ) -> None:
     settings = BrokerSettings.from_url(mosquitto_broker.url)
     builder = dds.TypeBuilder.of(Types.load())
+    def nap(seconds: float) -> float:
+        time.sleep(seconds)
+        return seconds
+
     slow = ComponentServer(settings, ROBOT, "Slow", "test", [
-        Feature(FeatureSpec("nap", (Param("seconds", "float", 0, 5),), "float"),
-                lambda seconds: time.sleep(seconds) or seconds)])
+        Feature(FeatureSpec("nap", (Param("seconds", "float", 0, 5),), "float"), nap)])
     slow.start(5.0)
     try:
         with Ros2Bridge(settings, ROBOT, DOMAIN):
