@@ -20,7 +20,7 @@ from umlbot.base.files import loads_json
 from umlbot.base.logs import get_logger
 from umlbot.sim import bundled_tracks
 from umlbot.studio.data import MAX_BODY
-from umlbot.studio.hub import dumps
+from umlbot.studio.hub import json_response
 from umlbot.studio.run import RUN_SPEED, StudioRun, resolve_track
 from umlbot.studio.textedit import EditError
 from umlbot.studio.workspace import Conflict, SaveFailed, Workspace
@@ -82,7 +82,7 @@ class EditApi:
         # made once (every implementation's settings schema: ~0.5 s here, seconds on a busy
         # machine) in a worker thread, started with the studio (`_warm`): on the event loop it
         # held up the page's other first requests, its layout lookup among them, for as long
-        return _json(await asyncio.get_running_loop().run_in_executor(None, _library))
+        return json_response(await asyncio.get_running_loop().run_in_executor(None, _library))
 
     async def _warm(self, app: web.Application) -> None:
         self._warming = asyncio.get_running_loop().run_in_executor(None, _library)
@@ -91,7 +91,7 @@ class EditApi:
         self._guard(request)
         async with self._lock:
             ws = self.workspace
-            return _json({"files": ws.texts(), "version": ws.version, "dirty": ws.dirty})
+            return json_response({"files": ws.texts(), "version": ws.version, "dirty": ws.dirty})
 
     def hello(self) -> dict[str, Any]:
         """The `edit` part of the socket's hello: the session, the model, a run going on."""
@@ -100,7 +100,7 @@ class EditApi:
 
     async def _tracks(self, request: web.Request) -> web.StreamResponse:
         self._guard(request)
-        return _json({"tracks": list(bundled_tracks())})
+        return json_response({"tracks": list(bundled_tracks())})
 
     def _complete(self, body: dict[str, Any]) -> dict[str, Any]:
         from umlbot.studio.completion import complete
@@ -187,20 +187,20 @@ class EditApi:
             token = body.get("token")
             if not isinstance(token, str) or not secrets.compare_digest(token, self.workspace.token):
                 log.warning("studio write refused: bad token", path=request.path)
-                return _json({"error": "missing or wrong token (reload the page)"}, 403)
+                return json_response({"error": "missing or wrong token (reload the page)"}, 403)
             loop = self._loop = asyncio.get_running_loop()
             async with self._lock:
                 try:
                     answer = await loop.run_in_executor(None, self._locked, handler, body)
                 except Conflict as exc:
-                    return _json(exc.body, 409)
+                    return json_response(exc.body, 409)
                 except SaveFailed as exc:
-                    return _json(exc.body, exc.status)
+                    return json_response(exc.body, exc.status)
                 except EditError as exc:
-                    return _json(exc.answer(), 400)
+                    return json_response(exc.answer(), 400)
                 except ValueError as exc:
                     return _refuse(400, str(exc))
-            return _json(answer)
+            return json_response(answer)
 
         return handle
 
@@ -227,7 +227,7 @@ class EditApi:
 
 
 def _refuse(status: int, text: str) -> web.Response:
-    return _json({"error": text, "message": text}, status)
+    return json_response({"error": text, "message": text}, status)
 
 
 async def _body(request: web.Request) -> dict[str, Any]:
@@ -253,11 +253,6 @@ async def _body(request: web.Request) -> dict[str, Any]:
     if not isinstance(body, dict):
         raise web.HTTPBadRequest(text="the request body is a JSON object")
     return body
-
-
-def _json(data: Any, status: int = 200) -> web.Response:
-    return web.Response(text=dumps(data), status=status, content_type="application/json",
-                        headers={"Cache-Control": "no-store"})
 
 
 def _library() -> dict[str, Any]:

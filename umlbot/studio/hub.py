@@ -33,11 +33,14 @@ import json
 import threading
 import time
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from umlbot.base.bounded import MAX_ROWS, RecentDict
 from umlbot.base.logs import get_logger
 from umlbot.base.pacing import Pacer
+
+if TYPE_CHECKING:
+    from aiohttp import web
 
 log = get_logger(__name__)
 
@@ -77,6 +80,14 @@ def dumps(data: Any) -> str:
         return json.dumps(data, separators=(",", ":"), ensure_ascii=False, allow_nan=False)
     except ValueError:
         return json.dumps(_finite(data), separators=(",", ":"), ensure_ascii=False, default=str)
+
+
+def json_response(data: Any, status: int = 200) -> web.Response:
+    """`data` as the studio answers a request: `dumps`'d, never cached by the browser."""
+    from aiohttp import web
+
+    return web.Response(text=dumps(data), status=status, content_type="application/json",
+                        headers={"Cache-Control": "no-store"})
 
 
 def _finite(value: Any) -> Any:

@@ -37,7 +37,7 @@ from aiohttp import web
 from umlbot.base.files import loads_json
 from umlbot.base.logs import get_logger
 from umlbot.studio.data import MAX_BODY
-from umlbot.studio.hub import dumps
+from umlbot.studio.hub import dumps, json_response
 
 log = get_logger(__name__)
 
@@ -259,7 +259,7 @@ class LayoutCache:
             layout = self.get(key)
             if layout is None:
                 raise web.HTTPNotFound(text="no layout kept under this key")
-            return _json({"key": key, "layout": layout})
+            return json_response({"key": key, "layout": layout})
 
         async def post(request: web.Request) -> web.StreamResponse:
             server.check_origin(request)
@@ -284,7 +284,7 @@ class LayoutCache:
             except LayoutError as exc:
                 raise web.HTTPBadRequest(text=f"layout: {exc}") from None
             kept = await _in_thread(self.put, key, layout)
-            return _json({"kept": kept})
+            return json_response({"kept": kept})
 
         app.router.add_get("/api/layout/{key}", get)
         app.router.add_post("/api/layout", post)
@@ -327,7 +327,3 @@ def write_shipped(path: Path, layouts: dict[str, dict[str, Any]]) -> None:
 async def _in_thread(fn: Any, *args: Any) -> Any:
     return await asyncio.get_running_loop().run_in_executor(None, fn, *args)
 
-
-def _json(data: Any, status: int = 200) -> web.Response:
-    return web.Response(text=dumps(data), status=status, content_type="application/json",
-                        headers={"Cache-Control": "no-store"})

@@ -31,7 +31,7 @@ from aiohttp import WSMsgType, web
 from umlbot.base.errors import ConfigError
 from umlbot.base.logs import get_logger
 from umlbot.studio.data import MAX_BODY, StudioData
-from umlbot.studio.hub import CLOSE_TOO_SLOW, MAX_PAGE_CHARS, Hub, Page, dumps
+from umlbot.studio.hub import CLOSE_TOO_SLOW, MAX_PAGE_CHARS, Hub, Page, dumps, json_response
 from umlbot.studio.layouts import LayoutCache
 
 log = get_logger(__name__)
@@ -314,15 +314,13 @@ async def _json_errors(request: web.Request, handler: Any) -> web.StreamResponse
         text = exc.text or exc.reason
         if text.startswith(f"{exc.status}: "):  # aiohttp's own, e.g. "404: Not Found"
             text = text.removeprefix(f"{exc.status}: ")
-        return web.Response(text=dumps({"error": text, "message": text}), status=exc.status,
-                            content_type="application/json", headers={"Cache-Control": "no-store"})
+        return json_response({"error": text, "message": text}, status=exc.status)
     except (asyncio.CancelledError, ConnectionResetError):
         raise
     except Exception as exc:
         log.exception("studio request failed", path=request.path[:200], error=str(exc)[:500])
         text = f"the studio failed on this request ({type(exc).__name__}); see its log"
-        return web.Response(text=dumps({"error": text, "message": text}), status=500,
-                            content_type="application/json", headers={"Cache-Control": "no-store"})
+        return json_response({"error": text, "message": text}, status=500)
 
 
 class StudioThread:

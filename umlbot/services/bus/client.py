@@ -218,19 +218,12 @@ class BusClient:
             raise CallTimeout(component, feature, timeout) from None
         return _unwrap(reply, component, feature)
 
-    def request(self, component: str, feature: str, *args: Any,
-                timeout: float = 2.0) -> tuple[str, Future[dict[str, Any]]]:
-        """Send a call without waiting: (request id, future of the raw reply envelope). The
-        future's callbacks run on the network thread (they must return at once); the caller
-        times the call out with `forget(request_id)`. `reply_value` unwraps a reply."""
-        return self._request(component, feature, args, timeout)
-
     def request_then(self, component: str, feature: str, *args: Any, timeout: float = 2.0,
                      then: ReplyCallback, request_id: str | None = None) -> str:
         """Send a call without waiting; `then(request_id, reply, None)` with the raw reply
         envelope, or `then(request_id, None, exception)` when the connection is lost, runs on the
-        network thread (it must return at once). What `request` does without a `Future` in
-        between (the ROS 2 bridge answers its DDS requests this way). Returns the request id:
+        network thread (it must return at once; the ROS 2 bridge answers its DDS requests this
+        way). Returns the request id:
         `request_id` (from `new_request_id()`, for a caller that notes it before the reply can
         come), else a new one; the caller times the call out with `forget(request_id)`.
         `reply_value` unwraps a reply."""
@@ -317,5 +310,5 @@ def _unwrap(reply: dict[str, Any], component: str, feature: str) -> Any:
 
 
 def reply_value(reply: dict[str, Any], component: str, feature: str) -> Any:
-    """A reply envelope's value; `RemoteError` for an error reply (`BusClient.request`)."""
+    """A reply envelope's value; `RemoteError` for an error reply (`BusClient.request_then`)."""
     return _unwrap(reply, component, feature)
