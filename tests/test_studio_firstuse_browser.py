@@ -388,13 +388,13 @@ def test_a_new_lane_starts_wired_and_a_selected_flow_goes_with_delete(
         page.locator('#palette [data-action="add-lane"]').click()
         page.wait_for_function("window.__studio.edit.busy === false")
         wired = page.locator('svg.diagram g.edge[data-lane="Blink"][data-source="start"][data-target="end"]')
-        expect(wired).to_have_count(1)  # start -> end from the first moment
+        expect(wired).to_have_count(1, timeout=WAIT_MS)  # start -> end from the first moment (once drawn)
         # an action added after the start (selected), then its flow to the end selected and deleted
         page.locator('svg.diagram g.node[data-lane="Blink"][data-node="start"]').click()
         page.locator('#palette .item[data-kind="action"]').click()
         page.wait_for_function("window.__studio.edit.busy === false")
         flow = page.locator('svg.diagram g.edge[data-lane="Blink"][data-source="action1"][data-target="end"]')
-        expect(flow).to_have_count(1)
+        expect(flow).to_have_count(1, timeout=WAIT_MS)
         at = flow.locator("path.hit").evaluate("""(p) => {
           const m = p.getPointAtLength(p.getTotalLength() / 2), c = p.getScreenCTM();
           return [m.x * c.a + m.y * c.c + c.e, m.x * c.b + m.y * c.d + c.f]; }""")
@@ -402,7 +402,7 @@ def test_a_new_lane_starts_wired_and_a_selected_flow_goes_with_delete(
         expect(flow).to_have_class(re.compile(r"(^|\s)selected(\s|$)"))
         page.keyboard.press("Delete")
         page.wait_for_function("window.__studio.edit.busy === false")
-        expect(flow).to_have_count(0)
+        expect(flow).to_have_count(0, timeout=WAIT_MS)
         assert errors == [], errors
         page.close()
 
