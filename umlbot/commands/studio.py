@@ -139,6 +139,7 @@ def command(model: Path, broker_url: str | None, ca_file: Path | None, robot: st
 
         watch = FleetWatch(settings, redact_url(url), follow_robot)
         server.extra_routes.append(watch.routes)
+        data.fleet = True
         what = f"every robot on {redact_url(url)} (fleet view), following {data.robot}"
     errors = sum(1 for d in data.diagnostics if d["severity"] == "error")
     studio = StudioThread(server)

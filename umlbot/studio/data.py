@@ -29,9 +29,11 @@ class StudioData:
     #: the model's `call_timeout_s` (a call unanswered this long is reported, until the
     #: orchestrator's status says the run's own time-out).
     call_timeout_s: float | None = None
+    #: a fleet hub (`--fleet`): the page shows the fleet view from `GET /api/fleet`.
+    fleet: bool = False
 
     def hello(self) -> dict[str, Any]:
         return {"type": "hello", "version": PROTOCOL_VERSION, "mode": self.mode, "robot": self.robot,
                 "source": self.source, "model": self.model, "diagnostics": self.diagnostics,
                 "track": self.track, "replay": self.replay,
-                "edit": self.edit() if self.edit is not None else None}
+                "edit": self.edit() if self.edit is not None else None, "fleet": self.fleet}

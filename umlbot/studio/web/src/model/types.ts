@@ -138,6 +138,8 @@ export interface HelloMsg {
   track: TrackView | null;
   replay: { file: string; events: MonitorEvent[]; notes?: string[] } | null;
   edit?: EditInfo | null;
+  /** a fleet hub (`umlbot studio --fleet`): the fleet view polls `GET /api/fleet` */
+  fleet?: boolean;
 }
 
 // ---- editing (contract: /work/notes/edit-contract.md) ----

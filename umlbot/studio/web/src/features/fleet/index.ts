@@ -1,7 +1,7 @@
 // The fleet view (`umlbot studio MODEL --broker HUB --fleet`): every robot seen on the hub, with
 // its orchestrator's state, the nodes it runs, its faults and its components; a click follows
-// that robot live in the diagrams. It polls `GET /api/fleet` once a second; a studio without
-// `--fleet` answers 404 and the feature stays away.
+// that robot live in the diagrams. When the studio's hello says `fleet` it polls `GET /api/fleet`
+// once a second; a studio without `--fleet` has no such route and the page does not ask.
 
 import { el } from "../../core/dom";
 import type { Studio } from "../../core/studio";
@@ -28,7 +28,10 @@ const STYLE = `
 `;
 
 export function install(studio: Studio): void {
-  studio.bus.on("studio.start", () => {
+  let started = false;
+  studio.bus.on("server.hello", (hello) => {
+    if (started || !hello.fleet) return; // every reconnect says hello again: one panel, one poll
+    started = true;
     void start();
   });
 }
