@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import tempfile
 import time
@@ -76,6 +77,65 @@ def _run(url: str, model: Any, recording: Path | None, own_process: bool = True)
     if code != 0:
         raise RuntimeError(f"the orchestrator failed: {orchestrator.failure}")
     return list(orchestrator.stats.action_latency_s)
+
+
+def _cpu_s(pid: int) -> float:
+    """utime + stime of process `pid` so far (seconds)."""
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def measure_cpu(url: str, n: int, runs: int, folder: Path, old: str | None) -> dict[str, Any]:
+    """The recorder process's CPU per message it recorded, for `runs` runs of the loop model (n
+    actions each) recorded as `run --record` does it: its CPU seconds (utime + stime, from
+    `getrusage` of the children it ends as) less those it had when it was subscribed (start-up),
+    over the messages in its file. Load-insensitive: CPU time, not wall time. With `old` (a folder
+    holding an older `umlbot` package) the runs alternate: the recorder of `old`, then this one."""
+    import resource
+
+    from mcap.reader import make_reader
+
+    model = compile_text(LOOP.format(n=n))
+    variants = ["new"] if old is None else ["old", "new"]
+    per_variant: dict[str, list[float]] = {v: [] for v in variants}
+    messages: dict[str, list[int]] = {v: [] for v in variants}
+    pythonpath: str | None = os.environ.get("PYTHONPATH")
+    with motor_service(url):
+        for run in range(runs):
+            for variant in variants:
+                path = folder / f"cpu-{variant}{run}.mcap"
+                if old is not None and variant == "old":
+                    os.environ["PYTHONPATH"] = old if not pythonpath else f"{old}:{pythonpath}"
+                process = RecorderProcess(url, ROBOT, path, model=model.name)
+                if pythonpath is None:
+                    os.environ.pop("PYTHONPATH", None)
+                else:
+                    os.environ["PYTHONPATH"] = pythonpath
+                process.start()
+                assert process._proc is not None
+                started = _cpu_s(process._proc.pid)
+                before = resource.getrusage(resource.RUSAGE_CHILDREN)
+                try:
+                    _run(url, model, None)
+                finally:
+                    code = process.stop()
+                after = resource.getrusage(resource.RUSAGE_CHILDREN)
+                if code != 0:
+                    raise RuntimeError(f"the recorder failed ({code})")
+                cpu = (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime) - started
+                with path.open("rb") as stream:
+                    count = sum(1 for _ in make_reader(stream).iter_messages())
+                per_variant[variant].append(cpu / count * 1e6)
+                messages[variant].append(count)
+    result: dict[str, Any] = {"n": n, "runs": runs}
+    for variant in variants:
+        values = sorted(per_variant[variant])
+        result[f"{variant}_cpu_us_per_message"] = [round(v, 1) for v in per_variant[variant]]
+        result[f"{variant}_median_us"] = round(values[len(values) // 2], 1)
+        result[f"{variant}_messages"] = messages[variant]
+    if old is not None:
+        result["factor"] = round(result["old_median_us"] / result["new_median_us"], 2)
+    return result
 
 
 def measure_orchestrator(url: str, n: int, blocks: int, folder: Path) -> dict[str, Any]:
@@ -205,7 +265,11 @@ def main() -> None:
     parser.add_argument("--size-speed", type=float, default=1.0,
                         help="sim speed of the size run (1: as on the robot; the world is sampled "
                         "in wall time)")
-    parser.add_argument("--parts", default="orchestrator,size,throughput")
+    parser.add_argument("--parts", default="orchestrator,size,throughput",
+                        help="any of orchestrator, size, throughput, cpu (not in the default)")
+    parser.add_argument("--cpu-runs", type=int, default=3, help="runs of the cpu part")
+    parser.add_argument("--old", default=None,
+                        help="cpu part: a folder holding an older umlbot package to alternate with")
     options = parser.parse_args()
     configure_logging("WARNING")
     parts = options.parts.split(",")
@@ -222,6 +286,9 @@ def main() -> None:
             out["throughput"] = measure_throughput(url, options.rate, options.seconds, folder,
                                                    options.writer_events)
             print(f"throughput: {out['throughput']}", file=sys.stderr, flush=True)
+        if "cpu" in parts:
+            out["cpu"] = measure_cpu(url, options.n, options.cpu_runs, folder, options.old)
+            print(f"cpu: {out['cpu']}", file=sys.stderr, flush=True)
     print(json.dumps(out))
 
 
