@@ -86,55 +86,62 @@ def _cpu_s(pid: int) -> float:
 
 
 def measure_cpu(url: str, n: int, runs: int, folder: Path, old: str | None) -> dict[str, Any]:
-    """The recorder process's CPU per message it recorded, for `runs` runs of the loop model (n
-    actions each) recorded as `run --record` does it: its CPU seconds (utime + stime, from
-    `getrusage` of the children it ends as) less those it had when it was subscribed (start-up),
-    over the messages in its file. Load-insensitive: CPU time, not wall time. With `old` (a folder
-    holding an older `umlbot` package) the runs alternate: the recorder of `old`, then this one."""
+    """The recorder process's CPU per message it recorded, as `run --record` runs it, for the loop
+    model: its CPU seconds (utime + stime: load-insensitive, CPU not wall time) from when it is
+    subscribed to when it has ended (`getrusage` of the children), over the messages in its file.
+    Each run records n/5 actions, then n: `marginal_us` is the slope between them (the cost of one
+    more message, without the start and the end of a recording). With `old` (a folder holding an
+    older `umlbot` package) every run does both, the recorder of `old` first, then this one."""
     import resource
 
     from mcap.reader import make_reader
 
-    model = compile_text(LOOP.format(n=n))
+    sizes = (max(1, n // 5), n)
+    models = {size: compile_text(LOOP.format(n=size)) for size in sizes}
     variants = ["new"] if old is None else ["old", "new"]
-    per_variant: dict[str, list[float]] = {v: [] for v in variants}
-    messages: dict[str, list[int]] = {v: [] for v in variants}
+    cpu: dict[tuple[str, int], list[float]] = {(v, size): [] for v in variants for size in sizes}
+    counts: dict[tuple[str, int], int] = {}
     pythonpath: str | None = os.environ.get("PYTHONPATH")
     with motor_service(url):
         for run in range(runs):
-            for variant in variants:
-                path = folder / f"cpu-{variant}{run}.mcap"
-                if old is not None and variant == "old":
-                    os.environ["PYTHONPATH"] = old if not pythonpath else f"{old}:{pythonpath}"
-                process = RecorderProcess(url, ROBOT, path, model=model.name)
-                if pythonpath is None:
-                    os.environ.pop("PYTHONPATH", None)
-                else:
-                    os.environ["PYTHONPATH"] = pythonpath
-                process.start()
-                assert process._proc is not None
-                started = _cpu_s(process._proc.pid)
-                before = resource.getrusage(resource.RUSAGE_CHILDREN)
-                try:
-                    _run(url, model, None)
-                finally:
-                    code = process.stop()
-                after = resource.getrusage(resource.RUSAGE_CHILDREN)
-                if code != 0:
-                    raise RuntimeError(f"the recorder failed ({code})")
-                cpu = (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime) - started
-                with path.open("rb") as stream:
-                    count = sum(1 for _ in make_reader(stream).iter_messages())
-                per_variant[variant].append(cpu / count * 1e6)
-                messages[variant].append(count)
+            for size in sizes:
+                for variant in variants:
+                    path = folder / f"cpu-{variant}{size}-{run}.mcap"
+                    if old is not None and variant == "old":
+                        os.environ["PYTHONPATH"] = old if not pythonpath else f"{old}:{pythonpath}"
+                    process = RecorderProcess(url, ROBOT, path, model=models[size].name)
+                    if pythonpath is None:
+                        os.environ.pop("PYTHONPATH", None)
+                    else:
+                        os.environ["PYTHONPATH"] = pythonpath
+                    process.start()
+                    assert process._proc is not None
+                    started = _cpu_s(process._proc.pid)
+                    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+                    try:
+                        _run(url, models[size], None)
+                    finally:
+                        code = process.stop()
+                    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+                    if code != 0:
+                        raise RuntimeError(f"the recorder failed ({code})")
+                    used = (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime) - started
+                    with path.open("rb") as stream:
+                        counts[(variant, size)] = sum(1 for _ in make_reader(stream).iter_messages())
+                    cpu[(variant, size)].append(used)
     result: dict[str, Any] = {"n": n, "runs": runs}
+    small, large = sizes
     for variant in variants:
-        values = sorted(per_variant[variant])
-        result[f"{variant}_cpu_us_per_message"] = [round(v, 1) for v in per_variant[variant]]
-        result[f"{variant}_median_us"] = round(values[len(values) // 2], 1)
-        result[f"{variant}_messages"] = messages[variant]
+        marginal = [(b - a) / (counts[(variant, large)] - counts[(variant, small)]) * 1e6
+                    for a, b in zip(cpu[(variant, small)], cpu[(variant, large)], strict=True)]
+        whole = [c / counts[(variant, large)] * 1e6 for c in cpu[(variant, large)]]
+        result[f"{variant}_messages"] = counts[(variant, large)]
+        result[f"{variant}_cpu_s"] = [round(c, 3) for c in cpu[(variant, large)]]
+        result[f"{variant}_us_per_message"] = [round(v, 1) for v in whole]
+        result[f"{variant}_marginal_us"] = [round(v, 1) for v in marginal]
+        result[f"{variant}_marginal_median_us"] = round(sorted(marginal)[len(marginal) // 2], 1)
     if old is not None:
-        result["factor"] = round(result["old_median_us"] / result["new_median_us"], 2)
+        result["factor"] = round(result["old_marginal_median_us"] / result["new_marginal_median_us"], 2)
     return result
 
 
