@@ -116,6 +116,8 @@ class _Subscription:
 
 #: what one read of a `read_ahead` connection takes from the socket at most (bytes)
 READ_AHEAD_BYTES = 65536
+#: and how long its network thread pauses after each turn of paho's loop (seconds)
+READ_AHEAD_PAUSE_S = 0.01
 
 
 @dataclass
@@ -229,6 +231,8 @@ class _PahoClient(mqtt.Client):
     def loop(self, timeout: float = 1.0) -> MQTTErrorCode:
         self._loop_thread = threading.get_ident()
         rc: MQTTErrorCode = super().loop(timeout)
+        if self.read_ahead:  # let the next messages gather in the socket: one wake-up, one read
+            time.sleep(READ_AHEAD_PAUSE_S)
         return rc
 
     def _handle_publish(self) -> MQTTErrorCode:
