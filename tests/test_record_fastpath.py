@@ -41,7 +41,12 @@ _wire = st.one_of(st.none(), _text, _number, st.lists(st.integers(), max_size=3)
                      "detail", "seq"]),
     st.one_of(_wire, _number, st.integers(-5, 2**64 + 5)), max_size=11))
 def test_a_trace_event_is_the_cdr_rosbags_makes(event: dict[str, Any]) -> None:
-    message = BUILD.trace(event)
+    try:
+        message = BUILD.trace(event)
+    except OverflowError:  # a time of 1e300 s: skipped by both (the recorder logs it)
+        with pytest.raises(OverflowError):
+            cdr.trace_event(event)
+        return
     data, stamp_ns = cdr.trace_event(event)
     assert data == bytes(STORE.serialize_cdr(message, TRACE))
     assert stamp_ns == to_ns(message.end)
@@ -55,7 +60,12 @@ def test_a_trace_event_is_the_cdr_rosbags_makes(event: dict[str, Any]) -> None:
 def test_a_call_is_the_cdr_rosbags_makes(at: float, component: str, feature: str, call_id: str | None,
                                           args: list[Any] | None, ok: bool | None, value: Any,
                                           error: str | None, latency_ms: float | None) -> None:
-    message = BUILD.call(at, component, feature, call_id, args, ok, value, error, latency_ms)
+    try:
+        message = BUILD.call(at, component, feature, call_id, args, ok, value, error, latency_ms)
+    except OverflowError:
+        with pytest.raises(OverflowError):
+            cdr.feature_call(at, component, feature, call_id, args, ok, value, error, latency_ms)
+        return
     data, stamp_ns = cdr.feature_call(at, component, feature, call_id, args, ok, value, error, latency_ms)
     assert data == bytes(STORE.serialize_cdr(message, CALL))
     assert stamp_ns == to_ns(at)
