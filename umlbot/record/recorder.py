@@ -29,7 +29,7 @@ from pydantic_core import from_json
 from umlbot.base import rosmsg
 from umlbot.base.logs import get_logger
 from umlbot.monitor import MonitorEvent, MonitorState
-from umlbot.record import cdr
+from umlbot.record.cdr import feature_call, trace_event
 from umlbot.record.messages import (
     CALL,
     JOINTS,
@@ -270,7 +270,7 @@ class Recorder:
 
     def _trace(self, event: dict[str, Any]) -> None:
         if not self._viewers:  # straight to CDR, without the message object (cdr.py)
-            data, stamp_ns = cdr.trace_event(event)
+            data, stamp_ns = trace_event(event)
             self._write(self._trace_topic, TRACE, data, stamp_ns)
             return
         message = self.build.trace(event)
@@ -326,8 +326,8 @@ class Recorder:
             at = event.time - (event.latency_ms or 0.0) / 1000.0
         elif at is None:
             at = self.now()
-        data, stamp_ns = cdr.feature_call(at, event.component, event.feature, event.id, event.args, event.ok,
-                                          event.value, event.error, event.latency_ms)
+        data, stamp_ns = feature_call(at, event.component, event.feature, event.id, event.args, event.ok,
+                                      event.value, event.error, event.latency_ms)
         self._write(self._calls_topic, CALL, data, stamp_ns)
 
     # -- the end --------------------------------------------------------------------------------
