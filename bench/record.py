@@ -18,6 +18,10 @@ Three parts, on a Mosquitto started by this script (`set_tcp_nodelay true`, as d
     dropped. Then `writer_events_per_s`: trace events handed to a recorder as fast as a loop can,
     and the time until all are in the file (the writer thread's own rate).
 
+(d) `cpu` (only when asked for): the recorder process's CPU seconds per message it recorded, as
+    `run --record` runs it, for the loop model (see `measure_cpu`); `--old DIR` alternates with
+    the `umlbot` package in DIR.
+
 The last output line is one JSON object {"orchestrator": {…}, "size": {…}, "throughput": {…}}.
 
     python bench/record.py [--n 2000] [--blocks 12] [--rate 2000] [--seconds 10]
