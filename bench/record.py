@@ -18,6 +18,10 @@ Three parts, on a Mosquitto started by this script (`set_tcp_nodelay true`, as d
     dropped. Then `writer_events_per_s`: trace events handed to a recorder as fast as a loop can,
     and the time until all are in the file (the writer thread's own rate).
 
+(d) `cpu` (only when asked for): the recorder process's CPU seconds per message it recorded, as
+    `run --record` runs it, for the loop model (see `measure_cpu`); `--old DIR` alternates with
+    the `umlbot` package in DIR.
+
 The last output line is one JSON object {"orchestrator": {…}, "size": {…}, "throughput": {…}}.
 
     python bench/record.py [--n 2000] [--blocks 12] [--rate 2000] [--seconds 10]
@@ -27,6 +31,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import tempfile
 import time
@@ -76,6 +81,72 @@ def _run(url: str, model: Any, recording: Path | None, own_process: bool = True)
     if code != 0:
         raise RuntimeError(f"the orchestrator failed: {orchestrator.failure}")
     return list(orchestrator.stats.action_latency_s)
+
+
+def _cpu_s(pid: int) -> float:
+    """utime + stime of process `pid` so far (seconds)."""
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def measure_cpu(url: str, n: int, runs: int, folder: Path, old: str | None) -> dict[str, Any]:
+    """The recorder process's CPU per message it recorded, as `run --record` runs it, for the loop
+    model: its CPU seconds (utime + stime: load-insensitive, CPU not wall time) from when it is
+    subscribed to when it has ended (`getrusage` of the children), over the messages in its file.
+    Each run records n/5 actions, then n: `marginal_us` is the slope between them (the cost of one
+    more message, without the start and the end of a recording). With `old` (a folder holding an
+    older `umlbot` package) every run does both, the recorder of `old` first, then this one."""
+    import resource
+
+    from mcap.reader import make_reader
+
+    sizes = (max(1, n // 5), n)
+    models = {size: compile_text(LOOP.format(n=size)) for size in sizes}
+    variants = ["new"] if old is None else ["old", "new"]
+    cpu: dict[tuple[str, int], list[float]] = {(v, size): [] for v in variants for size in sizes}
+    counts: dict[tuple[str, int], int] = {}
+    pythonpath: str | None = os.environ.get("PYTHONPATH")
+    with motor_service(url):
+        for run in range(runs):
+            for size in sizes:
+                for variant in variants:
+                    path = folder / f"cpu-{variant}{size}-{run}.mcap"
+                    if old is not None and variant == "old":
+                        os.environ["PYTHONPATH"] = old if not pythonpath else f"{old}:{pythonpath}"
+                    process = RecorderProcess(url, ROBOT, path, model=models[size].name)
+                    if pythonpath is None:
+                        os.environ.pop("PYTHONPATH", None)
+                    else:
+                        os.environ["PYTHONPATH"] = pythonpath
+                    process.start()
+                    assert process._proc is not None
+                    started = _cpu_s(process._proc.pid)
+                    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+                    try:
+                        _run(url, models[size], None)
+                    finally:
+                        code = process.stop()
+                    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+                    if code != 0:
+                        raise RuntimeError(f"the recorder failed ({code})")
+                    used = (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime) - started
+                    with path.open("rb") as stream:
+                        counts[(variant, size)] = sum(1 for _ in make_reader(stream).iter_messages())
+                    cpu[(variant, size)].append(used)
+    result: dict[str, Any] = {"n": n, "runs": runs}
+    small, large = sizes
+    for variant in variants:
+        marginal = [(b - a) / (counts[(variant, large)] - counts[(variant, small)]) * 1e6
+                    for a, b in zip(cpu[(variant, small)], cpu[(variant, large)], strict=True)]
+        whole = [c / counts[(variant, large)] * 1e6 for c in cpu[(variant, large)]]
+        result[f"{variant}_messages"] = counts[(variant, large)]
+        result[f"{variant}_cpu_s"] = [round(c, 3) for c in cpu[(variant, large)]]
+        result[f"{variant}_us_per_message"] = [round(v, 1) for v in whole]
+        result[f"{variant}_marginal_us"] = [round(v, 1) for v in marginal]
+        result[f"{variant}_marginal_median_us"] = round(sorted(marginal)[len(marginal) // 2], 1)
+    if old is not None:
+        result["factor"] = round(result["old_marginal_median_us"] / result["new_marginal_median_us"], 2)
+    return result
 
 
 def measure_orchestrator(url: str, n: int, blocks: int, folder: Path) -> dict[str, Any]:
@@ -205,7 +276,11 @@ def main() -> None:
     parser.add_argument("--size-speed", type=float, default=1.0,
                         help="sim speed of the size run (1: as on the robot; the world is sampled "
                         "in wall time)")
-    parser.add_argument("--parts", default="orchestrator,size,throughput")
+    parser.add_argument("--parts", default="orchestrator,size,throughput",
+                        help="any of orchestrator, size, throughput, cpu (not in the default)")
+    parser.add_argument("--cpu-runs", type=int, default=3, help="runs of the cpu part")
+    parser.add_argument("--old", default=None,
+                        help="cpu part: a folder holding an older umlbot package to alternate with")
     options = parser.parse_args()
     configure_logging("WARNING")
     parts = options.parts.split(",")
@@ -222,6 +297,9 @@ def main() -> None:
             out["throughput"] = measure_throughput(url, options.rate, options.seconds, folder,
                                                    options.writer_events)
             print(f"throughput: {out['throughput']}", file=sys.stderr, flush=True)
+        if "cpu" in parts:
+            out["cpu"] = measure_cpu(url, options.n, options.cpu_runs, folder, options.old)
+            print(f"cpu: {out['cpu']}", file=sys.stderr, flush=True)
     print(json.dumps(out))
 
 

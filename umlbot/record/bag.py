@@ -16,6 +16,7 @@ from __future__ import annotations
 import contextlib
 import errno
 import os
+import struct
 import tempfile
 import time
 import uuid
@@ -37,6 +38,9 @@ FLUSH_EVERY_S = 1.0
 #: the rosbag2 metadata version written (ROS 2 Jazzy's).
 ROSBAG2_VERSION = 9
 MAGIC = b"\x89MCAP0\r\n"
+#: a chunk this big (bytes, uncompressed) is closed and written (rosbags' size)
+CHUNK_BYTES = 2**20
+_MESSAGE_HEAD = struct.Struct("<BQHIQQ")
 
 
 def check_writable(path: Path) -> None:
@@ -153,10 +157,30 @@ class McapBag:
         if self.closed or self.failed is not None:
             return
         connection = self.channel(topic, msgtype)
-        # rosbags' Writer.write, without its search of every connection for this one (it is ours)
+        # rosbags' Writer.write, without its search of every connection for this one (it is ours),
+        # and its storage's write in one `struct` pass (the same bytes: tests/test_record_mcap.py)
         writer, stamp = self._writer, max(0, stamp_ns)
+        storage = writer.storage
+        cid = connection.id
+        if stamp < storage.message_start_time:
+            storage.message_start_time = stamp
+        if stamp > storage.message_end_time:
+            storage.message_end_time = stamp
+        storage.channel_stats[cid] += 1
+        chunk = storage.chunk
+        if stamp < chunk.message_start_time:
+            chunk.message_start_time = stamp
+        if stamp > chunk.message_end_time:
+            chunk.message_end_time = stamp
+        bio = chunk.bio
+        chunk.msgs[cid].append((stamp, bio.tell()))
+        # a Message record: opcode, length; channel id, sequence (rosbags writes 0), log and
+        # publish time (both the stamp), the data
+        bio.write(_MESSAGE_HEAD.pack(0x05, 22 + len(data), cid, 0, stamp, stamp))
+        bio.write(data)
         try:
-            writer.storage.write(connection, stamp, data)  # writes a chunk to the file when full
+            if bio.tell() > CHUNK_BYTES:  # as rosbags: a full chunk goes to the file
+                storage.close_chunk()
         except OSError as exc:
             self._fail(exc)
             return

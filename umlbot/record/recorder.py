@@ -1,11 +1,14 @@
 """The recorder: takes what the robot does without ever making it wait, and writes it in a thread.
 
-Producers (the bus dispatcher thread, the orchestrator's trace listener, the sim sampler) only put
-a tuple in a bounded queue (`put_nowait`: no lock held for long, no I/O, no parsing); when the
-queue is full the item is dropped and counted (`dropped`), the robot goes on. The writer thread
-does the rest: decodes the MQTT payloads (calls paired with their replies by `MonitorState`, the
-same decoder as the monitor's), makes the ROS 2 messages, serialises them to CDR once and hands
-them to every sink (the MCAP file, the live Foxglove server). A sink that fails (the disk is
+Producers (the bus connection's network thread, the orchestrator's trace listener, the sim
+sampler) only append a tuple to a bounded queue (a deque: no lock, no wake-up, no I/O, no
+parsing); when the queue is full the item is dropped and counted (`dropped`), the robot goes on.
+The writer thread wakes every `BATCH_S` and takes what has come meanwhile, in one go (a wake-up
+per message cost more CPU than writing it: docs/performance.md, Recording). It does the rest:
+decodes the MQTT payloads (calls paired with their replies by `MonitorState`, the same decoder as
+the monitor's), makes the ROS 2 messages, serialises them to CDR once (trace events and calls
+straight from their values: `cdr.py`) and hands them to every sink (the MCAP file, the live
+Foxglove server). A sink that fails (the disk is
 full) ends itself cleanly (`McapBag`); the recorder goes on for the other sinks and the robot
 never notices.
 """
@@ -13,19 +16,20 @@ never notices.
 from __future__ import annotations
 
 import contextlib
-import queue
 import threading
 import time
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Literal, Protocol
+from typing import Any, Literal, Protocol, cast
 
 from pydantic_core import from_json
 
 from umlbot.base import rosmsg
 from umlbot.base.logs import get_logger
-from umlbot.monitor import MonitorState
+from umlbot.monitor import MonitorEvent, MonitorState
+from umlbot.record.cdr import feature_call, trace_event
 from umlbot.record.messages import (
     CALL,
     JOINTS,
@@ -49,6 +53,8 @@ log = get_logger(__name__)
 DEFAULT_MAX_QUEUE = 100_000
 #: the writer thread looks after the sinks (chunk flushes, unanswered calls) this often.
 TICK_S = 0.2
+#: the writer thread takes the queued items this often (seconds): a live view lags by at most that
+BATCH_S = 0.02
 
 ClockName = Literal["sim", "wall"]
 
@@ -72,6 +78,38 @@ class RecordStats:
     failed: str | None
 
 
+@dataclass(slots=True)
+class _Call:
+    """The fields of a call's `MonitorEvent` the recorder reads."""
+
+    time: float
+    component: str | None
+    feature: str | None
+    id: str | None
+    args: list[Any] | None
+    ok: bool | None
+    value: Any
+    error: str | None
+    latency_ms: float | None
+    type: str = "call"
+
+
+class _CallPairs(MonitorState):
+    """The monitor's pairing of requests and replies (its time-outs, its handling of malformed
+    messages), without what only the monitor shows: its per-feature latency sketches and its
+    list of recent calls, and without a pydantic `MonitorEvent` for each paired call (`_Call`
+    holds the same values): about half of the recorder's CPU for a call."""
+
+    def _record_call(self, event: MonitorEvent) -> MonitorEvent:
+        return event
+
+    def _finish(self, pending: Any, call_id: str, *, at: float, ok: bool, value: Any,
+                error: str | None, latency_ms: float | None) -> MonitorEvent:
+        call = _Call(at, pending.component, pending.feature, call_id, pending.args, ok, value, error,
+                     latency_ms)
+        return cast(MonitorEvent, call)  # read only by `Recorder._call_event`
+
+
 class Recorder:
     """Writes the robot's traffic to `sinks` from its own thread (see the module docstring).
 
@@ -89,8 +127,11 @@ class Recorder:
         self.sinks = list(sinks)
         self.now = now
         self.clock = clock
-        self._queue: queue.Queue[tuple[Any, ...]] = queue.Queue(max_queue)
-        self._calls = MonitorState()
+        self._queue: deque[tuple[Any, ...]] = deque()
+        self._max_queue = max_queue
+        self._calls = _CallPairs()
+        self._trace_topic, self._calls_topic = self.topics.trace, self.topics.calls
+        self._viewers = self._trace_viewers  # a sink shows trace events; noted again every batch
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="umlbot-recorder", daemon=True)
         self._connection: BusConnection | None = None
@@ -109,9 +150,9 @@ class Recorder:
     # -- producers: never block -----------------------------------------------------------------
 
     def _offer(self, item: tuple[Any, ...]) -> None:
-        try:
-            self._queue.put_nowait(item)
-        except queue.Full:
+        if len(self._queue) < self._max_queue:
+            self._queue.append(item)  # atomic (the GIL); the writer thread polls
+        else:
             self.dropped += 1
 
     def on_message(self, message: Message) -> None:
@@ -131,8 +172,10 @@ class Recorder:
         """Subscribe to `umlbot/<robot>/#` (its trace topic too only when `trace`: in `umlbot sim`
         and `umlbot run` the trace comes from the orchestrator itself, complete)."""
         self._with_trace = trace
-        connection = BusConnection(settings, "recorder", robot=self.robot)
-        connection.subscribe(f"umlbot/{self.robot}/#", self.on_message)
+        connection = BusConnection(settings, "recorder", robot=self.robot, read_ahead=True)
+        # on the network thread itself: `on_message` only appends to the queue (never blocks), so
+        # the dispatcher thread's hand-over (a socket write and read a message) is not needed
+        connection.subscribe_inline(f"umlbot/{self.robot}/#", self.on_message)
         self._connection = connection
         connection.start(timeout)
         if timeout is not None:
@@ -148,22 +191,23 @@ class Recorder:
     # -- the writer thread ----------------------------------------------------------------------
 
     def _run(self) -> None:
+        items, stop = self._queue, self._stop
         next_tick = time.monotonic() + TICK_S
         while True:
-            try:
-                item = self._queue.get(timeout=TICK_S)
-            except queue.Empty:
-                item = None
-            if item is not None:
+            stopping = stop.is_set()  # before taking the items: what came before the stop is written
+            self._viewers = self._trace_viewers
+            while items:
+                item = items.popleft()
                 try:
                     self._handle(item)
                 except Exception as exc:  # a recording must never take anything down
                     log.warning("recording: item skipped", kind=item[0], error=str(exc))
-            elif self._stop.is_set():
+            if stopping:
                 return
             if time.monotonic() >= next_tick:
                 next_tick = time.monotonic() + TICK_S
                 self._tick()
+            stop.wait(BATCH_S)
 
     def _tick(self) -> None:
         for event in self._calls.expire(time.time()):
@@ -215,7 +259,20 @@ class Recorder:
                 except Exception as exc:
                     log.warning("recording: sink failed", sink=type(sink).__name__, error=str(exc))
 
+    def _write(self, topic: str, msgtype: str, data: bytes, stamp_ns: int) -> None:
+        """As `_emit`, for a message already in CDR."""
+        self.messages += 1
+        for sink in self.sinks:
+            try:
+                sink.write_cdr(topic, msgtype, data, stamp_ns)
+            except Exception as exc:
+                log.warning("recording: sink failed", sink=type(sink).__name__, error=str(exc))
+
     def _trace(self, event: dict[str, Any]) -> None:
+        if not self._viewers:  # straight to CDR, without the message object (cdr.py)
+            data, stamp_ns = trace_event(event)
+            self._write(self._trace_topic, TRACE, data, stamp_ns)
+            return
         message = self.build.trace(event)
         self._emit(self.topics.trace, TRACE, message, to_ns(message.end))
         for sink in self.sinks:  # a live view also shows the trace as log lines
@@ -269,9 +326,9 @@ class Recorder:
             at = event.time - (event.latency_ms or 0.0) / 1000.0
         elif at is None:
             at = self.now()
-        message = self.build.call(at, event.component, event.feature, event.id, event.args, event.ok,
-                                  event.value, event.error, event.latency_ms)
-        self._emit(self.topics.calls, CALL, message, to_ns(at))
+        data, stamp_ns = feature_call(at, event.component, event.feature, event.id, event.args, event.ok,
+                                      event.value, event.error, event.latency_ms)
+        self._write(self._calls_topic, CALL, data, stamp_ns)
 
     # -- the end --------------------------------------------------------------------------------
 
@@ -283,7 +340,7 @@ class Recorder:
             self._stop.set()
             self._thread.join(timeout)
             if self._thread.is_alive():
-                log.warning("recording: the writer did not finish in time", pending=self._queue.qsize())
+                log.warning("recording: the writer did not finish in time", pending=len(self._queue))
             for sink in self.sinks:
                 try:
                     sink.close()
@@ -292,6 +349,11 @@ class Recorder:
             if self.dropped:
                 log.warning("recording: items dropped (the writer fell behind)", dropped=self.dropped)
         return self.stats
+
+    @property
+    def _trace_viewers(self) -> bool:
+        """A sink shows trace events as they come (`on_trace`: it needs the message object)."""
+        return any(getattr(sink, "on_trace", None) is not None for sink in self.sinks)
 
     @property
     def stats(self) -> RecordStats:
@@ -319,4 +381,4 @@ def open_file_recorder(path: str | Path, robot: str, clock: ClockName, now: Call
     return Recorder(robot, [bag, *(extra_sinks or [])], now, clock=clock)
 
 
-__all__ = ["CALL", "DEFAULT_MAX_QUEUE", "RecordStats", "Recorder", "Sink", "open_file_recorder"]
+__all__ = ["BATCH_S", "CALL", "DEFAULT_MAX_QUEUE", "RecordStats", "Recorder", "Sink", "open_file_recorder"]

@@ -114,6 +114,12 @@ class _Subscription:
     inline: bool = False  # internal fast path: run on the network thread (must never block)
 
 
+#: what one read of a `read_ahead` connection takes from the socket at most (bytes)
+READ_AHEAD_BYTES = 65536
+#: and how long its network thread pauses after each turn of paho's loop (seconds)
+READ_AHEAD_PAUSE_S = 0.01
+
+
 @dataclass
 class _Counters:
     connects: int = 0
@@ -140,6 +146,10 @@ class _PahoClient(mqtt.Client):
         self.on_acknowledged: Callable[[int, Any], None] | None = None
         self._goodbye = False  # our DISCONNECT is queued: close the socket without a reset
         self._loop_thread: int | None = None  # the thread that runs `loop()`, noted by it
+        #: read the socket in blocks of READ_AHEAD_BYTES (see `_sock_recv`); set before connecting
+        self.read_ahead = False
+        self._rbuf = b""
+        self._rpos = 0
 
     def _messages_reconnect_reset_out(self) -> None:
         """Forget what the lost connection still owed the broker instead of sending it again.
@@ -160,7 +170,39 @@ class _PahoClient(mqtt.Client):
                 info.rc = mqtt.MQTT_ERR_CONN_LOST
                 info._condition.notify_all()
 
+    def _sock_recv(self, bufsize: int) -> bytes:
+        """paho reads a packet in three reads (its first byte, its length a byte at a time, the
+        rest), each a system call after a `select`. With `read_ahead`, one read takes what the
+        socket holds (up to READ_AHEAD_BYTES) and paho's reads are served from it; `loop_read`
+        handles every whole packet in it before paho waits in `select` again."""
+        if not self.read_ahead:
+            data: bytes = super()._sock_recv(bufsize)
+            return data
+        buf, pos = self._rbuf, self._rpos
+        if pos >= len(buf):
+            buf, pos = super()._sock_recv(READ_AHEAD_BYTES), 0  # raises as paho's when nothing came
+            if not buf:  # closed by the broker
+                self._rbuf, self._rpos = b"", 0
+                return buf
+            self._rbuf = buf
+        end = pos + bufsize
+        self._rpos = end
+        return buf[pos:end]
+
+    def loop_read(self, max_packets: int = 1) -> MQTTErrorCode:
+        rc: MQTTErrorCode = super().loop_read(max_packets)
+        while (self.read_ahead and rc == MQTTErrorCode.MQTT_ERR_SUCCESS and self._sock is not None
+               and self._rpos < len(self._rbuf)):
+            rc = super().loop_read(max_packets)
+        return rc
+
+    def reconnect(self) -> MQTTErrorCode:
+        self._rbuf, self._rpos = b"", 0  # nothing of the old connection is read on the new one
+        rc: MQTTErrorCode = super().reconnect()
+        return rc
+
     def _sock_close(self) -> None:
+        self._rbuf, self._rpos = b"", 0
         sock = self._sock
         if sock is None or not self._goodbye:
             super()._sock_close()
@@ -189,6 +231,8 @@ class _PahoClient(mqtt.Client):
     def loop(self, timeout: float = 1.0) -> MQTTErrorCode:
         self._loop_thread = threading.get_ident()
         rc: MQTTErrorCode = super().loop(timeout)
+        if self.read_ahead:  # let the next messages gather in the socket: one wake-up, one read
+            time.sleep(READ_AHEAD_PAUSE_S)
         return rc
 
     def _handle_publish(self) -> MQTTErrorCode:
@@ -354,6 +398,7 @@ class BusConnection:
         client_id: str | None = None,
         reconnect_min_s: float = RECONNECT_MIN_S,
         reconnect_max_s: float = RECONNECT_MAX_S,
+        read_ahead: bool = False,
     ) -> None:
         self.settings = settings
         self.role = role
@@ -366,6 +411,9 @@ class BusConnection:
         self._auto = settings.protocol == "auto"
         self._mqtt5 = settings.protocol != "3.1.1"
         self._fall_back = False  # the broker refused MQTT 5: the supervisor reconnects with 3.1.1
+        #: read the socket in blocks rather than paho's three reads a packet (`_PahoClient`): for a
+        #: subscriber of many messages (the recorder), where a few µs of latency do not matter
+        self.read_ahead = read_ahead
         self._client = self._make_client()
         self._lock = threading.RLock()
         self._subacks = threading.Condition(self._lock)
@@ -429,6 +477,7 @@ class BusConnection:
             client.will_set(
                 self.will.topic, to_payload(self.will.payload), qos=self.will.qos, retain=self.will.retain
             )
+        client.read_ahead = self.read_ahead
         client.on_connect = self._handle_connect
         client.on_disconnect = self._handle_disconnect
         client.on_message = self._handle_message
@@ -602,6 +651,13 @@ class BusConnection:
 
     def _subscribe_inline(self, topic_filter: str, handler: Handler, qos: int = 0) -> None:
         """Internal: a handler run on the network thread itself; it must return at once."""
+        self._add_subscription(_Subscription(topic_filter, handler, qos, inline=True))
+
+    def subscribe_inline(self, topic_filter: str, handler: Handler, qos: int = 1) -> None:
+        """As `subscribe`, but `handler` runs on the network thread itself, in paho's callback: it
+        must never block nor take long (it holds up every other message and the keep-alive). For
+        a handler that only hands the message on (a non-blocking append to a queue), it saves the
+        dispatcher thread's wake-up per message."""
         self._add_subscription(_Subscription(topic_filter, handler, qos, inline=True))
 
     def _add_subscription(self, subscription: _Subscription) -> None:
