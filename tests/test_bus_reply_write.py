@@ -45,8 +45,8 @@ def test_a_reply_is_written_while_the_network_thread_is_in_a_callback(connection
         seen["own_left_queued"] = connection._client.want_write()
 
     connection.subscribe("rw/go", go, qos=0)
-    connection._subscribe_inline("rw/hold", hold, qos=0)
-    connection._subscribe_inline("rw/own", own_write, qos=0)
+    connection.subscribe_inline("rw/hold", hold, qos=0)
+    connection.subscribe_inline("rw/own", own_write, qos=0)
     connection.subscribe("rw/reply", replies.put, qos=0)
     connection.start(5.0)
     connection.publish("rw/go", b"", qos=0)

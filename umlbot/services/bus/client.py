@@ -123,7 +123,7 @@ class BusClient:
         self._pending_lock = threading.Lock()
         self._ids = itertools.count(1)
         self._id_prefix = token[:6] + "-"
-        self.connection._subscribe_inline(self.reply_topic, self._on_reply, qos=0)
+        self.connection.subscribe_inline(self.reply_topic, self._on_reply, qos=0)
         self.connection._add_on_disconnect_inline(self._fail_pending)
 
     @property

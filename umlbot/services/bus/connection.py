@@ -649,10 +649,6 @@ class BusConnection:
         if wait_s is not None and self._connected.is_set():
             self.wait_subscribed(wait_s)
 
-    def _subscribe_inline(self, topic_filter: str, handler: Handler, qos: int = 0) -> None:
-        """Internal: a handler run on the network thread itself; it must return at once."""
-        self._add_subscription(_Subscription(topic_filter, handler, qos, inline=True))
-
     def subscribe_inline(self, topic_filter: str, handler: Handler, qos: int = 1) -> None:
         """As `subscribe`, but `handler` runs on the network thread itself, in paho's callback: it
         must never block nor take long (it holds up every other message and the keep-alive). For
