@@ -4,7 +4,8 @@ On one Mosquitto (started here, `set_tcp_nodelay true`) with one mock motor serv
 (`umlbot service motor --driver mock`), three requesters do the same `LeftActuator.dutycycle(50)`
 request/reply N times, one after the other, in the same run:
 
-- `raw`: bench/codegen_raw.cpp, a bare libmosquitto client (TCP_NODELAY) sending the envelope;
+- `raw`: bench/codegen_raw.cpp, a bare libmosquitto client (TCP_NODELAY, MQTT 5 as the program)
+  sending the envelope;
 - `cpp`: the program `umlbot generate cpp` makes of a model whose lane loops over that action
   (`--no-trace`; per action: the duration of its trace event, from `--trace FILE`);
 - `python`: `umlbot run` of the same compiled model, measured the same way.

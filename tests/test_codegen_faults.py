@@ -10,8 +10,11 @@ from __future__ import annotations
 import json
 import os
 import signal
+import socket
 import subprocess
 import sys
+import threading
+import time
 from collections.abc import Callable
 from pathlib import Path
 
@@ -155,13 +158,19 @@ def test_a_killed_service_fails_the_run_safely(engine: str, mosquitto_broker: Br
 
 
 @pytest.mark.parametrize("engine", ENGINES)
+@pytest.mark.parametrize("how", ["kill", "stop"])
 def test_a_lost_broker_fails_the_run_and_stops_the_motors_when_it_is_back(
-    engine: str, mosquitto_broker: BrokerProcess, tmp_path: Path
+    engine: str, how: str, mosquitto_broker: BrokerProcess, tmp_path: Path
 ) -> None:
+    # "stop": the broker shut down cleanly (SIGTERM) instead of killed (a broker that says goodbye
+    # with an MQTT 5 DISCONNECT first: test_after_the_brokers_own_disconnect_the_program_connects_again)
     with rig(mosquitto_broker.url, TEST_MODELS["fault_loop"]) as r:
         proc = _start(engine, "fault_loop", tmp_path, "--broker", mosquitto_broker.url)
         assert wait_for(lambda: _nodes(tmp_path, engine).count("read") >= 3, 10.0)
-        mosquitto_broker.kill()
+        if how == "kill":
+            mosquitto_broker.kill()
+        else:
+            mosquitto_broker.stop()
         mosquitto_broker.start()
         code, err = _finish(proc, 30.0)
         assert code == 1
@@ -206,3 +215,157 @@ def test_the_heartbeat_keeps_the_motor_running_and_a_frozen_orchestrator_stops_i
             proc.send_signal(signal.SIGTERM)
         code, err = _finish(proc)
         assert code == 0, err
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_retained_exit_requests_and_signals_published_during_the_run_are_ignored(
+    engine: str, mosquitto_broker: BrokerProcess,
+    raw_client: Callable[..., RawClient], tmp_path: Path,
+) -> None:
+    # a retained request is stale by nature (docs/fleet.md): one published while the program runs
+    # (or passed on by a fleet bridge on every reconnect) must not look live. Over MQTT 3.1.1 the
+    # broker clears RETAIN on what it forwards to a subscriber; over MQTT 5 with Retain As
+    # Published it keeps it, so the program sees it is retained and ignores it, as `umlbot run` does.
+    raw = raw_client(mosquitto_broker)
+    raw.subscribe("umlbot/test/orchestrator/status")
+    with rig(mosquitto_broker.url, TEST_MODELS["signals"]) as r:
+        proc = _start(engine, "signals", tmp_path, "--broker", mosquitto_broker.url)
+        try:
+            while json.loads(raw.get(timeout=10.0, topic="umlbot/test/orchestrator/status").payload)[
+                    "state"] != "running":
+                pass
+            left = r.driver("LeftActuator")
+            raw.publish("umlbot/test/signal/go", "77", retain=True)
+            assert not wait_for(lambda: left.commands_named("set_duty_cycle") != [], 1.0), \
+                "a retained signal was accepted"
+            raw.publish("umlbot/test/orchestrator/exit", json.dumps({"reason": "stale"}), retain=True)
+            assert not wait_for(lambda: proc.poll() is not None, 1.5), "a retained exit request ended the run"
+            raw.publish("umlbot/test/signal/go", "33")  # a live signal: the model goes on and ends
+            code, err = _finish(proc)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+                proc.communicate()
+        assert code == 0, err
+        assert left.commands_named("set_duty_cycle") == [(33,)]
+        assert "stale" not in err
+    states = []
+    while True:
+        try:
+            states.append(json.loads(raw.get(timeout=1.0, topic="umlbot/test/orchestrator/status").payload))
+        except TimeoutError:
+            break
+    assert states[-1]["state"] == "stopped"
+    assert states[-1]["reason"] is None or "stale" not in states[-1]["reason"]
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_on_a_broker_that_speaks_only_3_1_1_auto_falls_back_and_5_is_refused(
+    engine: str, amqtt_broker: BrokerProcess, tmp_path: Path,
+) -> None:
+    # `?protocol=` as `umlbot run` reads it: auto (the default) tries MQTT 5 and falls back to
+    # 3.1.1 on a broker that refuses 5 (the embedded amqtt broker); 5 insists, and cannot start
+    with rig(amqtt_broker.url, TEST_MODELS["fork"]) as r:
+        code, err = _finish(_start(engine, "fork", tmp_path, "--broker", amqtt_broker.url))
+        assert code == 0, err
+        assert r.driver("LeftActuator").commands_named("set_duty_cycle") == [(10,)]
+        code, err = _finish(_start(engine, "fork", tmp_path, "--broker", amqtt_broker.url + "?protocol=5",
+                                   "--startup-timeout", "1"), 60.0)
+        assert code == 1, err
+        assert _error_line(err).startswith(
+            f"error: cannot connect to the MQTT broker at {amqtt_broker.url}"), err
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_a_bad_protocol_in_the_broker_url_is_one_error_line_and_exit_1(engine: str, tmp_path: Path) -> None:
+    code, err = _finish(_start(engine, "fork", tmp_path, "--broker", "mqtt://127.0.0.1:1?protocol=4.2"))
+    assert code == 1, err
+    assert _error_line(err) == ("error: bad broker URL mqtt://127.0.0.1:1?protocol=4.2: "
+                                "protocol must be auto, 3.1.1 or 5")
+
+
+class _KickingBroker:
+    """A minimal MQTT 5 broker that accepts every CONNECT, then ends the connection after `after_s`
+    with a DISCONNECT of its own ("Server shutting down", as a broker restarting says goodbye)."""
+
+    def __init__(self, after_s: float = 0.3) -> None:
+        self.after_s = after_s
+        self.connects: list[tuple[int, str]] = []  # (protocol level, client id) of each CONNECT
+        self._server = socket.create_server(("127.0.0.1", 0))
+        self._server.settimeout(0.1)
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._serve, daemon=True)
+        self._thread.start()
+
+    @property
+    def url(self) -> str:
+        return f"mqtt://127.0.0.1:{self._server.getsockname()[1]}"
+
+    def close(self) -> None:
+        self._stop.set()
+        self._thread.join(5.0)
+        self._server.close()
+
+    def _serve(self) -> None:
+        while not self._stop.is_set():
+            try:
+                conn, _ = self._server.accept()
+            except TimeoutError:
+                continue
+            threading.Thread(target=self._session, args=(conn,), daemon=True).start()
+
+    @staticmethod
+    def _read_packet(conn: socket.socket) -> tuple[int, bytes]:
+        head = conn.recv(1)
+        if not head:
+            raise ConnectionError("closed")
+        length, shift = 0, 0
+        while True:
+            byte = conn.recv(1)[0]
+            length |= (byte & 0x7F) << shift
+            shift += 7
+            if not byte & 0x80:
+                break
+        body = b""
+        while len(body) < length:
+            chunk = conn.recv(length - len(body))
+            if not chunk:
+                raise ConnectionError("closed")
+            body += chunk
+        return head[0] >> 4, body
+
+    def _session(self, conn: socket.socket) -> None:
+        with conn:
+            try:
+                conn.settimeout(2.0)
+                kind, body = self._read_packet(conn)
+                assert kind == 1  # CONNECT
+                level = body[6]
+                at = 10
+                if level == 5:  # skip the CONNECT properties (a one-byte length here)
+                    at += 1 + body[at]
+                size = int.from_bytes(body[at:at + 2], "big")
+                self.connects.append((level, body[at + 2:at + 2 + size].decode()))
+                conn.sendall(bytes([0x20, 3, 0, 0, 0]) if level == 5 else bytes([0x20, 2, 0, 0]))
+                time.sleep(self.after_s)
+                conn.sendall(bytes([0xE0, 2, 0x8B, 0]) if level == 5 else b"")
+            except (OSError, ConnectionError, AssertionError, IndexError):
+                pass
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_after_the_brokers_own_disconnect_the_program_connects_again(engine: str, tmp_path: Path) -> None:
+    # MQTT 5 lets a broker end a connection with a DISCONNECT of its own (a restart, a session
+    # taken over); libmosquitto's network thread then ends instead of reconnecting: the program
+    # must start it again, as it reconnects after a lost connection
+    broker = _KickingBroker()
+    try:
+        proc = _start(engine, "fork", tmp_path, "--broker", broker.url, "--startup-timeout", "3")
+        code, err = _finish(proc, 30.0)
+    finally:
+        broker.close()
+    assert code == 1, err
+    assert _error_line(err).startswith("error: "), err
+    ids = [client for level, client in broker.connects if client.startswith("umlbot-orchestrator-test-")]
+    assert all(level == 5 for level, _ in broker.connects), broker.connects
+    assert len(ids) >= 3 and len(set(ids)) == 1, broker.connects  # the same client, again and again

@@ -5,6 +5,7 @@
 
 #include <malloc.h>
 #include <mosquitto.h>
+#include <mqtt_protocol.h>  // MQTT 5 reason codes and subscription options (libmosquitto-dev)
 #include <signal.h>
 #include <unistd.h>
 
@@ -69,6 +70,8 @@ struct Settings {
   std::string ca, cert, key;
   bool insecure = false;
   int keepalive = 30;
+  // "auto" (MQTT 5, 3.1.1 where the broker refuses 5), "5" or "3.1.1": `?protocol=`, as in Python
+  std::string protocol = "auto";
 };
 
 int hexval(char c) {
@@ -108,6 +111,22 @@ struct UsageError : std::runtime_error {
 struct StartError : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
+
+std::string lower(std::string text) {
+  for (auto& c : text) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return text;
+}
+
+// Python's BrokerSettings._protocol: the same spellings, the same error
+std::string parse_protocol(const std::string& value, const std::string& bad) {
+  std::string text = lower(value);
+  const auto blank = text.find_first_not_of(" \t\r\n");
+  text = blank == std::string::npos ? "" : text.substr(blank, text.find_last_not_of(" \t\r\n") - blank + 1);
+  if (text == "auto" || text.empty()) return "auto";
+  if (text == "3" || text == "3.1.1" || text == "311" || text == "4" || text == "v311") return "3.1.1";
+  if (text == "5" || text == "5.0" || text == "v5") return "5";
+  throw StartError(bad + "protocol must be auto, 3.1.1 or 5");
+}
 
 Settings parse_url(const std::string& raw) {
   Settings s;
@@ -170,7 +189,7 @@ Settings parse_url(const std::string& raw) {
     else if (k == "key") s.key = v;
     else if (k == "insecure") s.insecure = v == "1" || v == "true" || v == "yes";
     else if (k == "keepalive") s.keepalive = std::max(5, std::atoi(v.c_str()));
-    else if (k == "protocol") continue;  // 3.1.1 always here: every broker umlbot supports speaks it
+    else if (k == "protocol") s.protocol = parse_protocol(v, bad);
     else throw StartError(bad + "unknown parameter(s) " + k + " (known: ca, cert, insecure, keepalive, key, protocol)");
   }
   return s;
@@ -230,6 +249,11 @@ struct State {
   std::atomic<bool> connected{false};
   bool ever_connected = false;
   std::string connect_error;
+  // MQTT 5 unless asked for 3.1.1 or the broker refused 5 ("auto"): set before the network thread runs
+  bool mqtt5 = true;
+  bool fall_back = false;  // "auto" and the broker refused MQTT 5: connect again with 3.1.1
+  // libmosquitto's network thread ended instead of reconnecting: the heartbeat thread starts it again
+  bool loop_dead = false;
   std::map<std::string, std::shared_ptr<Slot>> pending;
   std::map<std::string, std::string> availability;
   std::set<std::string> components;
@@ -427,18 +451,36 @@ void request_exit_locked(const std::string& reason) {
 
 // --- MQTT callbacks (libmosquitto's network thread: short work under the lock only) --------------
 
+// Over MQTT 5 every subscription asks for Retain As Published, as the Python side's do: a retained
+// exit request or signal published while the program runs (or passed on by a fleet bridge on every
+// reconnect) then still looks retained here and is ignored as stale (docs/fleet.md). Over 3.1.1 the
+// broker clears RETAIN on what it forwards to a subscriber.
+void subscribe(const std::string& topic, int qos) {
+  if (g.mqtt5)
+    mosquitto_subscribe_v5(g.mosq, nullptr, topic.c_str(), qos, MQTT_SUB_OPT_RETAIN_AS_PUBLISHED, nullptr);
+  else
+    mosquitto_subscribe(g.mosq, nullptr, topic.c_str(), qos);
+}
+
 void subscribe_all() {
   const std::string topics[] = {g.base + "/+/status", g.base + "/signal/+", g.base + "/orchestrator/exit",
                                 g.reply_topic};
-  for (const auto& t : topics) mosquitto_subscribe(g.mosq, nullptr, t.c_str(), t == g.reply_topic ? 0 : 1);
-  if (g.opts.sim_clock) mosquitto_subscribe(g.mosq, nullptr, (g.base + "/sim/clock/sim").c_str(), 0);
+  for (const auto& t : topics) subscribe(t, t == g.reply_topic ? 0 : 1);
+  if (g.opts.sim_clock) subscribe(g.base + "/sim/clock/sim", 0);
 }
 
 void on_connect(mosquitto*, void*, int rc) {
   Runtime& rt = runtime();
   std::lock_guard<std::mutex> lock(rt.mu);
+  if (rc == MQTT_RC_UNSUPPORTED_PROTOCOL_VERSION && g.mqtt5 && g.settings.protocol == "auto") {
+    g.fall_back = true;  // a 3.1.1-only broker (amqtt): start-up connects again with 3.1.1
+    rt.cv.notify_all();
+    return;
+  }
   if (rc != 0) {
-    g.connect_error = std::string("the broker refused the connection: ") + mosquitto_connack_string(rc);
+    // MQTT 5 reason codes (128 and up) have their own texts ("Bad user name or password")
+    g.connect_error = std::string("the broker refused the connection: ") +
+                      (rc >= 128 ? mosquitto_reason_string(rc) : mosquitto_connack_string(rc));
     rt.cv.notify_all();
     return;
   }
@@ -449,9 +491,25 @@ void on_connect(mosquitto*, void*, int rc) {
   rt.cv.notify_all();
 }
 
+// True when libmosquitto's network thread ends after this disconnect instead of reconnecting: the
+// broker's own DISCONNECT (MQTT 5 only: reason codes 128 and up, e.g. "Server shutting down" on a
+// broker restart) and the errors mosquitto_loop_forever gives up on (an MQTT 5 CONNACK refusal).
+bool network_thread_ends(int rc) {
+  switch (rc) {
+    case MOSQ_ERR_NOMEM: case MOSQ_ERR_PROTOCOL: case MOSQ_ERR_INVAL: case MOSQ_ERR_NOT_FOUND:
+    case MOSQ_ERR_TLS: case MOSQ_ERR_PAYLOAD_SIZE: case MOSQ_ERR_NOT_SUPPORTED: case MOSQ_ERR_AUTH:
+    case MOSQ_ERR_ACL_DENIED: case MOSQ_ERR_UNKNOWN: case MOSQ_ERR_EAI: case MOSQ_ERR_PROXY:
+      return true;
+    default:
+      return rc >= 128;
+  }
+}
+
 void on_disconnect(mosquitto*, void*, int rc) {
   Runtime& rt = runtime();
   std::lock_guard<std::mutex> lock(rt.mu);
+  log_line(10, "mqtt_disconnected", "rc=" + std::to_string(rc));
+  if (!g.closing && network_thread_ends(rc)) g.loop_dead = true;
   if (!g.connected) return;
   if (rc == 0 || g.closing) {  // our own goodbye at the end: not a fault
     g.connected = false;
@@ -1168,6 +1226,22 @@ void signal_thread() {
   }
 }
 
+// libmosquitto's network thread ended (see network_thread_ends): join it, connect again, start it
+// again, as its own reconnect does after a lost connection. Lock held on entry and on return.
+void revive_network_locked(std::unique_lock<std::mutex>& lock) {
+  g.loop_dead = false;
+  lock.unlock();
+  mosquitto_loop_stop(g.mosq, false);
+  log_line(20, "mqtt_reconnecting", "reason=the broker ended the connection");
+  int rc = mosquitto_reconnect_async(g.mosq);
+  if (rc == MOSQ_ERR_SUCCESS) rc = mosquitto_loop_start(g.mosq);
+  lock.lock();
+  if (rc != MOSQ_ERR_SUCCESS) {
+    g.loop_dead = true;  // the broker is not back yet: the next heartbeat tries again
+    runtime().cv.wait_until(lock, after(1.0), [] { return g.heartbeat_stop; });
+  }
+}
+
 void heartbeat_thread() {
   Runtime& rt = runtime();
   std::unique_lock<std::mutex> lock(rt.mu);
@@ -1181,7 +1255,8 @@ void heartbeat_thread() {
       publish_raw((g.base + "/orchestrator/heartbeat").c_str(),
                         static_cast<int>(payload.size()), payload.data(), 0, false);
     }
-    rt.cv.wait_until(lock, after(g.model->heartbeat_s), [] { return g.heartbeat_stop; });
+    if (g.loop_dead && !g.closing) revive_network_locked(lock);
+    rt.cv.wait_until(lock, after(g.model->heartbeat_s), [] { return g.heartbeat_stop || g.loop_dead; });
   }
 }
 
@@ -1398,7 +1473,8 @@ int run_main(int argc, char** argv, const ModelInfo& model) {
   const std::string client_id = "umlbot-orchestrator-" + g.opts.robot + "-" + host + "-" +
                                 std::to_string(getpid()) + "-" + random_hex(16);
   g.mosq = mosquitto_new(client_id.substr(0, 200).c_str(), true, nullptr);
-  mosquitto_int_option(g.mosq, MOSQ_OPT_PROTOCOL_VERSION, MQTT_PROTOCOL_V311);
+  g.mqtt5 = g.settings.protocol != "3.1.1";
+  mosquitto_int_option(g.mosq, MOSQ_OPT_PROTOCOL_VERSION, g.mqtt5 ? MQTT_PROTOCOL_V5 : MQTT_PROTOCOL_V311);
   mosquitto_int_option(g.mosq, MOSQ_OPT_TCP_NODELAY, 1);
   if (!g.settings.user.empty())
     mosquitto_username_pw_set(g.mosq, g.settings.user.c_str(), g.settings.password.empty() ? nullptr : g.settings.password.c_str());
@@ -1449,8 +1525,26 @@ int run_main(int argc, char** argv, const ModelInfo& model) {
   if (rc == MOSQ_ERR_SUCCESS) {
     std::unique_lock<std::mutex> lock(rt.mu);
     g.connecting = true;
-    up = rt.cv.wait_until(lock, connect_deadline,
-                          [] { return g.connected.load() || !g.connect_error.empty() || g.exit_requested_flag; });
+    rt.cv.wait_until(lock, connect_deadline, [] {
+      return g.connected.load() || !g.connect_error.empty() || g.exit_requested_flag || g.fall_back;
+    });
+    if (g.fall_back && !g.exit_requested_flag) {
+      // the broker refused MQTT 5 ("auto"): the same connection again, speaking 3.1.1 (the network
+      // thread ended on the refusal); logged at debug level, as the Python side does
+      lock.unlock();
+      mosquitto_loop_stop(g.mosq, false);
+      log_line(10, "mqtt_protocol_fallback", "broker=" + g.settings.url_shown + " protocol=3.1.1");
+      g.mqtt5 = false;
+      g.fall_back = false;
+      g.loop_dead = false;
+      mosquitto_int_option(g.mosq, MOSQ_OPT_PROTOCOL_VERSION, MQTT_PROTOCOL_V311);
+      rc = mosquitto_connect_async(g.mosq, g.settings.host.c_str(), g.settings.port, g.settings.keepalive);
+      if (rc == MOSQ_ERR_SUCCESS) rc = mosquitto_loop_start(g.mosq);
+      lock.lock();
+      if (rc != MOSQ_ERR_SUCCESS) g.connect_error = std::string("cannot connect again with MQTT 3.1.1: ") + mosquitto_strerror(rc);
+      rt.cv.wait_until(lock, connect_deadline,
+                       [] { return g.connected.load() || !g.connect_error.empty() || g.exit_requested_flag; });
+    }
     up = g.connected;
     g.connecting = false;
     if (!up) why = g.connect_error.empty() ? "no answer within " + fmt_g(kConnectTimeoutS) + " s" : g.connect_error;
