@@ -8,7 +8,9 @@ Both parts run a real broker (Mosquitto, or the embedded amqtt with --broker amq
   `umlbot run`; for each trace event the page applies, it records the time from the node's end
   (the orchestrator's clock, the event's own `time`) to the animation frame that highlighted it.
   Beside it, the part before the studio (`trace_p50_ms`, `trace_p99_ms`: a node's end to its
-  trace message at a subscriber on the same broker) and the trace messages per second.
+  trace message at a subscriber on the same broker), the part before the page's frame
+  (`socket_p50_ms`, `socket_p99_ms`: a node's end to the studio's message that carried it, as the
+  page's main thread takes it) and the trace messages per second.
   Targets: p50 <= 50 ms, p99 <= 200 ms.
 - **load**: a generated model of `--nodes` activity nodes in one activity diagram (20 swimlanes of
   100 nodes), shown in the page, while a publisher sends `--rate` trace events per second on the
@@ -209,10 +211,11 @@ def measure_latency(browser: Any, broker_url: str, seconds: float, workdir: Path
         stack.callback(watch.close)
         with child(umlbot("run", str(compiled), "--robot", "car"), env, workdir / "run.log"):
             page.wait_for_function("window.__studio.latencies.length > 0", timeout=60_000)
-            page.evaluate("window.__studio.latencies.length = 0")
+            page.evaluate("window.__studio.latencies.length = 0; window.__studio.arrivals.length = 0")
             began = watch.restart()
             time.sleep(seconds)
             latencies: list[float] = page.evaluate("window.__studio.latencies.slice()")
+            arrivals: list[float] = page.evaluate("window.__studio.arrivals.slice()")
             applied: int = page.evaluate("window.__studio.applied")
             trace = list(watch.delays_ms)
             messages_per_s = watch.messages / (time.monotonic() - began)
@@ -224,6 +227,9 @@ def measure_latency(browser: Any, broker_url: str, seconds: float, workdir: Path
             # the share of it before the studio: node end -> trace message at a subscriber
             "trace_p50_ms": round(statistics.median(trace), 1) if trace else None,
             "trace_p99_ms": round(percentile(trace, 99), 1) if trace else None,
+            # the share before the page's frame: node end -> the studio's message taken by the page
+            "socket_p50_ms": round(statistics.median(arrivals), 1) if arrivals else None,
+            "socket_p99_ms": round(percentile(arrivals, 99), 1) if arrivals else None,
             "trace_messages_per_s": round(messages_per_s, 1)}
 
 

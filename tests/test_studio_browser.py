@@ -11,6 +11,7 @@ import math
 import random
 import re
 import socket
+import statistics
 import subprocess
 from collections.abc import Iterator
 from pathlib import Path
@@ -97,6 +98,13 @@ def test_a_live_run_is_highlighted_with_counts_timings_calls_and_availability(
         expect(enabled.first).to_be_visible()
         args_seen = set(enabled.locator("td.args").all_text_contents())
         assert args_seen and args_seen <= {"[true]", "[false]"}, args_seen
+        # each trace event's arrival at the page is timed too (bench/studio.py's socket figures):
+        # from the node's end, never before it, and before the frame that drew it
+        arrivals, drawn = page.evaluate(
+            "[window.__studio.arrivals.slice(), window.__studio.latencies.slice()]")
+        assert arrivals and drawn
+        assert all(-2 < ms < 60_000 for ms in arrivals), arrivals[:20]
+        assert statistics.median(arrivals) <= statistics.median(drawn), (arrivals[:20], drawn[:20])
         page.evaluate("window.__studio.reveal('RaspberryPI', 'forward')")  # the loop, not the set-up
         page.wait_for_timeout(1500)  # a few loops more, then the picture of docs/studio.md
         shot(page, "studio-live.png")

@@ -4,7 +4,7 @@ The properties panel's id field after a rename, its undo and another selection; 
 node was added; the toolbar's broker status during and after a Run; a laptop window (1280 x 720);
 a pin wired twice and a name the compiler refuses, said at their fields with `umlbot check`'s own
 lines; an empty folder (the component library, the starter's labelled name field); the recovery
-notice's buttons; the end of a run in plain words. Screenshots under out/.
+notice's buttons; the end of a run in plain words; a called component's brief flash. Screenshots under out/.
 """
 
 from __future__ import annotations
@@ -412,3 +412,48 @@ def test_the_palette_and_a_nodes_fields_are_the_servers_node_kinds(browser: Brow
         expect(page.locator('#props input[name="next"]')).to_have_count(0)  # a flow: edited by connecting
         page.close()
     assert errors == [], errors
+
+
+def test_a_called_component_flashes_briefly_without_an_animation_running_in_every_frame(
+        browser: Browser, tmp_path: Path) -> None:
+    """A component the robot calls is lit (class `flash`) for a moment and then not, each time; its
+    box never carries a running animation (a fading fill would repaint the diagram in every frame
+    while the robot keeps calling, and the page would take the studio's messages late)."""
+    folder = tmp_path / "car"
+    shutil.copytree(CAR_MODEL, folder)
+    errors: list[str] = []
+    with studio(["studio", str(folder), "--port", "0"], tmp_path) as proc:
+        page = open_page(browser, proc.url, errors)
+        show(page, "components")
+        page.evaluate("""() => {
+          window.__flashes = {lit: [], animated: 0};
+          const since = new Map();
+          new MutationObserver((records) => {
+            for (const r of records) {
+              const box = r.target;
+              if (box.classList.contains('flash')) {
+                if (!since.has(box)) since.set(box, performance.now());
+              } else if (since.has(box)) {
+                window.__flashes.lit.push(performance.now() - since.get(box));
+                since.delete(box);
+              }
+            }
+          }).observe(document.querySelector('svg[data-diagram="components"]'),
+                     {subtree: true, attributes: true, attributeFilter: ['class']});
+          const look = () => {
+            const boxes = document.querySelectorAll('svg[data-diagram="components"] g.component rect.box');
+            for (const box of boxes) window.__flashes.animated += box.getAnimations().length;
+            requestAnimationFrame(look);
+          };
+          requestAnimationFrame(look);
+        }""")
+        page.locator("#track").select_option("corridor")
+        page.locator("#run-speed").select_option("1")
+        page.locator("#run").click()
+        page.wait_for_function("window.__flashes.lit.length >= 5")
+        flashes = page.evaluate("window.__flashes")
+        assert flashes["animated"] == 0, flashes
+        # lit for FLASH_MS (200 ms) and then not: never left on (the observer's callbacks and the
+        # timers of a busy machine run late, so only the bounds are sure)
+        assert all(0 < ms <= 3000 for ms in flashes["lit"]), flashes
+    assert errors == []

@@ -2,7 +2,8 @@
 // what came ("frame.apply": live events, the replay's clock), draws the view state's changes within
 // a time budget ("frame.render" after the drawing: the panels), then what follows a drawing
 // ("frame.drawn": edit timings, follow, sim, latencies); it asks for the next frame while events
-// flow or a feature is busy ("frame.flowing", "frame.busy").
+// flow or a feature is busy ("frame.flowing", "frame.busy"). When frames run late and the drawing
+// is what costs (at least COSTLY_DRAW_MS), every other frame skips its drawing.
 
 import type { Renderer } from "../draw/render";
 import type { Bus } from "./events";
@@ -11,17 +12,22 @@ import type { Store } from "./store";
 
 const RENDER_BUDGET_MS = 8; // node updates, per frame
 const LATE_FRAME_MS = 24;
+/** A drawing that took at least this long is what makes frames late: a late frame skips the next. */
+export const COSTLY_DRAW_MS = 4;
 
 export class Frames {
   private rafId = 0;
   private lastTs = 0;
   private skippedDraw = false;
+  /** ms the last drawing took (its nodes and panels). */
+  private lastDrawMs = 0;
 
   constructor(
     private bus: Bus,
     private store: Store,
     private hooks: StudioHooks,
     private renderer: Renderer,
+    private now: () => number = () => performance.now(),
   ) {}
 
   /** Ask for a frame (one at a time). */
@@ -47,13 +53,18 @@ export class Frames {
 
     this.bus.emit("frame.apply", ts);
 
-    // When frames run late (a busy machine), draw every other frame only: events are still
-    // applied, the drawing catches up on the next frame.
-    if (frameMs > LATE_FRAME_MS && !this.skippedDraw && !this.store.live.allDirty) {
+    // When frames run late because the drawing is costly (many nodes changing), draw every other
+    // frame only: events are still applied, the drawing catches up on the next frame. A cheap
+    // drawing (a few nodes) is not what makes them late (a busy machine is): skipping it would only
+    // show the nodes a frame later.
+    const costly = this.lastDrawMs >= COSTLY_DRAW_MS;
+    if (frameMs > LATE_FRAME_MS && costly && !this.skippedDraw && !this.store.live.allDirty) {
       this.skippedDraw = true;
     } else {
       this.skippedDraw = false;
+      const t0 = this.now();
       this.render(RENDER_BUDGET_MS);
+      this.lastDrawMs = this.now() - t0;
       this.bus.emit("frame.drawn");
     }
 

@@ -7,6 +7,9 @@ import type { Op } from "../model/types";
 export interface StudioHooks {
   /** per trace event drawn live: ms from the node's end to the frame that drew it (last 10 000) */
   latencies: number[];
+  /** per trace event taken live: ms from the node's end to the studio's message that carried it, as
+   * the page takes it (the part of `latencies` before the page's frame; last 10 000) */
+  arrivals: number[];
   /** ms between frames while events flow (last 10 000) */
   frames: number[];
   /** the first diagram is drawn (or there is none to draw) */
@@ -65,6 +68,7 @@ declare global {
 export function createHooks(): StudioHooks {
   const hooks: StudioHooks = {
     latencies: [],
+    arrivals: [],
     frames: [],
     ready: false,
     applied: 0,

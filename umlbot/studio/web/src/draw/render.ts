@@ -11,6 +11,9 @@ import { COMP_STATE_LINES, SMALL_PX, shortGuard, textWidth } from "./layout";
 import { REGION_KIND, regionMembers } from "./regions";
 
 const SVGNS = "http://www.w3.org/2000/svg";
+/** A called component's box is lit this long (ms), at most once every FLASH_EVERY_MS. */
+export const FLASH_MS = 200;
+export const FLASH_EVERY_MS = 300;
 
 export function svgEl<K extends keyof SVGElementTagNameMap>(
   tag: K,
@@ -557,13 +560,18 @@ export class Renderer {
         if (ce) this.renderComponent(ce, state.components.get(name));
       }
     }
-    // A component that was just called flashes (at most every 300 ms).
+    // A component that was just called flashes (at most every FLASH_EVERY_MS): its box is lit for
+    // FLASH_MS, one repaint on and one off. Not an animation: a fading fill repaints the diagram
+    // in every frame while the robot keeps calling, and the page's main thread, busy painting,
+    // then takes the studio's messages (the live highlight) tens of ms late.
     const now = performance.now();
     for (const name of state.calledComponents) {
       const ce = this.compEls.get(name);
-      if (!ce || now - ce.flashedAt < 300 || ce.g.getAttribute("data-state") === "offline") continue;
+      if (!ce || now - ce.flashedAt < FLASH_EVERY_MS || ce.g.getAttribute("data-state") === "offline") continue;
       ce.flashedAt = now;
-      ce.box.animate([{ fill: "#fff3b0" }, { fill: "#ffffff" }], { duration: 600, easing: "ease-out" });
+      const box = ce.box;
+      box.classList.add("flash");
+      setTimeout(() => box.classList.remove("flash"), FLASH_MS);
     }
     const t0 = performance.now();
     let n = 0;

@@ -1,7 +1,8 @@
 // Live: the monitor events the studio streams are queued as they come and applied to the view
 // state in the frame loop, within a time budget per frame (a burst is spread over frames, the page
 // stays responsive). A new session, run or robot starts the counts again. `window.__studio`:
-// `applied`, `latencies` (a node's end to the frame that drew it), `durationCounters`.
+// `applied`, `latencies` (a node's end to the frame that drew it), `arrivals` (a node's end to the
+// message that carried it), `durationCounters`.
 
 import { pushCapped } from "../../core/hooks";
 import type { Studio } from "../../core/studio";
@@ -64,7 +65,12 @@ export function install({ bus, store, hooks, frames }: Studio): void {
   });
   bus.on("server.events", (msg) => {
     if (store.mode === "live") {
-      for (const e of msg.events) if (e.type !== "broker") queue.push(e);
+      const now = Date.now();
+      for (const e of msg.events) {
+        if (e.type === "broker") continue;
+        queue.push(e);
+        if (e.type === "trace") pushCapped(hooks.arrivals, now - e.time * 1000);
+      }
       lastArrival = performance.now();
     }
     store.live.dirtyOrch = true;
