@@ -65,8 +65,9 @@ def test_a_live_run_is_highlighted_with_counts_timings_calls_and_availability(
         page = open_page(browser, proc.url)
         show(page, "components")
         for name in ("LeftActuator", "RightActuator", "Sensor", "DistanceRead", "RaspberryPI"):
+            # the services' start (a few seconds each under load), not expect's default 5 s
             expect(page.locator(f'g.component[data-component="{name}"]')).to_have_attribute(
-                "data-state", "online")
+                "data-state", "online", timeout=WAIT_MS)
             # the deployment says `auto`; the services run --driver mock, and their status says so
             expect(page.locator(f'g.component[data-component="{name}"]')).to_have_attribute(
                 "data-driver", "mock")
@@ -74,7 +75,8 @@ def test_a_live_run_is_highlighted_with_counts_timings_calls_and_availability(
             "l298n · motor · auto → mock")
         made.append(Proc("run", umlbot_argv("run", str(compiled), "--robot", ROBOT), tmp_path,
                          mosquitto_broker.url))
-        expect(page.locator("#orchestrator-status")).to_have_attribute("data-state", "running")
+        expect(page.locator("#orchestrator-status")).to_have_attribute("data-state", "running",
+                                                                       timeout=WAIT_MS)
 
         show(page, "activity-main")
         # the main lane's current node is highlighted, and nodes it ran show counts and timings
