@@ -20,6 +20,7 @@ checks the shape and resolves implementation ids (seed aliases included).
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, NamedTuple
 
@@ -65,6 +66,25 @@ class Deployment(BaseModel):
         """`file:line:col` of a value of the deployment (`"components", name, "settings", key`),
         as deep as it is written; just the file for the plain format."""
         return where(self._source, self._root, (*self._prefix, *path))
+
+    def handover(self) -> dict[str, Any]:
+        """The deployment as plain JSON with where it was read from (`from_handover`): what
+        `umlbot service` hands the serving process, which names the same `file:line:col`."""
+        from umlbot.base.yamlsrc import positions
+
+        return {"source": self._source, "prefix": list(self._prefix), "positions": positions(self._root),
+                "deployment": self.model_dump(mode="python")}
+
+    @classmethod
+    def from_handover(cls, data: Mapping[str, Any]) -> Deployment:
+        """The deployment `handover` gave, validated again."""
+        from umlbot.base.yamlsrc import from_positions
+
+        deployment = cls.model_validate(data["deployment"])
+        source = str(data["source"])
+        deployment._source, deployment._prefix = source, tuple(str(p) for p in data["prefix"])
+        deployment._root = from_positions(data["positions"], source)
+        return deployment
 
     def driver_for(self, component: str) -> str:
         """The driver name for a component: its own override or the deployment's default."""
