@@ -14,6 +14,7 @@ import os
 import subprocess
 import sys
 import time
+import zoneinfo
 from pathlib import Path
 
 import pytest
@@ -50,7 +51,10 @@ if os.environ.get("UMLBOT_SERVICE_HANDOVER") and os.environ.get("IMPORTCHECK_OUT
     def dump():
         while not os.path.exists(trigger):
             time.sleep(0.02)
-        state = {"pid": os.getpid(), "modules": sorted(sys.modules), "models": built_models()}
+        zoneinfo = sys.modules.get("zoneinfo")
+        state = {"pid": os.getpid(), "modules": sorted(sys.modules), "models": built_models(),
+                 "tzpath": None if zoneinfo is None else list(zoneinfo.TZPATH),
+                 "environ": sorted(k for k in os.environ if k.startswith(("UMLBOT_SERVICE", "PYTHONTZ")))}
         with open(out + ".part", "w") as file:
             file.write(json.dumps(state))
         os.rename(out + ".part", out)
@@ -68,7 +72,9 @@ if os.environ.get("UMLBOT_SERVICE_HANDOVER") and os.environ.get("IMPORTCHECK_OUT
 #: stays in the process that read the arguments and the deployment, which the serving one
 #: replaced; concurrent.futures with the bus client (a service only serves), random (the
 #: reconnect jitter reads os.urandom) and the idna codec (an ASCII broker host is resolved as
-#: bytes) neither.
+#: bytes) neither, nor the YAML positions (rebuilt from the handover only for an error's file:line),
+#: nor sysconfig's build data `_sysconfigdata_*` (zoneinfo, which pydantic imports, gets the
+#: command's search path in PYTHONTZPATH instead of reading it there).
 ABSENT = (
     "asyncio", "rich", "greenlet", "urllib.request", "http.client", "matplotlib", "numpy", "amqtt",
     "aiohttp", "umlbot.compiler.api", "umlbot.compiler.checker", "umlbot.compiler.source",
@@ -77,7 +83,7 @@ ABSENT = (
     "pigpio", "lgpio", "secrets", "hmac", "hashlib", "_hashlib",
     "ssl", "_ssl", "importlib.metadata", "email", "zipfile", "csv", "tempfile", "shutil",
     "click", "yaml", "_yaml", "umlbot.cli", "umlbot.commands", "umlbot.services.bus.client",
-    "concurrent.futures", "random", "encodings.idna", "stringprep", "unicodedata",
+    "concurrent.futures", "random", "encodings.idna", "stringprep", "unicodedata", "umlbot.base.yamlsrc",
 )
 #: What the service keeps on purpose: request validation, logging, the MQTT client, and the
 #: serving entry point that took over from the command.
@@ -129,8 +135,9 @@ def test_a_serving_service_imports_only_what_it_uses(
     argv = [sys.executable, "-c", "from umlbot.cli import main; main()", "service", kind, "--deploy",
             str(DEPLOYMENT), "--driver", "mock", "--robot", ROBOT, "--broker", mosquitto_broker.url]
     path = os.pathsep.join(filter(None, [str(tmp_path / "hook"), os.environ.get("PYTHONPATH")]))
+    inherited = {key: value for key, value in os.environ.items() if key != "PYTHONTZPATH"}
     service = subprocess.Popen(argv, stderr=subprocess.PIPE, text=True,
-                               env={**os.environ, "UMLBOT_LOG_LEVEL": "INFO", "PYTHONPATH": path,
+                               env={**inherited, "UMLBOT_LOG_LEVEL": "INFO", "PYTHONPATH": path,
                                     "IMPORTCHECK_TRIGGER": str(trigger), "IMPORTCHECK_OUT": str(out)})
     try:
         with BusClient(BrokerSettings.from_url(mosquitto_broker.url), ROBOT, role="test") as bus:
@@ -150,6 +157,8 @@ def test_a_serving_service_imports_only_what_it_uses(
         with open(f"/proc/{service.pid}/cmdline", "rb") as file:
             cmdline = file.read().split(b"\0")
         assert cmdline[1:4] == [b"-m", b"umlbot.services.serve", b"service"], cmdline
+        # the time zone search path is the one sysconfig gives, and the handover's variables are gone
+        assert state["tzpath"] == list(zoneinfo.TZPATH) and state["environ"] == []
     finally:
         service.terminate()
         _, stderr = service.communicate(timeout=15)
@@ -157,6 +166,7 @@ def test_a_serving_service_imports_only_what_it_uses(
     assert "service_started" in stderr and "Traceback" not in stderr
     loaded = sorted(name for name in modules if name.split(".")[0] in ABSENT or name in ABSENT
                     or any(name.startswith(prefix + ".") for prefix in ABSENT))
+    loaded += sorted(name for name in modules if name.startswith("_sysconfigdata"))
     assert loaded == [], f"a {kind} service imported what it does not use: {loaded}"
     assert set(PRESENT) <= modules
     kinds = {"motor", "sonar", "servo", "gpio"} if kind == "all" else {kind}

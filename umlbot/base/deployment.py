@@ -61,10 +61,15 @@ class Deployment(BaseModel):
     _source: str = PrivateAttr(default="deployment")
     _root: Any = PrivateAttr(default=None)  # the positioned YAML tree, or None (plain format)
     _prefix: tuple[str, ...] = PrivateAttr(default=())  # under a top-level `deployment:` key
+    _positions: Any = PrivateAttr(default=None)  # the tree's positions as JSON (`from_handover`)
 
     def where(self, *path: int | str) -> str:
         """`file:line:col` of a value of the deployment (`"components", name, "settings", key`),
         as deep as it is written; just the file for the plain format."""
+        if self._root is None and self._positions is not None:  # rebuilt when an error needs it
+            from umlbot.base.yamlsrc import from_positions
+
+            self._root = from_positions(self._positions, self._source)
         return where(self._source, self._root, (*self._prefix, *path))
 
     def handover(self) -> dict[str, Any]:
@@ -72,18 +77,17 @@ class Deployment(BaseModel):
         `umlbot service` hands the serving process, which names the same `file:line:col`."""
         from umlbot.base.yamlsrc import positions
 
-        return {"source": self._source, "prefix": list(self._prefix), "positions": positions(self._root),
+        tree = self._positions if self._root is None else positions(self._root)
+        return {"source": self._source, "prefix": list(self._prefix), "positions": tree,
                 "deployment": self.model_dump(mode="python")}
 
     @classmethod
     def from_handover(cls, data: Mapping[str, Any]) -> Deployment:
-        """The deployment `handover` gave, validated again."""
-        from umlbot.base.yamlsrc import from_positions
-
+        """The deployment `handover` gave, validated again (its positioned tree is rebuilt only
+        when `where` needs it: a serving process that names no error never imports yamlsrc)."""
         deployment = cls.model_validate(data["deployment"])
-        source = str(data["source"])
-        deployment._source, deployment._prefix = source, tuple(str(p) for p in data["prefix"])
-        deployment._root = from_positions(data["positions"], source)
+        deployment._source, deployment._prefix = str(data["source"]), tuple(str(p) for p in data["prefix"])
+        deployment._positions = data["positions"]
         return deployment
 
     def driver_for(self, component: str) -> str:

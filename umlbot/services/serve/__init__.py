@@ -32,6 +32,8 @@ from umlbot.services.bus import BrokerSettings
 
 #: the environment variable that carries the handover (removed once read)
 HANDOVER_ENV = "UMLBOT_SERVICE_HANDOVER"
+#: set when the command gave the serving process its time zone search path (`PYTHONTZPATH`)
+TZPATH_ENV = "UMLBOT_SERVICE_TZPATH"
 #: a longer handover is not passed (Linux refuses one environment string over 128 KiB): the
 #: command then serves in its own interpreter, as before
 MAX_HANDOVER = 100_000
@@ -76,8 +78,14 @@ def replace_process(handover: Handover, shown_args: list[str]) -> None:
         return
     sys.stdout.flush()
     sys.stderr.flush()
+    env = {**os.environ, HANDOVER_ENV: text}
+    zoneinfo = sys.modules.get("zoneinfo")  # imported by pydantic
+    if "PYTHONTZPATH" not in env and zoneinfo is not None:
+        # the search path this interpreter found in sysconfig's build data: given to the serving
+        # one, its zoneinfo (imported by pydantic, used by no service) does not load sysconfig
+        env["PYTHONTZPATH"], env[TZPATH_ENV] = os.pathsep.join(zoneinfo.TZPATH), "1"
     argv = [sys.executable, "-m", __name__, *shown_args]
-    os.execve(sys.executable, argv, {**os.environ, HANDOVER_ENV: text})  # noqa: S606  # this Python, no shell
+    os.execve(sys.executable, argv, env)  # noqa: S606  # this Python, no shell
 
 
 def serve(handover: Handover) -> None:
@@ -109,6 +117,8 @@ def run(group: Any) -> None:
 
 def main() -> None:
     """`python -m umlbot.services.serve`, run by `umlbot service` only."""
+    if os.environ.pop(TZPATH_ENV, None):  # zoneinfo has read it (pydantic imported it above)
+        os.environ.pop("PYTHONTZPATH", None)
     text = os.environ.pop(HANDOVER_ENV, None)
     if text is None:
         sys.stderr.write(f"error: {__name__} is started by `umlbot service`, not by hand\n")
