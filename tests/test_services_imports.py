@@ -156,7 +156,9 @@ def test_a_serving_service_imports_only_what_it_uses(
         assert state["pid"] == service.pid
         with open(f"/proc/{service.pid}/cmdline", "rb") as file:
             cmdline = file.read().split(b"\0")
-        assert cmdline[1:4] == [b"-m", b"umlbot.services.serve", b"service"], cmdline
+        # … and still shows `umlbot service KIND …` in its command line (ps, pgrep -f)
+        shown = [b"-m", b"umlbot.services.serve", b"umlbot", b"service", kind.encode()]
+        assert cmdline[1:6] == shown, cmdline
         # the time zone search path is the one sysconfig gives, and the handover's variables are gone
         assert state["tzpath"] == list(zoneinfo.TZPATH) and state["environ"] == []
     finally:

@@ -102,5 +102,5 @@ def command(
         log_json=root.params.get("log_json"),
     )
     # the same process goes on without the command line's code (click, PyYAML): serve.py
-    serve.replace_process(handover, sys.argv[1:])
+    serve.replace_process(handover, ["umlbot", *sys.argv[1:]])
     serve.run(group)  # only when the handover is too long for the environment

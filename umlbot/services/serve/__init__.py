@@ -9,7 +9,8 @@ umlbot.services.serve`, handing over what it read and checked as JSON in the env
 (`Handover`: the deployment, `BrokerSettings`) and serves. It never imports click, PyYAML nor
 the command-line modules, which a serving process would otherwise hold for nothing (about 2 MB
 resident of the 30: docs/performance.md, "Memory"). The arguments after the module name are
-the command's own, for `ps` and `systemctl status` only: nothing reads them here.
+`umlbot` and the command's own, for `ps`, `pgrep -f "umlbot service motor"` and `systemctl
+status` only: nothing reads them here.
 
 Errors end the process as `umlbot` ends it: one `error: …` line and exit 1, 130 on a signal
 during the start.
