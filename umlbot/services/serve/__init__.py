@@ -12,8 +12,8 @@ resident of the 30: docs/performance.md, "Memory"). The arguments after the modu
 `umlbot` and the command's own, for `ps`, `pgrep -f "umlbot service motor"` and `systemctl
 status` only: nothing reads them here.
 
-Errors end the process as `umlbot` ends it: one `error: …` line and exit 1, 130 on a signal
-during the start.
+Errors end the process as `umlbot` ends it: one `error: …` line and exit 1; `aborted` and exit
+130 on a signal during the start.
 """
 
 from __future__ import annotations
@@ -135,5 +135,6 @@ def main() -> None:
         where = f"{exc.filename}: " if exc.filename else ""
         sys.stderr.write(f"error: {where}{exc.strerror or exc}\n")
         sys.exit(1)
-    except KeyboardInterrupt:
+    except KeyboardInterrupt:  # a signal while it starts: what `umlbot` (click's Abort) says
+        sys.stderr.write("aborted\n")
         sys.exit(130)
