@@ -60,7 +60,7 @@ KINDS = ("motor", "sonar", "servo", "gpio")
 #: components of the reference car by service kind
 COMPONENTS = {"motor": {"LeftActuator", "RightActuator"}, "sonar": {"DistanceRead"},
               "servo": {"Sensor"}, "gpio": {"RaspberryPI"}}
-TARGET_RSS_MB = 32.5
+TARGET_RSS_MB = 28.0  # issue 25; 32.5 before the serving process left the CLI behind
 #: one round of calls per component: (feature, good arguments, out-of-range arguments); the car's
 #: RaspberryPI has no pins in its deployment, so every call to it is refused
 WORKLOAD: dict[str, list[tuple[str, tuple[Any, ...] | None, tuple[Any, ...]]]] = {

@@ -31,6 +31,14 @@ def test_memory_bench_measures_one_kind_and_all() -> None:
         assert bare["rss_mb"] < row["rss_mb"] <= row["hwm_mb"]
         assert 0 < row["pss_mb"] <= row["rss_mb"]
         assert bare["rss_mb"] < row["used_rss_mb"] <= row["hwm_mb"]  # measured again after the calls
+    # what a serving process holds above a plain paho client of the same run, after its calls:
+    # motor 6.0 MB and all five components 6.9 since it no longer holds the command line's code
+    # (click, PyYAML, the CLI), 9.3 and 10.4 before (docs/performance.md, "Memory"); the margin
+    # is for other library versions: the bench's own figures are what the target is about
+    paho = by_process["python + paho client (raw baseline)"]
+    for row in (motor, every):
+        assert row["used_rss_mb"] - paho["rss_mb"] <= 7.5, (row, paho)
+    assert summary["target_rss_mb"] == 28.0
     # five components of four kinds in one process cost far less than two processes would
     assert every["rss_mb"] < 1.5 * motor["rss_mb"]
     assert summary["kinds_rss_mb"] == motor["rss_mb"] and summary["all_rss_mb"] == every["rss_mb"]

@@ -14,6 +14,7 @@ import os
 import subprocess
 import sys
 import time
+import zoneinfo
 from pathlib import Path
 
 import pytest
@@ -26,32 +27,38 @@ ROOT = Path(__file__).resolve().parent.parent
 DEPLOYMENT = ROOT / "models" / "robot_car" / "deployment.yaml"
 ROBOT = "importcheck"
 
-#: Runs `umlbot service …` (argv after the two paths) and writes to the second path, once the test
-#: creates the first, what a service that has been serving holds: sorted(sys.modules) and the
-#: pydantic models whose validator is built (module.qualname), as JSON.
-WRAPPER = """
-import json, sys, threading, time
-from pathlib import Path
-trigger, out = Path(sys.argv[1]), Path(sys.argv[2])
-def built_models():
-    from pydantic import BaseModel
-    seen, todo = set(), list(BaseModel.__subclasses__())
-    while todo:
-        model = todo.pop()
-        if model not in seen:
-            seen.add(model)
-            todo.extend(model.__subclasses__())
-    return sorted(f"{m.__module__}.{m.__qualname__}" for m in seen if m.__dict__.get("__pydantic_complete__"))
-def dump():
-    while not trigger.exists():
-        time.sleep(0.02)
-    state = {"modules": sorted(sys.modules), "models": built_models()}
-    Path(str(out) + ".part").write_text(json.dumps(state))
-    Path(str(out) + ".part").rename(out)
-threading.Thread(target=dump, daemon=True).start()
-sys.argv = ["umlbot", *sys.argv[3:]]
-from umlbot.cli import main
-main()
+#: `umlbot service` reads its command line and deployment, then replaces itself (same PID) with
+#: the serving process `python -m umlbot.services.serve` (docs/services.md). This
+#: `sitecustomize`, put on PYTHONPATH, runs in both; in the serving one (the handover is in its
+#: environment) it writes to $IMPORTCHECK_OUT, once $IMPORTCHECK_TRIGGER exists, what a service
+#: that has been serving holds: its PID, sorted(sys.modules) and the pydantic models whose
+#: validator is built (module.qualname), as JSON.
+SITECUSTOMIZE = """
+import os
+if os.environ.get("UMLBOT_SERVICE_HANDOVER") and os.environ.get("IMPORTCHECK_OUT"):
+    import json, sys, threading, time
+    trigger, out = os.environ["IMPORTCHECK_TRIGGER"], os.environ["IMPORTCHECK_OUT"]
+    def built_models():
+        from pydantic import BaseModel
+        seen, todo = set(), list(BaseModel.__subclasses__())
+        while todo:
+            model = todo.pop()
+            if model not in seen:
+                seen.add(model)
+                todo.extend(model.__subclasses__())
+        built = [m for m in seen if m.__dict__.get("__pydantic_complete__")]
+        return sorted(f"{m.__module__}.{m.__qualname__}" for m in built)
+    def dump():
+        while not os.path.exists(trigger):
+            time.sleep(0.02)
+        zoneinfo = sys.modules.get("zoneinfo")
+        state = {"pid": os.getpid(), "modules": sorted(sys.modules), "models": built_models(),
+                 "tzpath": None if zoneinfo is None else list(zoneinfo.TZPATH),
+                 "environ": sorted(k for k in os.environ if k.startswith(("UMLBOT_SERVICE", "PYTHONTZ")))}
+        with open(out + ".part", "w") as file:
+            file.write(json.dumps(state))
+        os.rename(out + ".part", out)
+    threading.Thread(target=dump, daemon=True).start()
 """
 
 #: Imported by other commands only (compiler, simulator, studio, broker, monitor, orchestrator),
@@ -61,7 +68,13 @@ main()
 #: and secrets by pydantic for SecretStr; importlib.metadata with email, zipfile and csv by the
 #: plugin catalog and pydantic's plugin lookup, which umlbot.base.entrypoints reads without them;
 #: tempfile with shutil by umlbot.base.files, only for writing), or by the real GPIO drivers (the
-#: mock driver is running).
+#: mock driver is running). The command line's code — click, PyYAML, umlbot.cli and the commands —
+#: stays in the process that read the arguments and the deployment, which the serving one
+#: replaced; concurrent.futures with the bus client (a service only serves), random (the
+#: reconnect jitter reads os.urandom) and the idna codec (an ASCII broker host is resolved as
+#: bytes) neither, nor the YAML positions (rebuilt from the handover only for an error's file:line),
+#: nor sysconfig's build data `_sysconfigdata_*` (zoneinfo, which pydantic imports, gets the
+#: command's search path in PYTHONTZPATH instead of reading it there).
 ABSENT = (
     "asyncio", "rich", "greenlet", "urllib.request", "http.client", "matplotlib", "numpy", "amqtt",
     "aiohttp", "umlbot.compiler.api", "umlbot.compiler.checker", "umlbot.compiler.source",
@@ -69,9 +82,13 @@ ABSENT = (
     "umlbot.studio", "umlbot.services.orchestrator", "umlbot.monitor", "umlbot.services.bus.broker",
     "pigpio", "lgpio", "secrets", "hmac", "hashlib", "_hashlib",
     "ssl", "_ssl", "importlib.metadata", "email", "zipfile", "csv", "tempfile", "shutil",
+    "click", "yaml", "_yaml", "umlbot.cli", "umlbot.commands", "umlbot.services.bus.client",
+    "concurrent.futures", "random", "encodings.idna", "stringprep", "unicodedata", "umlbot.base.yamlsrc",
 )
-#: What the service keeps on purpose: request validation, logging, the MQTT client, the CLI.
-PRESENT = ("pydantic", "umlbot.services.bus.envelopes", "structlog", "paho.mqtt.client", "click")
+#: What the service keeps on purpose: request validation, logging, the MQTT client, and the
+#: serving entry point that took over from the command.
+PRESENT = ("pydantic", "umlbot.services.bus.envelopes", "structlog", "paho.mqtt.client",
+           "umlbot.services.serve")
 
 #: The pydantic models a service builds (each costs resident memory: docs/performance.md,
 #: "Memory"): the payloads of the bus, the broker settings, the deployment, and the settings of its
@@ -83,7 +100,7 @@ VALIDATED = ("umlbot.services.bus.envelopes.CallRequest", "umlbot.services.bus.e
              "umlbot.base.deployment.Deployment")
 #: modules whose models a service of any kind may build; a kind's own modules come on top
 MODEL_MODULES = ("umlbot.base.deployment", "umlbot.services.bus.envelopes", "umlbot.services.bus.settings",
-                 "umlbot.services.mock_support")
+                 "umlbot.services.mock_support", "umlbot.services.serve")
 
 
 #: The reference car's components by service kind.
@@ -113,10 +130,15 @@ def test_a_serving_service_imports_only_what_it_uses(
     kind: str, mosquitto_broker: BrokerProcess, tmp_path: Path
 ) -> None:
     trigger, out = tmp_path / "dump-now", tmp_path / "modules.txt"
-    argv = [sys.executable, "-c", WRAPPER, str(trigger), str(out), "service", kind, "--deploy",
+    (tmp_path / "hook").mkdir()
+    (tmp_path / "hook" / "sitecustomize.py").write_text(SITECUSTOMIZE)
+    argv = [sys.executable, "-c", "from umlbot.cli import main; main()", "service", kind, "--deploy",
             str(DEPLOYMENT), "--driver", "mock", "--robot", ROBOT, "--broker", mosquitto_broker.url]
+    path = os.pathsep.join(filter(None, [str(tmp_path / "hook"), os.environ.get("PYTHONPATH")]))
+    inherited = {key: value for key, value in os.environ.items() if key != "PYTHONTZPATH"}
     service = subprocess.Popen(argv, stderr=subprocess.PIPE, text=True,
-                               env={**os.environ, "UMLBOT_LOG_LEVEL": "INFO"})
+                               env={**inherited, "UMLBOT_LOG_LEVEL": "INFO", "PYTHONPATH": path,
+                                    "IMPORTCHECK_TRIGGER": str(trigger), "IMPORTCHECK_OUT": str(out)})
     try:
         with BusClient(BrokerSettings.from_url(mosquitto_broker.url), ROBOT, role="test") as bus:
             _wait_online(bus, set().union(*COMPONENTS.values()) if kind == "all" else COMPONENTS[kind], 20.0)
@@ -130,6 +152,15 @@ def test_a_serving_service_imports_only_what_it_uses(
             time.sleep(0.02)
         state = json.loads(out.read_text())
         modules, models = set(state["modules"]), state["models"]
+        # the serving process is the one started: `umlbot service` became it (systemd's main PID)
+        assert state["pid"] == service.pid
+        with open(f"/proc/{service.pid}/cmdline", "rb") as file:
+            cmdline = file.read().split(b"\0")
+        # … and still shows `umlbot service KIND …` in its command line (ps, pgrep -f)
+        shown = [b"-m", b"umlbot.services.serve", b"umlbot", b"service", kind.encode()]
+        assert cmdline[1:6] == shown, cmdline
+        # the time zone search path is the one sysconfig gives, and the handover's variables are gone
+        assert state["tzpath"] == list(zoneinfo.TZPATH) and state["environ"] == []
     finally:
         service.terminate()
         _, stderr = service.communicate(timeout=15)
@@ -137,6 +168,7 @@ def test_a_serving_service_imports_only_what_it_uses(
     assert "service_started" in stderr and "Traceback" not in stderr
     loaded = sorted(name for name in modules if name.split(".")[0] in ABSENT or name in ABSENT
                     or any(name.startswith(prefix + ".") for prefix in ABSENT))
+    loaded += sorted(name for name in modules if name.startswith("_sysconfigdata"))
     assert loaded == [], f"a {kind} service imported what it does not use: {loaded}"
     assert set(PRESENT) <= modules
     kinds = {"motor", "sonar", "servo", "gpio"} if kind == "all" else {kind}

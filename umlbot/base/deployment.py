@@ -20,6 +20,7 @@ checks the shape and resolves implementation ids (seed aliases included).
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, NamedTuple
 
@@ -60,11 +61,34 @@ class Deployment(BaseModel):
     _source: str = PrivateAttr(default="deployment")
     _root: Any = PrivateAttr(default=None)  # the positioned YAML tree, or None (plain format)
     _prefix: tuple[str, ...] = PrivateAttr(default=())  # under a top-level `deployment:` key
+    _positions: Any = PrivateAttr(default=None)  # the tree's positions as JSON (`from_handover`)
 
     def where(self, *path: int | str) -> str:
         """`file:line:col` of a value of the deployment (`"components", name, "settings", key`),
         as deep as it is written; just the file for the plain format."""
+        if self._root is None and self._positions is not None:  # rebuilt when an error needs it
+            from umlbot.base.yamlsrc import from_positions
+
+            self._root = from_positions(self._positions, self._source)
         return where(self._source, self._root, (*self._prefix, *path))
+
+    def handover(self) -> dict[str, Any]:
+        """The deployment as plain JSON with where it was read from (`from_handover`): what
+        `umlbot service` hands the serving process, which names the same `file:line:col`."""
+        from umlbot.base.yamlsrc import positions
+
+        tree = self._positions if self._root is None else positions(self._root)
+        return {"source": self._source, "prefix": list(self._prefix), "positions": tree,
+                "deployment": self.model_dump(mode="python")}
+
+    @classmethod
+    def from_handover(cls, data: Mapping[str, Any]) -> Deployment:
+        """The deployment `handover` gave, validated again (its positioned tree is rebuilt only
+        when `where` needs it: a serving process that names no error never imports yamlsrc)."""
+        deployment = cls.model_validate(data["deployment"])
+        deployment._source, deployment._prefix = str(data["source"]), tuple(str(p) for p in data["prefix"])
+        deployment._positions = data["positions"]
+        return deployment
 
     def driver_for(self, component: str) -> str:
         """The driver name for a component: its own override or the deployment's default."""

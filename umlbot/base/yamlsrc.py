@@ -286,3 +286,35 @@ def locate(root: YNode, path: tuple[int | str, ...]) -> Location:
         else:
             break
     return loc
+
+
+def positions(node: YNode | None) -> Any:
+    """The positions of a tree as plain JSON (`[line, col]` a scalar; a sequence `{"at", "items"}`,
+    a mapping `{"at", "keys", "items"}`): what `locate` needs, for a process that gets a file's
+    content already read (`umlbot.services.serve`) and names its `file:line:col` in errors."""
+    if node is None:
+        return None
+    at = [node.loc.line, node.loc.column]
+    if isinstance(node, YSeq):
+        return {"at": at, "items": [positions(item) for item in node.items]}
+    if isinstance(node, YMap):
+        return {"at": at, "keys": {key: [k.loc.line, k.loc.column] for key, k in node.keys.items()},
+                "items": {key: positions(item) for key, item in node.items.items()}}
+    return at
+
+
+def from_positions(data: Any, file: str) -> YNode | None:
+    """The tree `positions` described, with empty scalars: `locate` finds the same places in it."""
+    if data is None:
+        return None
+    if isinstance(data, list):
+        return YScalar("", "", Location(file, int(data[0]), int(data[1])))
+    at = Location(file, int(data["at"][0]), int(data["at"][1]))
+    if "keys" not in data:
+        return YSeq([node for item in data["items"] if (node := from_positions(item, file)) is not None], at)
+    keys = {key: YScalar(key, "", Location(file, int(line), int(col)))
+            for key, (line, col) in data["keys"].items()}
+    items = {key: node for key, item in data["items"].items()
+             if (node := from_positions(item, file)) is not None}
+    return YMap(items, keys, at, list(items))
+

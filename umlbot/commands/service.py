@@ -13,11 +13,11 @@ low) and exits, without a broker; the systemd unit runs it after every end of th
 from __future__ import annotations
 
 import os
+import sys
 from pathlib import Path
 
 import click
 
-from umlbot.base.stopsignals import StopSignals
 from umlbot.commands.options import seconds
 
 
@@ -92,10 +92,15 @@ def command(
     if safe_stop:
         group.safe_stop_hardware()  # a DriverError is the usual one line and exit 1
         return
-    with StopSignals() as signals:
-        try:
-            group.start()  # a signal meanwhile interrupts the start (exit 130)
-            signals.running()
-            group.wait(signals.stop)
-        finally:
-            group.stop()  # motors stop here on every path: signal, error, KeyboardInterrupt
+    from umlbot.services import serve
+
+    root = click.get_current_context().find_root()
+    handover = serve.Handover(
+        kinds=kinds, deployment=deployment.handover(), broker=settings,
+        robot=resolve_robot(robot, deployment.robot), driver=driver, components=list(components) or None,
+        connect_timeout_s=connect_timeout, log_level=root.params.get("log_level"),
+        log_json=root.params.get("log_json"),
+    )
+    # the same process goes on without the command line's code (click, PyYAML): serve.py
+    serve.replace_process(handover, ["umlbot", *sys.argv[1:]])
+    serve.run(group)  # only when the handover is too long for the environment

@@ -9,7 +9,6 @@ from typing import TYPE_CHECKING
 
 from umlbot.base.lazy import lazy_attributes
 from umlbot.base.topics import Topics
-from umlbot.services.bus.client import BusClient, reply_value
 from umlbot.services.bus.connection import BusConnection, Handler, Message, Will
 from umlbot.services.bus.envelopes import (
     ENVELOPE_KEYS,
@@ -46,6 +45,7 @@ from umlbot.services.bus.settings import (
 
 if TYPE_CHECKING:
     from umlbot.services.bus.broker import BrokerLimits, EmbeddedBroker, check_user_name, password_line
+    from umlbot.services.bus.client import BusClient, reply_value
 
 __all__ = [
     "DEFAULT_BROKER_URL",
@@ -87,8 +87,11 @@ __all__ = [
     "to_payload",
 ]
 
-#: heavy parts, imported on first use (umlbot.base.lazy.lazy_attributes)
+#: heavy parts, imported on first use (umlbot.base.lazy.lazy_attributes); the client (with
+#: concurrent.futures) is not used by a hardware service, which only serves
 __getattr__ = lazy_attributes(__name__, {
+    "BusClient": "umlbot.services.bus.client",
+    "reply_value": "umlbot.services.bus.client",
     "BrokerLimits": "umlbot.services.bus.broker",
     "EmbeddedBroker": "umlbot.services.bus.broker",
     "check_user_name": "umlbot.services.bus.broker",

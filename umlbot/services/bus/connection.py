@@ -11,7 +11,7 @@ from __future__ import annotations
 import collections
 import contextlib
 import math
-import random
+import os
 import select
 import socket
 import threading
@@ -150,6 +150,25 @@ class _PahoClient(mqtt.Client):
         self.read_ahead = False
         self._rbuf = b""
         self._rpos = 0
+
+    def _create_socket_connection(self) -> Any:
+        """paho's TCP connection, with an ASCII host name handed to the resolver as bytes.
+
+        Python's `getaddrinfo` encodes every `str` host with the `idna` codec, which imports
+        `encodings.idna` with `stringprep` and `unicodedata` (about 0.4 MB resident for the
+        service's life: docs/performance.md, "Memory"); for an ASCII name whose labels are 1 to
+        63 characters long that encoding is the name's ASCII bytes. Any other name (non-ASCII,
+        or one the codec refuses) and a proxy go through paho as before."""
+        host = self._host
+        labels = host.split(".")
+        if labels and not labels[-1]:
+            labels.pop()  # a trailing dot ends the name
+        if (not host.isascii() or not labels or not all(0 < len(label) < 64 for label in labels)
+                or self._get_proxy()):
+            return super()._create_socket_connection()
+        address: Any = (host.encode("ascii"), self._port)  # getaddrinfo takes bytes too
+        return socket.create_connection(address, timeout=self._connect_timeout,
+                                        source_address=(self._bind_address, self._bind_port))
 
     def _messages_reconnect_reset_out(self) -> None:
         """Forget what the lost connection still owed the broker instead of sending it again.
@@ -935,7 +954,7 @@ class BusConnection:
             if self._closing.is_set():
                 break
             # full jitter in [delay/2, delay]: reconnecting services do not all hit the broker at once
-            pause = random.uniform(delay / 2, delay)
+            pause = delay / 2 + delay / 2 * int.from_bytes(os.urandom(4), "big") / 2**32  # (random: 0.2 MB)
             self.next_attempt_at = time.time() + pause
             self._closing.wait(pause)
             delay = min(delay * 2, self.reconnect_max_s)

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import statistics
 import threading
 import time
 from typing import Any, Protocol, runtime_checkable
@@ -17,6 +16,14 @@ log = get_logger("umlbot.sonar")
 US_PER_CM = 58.0
 #: a module's "nothing in range" pulse (~5 m): no echo
 NO_ECHO_PULSE_US = 30_000
+
+
+def median(values: list[float]) -> float:
+    """`statistics.median` of a non-empty list of numbers, as a float, without importing
+    statistics and the `random` it imports, which a service's process would hold for nothing."""
+    ordered = sorted(values)
+    middle = len(ordered) // 2
+    return float(ordered[middle] if len(ordered) % 2 else (ordered[middle - 1] + ordered[middle]) / 2)
 
 
 @runtime_checkable
@@ -155,7 +162,7 @@ class HCSR04Pings:
         echoes = [r for r in readings if r is not None]
         if not echoes:
             return None
-        return float(statistics.median(echoes))
+        return median(echoes)
 
     def close(self) -> None:
         with self._lock:
