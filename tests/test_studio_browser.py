@@ -40,8 +40,8 @@ def open_page(browser: Browser, url: str) -> Page:
     page.on("pageerror", lambda exc: errors.append(str(exc)))
     # a studio without --fleet has no fleet view: the page does not ask for it (no 404 logged)
     page.on("request", lambda request: errors.append(request.url) if "/api/fleet" in request.url else None)
-    page.on("console",
-            lambda msg: errors.append(msg.text) if msg.type == "error" and "404" in msg.text else None)
+    page.on("response", lambda response: errors.append(f"{response.status} {response.url}")
+            if response.status == 404 else None)
     page.goto(url)
     page.wait_for_function("window.__studio && window.__studio.ready === true", timeout=WAIT_MS)
     page.set_default_timeout(WAIT_MS)

@@ -97,8 +97,9 @@ export async function storedLayout(key: string, graph: ElkNode): Promise<ElkNode
   try {
     const res = await fetch(`/api/layout/${key}`, { cache: "no-store" });
     if (!res.ok) return null;
-    const data = (await res.json()) as { layout?: Kept };
-    if (!data.layout || !fits(data.layout, graph)) {
+    const data = (await res.json()) as { layout?: Kept | null };
+    if (!data.layout) return null; // none kept under this key
+    if (!fits(data.layout, graph)) {
       layoutStats.unfit += 1;
       return null;
     }
