@@ -219,13 +219,8 @@ class Recorder:
                 log.warning("recording: sink failed", sink=type(sink).__name__, error=str(exc))
 
     def _emit(self, topic: str, msgtype: str, message: Any, stamp_ns: int) -> None:
-        data = self.store.serialize_cdr(message, msgtype)
-        self.messages += 1
-        for sink in self.sinks:
-            try:
-                sink.write_cdr(topic, msgtype, data, stamp_ns)
-            except Exception as exc:
-                log.warning("recording: sink failed", sink=type(sink).__name__, error=str(exc))
+        """A ROS 2 message object: serialised to CDR once, then as `_write`."""
+        self._write(topic, msgtype, self.store.serialize_cdr(message, msgtype), stamp_ns)
 
     def _handle(self, item: tuple[Any, ...]) -> None:
         kind = item[0]
@@ -259,7 +254,7 @@ class Recorder:
                 except Exception as exc:
                     log.warning("recording: sink failed", sink=type(sink).__name__, error=str(exc))
 
-    def _write(self, topic: str, msgtype: str, data: bytes, stamp_ns: int) -> None:
+    def _write(self, topic: str, msgtype: str, data: bytes | memoryview, stamp_ns: int) -> None:
         """As `_emit`, for a message already in CDR."""
         self.messages += 1
         for sink in self.sinks:
