@@ -561,9 +561,9 @@ export class Renderer {
       }
     }
     // A component that was just called flashes (at most every FLASH_EVERY_MS): its box is lit for
-    // FLASH_MS, one repaint on and one off. Not an animation: a fading fill repaints the diagram
-    // in every frame while the robot keeps calling, and the page's main thread, busy painting,
-    // then takes the studio's messages (the live highlight) tens of ms late.
+    // FLASH_MS, one repaint on and one off. Not an animation: a fading fill repainted the diagram
+    // in every frame while the robot kept calling (the page's main thread busy painting; it did
+    // not explain the live highlight's ~30 ms before a message is taken: docs/performance.md).
     const now = performance.now();
     for (const name of state.calledComponents) {
       const ce = this.compEls.get(name);
